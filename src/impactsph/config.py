@@ -1,0 +1,285 @@
+"""Case files: the schema, validated by pydantic, and the loading of TOML files.
+
+A case is a TOML file (see ``examples/`` and ``docs/case-files.md``); every field has SI
+units.  Loading validates the whole case before any computation: an unknown key, a value of the
+wrong type or out of range raises :class:`CaseError` whose message is one line naming the field,
+the value and what is allowed.
+"""
+
+from __future__ import annotations
+
+import copy
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNegativeFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+
+
+class CaseError(ValueError):
+    """A case that cannot be run; the message is one line for the user."""
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", validate_default=True)
+
+
+class MieGruneisen(_Model):
+    """Mie-Gruneisen EOS parameters (eqs 7-12)."""
+
+    sound_speed: PositiveFloat = Field(description="bulk sound speed C of eq 10 (m/s)")
+    slope: NonNegativeFloat = Field(description="Hugoniot slope S of eqs 11-12")
+    gamma: NonNegativeFloat = Field(description="Gruneisen parameter Gamma of eq 7")
+
+
+class Material(_Model):
+    """A material: elastic constants, equation of state, strength."""
+
+    model: Literal["bar", "elastic", "elastic_plastic"] = Field(
+        description="'bar': 1D uniaxial stress with modulus E; 'elastic'; 'elastic_plastic' "
+        "(von Mises perfect plasticity)"
+    )
+    density: PositiveFloat = Field(description="reference density rho0 (kg/m^3)")
+    youngs_modulus: PositiveFloat = Field(description="Young's modulus E (Pa)")
+    poisson_ratio: float = Field(0.3, gt=-1.0, lt=0.5, description="Poisson's ratio, in (-1, 0.5)")
+    shear_modulus: PositiveFloat | None = Field(
+        None, description="shear modulus mu (Pa); default E / (2 (1 + nu))"
+    )
+    eos: Literal["linear", "mie_gruneisen"] = Field(
+        "linear", description="'linear' (eq 6, K = E / (3 (1 - 2 nu))) or 'mie_gruneisen'"
+    )
+    mie_gruneisen: MieGruneisen | None = None
+    yield_stress: PositiveFloat | None = Field(None, description="von Mises yield stress (Pa)")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Material:
+        if self.eos == "mie_gruneisen" and self.mie_gruneisen is None:
+            raise ValueError("eos = 'mie_gruneisen' needs a [mie_gruneisen] table")
+        if self.model == "elastic_plastic" and self.yield_stress is None:
+            raise ValueError("model = 'elastic_plastic' needs yield_stress (Pa)")
+        if self.model == "bar" and self.eos != "linear":
+            raise ValueError("model = 'bar' takes eos = 'linear' only")
+        return self
+
+
+class Block(_Model):
+    """A lattice of particles filling an axis-aligned box (a line in 1D, a rectangle in 2D,
+    a box in 3D); particles sit at cell centres, ``round(size / spacing)`` along each axis."""
+
+    type: Literal["block"] = "block"
+    origin: list[FiniteFloat] = Field(description="lower corner (m)")
+    size: list[PositiveFloat] = Field(description="edge lengths (m)")
+    spacing: PositiveFloat = Field(description="particle spacing dx (m)")
+
+
+class Body(_Model):
+    """A body: a material, a geometry and an initial velocity."""
+
+    name: str = Field(min_length=1)
+    material: str = Field(description="key of a [materials.NAME] table")
+    geometry: Block
+    velocity: list[FiniteFloat] = Field(description="initial velocity (m/s)")
+
+
+class Kernel(_Model):
+    """Smoothing kernel and length."""
+
+    type: Literal["cubic_spline"] = "cubic_spline"
+    h_over_dx: PositiveFloat = Field(1.2, description="smoothing length over particle spacing")
+
+
+class Viscosity(_Model):
+    """Artificial viscosity (eqs 29-30)."""
+
+    scheme: Literal["av"] = Field("av", description="'av': Monaghan artificial viscosity")
+    alpha1: NonNegativeFloat = Field(1.0, description="linear coefficient alpha1 of eq 29")
+    alpha2: NonNegativeFloat = Field(1.0, description="quadratic coefficient alpha2 of eq 29")
+    epsilon: PositiveFloat = Field(0.01, description="epsilon of eq 30")
+
+
+class Time(_Model):
+    """Time stepping (Table 1, eq 26)."""
+
+    end: PositiveFloat = Field(description="end time (s)")
+    courant: float = Field(0.3, gt=0.0, le=1.0, description="Courant number cs of eq 26")
+    wave_speed: Literal["bar", "p_wave"] = Field(
+        "bar", description="wave speed of eq 26 and of the viscosity: 'bar' sqrt(E/rho) as in "
+        "the paper, or 'p_wave' sqrt((K + 4/3 mu)/rho)"
+    )
+    max_steps: int | None = Field(None, gt=0, description="stop after this many steps")
+    neighbour_skin: NonNegativeFloat = Field(
+        0.1, description="Verlet skin of the neighbour list, in units of the kernel support 2h"
+    )
+
+
+class Probe(_Model):
+    """A particle whose velocity is recorded every step: the one of ``body`` nearest to
+    ``position`` at t = 0."""
+
+    name: str
+    body: str
+    position: list[FiniteFloat]
+
+
+class Output(_Model):
+    """What a run writes."""
+
+    snapshot_times: list[NonNegativeFloat] = Field(
+        default_factory=list, description="times (s) at which the particle state is stored"
+    )
+    history_every: int = Field(1, ge=1, description="write a history row every N steps")
+    figures: bool = True
+    probes: list[Probe] = Field(default_factory=list)
+
+
+class Case(_Model):
+    """A complete simulation case."""
+
+    name: str = Field(min_length=1)
+    description: str = ""
+    dimension: Literal[1, 2, 3]
+    analysis: Literal["none", "bars"] = Field(
+        "none", description="problem-specific analysis and figures"
+    )
+    materials: dict[str, Material] = Field(min_length=1)
+    bodies: list[Body] = Field(min_length=1)
+    kernel: Kernel = Field(default_factory=Kernel)
+    viscosity: Viscosity = Field(default_factory=Viscosity)
+    time: Time
+    output: Output = Field(default_factory=Output)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Case:
+        d = self.dimension
+        names = set()
+        for k, body in enumerate(self.bodies):
+            where = f"bodies.{k}"
+            if body.name in names:
+                raise ValueError(f"{where}.name = {body.name!r} is used by two bodies")
+            names.add(body.name)
+            if body.material not in self.materials:
+                raise ValueError(f"{where}.material = {body.material!r} is not one of "
+                                 f"{sorted(self.materials)}")
+            for field in ("origin", "size"):
+                if len(getattr(body.geometry, field)) != d:
+                    raise ValueError(f"{where}.geometry.{field} has "
+                                     f"{len(getattr(body.geometry, field))} components; "
+                                     f"dimension = {d} needs {d}")
+            if len(body.velocity) != d:
+                raise ValueError(f"{where}.velocity has {len(body.velocity)} components; "
+                                 f"dimension = {d} needs {d}")
+        for name, mat in self.materials.items():
+            if mat.model == "bar" and d != 1:
+                raise ValueError(f"materials.{name}.model = 'bar' is for dimension = 1 only")
+        for k, probe in enumerate(self.output.probes):
+            if probe.body not in names:
+                raise ValueError(f"output.probes.{k}.body = {probe.body!r} is not a body name")
+            if len(probe.position) != d:
+                raise ValueError(f"output.probes.{k}.position needs {d} components")
+        return self
+
+
+BUILTIN_CASES = ("bars",)
+
+
+def builtin_case_path(name: str) -> Path:
+    """Path of a case shipped with the package."""
+    return Path(str(resources.files("impactsph") / "cases" / f"{name}.toml"))
+
+
+def read_case_dict(source: str | Path) -> dict[str, Any]:
+    """Read a case file, or a built-in case by name, into a plain dict (not yet validated)."""
+    path = Path(source)
+    if not path.suffix and str(source) in BUILTIN_CASES:
+        path = builtin_case_path(str(source))
+    elif not path.exists():
+        if path.suffix:
+            raise CaseError(f"case file {str(source)!r} does not exist")
+        raise CaseError(f"case {str(source)!r} is neither a file nor a built-in case; "
+                        f"built-in cases: {', '.join(BUILTIN_CASES)}")
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise CaseError(f"{path}: not valid TOML: {exc}") from None
+
+
+def parse_override(text: str) -> tuple[list[str], Any]:
+    """``'a.b.0.c=value'`` -> (['a', 'b', '0', 'c'], value); the value is read as TOML
+    (numbers, booleans, strings in quotes, arrays) and otherwise kept as a bare string."""
+    if "=" not in text:
+        raise CaseError(f"--set {text!r}: expected KEY=VALUE, e.g. viscosity.alpha1=0.3")
+    key, raw = text.split("=", 1)
+    key = key.strip()
+    if not key or any(not part for part in key.split(".")):
+        raise CaseError(f"--set {text!r}: the key must be a dotted path such as time.end")
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return key.split("."), value
+
+
+def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
+    """Apply ``--set`` overrides to a case dict (a copy is returned)."""
+    data = copy.deepcopy(data)
+    for text in overrides:
+        path, value = parse_override(text)
+        node: Any = data
+        for depth, part in enumerate(path[:-1]):
+            where = ".".join(path[: depth + 1])
+            if isinstance(node, list):
+                if not part.isdigit() or int(part) >= len(node):
+                    raise CaseError(f"--set {text}: {where} is not an index of a list of "
+                                    f"{len(node)}")
+                node = node[int(part)]
+            elif isinstance(node, dict):
+                node = node.setdefault(part, {})
+            else:
+                raise CaseError(f"--set {text}: {where} is not a table")
+        last = path[-1]
+        if isinstance(node, list):
+            if not last.isdigit() or int(last) >= len(node):
+                raise CaseError(f"--set {text}: index {last} is out of range")
+            node[int(last)] = value
+        elif isinstance(node, dict):
+            node[last] = value
+        else:
+            raise CaseError(f"--set {text}: {'.'.join(path[:-1])} is not a table")
+    return data
+
+
+def _format_error(exc: ValidationError) -> str:
+    errors = exc.errors()
+    err = errors[0]
+    loc = ".".join(str(p) for p in err["loc"])
+    msg = err["msg"]
+    if msg.startswith("Value error, "):
+        msg = msg[len("Value error, "):]
+    value = err.get("input")
+    more = f" (and {len(errors) - 1} more errors)" if len(errors) > 1 else ""
+    if err["type"] == "extra_forbidden":
+        return f"{loc}: unknown key{more}"
+    if err["type"] == "missing":
+        return f"{loc}: required field is missing{more}"
+    if loc and not isinstance(value, dict):
+        return f"{loc} = {value!r}: {msg}{more}"
+    return f"{loc + ': ' if loc else ''}{msg}{more}"
+
+
+def validate_case(data: dict[str, Any]) -> Case:
+    """Validate a case dict; raise :class:`CaseError` with a one-line message."""
+    try:
+        return Case.model_validate(data)
+    except ValidationError as exc:
+        raise CaseError(_format_error(exc)) from None
+
+
+def load_case(source: str | Path, overrides: list[str] | None = None) -> Case:
+    """Load and validate a case file or built-in case, with optional ``--set`` overrides."""
+    return validate_case(apply_overrides(read_case_dict(source), overrides or []))

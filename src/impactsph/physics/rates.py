@@ -1,0 +1,168 @@
+"""The rate equations: the one place where the pair loop applies the physical terms.
+
+``compute_rates`` evaluates, for every active particle ``i``, the right-hand sides of the
+continuity (eq 22), momentum (eq 27), energy (eq 28) and Jaumann stress-rate (eq 14)
+equations from its neighbour list.  Three passes:
+
+1. per particle: pressure from the EOS, wave speed, ``A = sigma/rho^2`` and the compressive
+   pressure term shown to other bodies;
+2. per pair (gather: each ``i`` sums over its ``j``, so threads never write the same memory and
+   the result does not depend on the thread count): continuity, velocity gradient, stress and
+   viscous accelerations, stress work and viscous heating, contact terms;
+3. per particle: Jaumann stress rate from the velocity gradient.
+
+The dimension is a compile-time constant: :func:`rate_kernels` compiles the same source once
+per dimension, so the small loops over components unroll.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cache
+
+import numba as nb
+import numpy as np
+
+from ..kernels import cubic_spline_dwdr
+from ..materials import B0, BULK, C0, EOS, GAMMA, RHO0, SHEAR, WAVE_MODULUS
+from .contact import contact_acceleration_pair, contact_work_pair, in_contact
+from .continuity import continuity_pair, velocity_gradient_pair
+from .energy import stress_work_pair, viscous_heating_pair
+from .eos import MIE_GRUNEISEN, linear_pressure, mie_gruneisen_pressure
+from .momentum import stress_acceleration_pair, viscous_acceleration_pair
+from .stress_rate import jaumann_stress_rate
+from .viscosity import monaghan_viscosity
+
+
+@nb.njit(inline="always", cache=True)
+def material_pressure(table, k: int, rho: float, e: float) -> float:
+    """Pressure of material ``k`` (row of the material table) at ``rho``, ``e``."""
+    if table[k, EOS] == MIE_GRUNEISEN:
+        return mie_gruneisen_pressure(
+            rho, e, table[k, RHO0], table[k, BULK], table[k, B0], table[k, C0], table[k, GAMMA]
+        )
+    return linear_pressure(rho, table[k, RHO0], table[k, BULK])
+
+
+@cache
+def rate_kernels(dim: int):
+    """Compile the rate passes for dimension ``dim``; returns ``(particle_pass, pair_pass,
+    stress_pass)``."""
+
+    @nb.njit(parallel=True, cache=True)
+    def particle_pass(rho, e, S, material, table, pressure, sound_speed, A, pc):
+        """Pass 1: ``P``, ``c = sqrt(M/rho)``, ``A = (-P I + S)/rho^2``, ``P/rho^2``."""
+        for i in nb.prange(rho.shape[0]):
+            k = material[i]
+            p = material_pressure(table, k, rho[i], e[i])
+            pressure[i] = p
+            sound_speed[i] = math.sqrt(table[k, WAVE_MODULUS] / rho[i])
+            inv_rho2 = 1.0 / (rho[i] * rho[i])
+            for a in range(dim):
+                for b in range(dim):
+                    A[i, a, b] = S[i, a, b] * inv_rho2
+                A[i, a, a] -= p * inv_rho2
+            pc[i] = p * inv_rho2
+
+    @nb.njit(parallel=True, cache=True)
+    def pair_pass(
+        n_active, x, v, m, rho, h, body, sound_speed, A, pc, offsets, indices,
+        alpha1, alpha2, epsilon,
+        drho, dv_stress, dv_visc, de_stress, de_visc, L, contact_force, pair_count,
+    ):
+        """Pass 2: sums over neighbours for every active particle (eqs 22, 27, 28)."""
+        for i in nb.prange(n_active):
+            gradw = np.empty(dim)
+            v_ij = np.empty(dim)
+            r_ij = np.empty(dim)
+            A_i = A[i]
+            drho_i = 0.0
+            de_s = 0.0
+            de_v = 0.0
+            for a in range(dim):
+                dv_stress[i, a] = 0.0
+                dv_visc[i, a] = 0.0
+                contact_force[i, a] = 0.0
+                for b in range(dim):
+                    L[i, a, b] = 0.0
+            count = 0
+            for k in range(offsets[i], offsets[i + 1]):
+                j = indices[k]
+                h_ij = 0.5 * (h[i] + h[j])
+                r2 = 0.0
+                for a in range(dim):
+                    r_ij[a] = x[i, a] - x[j, a]
+                    r2 += r_ij[a] * r_ij[a]
+                if r2 >= 4.0 * h_ij * h_ij or r2 == 0.0:
+                    continue
+                count += 1
+                r = math.sqrt(r2)
+                f = cubic_spline_dwdr(r, h_ij, dim) / r
+                vg = 0.0
+                vr = 0.0
+                for a in range(dim):
+                    gradw[a] = f * r_ij[a]
+                    v_ij[a] = v[i, a] - v[j, a]
+                    vg += v_ij[a] * gradw[a]
+                    vr += v_ij[a] * r_ij[a]
+                volume_j = m[j] / rho[j]
+                same_body = body[i] == body[j]
+                if same_body:
+                    drho_i += continuity_pair(rho[i], volume_j, vg)
+                    A_j = A[j]
+                    for a in range(dim):
+                        dv_stress[i, a] += stress_acceleration_pair(m[j], A_i, A_j, gradw, a)
+                        for b in range(dim):
+                            L[i, a, b] += velocity_gradient_pair(volume_j, v_ij[a], gradw[b])
+                    de_s += stress_work_pair(m[j], A_i, v_ij, gradw)
+                else:
+                    s_ij = pc[i] + pc[j]
+                    if in_contact(s_ij, vg):
+                        drho_i += continuity_pair(rho[i], volume_j, vg)
+                        for a in range(dim):
+                            fa = contact_acceleration_pair(m[j], s_ij, gradw[a])
+                            dv_stress[i, a] += fa
+                            contact_force[i, a] += m[i] * fa
+                        de_s += contact_work_pair(m[j], pc[i], s_ij, vg)
+                pi_ij = monaghan_viscosity(
+                    vr, r2, h_ij, 0.5 * (sound_speed[i] + sound_speed[j]),
+                    0.5 * (rho[i] + rho[j]), alpha1, alpha2, epsilon,
+                )
+                if pi_ij != 0.0:
+                    for a in range(dim):
+                        fa = viscous_acceleration_pair(m[j], pi_ij, gradw[a])
+                        dv_visc[i, a] += fa
+                        if not same_body:
+                            contact_force[i, a] += m[i] * fa
+                    de_v += viscous_heating_pair(m[j], pi_ij, vg)
+            drho[i] = drho_i
+            de_stress[i] = de_s
+            de_visc[i] = de_v
+            pair_count[i] = count
+
+    @nb.njit(parallel=True, cache=True)
+    def stress_pass(n_active, S, L, material, table, dS):
+        """Pass 3: Jaumann rate (eq 14) from the velocity gradient."""
+        for i in nb.prange(n_active):
+            jaumann_stress_rate(L[i], S[i], table[material[i], SHEAR], dS[i])
+
+    return particle_pass, pair_pass, stress_pass
+
+
+class RateBuffers:
+    """Work and output arrays of one rate evaluation, allocated once per run."""
+
+    def __init__(self, n: int, dim: int):
+        self.pressure = np.zeros(n)
+        self.sound_speed = np.zeros(n)
+        self.A = np.zeros((n, dim, dim))
+        self.pc = np.zeros(n)
+        self.drho = np.zeros(n)
+        self.dv_stress = np.zeros((n, dim))
+        self.dv_visc = np.zeros((n, dim))
+        self.de_stress = np.zeros(n)
+        self.de_visc = np.zeros(n)
+        self.L = np.zeros((n, dim, dim))
+        self.dS = np.zeros((n, 3, 3))
+        self.contact_force = np.zeros((n, dim))
+        self.pair_count = np.zeros(n, dtype=np.int64)

@@ -1,0 +1,35 @@
+"""Monaghan artificial viscosity (paper eqs 29-30, NOTES 7).
+
+For an approaching pair (``v_ij . r_ij < 0``)::
+
+    mu_ij = h_ij (v_ij . r_ij) / (r_ij^2 + eps h_ij^2)
+    Pi_ij = (-alpha1 c_ij mu_ij + alpha2 mu_ij^2) / rho_ij
+
+and ``Pi_ij = 0`` otherwise; ``c_ij``, ``h_ij``, ``rho_ij`` are pair means.  ``Pi_ij`` has
+the units of ``sigma / rho^2`` (m^5 kg^-1 s^-2)
+and enters the momentum equation as ``- sum_j m_j Pi_ij grad W_ij`` (eq 27) and the energy
+equation as ``1/2 sum_j m_j Pi_ij v_ij . grad W_ij`` (eq 28).  The paper's sets are
+AV1 = (1, 1), AV2 = (1, 2), AV3 = (2.5, 2.5).
+"""
+
+from __future__ import annotations
+
+import numba as nb
+
+
+@nb.njit(inline="always", cache=True)
+def monaghan_viscosity(
+    vr: float,
+    r2: float,
+    h_ij: float,
+    c_ij: float,
+    rho_ij: float,
+    alpha1: float,
+    alpha2: float,
+    epsilon: float,
+) -> float:
+    """``Pi_ij`` of eq 29 for a pair with ``vr = v_ij . r_ij`` and ``r2 = |r_ij|^2``."""
+    if vr >= 0.0:
+        return 0.0
+    mu_ij = h_ij * vr / (r2 + epsilon * h_ij * h_ij)
+    return (-alpha1 * c_ij * mu_ij + alpha2 * mu_ij * mu_ij) / rho_ij

@@ -1,0 +1,82 @@
+"""Problem set-up: from a validated :class:`~impactsph.config.Case` to particles and tables."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import Case, Material
+from .geometry import block_lattice
+from .materials import MaterialModel, material_table
+from .state import ParticleState
+
+
+def resolve_material(name: str, mat: Material) -> MaterialModel:
+    """Elastic constants of a case material: ``mu = E / (2(1 + nu))`` unless given,
+    ``K = E / (3(1 - 2 nu))``; for the 1D ``bar`` model ``K = E`` and ``mu = 0``."""
+    E, nu = mat.youngs_modulus, mat.poisson_ratio
+    if mat.model == "bar":
+        mu, K = 0.0, E
+    else:
+        mu = mat.shear_modulus if mat.shear_modulus is not None else E / (2.0 * (1.0 + nu))
+        K = E / (3.0 * (1.0 - 2.0 * nu))
+    mg = mat.mie_gruneisen
+    return MaterialModel(
+        name=name, model=mat.model, density=mat.density, youngs_modulus=E, poisson_ratio=nu,
+        shear_modulus=mu, bulk_modulus=K, eos=mat.eos,
+        yield_stress=mat.yield_stress if mat.model == "elastic_plastic" else math.inf,
+        mg_sound_speed=mg.sound_speed if mg else 0.0, mg_slope=mg.slope if mg else 0.0,
+        mg_gamma=mg.gamma if mg else 0.0,
+    )
+
+
+@dataclass
+class Problem:
+    """Everything a solver needs, built from a case."""
+
+    state: ParticleState
+    materials: list[MaterialModel]
+    table: np.ndarray
+    body_names: list[str]
+    probes: dict[str, int]
+
+
+def build_problem(case: Case) -> Problem:
+    """Place the particles of every body, set masses ``rho0 dx^dim``, smoothing lengths
+    ``h = (h/dx) dx`` and initial velocities."""
+    mat_names = list(case.materials)
+    materials = [resolve_material(n, case.materials[n]) for n in mat_names]
+    dim = case.dimension
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in
+                                          ("x", "v", "rho", "m", "h", "body", "mat")}
+    for b, body in enumerate(case.bodies):
+        g = body.geometry
+        x = block_lattice(g.origin, g.size, g.spacing)
+        k = mat_names.index(body.material)
+        rho0 = materials[k].density
+        n = x.shape[0]
+        parts["x"].append(x)
+        parts["v"].append(np.tile(np.asarray(body.velocity, dtype=np.float64), (n, 1)))
+        parts["rho"].append(np.full(n, rho0))
+        parts["m"].append(np.full(n, rho0 * g.spacing**dim))
+        parts["h"].append(np.full(n, case.kernel.h_over_dx * g.spacing))
+        parts["body"].append(np.full(n, b, dtype=np.int32))
+        parts["mat"].append(np.full(n, k, dtype=np.int32))
+    cat = {k: np.concatenate(v) for k, v in parts.items()}
+    n = cat["x"].shape[0]
+    state = ParticleState(
+        position=np.ascontiguousarray(cat["x"]), velocity=np.ascontiguousarray(cat["v"]),
+        density=cat["rho"], specific_energy=np.zeros(n), deviatoric_stress=np.zeros((n, 3, 3)),
+        mass=cat["m"], smoothing_length=cat["h"], body=cat["body"], material=cat["mat"],
+        clamped=np.zeros(n, dtype=bool),
+    )
+    body_names = [b.name for b in case.bodies]
+    probes = {}
+    for probe in case.output.probes:
+        members = np.flatnonzero(state.body == body_names.index(probe.body))
+        d = np.linalg.norm(state.position[members] - np.asarray(probe.position), axis=1)
+        probes[probe.name] = int(members[np.argmin(d)])
+    return Problem(state, materials, material_table(materials, case.time.wave_speed),
+                   body_names, probes)

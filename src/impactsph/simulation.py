@@ -1,0 +1,220 @@
+"""The run loop: time stepping, diagnostics, snapshots, probes and failure detection."""
+
+from __future__ import annotations
+
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .config import Case
+from .integrate import MidpointIntegrator, stable_time_step
+from .problem import Problem, build_problem
+from .solver import Solver
+from .state import ParticleState
+
+
+class SimulationError(RuntimeError):
+    """The run went unstable; the message says where and when."""
+
+    def __init__(self, message: str, step: int, time: float, particle: int | None):
+        super().__init__(message)
+        self.step, self.time, self.particle = step, time, particle
+
+
+@dataclass
+class Snapshot:
+    """The particle state at one time."""
+
+    time: float
+    fields: dict[str, np.ndarray]
+
+
+@dataclass
+class RunRecord:
+    """What a run has produced so far."""
+
+    history: list[dict[str, float]] = field(default_factory=list)
+    snapshots: list[Snapshot] = field(default_factory=list)
+    probes: dict[str, list[tuple[float, np.ndarray]]] = field(default_factory=dict)
+    wall_seconds: float = 0.0
+    setup_seconds: float = 0.0
+    failure: str | None = None
+
+
+class Simulation:
+    """A case being run.  ``Simulation(case).run()`` runs it to ``case.time.end``."""
+
+    def __init__(self, case: Case, problem: Problem | None = None):
+        t0 = _time.perf_counter()
+        self.case = case
+        self.problem = problem or build_problem(case)
+        self.state: ParticleState = self.problem.state
+        self.solver = Solver(self.state, self.problem.table, case.viscosity,
+                             skin_fraction=case.time.neighbour_skin)
+        self.integrator = MidpointIntegrator(self.solver.rates, self.problem.table,
+                                             self.state.n, self.state.dim)
+        self.record = RunRecord(probes={name: [] for name in self.problem.probes})
+        self.viscous_dissipation = 0.0
+        self._initial = self._diagnostics()
+        self._abs_momentum0 = float(np.sum(self.state.mass *
+                                           np.linalg.norm(self.state.velocity, axis=1)))
+        self.solver.rates(self.state.copy())  # compile (or load from cache) before timing
+        self.solver.pair_evaluations = 0
+        self.solver.rate_evaluations = 0
+        self._record_row(0.0)
+        self._take_snapshots(previous=-np.inf)
+        self.record.setup_seconds = _time.perf_counter() - t0
+
+    # -- diagnostics -------------------------------------------------------------------
+    def _diagnostics(self) -> dict[str, float]:
+        s = self.state
+        ke, ie = s.kinetic_energy(), s.internal_energy()
+        p = s.momentum()
+        return {"kinetic": ke, "internal": ie, "momentum": p}
+
+    def _record_row(self, dt: float) -> None:
+        d = self._diagnostics()
+        s = self.state
+        row = {"time": s.time, "step": s.step, "dt": dt, "kinetic_energy": d["kinetic"],
+               "internal_energy": d["internal"],
+               "total_energy": d["kinetic"] + d["internal"],
+               "viscous_dissipation": self.viscous_dissipation}
+        for a, name in enumerate("xyz"[: s.dim]):
+            row[f"momentum_{name}"] = float(d["momentum"][a])
+        n_bodies = len(self.problem.body_names)
+        if n_bodies > 1:
+            force = self.solver.buffers.contact_force
+            for a, name in enumerate("xyz"[: s.dim]):
+                per_body = np.bincount(s.body, weights=force[:, a], minlength=n_bodies)
+                for b, body in enumerate(self.problem.body_names):
+                    row[f"contact_force_{body}_{name}"] = float(per_body[b])
+        self.record.history.append(row)
+
+    def energy_error(self) -> float:
+        """``|E(t) - E(0)| / E(0)`` now."""
+        e0 = self._initial["kinetic"] + self._initial["internal"]
+        d = self._diagnostics()
+        return abs(d["kinetic"] + d["internal"] - e0) / e0 if e0 > 0 else 0.0
+
+    def momentum_drift(self) -> float:
+        """``|P(t) - P(0)| / sum m |v(0)|`` now."""
+        dp = np.linalg.norm(self._diagnostics()["momentum"] - self._initial["momentum"])
+        return float(dp / self._abs_momentum0) if self._abs_momentum0 > 0 else float(dp)
+
+    # -- snapshots and probes ------------------------------------------------------------
+    def _snapshot_fields(self) -> dict[str, np.ndarray]:
+        s = self.state
+        fields = {k: v.copy() for k, v in s.arrays().items()}
+        fields["pressure"] = self.solver.buffers.pressure.copy()
+        return fields
+
+    def _take_snapshots(self, previous: float) -> None:
+        t = self.state.time
+        for ts in self.case.output.snapshot_times:
+            if previous < ts <= t:
+                self.record.snapshots.append(Snapshot(ts, self._snapshot_fields()))
+        for name, idx in self.problem.probes.items():
+            self.record.probes[name].append((t, self.state.velocity[idx].copy()))
+
+    def _next_stop(self, t_end: float) -> float:
+        t = self.state.time
+        later = [ts for ts in self.case.output.snapshot_times if ts > t * (1 + 1e-12) + 1e-300]
+        return min([t_end, *later])
+
+    # -- failure detection ---------------------------------------------------------------
+    def _check(self, dt: float, dt0: float) -> None:
+        s = self.state
+        for name in ("position", "velocity", "density", "specific_energy",
+                     "deviatoric_stress"):
+            arr = getattr(s, name).reshape(s.n, -1)
+            ok = np.isfinite(arr).all(axis=1)
+            if not ok.all():
+                i = int(np.flatnonzero(~ok)[0])
+                raise SimulationError(
+                    f"non-finite {name} at step {s.step}, t = {s.time:.6e} s, particle {i} "
+                    f"(body {self.problem.body_names[s.body[i]]!r}, "
+                    f"position {s.position[i].tolist()})", s.step, s.time, i)
+        bad = np.flatnonzero(s.density <= 0)
+        if bad.size:
+            i = int(bad[0])
+            raise SimulationError(f"non-positive density at step {s.step}, t = {s.time:.6e} s, "
+                                  f"particle {i}", s.step, s.time, i)
+        if dt < 1e-6 * dt0:
+            raise SimulationError(f"time step collapsed to {dt:.3e} s (initial {dt0:.3e} s) at "
+                                  f"step {s.step}, t = {s.time:.6e} s", s.step, s.time, None)
+
+    # -- the loop ------------------------------------------------------------------------
+    def run(self, t_end: float | None = None,
+            callback: Callable[[Simulation], None] | None = None) -> RunRecord:
+        """Advance to ``t_end`` (default: the case's end time).  ``callback(sim)`` is called
+        after every step.  Raises :class:`SimulationError` if the run goes unstable; the
+        record keeps everything up to the last good step."""
+        t_end = self.case.time.end if t_end is None else t_end
+        table, courant = self.problem.table, self.case.time.courant
+        max_steps = self.case.time.max_steps
+        every = self.case.output.history_every
+        dt0 = stable_time_step(self.state, table, courant)
+        start = _time.perf_counter()
+        try:
+            while self.state.time < t_end * (1 - 1e-12):
+                if max_steps is not None and self.state.step >= max_steps:
+                    break
+                dt = stable_time_step(self.state, table, courant)
+                self._check(dt, dt0)
+                stop = self._next_stop(t_end)
+                reaches_stop = self.state.time + dt >= stop
+                if reaches_stop:
+                    dt = stop - self.state.time
+                elif self.state.time + 1.5 * dt > stop:  # avoid a sliver step before a stop
+                    dt = 0.5 * (stop - self.state.time)
+                previous = self.state.time
+                self.integrator.step(self.state, dt)
+                if reaches_stop:
+                    self.state.time = stop
+                self.viscous_dissipation += dt * self.solver.viscous_power(self.state)
+                self._check(dt, dt0)
+                if self.state.step % every == 0 or self.state.time >= t_end * (1 - 1e-12):
+                    self._record_row(dt)
+                self._take_snapshots(previous)
+                if callback is not None:
+                    callback(self)
+        except SimulationError as exc:
+            self.record.failure = str(exc)
+            raise
+        finally:
+            self.record.wall_seconds += _time.perf_counter() - start
+        return self.record
+
+    # -- summary -------------------------------------------------------------------------
+    def summary(self) -> dict[str, float | int | str | None]:
+        """Run-wide numbers: size, speed, energy and momentum conservation."""
+        h = self.record.history
+        ke = np.array([r["kinetic_energy"] for r in h])
+        tot = np.array([r["total_energy"] for r in h])
+        dims = "xyz"[: self.state.dim]
+        p = np.array([[r[f"momentum_{a}"] for a in dims] for r in h])
+        e0 = tot[0]
+        wall = self.record.wall_seconds
+        return {
+            "n_particles": self.state.n,
+            "dimension": self.state.dim,
+            "n_steps": self.state.step,
+            "t_end": self.state.time,
+            "wall_seconds": wall,
+            "setup_seconds": self.record.setup_seconds,
+            "pair_evaluations": self.solver.pair_evaluations,
+            "pair_evaluations_per_second": self.solver.pair_evaluations / wall if wall else 0.0,
+            "neighbour_list_builds": self.solver.neighbours.builds,
+            "kinetic_energy_initial": float(ke[0]),
+            "kinetic_energy_final": float(ke[-1]),
+            "kinetic_energy_ratio_final": float(ke[-1] / ke[0]) if ke[0] > 0 else None,
+            "internal_energy_final": float(h[-1]["internal_energy"]),
+            "viscous_dissipation": float(h[-1]["viscous_dissipation"]),
+            "total_energy_relative_error": float(np.max(np.abs(tot - e0)) / e0) if e0 else 0.0,
+            "momentum_drift": float(np.max(np.linalg.norm(p - p[0], axis=1))
+                                    / self._abs_momentum0) if self._abs_momentum0 else 0.0,
+            "plastic_work": float(np.dot(self.state.mass, self.state.plastic_work)),
+            "failure": self.record.failure,
+        }

@@ -1,0 +1,69 @@
+"""Particle state: structure-of-arrays, SI units, one layout for 1D, 2D and 3D."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+
+@dataclass
+class ParticleState:
+    """All per-particle fields of a run.
+
+    Vectors have shape ``(n, dim)``; the deviatoric stress is always ``(n, 3, 3)`` so that the
+    out-of-plane component of plane strain (``S_zz``) is carried (NOTES 3).
+    """
+
+    position: np.ndarray  #: (n, dim) m
+    velocity: np.ndarray  #: (n, dim) m/s
+    density: np.ndarray  #: (n,) kg/m^3
+    specific_energy: np.ndarray  #: (n,) J/kg, specific internal energy
+    deviatoric_stress: np.ndarray  #: (n, 3, 3) Pa, Cauchy convention (tension positive)
+    mass: np.ndarray  #: (n,) kg (per unit area in 2D, per unit cross-section in 1D)
+    smoothing_length: np.ndarray  #: (n,) m
+    body: np.ndarray  #: (n,) int32 body index
+    material: np.ndarray  #: (n,) int32 row of the material table
+    clamped: np.ndarray  #: (n,) bool, held at zero velocity
+    plastic_work: np.ndarray = field(default=None)  #: (n,) J/kg dissipated by yielding
+    time: float = 0.0
+    step: int = 0
+
+    def __post_init__(self) -> None:
+        if self.plastic_work is None:
+            self.plastic_work = np.zeros(self.n)
+
+    @property
+    def n(self) -> int:
+        """Number of particles."""
+        return int(self.position.shape[0])
+
+    @property
+    def dim(self) -> int:
+        """Spatial dimension (1, 2 or 3)."""
+        return int(self.position.shape[1])
+
+    def copy(self) -> ParticleState:
+        """A deep copy."""
+        kwargs = {}
+        for f in fields(self):
+            val = getattr(self, f.name)
+            kwargs[f.name] = val.copy() if isinstance(val, np.ndarray) else val
+        return ParticleState(**kwargs)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The per-particle arrays by name (for checkpoints and snapshots)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)
+                if isinstance(getattr(self, f.name), np.ndarray)}
+
+    def kinetic_energy(self) -> float:
+        """``sum 1/2 m |v|^2`` (J; J/m^2 in 2D, J/m^2... per unit depth or area)."""
+        return float(0.5 * np.dot(self.mass, np.einsum("ia,ia->i", self.velocity, self.velocity)))
+
+    def internal_energy(self) -> float:
+        """``sum m e``."""
+        return float(np.dot(self.mass, self.specific_energy))
+
+    def momentum(self) -> np.ndarray:
+        """``sum m v`` (vector)."""
+        return self.mass @ self.velocity
