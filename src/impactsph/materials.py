@@ -57,7 +57,8 @@ class MaterialModel:
         r[YIELD] = self.yield_stress
         r[WAVE_MODULUS] = self.wave_modulus(wave_speed)
         if self.eos == "mie_gruneisen":
-            a0, b0, c0 = mie_gruneisen_coefficients(self.density, self.mg_sound_speed, self.mg_slope)
+            a0, b0, c0 = mie_gruneisen_coefficients(
+                self.density, self.mg_sound_speed, self.mg_slope)
             r[EOS], r[BULK], r[B0], r[C0], r[GAMMA] = MIE_GRUNEISEN, a0, b0, c0, self.mg_gamma
         else:
             r[EOS], r[BULK] = LINEAR, self.bulk_modulus

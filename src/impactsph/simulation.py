@@ -217,4 +217,7 @@ class Simulation:
                                     / self._abs_momentum0) if self._abs_momentum0 else 0.0,
             "plastic_work": float(np.dot(self.state.mass, self.state.plastic_work)),
             "failure": self.record.failure,
+            "probes": {name: {"index": i,
+                              "initial_position": self.state.initial_position[i].tolist()}
+                       for name, i in self.problem.probes.items()},
         }

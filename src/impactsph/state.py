@@ -26,12 +26,15 @@ class ParticleState:
     material: np.ndarray  #: (n,) int32 row of the material table
     clamped: np.ndarray  #: (n,) bool, held at zero velocity
     plastic_work: np.ndarray = field(default=None)  #: (n,) J/kg dissipated by yielding
+    initial_position: np.ndarray = field(default=None)  #: (n, dim) m, position at t = 0
     time: float = 0.0
     step: int = 0
 
     def __post_init__(self) -> None:
         if self.plastic_work is None:
             self.plastic_work = np.zeros(self.n)
+        if self.initial_position is None:
+            self.initial_position = self.position.copy()
 
     @property
     def n(self) -> int:

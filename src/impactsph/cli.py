@@ -1,0 +1,98 @@
+"""Command-line interface: ``impactsph run CASE [--set key=value ...] [--out DIR]``."""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+from .config import BUILTIN_CASES, CaseError, load_case
+
+app = typer.Typer(add_completion=False, no_args_is_help=True,
+                  help="SPH for solids under impact, with the Shaw-Reid acceleration "
+                       "correction.")
+err = Console(stderr=True)
+
+SUMMARY_KEYS = (
+    "n_particles", "n_steps", "t_end", "wall_seconds", "pair_evaluations_per_second",
+    "kinetic_energy_ratio_final", "total_energy_relative_error", "momentum_drift",
+    "contact_time_us", "contact_time_theory_us", "velocity_profile_l1_error",
+    "velocity_profile_oscillation", "mid_velocity_l1_error",
+)
+
+
+def _fail(message: str, code: int = 2) -> None:
+    err.print(f"error: {message}", markup=False, highlight=False, soft_wrap=True)
+    raise typer.Exit(code)
+
+
+@app.command()
+def run(
+    case: Annotated[str, typer.Argument(help=f"case file, or a built-in case: "
+                                             f"{', '.join(BUILTIN_CASES)}")],
+    set_: Annotated[list[str] | None, typer.Option(
+        "--set", help="override a field by its dotted path, e.g. viscosity.alpha1=0.3")] = None,
+    out: Annotated[Path | None, typer.Option(help="output directory (default runs/NAME)")
+                   ] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+) -> None:
+    """Run a case: write history, snapshots, summary and figures into the output directory."""
+    from .runner import run_case
+    from .simulation import SimulationError
+
+    logging.basicConfig(level=logging.WARNING if quiet else logging.INFO,
+                        format="%(levelname)s %(name)s: %(message)s")
+    try:
+        c = load_case(case, set_ or [])
+    except CaseError as exc:
+        _fail(str(exc))
+    out = out or Path("runs") / c.name
+    progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(),
+                        TextColumn("t = {task.fields[t]:.3e} s  step {task.fields[step]}  "
+                                   "dt = {task.fields[dt]:.2e} s"),
+                        TimeRemainingColumn(), console=err, disable=quiet, transient=True)
+    with progress:
+        task = progress.add_task(c.name, total=c.time.end, t=0.0, step=0, dt=0.0)
+
+        def update(sim) -> None:
+            if sim.state.step % 20 == 0:
+                row = sim.record.history[-1]
+                progress.update(task, completed=sim.state.time, t=sim.state.time,
+                                step=sim.state.step, dt=row["dt"])
+
+        try:
+            summary = run_case(c, out, callback=update)
+        except SimulationError as exc:
+            progress.stop()
+            _fail(f"run stopped: {exc}; outputs so far are in {out}", code=3)
+    shown = {k: summary[k] for k in SUMMARY_KEYS if k in summary}
+    typer.echo(json.dumps(shown, indent=2))
+    typer.echo(f"summary: {out / 'summary.json'}")
+    for fig in summary.get("figures", []):
+        typer.echo(f"figure: {fig}")
+
+
+@app.command()
+def check(case: Annotated[str, typer.Argument(help="case file or built-in name")],
+          set_: Annotated[list[str] | None, typer.Option("--set")] = None) -> None:
+    """Validate a case without running it."""
+    try:
+        c = load_case(case, set_ or [])
+    except CaseError as exc:
+        _fail(str(exc))
+    typer.echo(f"{c.name}: valid ({c.dimension}D, {len(c.bodies)} bodies)")
+
+
+def main() -> None:  # pragma: no cover
+    """Entry point for ``python -m impactsph``."""
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,48 @@
+"""The figures of a run directory (or of several, overlaid), drawn from its files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from .analysis.bars import PROFILE_TIME, theory_for
+from .config import validate_case
+from .plotting import (
+    bars_mid_velocity_figure,
+    bars_profile_figure,
+    kinetic_energy_figure,
+    label_of,
+)
+
+
+def draw_figures(runs: list[dict[str, Any]], out: Path, labels: list[str] | None = None
+                 ) -> list[Path]:
+    """Draw the figures of the loaded ``runs`` (see :func:`~impactsph.output.load_run`) into
+    ``out``; several runs are overlaid.  Returns the files written."""
+    out = Path(out)
+    cases = [validate_case(r["case"]) for r in runs]
+    labels = labels or [label_of(c) for c in cases]
+    paths = [kinetic_energy_figure(
+        [{"label": lab, "time": r["history"]["time"],
+          "kinetic_energy": r["history"]["kinetic_energy"]} for lab, r in zip(labels, runs,
+                                                                              strict=True)],
+        out / "kinetic_energy.png", title=f"Kinetic energy: {cases[0].name}")]
+    if cases[0].analysis == "bars":
+        theory = theory_for(cases[0])
+        profiles, mids = [], []
+        for lab, r in zip(labels, runs, strict=True):
+            for snap in r["snapshots"]:
+                if abs(snap["time"] - PROFILE_TIME) < 1e-12:
+                    left = snap["body"] == 0
+                    profiles.append({"label": lab, "X": snap["initial_position"][left, 0],
+                                     "v": snap["velocity"][left, 0]})
+            if "mid_left_vx" in r["probes"]:
+                mids.append({"label": lab, "time": r["probes"]["time"],
+                             "v": r["probes"]["mid_left_vx"]})
+        if profiles:
+            paths.append(bars_profile_figure(profiles, theory, out / "velocity_profile.png"))
+        if mids:
+            X_mid = float(runs[0]["summary"]["probes"]["mid_left"]["initial_position"][0])
+            paths.append(bars_mid_velocity_figure(mids, theory, X_mid,
+                                                  out / "mid_velocity.png"))
+    return paths

@@ -1,0 +1,81 @@
+"""Figures (matplotlib, non-interactive backend).  Each function takes one or more runs'
+outputs and writes a PNG; :func:`figures_for` draws a finished run's set."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .analysis.bars import MID_WINDOW, PROFILE_TIME, BarTheory  # noqa: E402
+
+
+def _save(fig, path: Path) -> Path:
+    path = Path(path)
+    tmp = path.with_name(path.stem + ".tmp.png")
+    fig.savefig(tmp, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    tmp.replace(path)
+    return path
+
+
+def kinetic_energy_figure(runs: list[dict[str, Any]], path: Path, title: str = "") -> Path:
+    """Kinetic energy against time (paper Figs 6, 9, 12).  ``runs``: dicts with ``label``,
+    ``time`` (s) and ``kinetic_energy``."""
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for r in runs:
+        ax.plot(np.asarray(r["time"]) * 1e6, r["kinetic_energy"], label=r["label"])
+    ax.set_xlabel("time (us)")
+    ax.set_ylabel("kinetic energy (J per unit area)" if runs else "kinetic energy")
+    ax.set_title(title or "Kinetic energy")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    return _save(fig, path)
+
+
+def bars_profile_figure(runs: list[dict[str, Any]], theory: BarTheory, path: Path) -> Path:
+    """Left bar's velocity against initial coordinate at 5.75 us with theory (Figs 3-5, 7).
+    ``runs``: dicts with ``label``, ``X`` and ``v``."""
+    fig, ax = plt.subplots(figsize=(6, 4))
+    X = np.linspace(-theory.length, 0, 2001)
+    ax.plot(X * 1e3, theory.velocity(X, PROFILE_TIME), "k:", lw=2, label="theory")
+    for r in runs:
+        order = np.argsort(r["X"])
+        ax.plot(np.asarray(r["X"])[order] * 1e3, np.asarray(r["v"])[order], ".-", ms=3,
+                label=r["label"])
+    ax.set_xlabel("initial position X (mm)")
+    ax.set_ylabel("particle velocity (m/s)")
+    ax.set_title(f"Left bar at t = {PROFILE_TIME * 1e6:.2f} us")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    return _save(fig, path)
+
+
+def bars_mid_velocity_figure(runs: list[dict[str, Any]], theory: BarTheory, X_mid: float,
+                             path: Path) -> Path:
+    """Velocity history of the left bar's mid particle with theory (Fig 8).  ``runs``: dicts
+    with ``label``, ``time`` and ``v``."""
+    fig, ax = plt.subplots(figsize=(6, 4))
+    t_max = max([np.max(r["time"]) for r in runs] + [MID_WINDOW])
+    t = np.linspace(0, t_max, 2001)
+    ax.plot(t * 1e6, [theory.velocity(np.array([X_mid]), ti)[0] for ti in t], "k:", lw=2,
+            label="theory")
+    for r in runs:
+        ax.plot(np.asarray(r["time"]) * 1e6, r["v"], label=r["label"])
+    ax.set_xlabel("time (us)")
+    ax.set_ylabel("particle velocity (m/s)")
+    ax.set_title("Mid-section of the left bar")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    return _save(fig, path)
+
+
+def label_of(case: Any) -> str:
+    """Short label of a run's viscosity settings, e.g. ``AV (0.3, 0.3)``."""
+    v = case.viscosity
+    return f"{v.scheme.upper()} ({v.alpha1:g}, {v.alpha2:g})"

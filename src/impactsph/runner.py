@@ -1,0 +1,43 @@
+"""Run a case end to end: simulate, write every output, analyse, draw the figures."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from .analysis import analyse
+from .config import Case
+from .figures import draw_figures
+from .output import load_run, write_case, write_history, write_snapshots, write_summary
+from .simulation import Simulation, SimulationError
+
+log = logging.getLogger("impactsph")
+
+
+def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], None] | None = None,
+             figures: bool | None = None) -> dict[str, Any]:
+    """Run ``case`` and write its outputs into ``out``.  Returns the summary.  On an
+    instability the history written so far is kept, and :class:`SimulationError` is raised."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_case(out, case)
+    sim = Simulation(case)
+    log.info("%s: %d particles, %dD, to t = %g s", case.name, sim.state.n, sim.state.dim,
+             case.time.end)
+    try:
+        sim.run(callback=callback)
+    except SimulationError:
+        write_history(out, sim)
+        write_snapshots(out, sim)
+        write_summary(out, sim.summary())
+        raise
+    write_history(out, sim)
+    write_snapshots(out, sim)
+    summary = {**sim.summary(), **analyse(case.analysis, sim)}
+    write_summary(out, summary)
+    if case.output.figures if figures is None else figures:
+        summary["figures"] = [str(p) for p in draw_figures([load_run(out)], out)]
+        write_summary(out, summary)
+    return summary
