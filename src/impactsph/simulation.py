@@ -124,23 +124,23 @@ class Simulation:
         return min([t_end, *later])
 
     # -- failure detection ---------------------------------------------------------------
+    def _where(self, i: int) -> str:
+        s = self.state
+        return (f"at step {s.step}, t = {s.time:.6e} s, particle {i} "
+                f"(body {self.problem.body_names[s.body[i]]!r}, position {s.position[i].tolist()})")
+
     def _check(self, dt: float, dt0: float) -> None:
         s = self.state
         for name in ("position", "velocity", "density", "specific_energy",
                      "deviatoric_stress"):
-            arr = getattr(s, name).reshape(s.n, -1)
-            ok = np.isfinite(arr).all(axis=1)
+            ok = np.isfinite(getattr(s, name).reshape(s.n, -1)).all(axis=1)
             if not ok.all():
                 i = int(np.flatnonzero(~ok)[0])
-                raise SimulationError(
-                    f"non-finite {name} at step {s.step}, t = {s.time:.6e} s, particle {i} "
-                    f"(body {self.problem.body_names[s.body[i]]!r}, "
-                    f"position {s.position[i].tolist()})", s.step, s.time, i)
+                raise SimulationError(f"non-finite {name} {self._where(i)}", s.step, s.time, i)
         bad = np.flatnonzero(s.density <= 0)
         if bad.size:
             i = int(bad[0])
-            raise SimulationError(f"non-positive density at step {s.step}, t = {s.time:.6e} s, "
-                                  f"particle {i}", s.step, s.time, i)
+            raise SimulationError(f"non-positive density {self._where(i)}", s.step, s.time, i)
         if dt < 1e-6 * dt0:
             raise SimulationError(f"time step collapsed to {dt:.3e} s (initial {dt0:.3e} s) at "
                                   f"step {s.step}, t = {s.time:.6e} s", s.step, s.time, None)

@@ -1,0 +1,131 @@
+"""The command line: a run writes its outputs; bad input is refused with one line and exit
+code 2 before any computation; an unstable run stops with where and when, keeping its
+history."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from impactsph.cli import app
+from impactsph.config import builtin_case_path, load_case
+from impactsph.runner import run_case
+from impactsph.simulation import SimulationError
+
+runner = CliRunner()
+
+
+def test_run_bars_writes_outputs(tmp_path):
+    out = tmp_path / "bars"
+    res = runner.invoke(app, ["run", "bars", "--quiet", "--out", str(out),
+                              "--set", "viscosity.alpha1=0.3", "--set", "viscosity.alpha2=0.3"])
+    assert res.exit_code == 0, res.output
+    summary = json.loads((out / "summary.json").read_text())
+    for key in ("n_particles", "n_steps", "t_end", "wall_seconds", "pair_evaluations_per_second",
+                "kinetic_energy_initial", "kinetic_energy_final", "kinetic_energy_ratio_final",
+                "total_energy_relative_error", "momentum_drift", "contact_time_us",
+                "velocity_profile_l1_error", "velocity_profile_oscillation",
+                "mid_velocity_l1_error"):
+        assert key in summary, key
+    assert summary["n_particles"] == 202
+    assert summary["provenance"]["impactsph"]
+    resolved = json.loads((out / "case.json").read_text())
+    assert resolved["case"]["viscosity"]["alpha1"] == 0.3
+    assert resolved["case"]["time"]["courant"] == 0.3  # defaults are written out
+    header = (out / "history.csv").read_text().splitlines()[0].split(",")
+    assert {"time", "kinetic_energy", "internal_energy", "total_energy", "momentum_x"} <= set(
+        header)
+    for fig in ("velocity_profile.png", "mid_velocity.png", "kinetic_energy.png"):
+        assert (out / fig).stat().st_size > 10_000
+    assert "figure:" in res.output
+
+
+def test_example_file_is_the_builtin():
+    example = Path(__file__).parents[1] / "examples" / "bars.toml"
+    with open(example, "rb") as a, open(builtin_case_path("bars"), "rb") as b:
+        assert tomllib.load(a) == tomllib.load(b)
+
+
+def test_set_overrides_nested_and_indexed_fields():
+    case = load_case("bars", ["viscosity.alpha1=0.7", "bodies.1.velocity=[-20.0]",
+                              "time.end=1e-6"])
+    assert case.viscosity.alpha1 == 0.7
+    assert case.bodies[1].velocity == [-20.0]
+    assert case.time.end == 1e-6
+
+
+BAD = [
+    (["--set", "viscosity.alpah1=0.3"], "viscosity.alpah1"),
+    (["--set", "viscosity.alpha1=abc"], "viscosity.alpha1"),
+    (["--set", "viscosity.alpha1=-1"], "viscosity.alpha1"),
+    (["--set", "materials.steel.density=0"], "materials.steel.density"),
+    (["--set", "materials.steel.density=-7900"], "materials.steel.density"),
+    (["--set", "materials.steel.youngs_modulus=0"], "materials.steel.youngs_modulus"),
+    (["--set", "time.end=0"], "time.end"),
+    (["--set", "time.end=-1"], "time.end"),
+    (["--set", "materials.steel.poisson_ratio=0.5"], "materials.steel.poisson_ratio"),
+    (["--set", "materials.steel.poisson_ratio=-1.2"], "materials.steel.poisson_ratio"),
+    (["--set", "viscosity.scheme=magic"], "viscosity.scheme"),
+    (["--set", "bodies.0.material=gold"], "gold"),
+    (["--set", "bodies.0.velocity=[1.0, 2.0]"], "bodies.0.velocity"),
+    (["--set", "time.end"], "KEY=VALUE"),
+]
+
+
+@pytest.mark.parametrize(("args", "named"), BAD)
+def test_bad_input_exit_code_2_one_line(tmp_path, args, named):
+    res = runner.invoke(app, ["run", "bars", "--quiet", "--out", str(tmp_path / "x"), *args])
+    assert res.exit_code == 2
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1, res.output
+    assert named in lines[0]
+    assert "Traceback" not in res.output
+    assert not (tmp_path / "x").exists()  # refused before any work
+
+
+def test_unknown_builtin_and_missing_file(tmp_path):
+    for name in ("nosuchcase", str(tmp_path / "missing.toml")):
+        res = runner.invoke(app, ["run", name, "--quiet"])
+        assert res.exit_code == 2
+        assert len(res.output.strip().splitlines()) == 1
+        assert "bars" in res.output or "does not exist" in res.output
+
+
+def test_case_file_with_unknown_key(tmp_path):
+    text = builtin_case_path("bars").read_text().replace("[kernel]", "[kernel]\ncolour = 1")
+    path = tmp_path / "c.toml"
+    path.write_text(text)
+    res = runner.invoke(app, ["check", str(path)])
+    assert res.exit_code == 2
+    assert res.output.strip() == "error: kernel.colour: unknown key"
+
+
+def test_unstable_run_stops_with_where_and_when(tmp_path):
+    res = runner.invoke(app, ["run", "bars", "--quiet", "--out", str(tmp_path / "u"),
+                              "--set", "time.courant=1.0", "--set", "viscosity.alpha1=0",
+                              "--set", "viscosity.alpha2=0"])
+    assert res.exit_code == 3
+    assert "step" in res.output and "particle" in res.output and "t = " in res.output
+    rows = (tmp_path / "u" / "history.csv").read_text().splitlines()
+    assert len(rows) > 100  # the history up to the failure is kept
+
+
+def test_nan_is_reported_with_step_time_and_particle(tmp_path):
+    case = load_case("bars")
+
+    def poison(sim):
+        if sim.state.step == 50:
+            sim.state.velocity[17, 0] = np.nan
+
+    with pytest.raises(SimulationError) as info:
+        run_case(case, tmp_path / "n", callback=poison, figures=False)
+    msg = str(info.value)
+    assert "non-finite velocity" in msg and "step 50" in msg and "particle 17" in msg
+    assert info.value.step == 50 and info.value.particle == 17
+    rows = (tmp_path / "n" / "history.csv").read_text().splitlines()
+    assert len(rows) == 1 + 51  # header, t = 0 and steps 1-50: all kept
