@@ -51,6 +51,34 @@ def peak_rss_mib() -> float:
     return rss / (1024.0 * 1024.0) if sys.platform == "darwin" else rss / 1024.0
 
 
+def cpu_busy_seconds() -> float | None:
+    """CPU seconds spent busy by the whole machine since boot (Linux ``/proc/stat``), or None."""
+    try:
+        with open("/proc/stat") as fh:
+            fields = fh.readline().split()[1:]
+        user, nice, system, _idle, _iowait, irq, softirq = (int(v) for v in fields[:7])
+        steal = int(fields[7]) if len(fields) > 7 else 0
+        return (user + nice + system + irq + softirq + steal) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError):
+        return None
+
+
+def own_cpu_seconds() -> float:
+    """CPU seconds used by this process (all threads)."""
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    return ru.ru_utime + ru.ru_stime
+
+
+def other_load(seconds: float = 1.0) -> float | None:
+    """Cores kept busy by other processes over a short window (None if unknown)."""
+    b0, o0, t0 = cpu_busy_seconds(), own_cpu_seconds(), time.perf_counter()
+    if b0 is None:
+        return None
+    time.sleep(seconds)
+    b1, o1 = cpu_busy_seconds(), own_cpu_seconds()
+    return max(0.0, (b1 - b0) - (o1 - o0)) / (time.perf_counter() - t0)
+
+
 def lattice_side(n: int, dim: int) -> int:
     """Particles per axis of a square/cubic/line lattice of about ``n`` particles."""
     return max(1, round(n ** (1.0 / dim)))
@@ -162,7 +190,7 @@ def machine_info() -> dict:
             "numba": numba.__version__, "numba_threads": numba.get_num_threads(),
             "numba_threading_layer_env": os.environ.get("NUMBA_THREADING_LAYER", ""),
             "cpu_count": os.cpu_count(), "usable_cores": usable,
-            "load_average_1min_at_start": os.getloadavg()[0],
+            "other_load_at_start": other_load(),
             "processor": platform.processor() or platform.machine()}
 
 
@@ -187,16 +215,16 @@ def main(argv: list[str] | None = None) -> int:
     if sizes[0] < 1:
         ap.error("--sizes must be >= 1")
 
-    start = time.perf_counter()
     info = machine_info()
+    start, busy0, own0 = time.perf_counter(), cpu_busy_seconds(), own_cpu_seconds()
     print(f"impactsph rate benchmark  {info['date']}")
     print(f"python {info['python']}  numpy {info['numpy']}  numba {info['numba']}  "
           f"({info['processor']})")
     print(f"numba threads: {info['numba_threads']}   cores: {info['cpu_count']} "
           f"(usable {info['usable_cores']})")
-    if info["load_average_1min_at_start"] > 0.5:
-        print(f"WARNING: 1-min load average {info['load_average_1min_at_start']:.2f} at start; "
-              "other processes competing for the cores slow numba's parallel regions a lot")
+    if info["other_load_at_start"] is not None and info["other_load_at_start"] > 0.2:
+        print(f"WARNING: other processes keep {info['other_load_at_start']:.2f} cores busy; "
+              "competition for the cores slows numba's parallel regions a lot")
     print(f"lattice dx = {DX:g} m, h = {H_OVER_DX} dx, steel (7850 kg/m^3, E = 2e11 Pa, "
           f"nu = 0.3), random v ~ N(0, 1 m/s), best of {args.repeat}")
     print()
@@ -246,8 +274,16 @@ def main(argv: list[str] | None = None) -> int:
               f"{_si(b['pair_evaluations_per_second'])} pair evaluations/s")
 
     results["peak_rss_mib"] = peak_rss_mib()
-    results["total_seconds"] = time.perf_counter() - start
-    print(f"\npeak RSS {results['peak_rss_mib']:.0f} MiB, total {results['total_seconds']:.1f} s")
+    total = results["total_seconds"] = time.perf_counter() - start
+    busy1 = cpu_busy_seconds()
+    others = (None if busy0 is None or busy1 is None else
+              max(0.0, (busy1 - busy0) - (own_cpu_seconds() - own0)) / total)
+    results["other_load_during_run"] = others
+    print(f"\npeak RSS {results['peak_rss_mib']:.0f} MiB, total {total:.1f} s"
+          + ("" if others is None else f", other processes used {others:.2f} cores on average"))
+    if others is not None and others > 0.2:
+        print("WARNING: the timings above were taken while other processes competed for the "
+              "cores; rerun on an idle machine")
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(results, fh, indent=2)

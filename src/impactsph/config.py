@@ -94,12 +94,23 @@ class Kernel(_Model):
 
 
 class Viscosity(_Model):
-    """Artificial viscosity (eqs 29-30)."""
+    """Artificial viscosity (eqs 29-30) and its acceleration correction (eqs 31-37)."""
 
-    scheme: Literal["av"] = Field("av", description="'av': Monaghan artificial viscosity")
+    scheme: Literal["av", "ac"] = Field(
+        "av", description="'av': Monaghan artificial viscosity with (alpha1, alpha2); 'ac': "
+        "the Shaw-Reid acceleration correction, which always uses (1, 1) (alpha1 and alpha2 "
+        "are then not used)")
     alpha1: NonNegativeFloat = Field(1.0, description="linear coefficient alpha1 of eq 29")
     alpha2: NonNegativeFloat = Field(1.0, description="quadratic coefficient alpha2 of eq 29")
     epsilon: PositiveFloat = Field(0.01, description="epsilon of eq 30")
+    correction: Literal["volume_weighted", "shepard", "neighbours_only"] = Field(
+        "neighbours_only", description="AC reading of eq 34 (NOTES 8 a, b, c); see "
+        "docs/acceleration-correction.md")
+    energy_correction: Literal["work", "paper", "none"] = Field(
+        "work", description="AC energy term: 'work' books the correction's work exactly, "
+        "'paper' is eq 37 with its typo mended, 'none' adds nothing")
+    correction_h_ratio: float = Field(
+        0.5, gt=0.0, le=1.0, description="h_c / h of the correction kernel (section 4.1: 1/2)")
 
 
 class Time(_Model):

@@ -8,6 +8,7 @@ import numpy as np
 from .config import Viscosity
 from .kernels import SUPPORT_RADIUS
 from .neighbours import NeighbourList
+from .physics.correction import ENERGY_CORRECTIONS, VARIANTS
 from .physics.rates import RateBuffers, rate_kernels
 from .state import ParticleState
 
@@ -34,11 +35,14 @@ class Solver:
         self.rate_evaluations = 0
         self.dv = np.zeros((state.n, state.dim))
         self.de = np.zeros(state.n)
+        self.corrected = viscosity.scheme == "ac"
+        # AC evaluates the viscosity with (1, 1) (eq 31); AV with the case's parameters
+        self.alpha = (1.0, 1.0) if self.corrected else (viscosity.alpha1, viscosity.alpha2)
 
     def rates(self, state: ParticleState):
         """Rates of the active particles at ``state`` (Table 1's subroutine RATES)."""
         b = self.buffers
-        particle_pass, pair_pass, stress_pass = self._passes
+        particle_pass, pair_pass, stress_pass, correction_pass = self._passes
         self.neighbours.update(state.position,
                                SUPPORT_RADIUS * float(state.smoothing_length.max()))
         particle_pass(state.density, state.specific_energy, state.deviatoric_stress,
@@ -47,19 +51,33 @@ class Solver:
         pair_pass(self.n_active, state.position, state.velocity, state.mass, state.density,
                   state.smoothing_length, state.body, b.sound_speed, b.A, b.pc,
                   self.neighbours.offsets, self.neighbours.indices,
-                  visc.alpha1, visc.alpha2, visc.epsilon,
+                  self.alpha[0], self.alpha[1], visc.epsilon,
                   b.drho, b.dv_stress, b.dv_visc, b.de_stress, b.de_visc, b.L,
                   b.contact_force, b.pair_count)
         stress_pass(self.n_active, state.deviatoric_stress, b.L, state.material, self.table,
                     b.dS)
         np.add(b.dv_stress, b.dv_visc, out=self.dv)
         np.add(b.de_stress, b.de_visc, out=self.de)
+        if self.corrected:
+            correction_pass(self.n_active, state.position, state.velocity, state.mass,
+                            state.density, state.smoothing_length, state.body,
+                            self.neighbours.offsets, self.neighbours.indices, b.dv_visc,
+                            visc.correction_h_ratio, VARIANTS[visc.correction],
+                            ENERGY_CORRECTIONS[visc.energy_correction], b.dv_corr, b.de_corr)
+            self.dv += b.dv_corr
+            self.de += b.de_corr
         self.pair_evaluations += int(b.pair_count[: self.n_active].sum())
         self.rate_evaluations += 1
         return self.dv, b.drho, self.de, b.dS
 
-    def viscous_power(self, state: ParticleState) -> float:
-        """``sum_i m_i (de_i/dt)_visc`` of the last evaluation (W): the rate at which the
-        artificial viscosity turns kinetic into internal energy."""
-        n = self.n_active
-        return float(np.dot(state.mass[:n], self.buffers.de_visc[:n]))
+    def energy_powers(self, state: ParticleState) -> tuple[float, float, float]:
+        """Powers of the last evaluation (W): ``sum m (de/dt)_visc``, the artificial
+        viscosity's heating; ``sum m v . (dv/dt)_corr``, the work rate of the AC correction
+        force on the particles; ``sum m (de/dt)_corr``, the correction's heating."""
+        n, b = self.n_active, self.buffers
+        m = state.mass[:n]
+        heating = float(np.dot(m, b.de_visc[:n]))
+        if not self.corrected:
+            return heating, 0.0, 0.0
+        work = float(np.dot(m, np.einsum("ia,ia->i", state.velocity[:n], b.dv_corr[:n])))
+        return heating, work, float(np.dot(m, b.de_corr[:n]))

@@ -9,7 +9,9 @@ equations from its neighbour list.  Three passes:
 2. per pair (gather: each ``i`` sums over its ``j``, so threads never write the same memory and
    the result does not depend on the thread count): continuity, velocity gradient, stress and
    viscous accelerations, stress work and viscous heating, contact terms;
-3. per particle: Jaumann stress rate from the velocity gradient.
+3. per particle: Jaumann stress rate from the velocity gradient;
+4. with the acceleration correction only, per pair again: the smoothed viscous acceleration
+   that AC subtracts (:mod:`.correction`).
 
 The dimension is a compile-time constant: :func:`rate_kernels` compiles the same source once
 per dimension, so the small loops over components unroll.
@@ -27,6 +29,13 @@ from ..kernels import cubic_spline_dwdr
 from ..materials import B0, BULK, C0, EOS, GAMMA, RHO0, SHEAR, WAVE_MODULUS
 from .contact import contact_acceleration_pair, contact_work_pair, in_contact
 from .continuity import continuity_pair, velocity_gradient_pair
+from .correction import (
+    ENERGY_PAPER,
+    ENERGY_WORK,
+    SHEPARD,
+    corrected_viscous_acceleration,
+    correction_weight,
+)
 from .energy import stress_work_pair, viscous_heating_pair
 from .eos import MIE_GRUNEISEN, linear_pressure, mie_gruneisen_pressure
 from .momentum import stress_acceleration_pair, viscous_acceleration_pair
@@ -47,7 +56,7 @@ def material_pressure(table, k: int, rho: float, e: float) -> float:
 @cache
 def rate_kernels(dim: int):
     """Compile the rate passes for dimension ``dim``; returns ``(particle_pass, pair_pass,
-    stress_pass)``."""
+    stress_pass, correction_pass)``."""
 
     @nb.njit(parallel=True, cache=True)
     def particle_pass(rho, e, S, material, table, pressure, sound_speed, A, pc):
@@ -146,7 +155,49 @@ def rate_kernels(dim: int):
         for i in nb.prange(n_active):
             jaumann_stress_rate(L[i], S[i], table[material[i], SHEAR], dS[i])
 
-    return particle_pass, pair_pass, stress_pass
+    @nb.njit(parallel=True, cache=True)
+    def correction_pass(n_active, x, v, m, rho, h, body, offsets, indices, u, h_ratio,
+                        variant, energy_mode, dv_corr, de_corr):
+        """Pass 4 (AC only): ``-u_corr_i`` (eqs 33-36) and its energy term, from the viscous
+        accelerations ``u`` of pass 2 (evaluated with (1, 1)); neighbours of the same body
+        within ``2 h_c``, ``h_c = h_ratio h``."""
+        for i in nb.prange(n_active):
+            weighted_u = np.zeros(dim)
+            weight_sum = 0.0
+            paper_energy = 0.0
+            self_weight = correction_weight(m[i] / rho[i], 0.0, h_ratio * h[i], dim)
+            for k in range(offsets[i], offsets[i + 1]):
+                j = indices[k]
+                if body[j] != body[i]:
+                    continue
+                h_c = h_ratio * 0.5 * (h[i] + h[j])
+                r2 = 0.0
+                for a in range(dim):
+                    d = x[i, a] - x[j, a]
+                    r2 += d * d
+                if r2 >= 4.0 * h_c * h_c:
+                    continue
+                w = correction_weight(m[j] / rho[j], math.sqrt(r2), h_c, dim)
+                weight_sum += w
+                for a in range(dim):
+                    weighted_u[a] += w * u[j, a]
+                    paper_energy += 0.5 * w * (v[i, a] - v[j, a]) * u[j, a]
+            work = 0.0
+            for a in range(dim):
+                net = corrected_viscous_acceleration(u[i, a], self_weight, weight_sum,
+                                                     weighted_u[a], variant)
+                dv_corr[i, a] = net - u[i, a]
+                work -= v[i, a] * dv_corr[i, a]
+            if energy_mode == ENERGY_WORK:
+                de_corr[i] = work
+            elif energy_mode == ENERGY_PAPER:
+                if variant == SHEPARD:
+                    paper_energy /= weight_sum + self_weight
+                de_corr[i] = paper_energy
+            else:
+                de_corr[i] = 0.0
+
+    return particle_pass, pair_pass, stress_pass, correction_pass
 
 
 class RateBuffers:
@@ -166,3 +217,5 @@ class RateBuffers:
         self.dS = np.zeros((n, 3, 3))
         self.contact_force = np.zeros((n, dim))
         self.pair_count = np.zeros(n, dtype=np.int64)
+        self.dv_corr = np.zeros((n, dim))
+        self.de_corr = np.zeros(n)
