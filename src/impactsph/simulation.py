@@ -177,7 +177,7 @@ class Simulation:
                 self.integrator.step(self.state, dt)
                 if reaches_stop:
                     self.state.time = stop
-                heating, work, corr_heating = self.solver.energy_powers(self.state)
+                heating, work, corr_heating = self.solver.powers
                 self.viscous_dissipation += dt * heating
                 self.correction_work += dt * work
                 self.correction_heating += dt * corr_heating

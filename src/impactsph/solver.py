@@ -35,6 +35,7 @@ class Solver:
         self.rate_evaluations = 0
         self.dv = np.zeros((state.n, state.dim))
         self.de = np.zeros(state.n)
+        self.powers = (0.0, 0.0, 0.0)
         self.corrected = viscosity.scheme == "ac"
         # AC evaluates the viscosity with (1, 1) (eq 31); AV with the case's parameters
         self.alpha = (1.0, 1.0) if self.corrected else (viscosity.alpha1, viscosity.alpha2)
@@ -66,14 +67,16 @@ class Solver:
                             ENERGY_CORRECTIONS[visc.energy_correction], b.dv_corr, b.de_corr)
             self.dv += b.dv_corr
             self.de += b.de_corr
+        self.powers = self._energy_powers(state)
         self.pair_evaluations += int(b.pair_count[: self.n_active].sum())
         self.rate_evaluations += 1
         return self.dv, b.drho, self.de, b.dS
 
-    def energy_powers(self, state: ParticleState) -> tuple[float, float, float]:
-        """Powers of the last evaluation (W): ``sum m (de/dt)_visc``, the artificial
+    def _energy_powers(self, state: ParticleState) -> tuple[float, float, float]:
+        """Powers at the evaluated state (W): ``sum m (de/dt)_visc``, the artificial
         viscosity's heating; ``sum m v . (dv/dt)_corr``, the work rate of the AC correction
-        force on the particles; ``sum m (de/dt)_corr``, the correction's heating."""
+        force on the particles; ``sum m (de/dt)_corr``, the correction's heating.  Kept as
+        ``self.powers``: after a step, those of its midpoint evaluation."""
         n, b = self.n_active, self.buffers
         m = state.mass[:n]
         heating = float(np.dot(m, b.de_visc[:n]))
