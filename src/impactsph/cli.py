@@ -89,6 +89,48 @@ def check(case: Annotated[str, typer.Argument(help="case file or built-in name")
     typer.echo(f"{c.name}: valid ({c.dimension}D, {len(c.bodies)} bodies)")
 
 
+@app.command()
+def sweep(
+    case: Annotated[str, typer.Argument(help="case file or built-in name")],
+    grid: Annotated[list[str], typer.Option(
+        help="KEY=V1,V2,... (several: Cartesian product; KEY1,KEY2=... ties keys)")],
+    out: Annotated[Path | None, typer.Option(help="output directory (default runs/NAME-sweep)")
+                   ] = None,
+    set_: Annotated[list[str] | None, typer.Option("--set", help="fixed override")] = None,
+    scheduler: Annotated[str | None, typer.Option(
+        help="address of an existing Dask scheduler (default: a local cluster)")] = None,
+    workers: Annotated[int | None, typer.Option(help="local workers (default: cores)")] = None,
+    threshold: Annotated[float, typer.Option(
+        help="oscillation criterion: excess total variation / V below this")] = 0.5,
+) -> None:
+    """Run a case over a grid of parameters in parallel (Dask); write sweep.csv, sweep.json
+    and sweep.png, and name the smallest oscillation-free value of the first parameter."""
+    from .sweep import sweep as run_sweep
+
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        c = load_case(case, set_ or [])
+        result = run_sweep(case, grid, out or Path("runs") / f"{c.name}-sweep",
+                           scheduler=scheduler, workers=workers, overrides=set_ or [],
+                           threshold=threshold)
+    except CaseError as exc:
+        _fail(str(exc))
+    cols = [*result["columns"], "status", "kinetic_energy_ratio_final",
+            "velocity_profile_l1_error", "velocity_profile_oscillation"]
+    typer.echo("  ".join(cols))
+    for row in result["rows"]:
+        typer.echo("  ".join(_fmt(row.get(k)) for k in cols))
+    f = result["finding"]
+    typer.echo(f"smallest oscillation-free {f['parameter']}: {f['smallest_oscillation_free']} "
+               f"({f['criterion']})")
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)[:40]
+
+
 def main() -> None:  # pragma: no cover
     """Entry point for ``python -m impactsph``."""
     app()

@@ -146,6 +146,9 @@ class Output(_Model):
     history_every: int = Field(1, ge=1, description="write a history row every N steps")
     figures: bool = True
     probes: list[Probe] = Field(default_factory=list)
+    reference_viscosity: Viscosity | None = Field(
+        None, description="a run whose viscosity differs from this one also runs the case "
+        "with it and overlays it in its figures (the bars: AV (0.3, 0.3), the paper's optimum)")
 
 
 class Case(_Model):

@@ -76,6 +76,8 @@ def bars_mid_velocity_figure(runs: list[dict[str, Any]], theory: BarTheory, X_mi
 
 
 def label_of(case: Any) -> str:
-    """Short label of a run's viscosity settings, e.g. ``AV (0.3, 0.3)``."""
+    """Short label of a run's viscosity settings, e.g. ``AV (0.3, 0.3)``, ``AC (shepard)``."""
     v = case.viscosity
-    return f"{v.scheme.upper()} ({v.alpha1:g}, {v.alpha2:g})"
+    if v.scheme == "ac":
+        return f"AC ({v.correction})"
+    return f"AV ({v.alpha1:g}, {v.alpha2:g})"

@@ -11,6 +11,7 @@ from .analysis import analyse
 from .config import Case
 from .figures import draw_figures
 from .output import load_run, write_case, write_history, write_snapshots, write_summary
+from .plotting import label_of
 from .simulation import Simulation, SimulationError
 
 log = logging.getLogger("impactsph")
@@ -38,6 +39,16 @@ def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], No
     summary = {**sim.summary(), **analyse(case.analysis, sim)}
     write_summary(out, summary)
     if case.output.figures if figures is None else figures:
-        summary["figures"] = [str(p) for p in draw_figures([load_run(out)], out)]
+        runs = [load_run(out)]
+        ref = case.output.reference_viscosity
+        if ref is not None and ref != case.viscosity:
+            ref_case = case.model_copy(update={
+                "viscosity": ref,
+                "output": case.output.model_copy(update={"figures": False,
+                                                         "reference_viscosity": None})})
+            log.info("reference run with %s", label_of(ref_case))
+            run_case(ref_case, out / "reference", figures=False)
+            runs.append(load_run(out / "reference"))
+        summary["figures"] = [str(p) for p in draw_figures(runs, out)]
         write_summary(out, summary)
     return summary
