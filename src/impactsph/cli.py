@@ -125,6 +125,27 @@ def sweep(
                f"({f['criterion']})")
 
 
+@app.command()
+def paper(
+    case: Annotated[str, typer.Argument(help="the bars case (built-in 'bars' or a file)")
+                    ] = "bars",
+    out: Annotated[Path, typer.Option(help="output directory")] = Path("runs/paper-bars"),
+    workers: Annotated[int | None, typer.Option(help="local workers (default: cores)")] = None,
+    scheduler: Annotated[str | None, typer.Option(help="existing Dask scheduler")] = None,
+) -> None:
+    """Regenerate the paper's Figs 3-9 for the bars, AC overlaid, and the AV/AC table."""
+    from .paper import paper_figures
+
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        result = paper_figures(case, out, workers=workers, scheduler=scheduler)
+    except (CaseError, ValueError) as exc:
+        _fail(str(exc))
+    typer.echo((out / "table.md").read_text())
+    for fig in result["figures"]:
+        typer.echo(f"figure: {fig}")
+
+
 def _fmt(v) -> str:
     if isinstance(v, float):
         return f"{v:.4g}"

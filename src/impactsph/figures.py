@@ -46,3 +46,35 @@ def draw_figures(runs: list[dict[str, Any]], out: Path, labels: list[str] | None
             paths.append(bars_mid_velocity_figure(mids, theory, X_mid,
                                                   out / "mid_velocity.png"))
     return paths
+
+
+def draw_overlays(runs: list[tuple[str, dict[str, Any]]], out: Path, name: str,
+                  kinds: tuple[str, ...]) -> list[Path]:
+    """One figure of the bars overlaying labelled runs: ``kinds`` among ``profile``,
+    ``mid_velocity``, ``kinetic_energy``; written as ``out/name.png``."""
+    if not runs:
+        return []
+    out = Path(out)
+    case = validate_case(runs[0][1]["case"])
+    theory = theory_for(case)
+    paths = []
+    if "profile" in kinds:
+        profiles = []
+        for lab, r in runs:
+            for snap in r["snapshots"]:
+                if abs(snap["time"] - PROFILE_TIME) < 1e-12:
+                    left = snap["body"] == 0
+                    profiles.append({"label": lab, "X": snap["initial_position"][left, 0],
+                                     "v": snap["velocity"][left, 0]})
+        paths.append(bars_profile_figure(profiles, theory, out / f"{name}.png"))
+    if "mid_velocity" in kinds:
+        mids = [{"label": lab, "time": r["probes"]["time"], "v": r["probes"]["mid_left_vx"]}
+                for lab, r in runs if "mid_left_vx" in r["probes"]]
+        X_mid = float(runs[0][1]["summary"]["probes"]["mid_left"]["initial_position"][0])
+        paths.append(bars_mid_velocity_figure(mids, theory, X_mid, out / f"{name}.png"))
+    if "kinetic_energy" in kinds:
+        paths.append(kinetic_energy_figure(
+            [{"label": lab, "time": r["history"]["time"],
+              "kinetic_energy": r["history"]["kinetic_energy"]} for lab, r in runs],
+            out / f"{name}.png", title="Kinetic energy: bars"))
+    return paths
