@@ -14,6 +14,7 @@ skipped by the pair loops, whose kernel value is zero there.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cache
 
@@ -106,17 +107,16 @@ def _build_functions(dim: int):
             visit(i, x, lo, radius, ncell, cell_start, order, r2max, indices, offsets[i], True)
         return offsets, indices
 
-    @nb.njit(parallel=True, cache=True)
+    @nb.njit(cache=True)
     def max_displacement(x, x_ref):
-        n = x.shape[0]
-        d2 = np.zeros(n)
-        for i in nb.prange(n):
+        largest = 0.0
+        for i in range(x.shape[0]):
             s = 0.0
             for a in range(dim):
                 d = x[i, a] - x_ref[i, a]
                 s += d * d
-            d2[i] = s
-        return np.sqrt(d2.max()) if n > 0 else 0.0
+            largest = max(largest, s)
+        return math.sqrt(largest)
 
     return build, max_displacement
 

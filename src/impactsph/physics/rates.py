@@ -53,6 +53,13 @@ def material_pressure(table, k: int, rho: float, e: float) -> float:
     return linear_pressure(rho, table[k, RHO0], table[k, BULK])
 
 
+#: LLVM may fuse multiply-adds and use reciprocals (deterministic on one machine; no
+#: reassociation, so sums keep their order).
+FASTMATH = {"contract", "arcp", "nsz"}
+#: Particles per parallel work item: scratch arrays are allocated once per chunk.
+CHUNK = 512
+
+
 @cache
 def rate_kernels(dim: int):
     """Compile the rate passes for dimension ``dim``; returns ``(particle_pass, pair_pass,
@@ -73,81 +80,99 @@ def rate_kernels(dim: int):
                 A[i, a, a] -= p * inv_rho2
             pc[i] = p * inv_rho2
 
-    @nb.njit(parallel=True, cache=True)
+    @nb.njit(inline="always", cache=True, fastmath=FASTMATH)
+    def particle_sums(
+        i, x, v, m, rho, h, body, sound_speed, A, pc, offsets, indices,
+        alpha1, alpha2, epsilon,
+        drho, dv_stress, dv_visc, de_stress, de_visc, L, contact_force, pair_count,
+        gradw, v_ij, r_ij,
+    ):
+        """Sums over the neighbours of particle ``i`` (eqs 22, 27, 28); ``gradw``, ``v_ij``,
+        ``r_ij`` are scratch vectors."""
+        A_i = A[i]
+        drho_i = 0.0
+        de_s = 0.0
+        de_v = 0.0
+        for a in range(dim):
+            dv_stress[i, a] = 0.0
+            dv_visc[i, a] = 0.0
+            contact_force[i, a] = 0.0
+            for b in range(dim):
+                L[i, a, b] = 0.0
+        count = 0
+        for k in range(offsets[i], offsets[i + 1]):
+            j = indices[k]
+            h_ij = 0.5 * (h[i] + h[j])
+            r2 = 0.0
+            for a in range(dim):
+                r_ij[a] = x[i, a] - x[j, a]
+                r2 += r_ij[a] * r_ij[a]
+            if r2 >= 4.0 * h_ij * h_ij or r2 == 0.0:
+                continue
+            count += 1
+            r = math.sqrt(r2)
+            f = cubic_spline_dwdr(r, h_ij, dim) / r
+            vg = 0.0
+            vr = 0.0
+            for a in range(dim):
+                gradw[a] = f * r_ij[a]
+                v_ij[a] = v[i, a] - v[j, a]
+                vg += v_ij[a] * gradw[a]
+                vr += v_ij[a] * r_ij[a]
+            volume_j = m[j] / rho[j]
+            same_body = body[i] == body[j]
+            if same_body:
+                drho_i += continuity_pair(rho[i], volume_j, vg)
+                A_j = A[j]
+                for a in range(dim):
+                    dv_stress[i, a] += stress_acceleration_pair(m[j], A_i, A_j, gradw, a)
+                    for b in range(dim):
+                        L[i, a, b] += velocity_gradient_pair(volume_j, v_ij[a], gradw[b])
+                de_s += stress_work_pair(m[j], A_i, v_ij, gradw)
+            else:
+                s_ij = pc[i] + pc[j]
+                if in_contact(s_ij, vg):
+                    drho_i += continuity_pair(rho[i], volume_j, vg)
+                    for a in range(dim):
+                        fa = contact_acceleration_pair(m[j], s_ij, gradw[a])
+                        dv_stress[i, a] += fa
+                        contact_force[i, a] += m[i] * fa
+                    de_s += contact_work_pair(m[j], pc[i], s_ij, vg)
+            pi_ij = monaghan_viscosity(
+                vr, r2, h_ij, 0.5 * (sound_speed[i] + sound_speed[j]),
+                0.5 * (rho[i] + rho[j]), alpha1, alpha2, epsilon,
+            )
+            if pi_ij != 0.0:
+                for a in range(dim):
+                    fa = viscous_acceleration_pair(m[j], pi_ij, gradw[a])
+                    dv_visc[i, a] += fa
+                    if not same_body:
+                        contact_force[i, a] += m[i] * fa
+                de_v += viscous_heating_pair(m[j], pi_ij, vg)
+        drho[i] = drho_i
+        de_stress[i] = de_s
+        de_visc[i] = de_v
+        pair_count[i] = count
+
+    @nb.njit(parallel=True, cache=True, fastmath=FASTMATH)
     def pair_pass(
         n_active, x, v, m, rho, h, body, sound_speed, A, pc, offsets, indices,
         alpha1, alpha2, epsilon,
         drho, dv_stress, dv_visc, de_stress, de_visc, L, contact_force, pair_count,
     ):
-        """Pass 2: sums over neighbours for every active particle (eqs 22, 27, 28)."""
-        for i in nb.prange(n_active):
-            gradw = np.empty(dim)
+        """Pass 2: sums over neighbours for every active particle, in parallel chunks."""
+        n_chunks = (n_active + CHUNK - 1) // CHUNK
+        for chunk in nb.prange(n_chunks):
+            gradw = np.empty(dim)  # scratch vectors, allocated once per chunk
             v_ij = np.empty(dim)
             r_ij = np.empty(dim)
-            A_i = A[i]
-            drho_i = 0.0
-            de_s = 0.0
-            de_v = 0.0
-            for a in range(dim):
-                dv_stress[i, a] = 0.0
-                dv_visc[i, a] = 0.0
-                contact_force[i, a] = 0.0
-                for b in range(dim):
-                    L[i, a, b] = 0.0
-            count = 0
-            for k in range(offsets[i], offsets[i + 1]):
-                j = indices[k]
-                h_ij = 0.5 * (h[i] + h[j])
-                r2 = 0.0
-                for a in range(dim):
-                    r_ij[a] = x[i, a] - x[j, a]
-                    r2 += r_ij[a] * r_ij[a]
-                if r2 >= 4.0 * h_ij * h_ij or r2 == 0.0:
-                    continue
-                count += 1
-                r = math.sqrt(r2)
-                f = cubic_spline_dwdr(r, h_ij, dim) / r
-                vg = 0.0
-                vr = 0.0
-                for a in range(dim):
-                    gradw[a] = f * r_ij[a]
-                    v_ij[a] = v[i, a] - v[j, a]
-                    vg += v_ij[a] * gradw[a]
-                    vr += v_ij[a] * r_ij[a]
-                volume_j = m[j] / rho[j]
-                same_body = body[i] == body[j]
-                if same_body:
-                    drho_i += continuity_pair(rho[i], volume_j, vg)
-                    A_j = A[j]
-                    for a in range(dim):
-                        dv_stress[i, a] += stress_acceleration_pair(m[j], A_i, A_j, gradw, a)
-                        for b in range(dim):
-                            L[i, a, b] += velocity_gradient_pair(volume_j, v_ij[a], gradw[b])
-                    de_s += stress_work_pair(m[j], A_i, v_ij, gradw)
-                else:
-                    s_ij = pc[i] + pc[j]
-                    if in_contact(s_ij, vg):
-                        drho_i += continuity_pair(rho[i], volume_j, vg)
-                        for a in range(dim):
-                            fa = contact_acceleration_pair(m[j], s_ij, gradw[a])
-                            dv_stress[i, a] += fa
-                            contact_force[i, a] += m[i] * fa
-                        de_s += contact_work_pair(m[j], pc[i], s_ij, vg)
-                pi_ij = monaghan_viscosity(
-                    vr, r2, h_ij, 0.5 * (sound_speed[i] + sound_speed[j]),
-                    0.5 * (rho[i] + rho[j]), alpha1, alpha2, epsilon,
+            for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n_active)):
+                particle_sums(
+                    i, x, v, m, rho, h, body, sound_speed, A, pc, offsets, indices,
+                    alpha1, alpha2, epsilon,
+                    drho, dv_stress, dv_visc, de_stress, de_visc, L, contact_force, pair_count,
+                    gradw, v_ij, r_ij,
                 )
-                if pi_ij != 0.0:
-                    for a in range(dim):
-                        fa = viscous_acceleration_pair(m[j], pi_ij, gradw[a])
-                        dv_visc[i, a] += fa
-                        if not same_body:
-                            contact_force[i, a] += m[i] * fa
-                    de_v += viscous_heating_pair(m[j], pi_ij, vg)
-            drho[i] = drho_i
-            de_stress[i] = de_s
-            de_visc[i] = de_v
-            pair_count[i] = count
 
     @nb.njit(parallel=True, cache=True)
     def stress_pass(n_active, S, L, material, table, dS):
@@ -155,47 +180,58 @@ def rate_kernels(dim: int):
         for i in nb.prange(n_active):
             jaumann_stress_rate(L[i], S[i], table[material[i], SHEAR], dS[i])
 
+    @nb.njit(inline="always", cache=True)
+    def particle_correction(i, x, v, m, rho, h, body, offsets, indices, u, h_ratio,
+                            variant, energy_mode, dv_corr, de_corr, weighted_u):
+        """``-u_corr_i`` and its energy term for particle ``i`` (``weighted_u``: scratch)."""
+        for a in range(dim):
+            weighted_u[a] = 0.0
+        weight_sum = 0.0
+        paper_energy = 0.0
+        self_weight = correction_weight(m[i] / rho[i], 0.0, h_ratio * h[i], dim)
+        for k in range(offsets[i], offsets[i + 1]):
+            j = indices[k]
+            if body[j] != body[i]:
+                continue
+            h_c = h_ratio * 0.5 * (h[i] + h[j])
+            r2 = 0.0
+            for a in range(dim):
+                d = x[i, a] - x[j, a]
+                r2 += d * d
+            if r2 >= 4.0 * h_c * h_c:
+                continue
+            w = correction_weight(m[j] / rho[j], math.sqrt(r2), h_c, dim)
+            weight_sum += w
+            for a in range(dim):
+                weighted_u[a] += w * u[j, a]
+                paper_energy += 0.5 * w * (v[i, a] - v[j, a]) * u[j, a]
+        work = 0.0
+        for a in range(dim):
+            net = corrected_viscous_acceleration(u[i, a], self_weight, weight_sum,
+                                                 weighted_u[a], variant)
+            dv_corr[i, a] = net - u[i, a]
+            work -= v[i, a] * dv_corr[i, a]
+        if energy_mode == ENERGY_WORK:
+            de_corr[i] = work
+        elif energy_mode == ENERGY_PAPER:
+            if variant == SHEPARD:
+                paper_energy /= weight_sum + self_weight
+            de_corr[i] = paper_energy
+        else:
+            de_corr[i] = 0.0
+
     @nb.njit(parallel=True, cache=True)
     def correction_pass(n_active, x, v, m, rho, h, body, offsets, indices, u, h_ratio,
                         variant, energy_mode, dv_corr, de_corr):
         """Pass 4 (AC only): ``-u_corr_i`` (eqs 33-36) and its energy term, from the viscous
         accelerations ``u`` of pass 2 (evaluated with (1, 1)); neighbours of the same body
         within ``2 h_c``, ``h_c = h_ratio h``."""
-        for i in nb.prange(n_active):
-            weighted_u = np.zeros(dim)
-            weight_sum = 0.0
-            paper_energy = 0.0
-            self_weight = correction_weight(m[i] / rho[i], 0.0, h_ratio * h[i], dim)
-            for k in range(offsets[i], offsets[i + 1]):
-                j = indices[k]
-                if body[j] != body[i]:
-                    continue
-                h_c = h_ratio * 0.5 * (h[i] + h[j])
-                r2 = 0.0
-                for a in range(dim):
-                    d = x[i, a] - x[j, a]
-                    r2 += d * d
-                if r2 >= 4.0 * h_c * h_c:
-                    continue
-                w = correction_weight(m[j] / rho[j], math.sqrt(r2), h_c, dim)
-                weight_sum += w
-                for a in range(dim):
-                    weighted_u[a] += w * u[j, a]
-                    paper_energy += 0.5 * w * (v[i, a] - v[j, a]) * u[j, a]
-            work = 0.0
-            for a in range(dim):
-                net = corrected_viscous_acceleration(u[i, a], self_weight, weight_sum,
-                                                     weighted_u[a], variant)
-                dv_corr[i, a] = net - u[i, a]
-                work -= v[i, a] * dv_corr[i, a]
-            if energy_mode == ENERGY_WORK:
-                de_corr[i] = work
-            elif energy_mode == ENERGY_PAPER:
-                if variant == SHEPARD:
-                    paper_energy /= weight_sum + self_weight
-                de_corr[i] = paper_energy
-            else:
-                de_corr[i] = 0.0
+        n_chunks = (n_active + CHUNK - 1) // CHUNK
+        for chunk in nb.prange(n_chunks):
+            weighted_u = np.empty(dim)
+            for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n_active)):
+                particle_correction(i, x, v, m, rho, h, body, offsets, indices, u, h_ratio,
+                                    variant, energy_mode, dv_corr, de_corr, weighted_u)
 
     return particle_pass, pair_pass, stress_pass, correction_pass
 
