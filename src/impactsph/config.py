@@ -69,12 +69,51 @@ class Material(_Model):
 
 class Block(_Model):
     """A lattice of particles filling an axis-aligned box (a line in 1D, a rectangle in 2D,
-    a box in 3D); particles sit at cell centres, ``round(size / spacing)`` along each axis."""
+    a box in 3D); particles sit at cell centres.  Give either ``spacing`` (one value, or one
+    per axis; ``round(size / spacing)`` particles per axis) or ``count`` (particles per axis;
+    the spacing is then ``size / count``)."""
 
     type: Literal["block"] = "block"
     origin: list[FiniteFloat] = Field(description="lower corner (m)")
     size: list[PositiveFloat] = Field(description="edge lengths (m)")
-    spacing: PositiveFloat = Field(description="particle spacing dx (m)")
+    spacing: PositiveFloat | list[PositiveFloat] | None = Field(
+        None, description="particle spacing dx (m), one value or one per axis")
+    count: list[Annotated[int, Field(ge=1)]] | None = Field(
+        None, description="particles per axis (instead of spacing)")
+
+    @model_validator(mode="after")
+    def _one_of(self) -> Block:
+        if (self.spacing is None) == (self.count is None):
+            raise ValueError("give exactly one of spacing and count")
+        return self
+
+    def spacings(self) -> list[float]:
+        """Particle spacing along each axis (m)."""
+        if self.count is not None:
+            return [s / c for s, c in zip(self.size, self.count, strict=True)]
+        if isinstance(self.spacing, list):
+            return list(self.spacing)
+        return [float(self.spacing)] * len(self.size)
+
+
+class Region(_Model):
+    """An axis-aligned box (m) selecting particles of a body."""
+
+    origin: list[FiniteFloat]
+    size: list[PositiveFloat]
+
+
+class TipMass(_Model):
+    """An extra mass spread evenly over the body's particles inside a region; those particles
+    start at the velocity that conserves the momentum of the mass arriving at ``velocity``:
+    ``V0 G / (G + M)``, M the particles' own mass (the Parkes cantilever, NOTES 10)."""
+
+    mass: PositiveFloat = Field(description="the extra mass G (kg)")
+    depth: PositiveFloat | None = Field(
+        None, description="in 2D, the out-of-plane thickness the mass is spread over (m): "
+        "the model carries G / depth per unit depth")
+    velocity: list[FiniteFloat] = Field(description="velocity V0 given to the mass (m/s)")
+    region: Region
 
 
 class Body(_Model):
@@ -84,6 +123,22 @@ class Body(_Model):
     material: str = Field(description="key of a [materials.NAME] table")
     geometry: Block
     velocity: list[FiniteFloat] = Field(description="initial velocity (m/s)")
+    clamped: Region | None = Field(
+        None, description="particles inside are held at zero velocity; they take part in "
+        "every sum")
+    tip_mass: TipMass | None = None
+
+
+class Wall(_Model):
+    """A rigid plane wall, modelled by ghost particles: mirror images of the particles within
+    the kernel's reach.  The wall pushes (compression only) and transmits no shear stress;
+    ``slip = 'free'`` mirrors the normal velocity only, ``'no'`` mirrors the whole velocity
+    (v_ghost = -v), so that the artificial viscosity also resists sliding along the wall."""
+
+    type: Literal["wall"] = "wall"
+    point: list[FiniteFloat] = Field(description="a point of the wall plane (m)")
+    normal: list[FiniteFloat] = Field(description="normal pointing into the material")
+    slip: Literal["free", "no"] = "free"
 
 
 class Kernel(_Model):
@@ -157,11 +212,12 @@ class Case(_Model):
     name: str = Field(min_length=1)
     description: str = ""
     dimension: Literal[1, 2, 3]
-    analysis: Literal["none", "bars"] = Field(
+    analysis: Literal["none", "bars", "taylor", "cantilever"] = Field(
         "none", description="problem-specific analysis and figures"
     )
     materials: dict[str, Material] = Field(min_length=1)
     bodies: list[Body] = Field(min_length=1)
+    boundaries: list[Wall] = Field(default_factory=list)
     kernel: Kernel = Field(default_factory=Kernel)
     viscosity: Viscosity = Field(default_factory=Viscosity)
     time: Time
@@ -187,6 +243,27 @@ class Case(_Model):
             if len(body.velocity) != d:
                 raise ValueError(f"{where}.velocity has {len(body.velocity)} components; "
                                  f"dimension = {d} needs {d}")
+            g = body.geometry
+            if isinstance(g.spacing, list) and len(g.spacing) != d:
+                raise ValueError(f"{where}.geometry.spacing needs 1 or {d} values")
+            if g.count is not None and len(g.count) != d:
+                raise ValueError(f"{where}.geometry.count needs {d} values")
+            regions = [("clamped", body.clamped)]
+            if body.tip_mass is not None:
+                regions.append(("tip_mass.region", body.tip_mass.region))
+                if len(body.tip_mass.velocity) != d:
+                    raise ValueError(f"{where}.tip_mass.velocity needs {d} components")
+                if d == 2 and body.tip_mass.depth is None:
+                    raise ValueError(f"{where}.tip_mass.depth is needed in 2D (the mass is "
+                                     f"spread per unit depth)")
+            for name, region in regions:
+                if region is not None and (len(region.origin) != d or len(region.size) != d):
+                    raise ValueError(f"{where}.{name} needs origin and size of {d} components")
+        for k, wall in enumerate(self.boundaries):
+            if len(wall.point) != d or len(wall.normal) != d:
+                raise ValueError(f"boundaries.{k}: point and normal need {d} components")
+            if sum(c * c for c in wall.normal) == 0:
+                raise ValueError(f"boundaries.{k}.normal = {wall.normal}: must not be zero")
         for name, mat in self.materials.items():
             if mat.model == "bar" and d != 1:
                 raise ValueError(f"materials.{name}.model = 'bar' is for dimension = 1 only")
@@ -198,7 +275,7 @@ class Case(_Model):
         return self
 
 
-BUILTIN_CASES = ("bars",)
+BUILTIN_CASES = ("bars", "taylor", "cantilever")
 
 
 def builtin_case_path(name: str) -> Path:

@@ -151,7 +151,8 @@ class NeighbourList:
         if self.skin <= 0.0:
             return True
         _, max_disp = _build_functions(x.shape[1])
-        return bool(max_disp(x, self.reference_positions) > 0.5 * self.skin)
+        reference = self.reference_positions[: x.shape[0]]  # ghosts follow their sources
+        return bool(max_disp(x, reference) > 0.5 * self.skin)
 
     def update(self, x: np.ndarray, support: float) -> None:
         """Rebuild in place if the skin no longer covers the motion since the last build."""

@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import Case, Material
-from .geometry import block_lattice
+from .config import Case, CaseError, Material
+from .geometry import block_lattice, inside
 from .materials import MaterialModel, material_table
 from .state import ParticleState
 
@@ -44,33 +44,53 @@ class Problem:
 
 
 def build_problem(case: Case) -> Problem:
-    """Place the particles of every body, set masses ``rho0 dx^dim``, smoothing lengths
-    ``h = (h/dx) dx`` and initial velocities."""
+    """Place the particles of every body, set masses ``rho0 dx^dim`` (plus any tip mass),
+    smoothing lengths ``h = (h/dx) dx``, initial velocities and clamped particles."""
     mat_names = list(case.materials)
     materials = [resolve_material(n, case.materials[n]) for n in mat_names]
     dim = case.dimension
     parts: dict[str, list[np.ndarray]] = {k: [] for k in
-                                          ("x", "v", "rho", "m", "h", "body", "mat")}
+                                          ("x", "v", "rho", "m", "h", "body", "mat", "clamped")}
     for b, body in enumerate(case.bodies):
         g = body.geometry
-        x = block_lattice(g.origin, g.size, g.spacing)
+        spacing = g.spacings()
+        x = block_lattice(g.origin, g.size, spacing)
         k = mat_names.index(body.material)
         rho0 = materials[k].density
         n = x.shape[0]
+        cell = float(np.prod(spacing))
+        mass = np.full(n, rho0 * cell)
+        velocity = np.tile(np.asarray(body.velocity, dtype=np.float64), (n, 1))
+        clamped = np.zeros(n, dtype=bool)
+        if body.clamped is not None:
+            clamped = inside(x, body.clamped.origin, body.clamped.size)
+            velocity[clamped] = 0.0
+        if body.tip_mass is not None:
+            tip = body.tip_mass
+            sel = inside(x, tip.region.origin, tip.region.size)
+            if not sel.any():
+                raise CaseError(f"bodies.{b}.tip_mass.region holds no particle of body "
+                                f"{body.name!r}")
+            extra = tip.mass / (tip.depth if dim == 2 else 1.0)
+            own = float(mass[sel].sum())
+            mass[sel] += extra / sel.sum()
+            velocity[sel] = np.asarray(tip.velocity) * extra / (extra + own)
         parts["x"].append(x)
-        parts["v"].append(np.tile(np.asarray(body.velocity, dtype=np.float64), (n, 1)))
+        parts["v"].append(velocity)
         parts["rho"].append(np.full(n, rho0))
-        parts["m"].append(np.full(n, rho0 * g.spacing**dim))
-        parts["h"].append(np.full(n, case.kernel.h_over_dx * g.spacing))
+        parts["m"].append(mass)
+        # anisotropic lattices: h scales with the geometric mean of the spacings
+        parts["h"].append(np.full(n, case.kernel.h_over_dx * cell ** (1.0 / dim)))
         parts["body"].append(np.full(n, b, dtype=np.int32))
         parts["mat"].append(np.full(n, k, dtype=np.int32))
+        parts["clamped"].append(clamped)
     cat = {k: np.concatenate(v) for k, v in parts.items()}
     n = cat["x"].shape[0]
     state = ParticleState(
         position=np.ascontiguousarray(cat["x"]), velocity=np.ascontiguousarray(cat["v"]),
         density=cat["rho"], specific_energy=np.zeros(n), deviatoric_stress=np.zeros((n, 3, 3)),
         mass=cat["m"], smoothing_length=cat["h"], body=cat["body"], material=cat["mat"],
-        clamped=np.zeros(n, dtype=bool),
+        clamped=cat["clamped"],
     )
     body_names = [b.name for b in case.bodies]
     probes = {}

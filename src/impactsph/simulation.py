@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .boundaries import Walls
 from .config import Case
 from .integrate import MidpointIntegrator, stable_time_step
 from .problem import Problem, build_problem
@@ -51,7 +52,8 @@ class Simulation:
         self.case = case
         self.problem = problem or build_problem(case)
         self.state: ParticleState = self.problem.state
-        self.solver = Solver(self.state, self.problem.table, case.viscosity,
+        self.walls = Walls.from_config(case.boundaries, case.dimension)
+        self.solver = Solver(self.state, self.problem.table, case.viscosity, walls=self.walls,
                              skin_fraction=case.time.neighbour_skin)
         self.integrator = MidpointIntegrator(self.solver.rates, self.problem.table,
                                              self.state.n, self.state.dim)
@@ -88,8 +90,8 @@ class Simulation:
         for a, name in enumerate("xyz"[: s.dim]):
             row[f"momentum_{name}"] = float(d["momentum"][a])
         n_bodies = len(self.problem.body_names)
-        if n_bodies > 1:
-            force = self.solver.buffers.contact_force
+        if n_bodies > 1 or len(self.walls):
+            force = self.solver.buffers.contact_force[: s.n]
             for a, name in enumerate("xyz"[: s.dim]):
                 per_body = np.bincount(s.body, weights=force[:, a], minlength=n_bodies)
                 for b, body in enumerate(self.problem.body_names):
@@ -111,7 +113,7 @@ class Simulation:
     def _snapshot_fields(self) -> dict[str, np.ndarray]:
         s = self.state
         fields = {k: v.copy() for k, v in s.arrays().items()}
-        fields["pressure"] = self.solver.buffers.pressure.copy()
+        fields["pressure"] = self.solver.buffers.pressure[: s.n].copy()
         return fields
 
     def _take_snapshots(self, previous: float) -> None:
@@ -145,6 +147,13 @@ class Simulation:
         if bad.size:
             i = int(bad[0])
             raise SimulationError(f"non-positive density {self._where(i)}", s.step, s.time, i)
+        if len(self.walls):
+            d = self.walls.distances(s.position)
+            crossed = np.flatnonzero((d < 0).any(axis=1))
+            if crossed.size:
+                i = int(crossed[0])
+                raise SimulationError(f"particle crossed a wall {self._where(i)}", s.step,
+                                      s.time, i)
         if dt < 1e-6 * dt0:
             raise SimulationError(f"time step collapsed to {dt:.3e} s (initial {dt0:.3e} s) at "
                                   f"step {s.step}, t = {s.time:.6e} s", s.step, s.time, None)

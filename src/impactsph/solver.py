@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .boundaries import Walls, fill_ghosts
 from .config import Viscosity
 from .kernels import SUPPORT_RADIUS
 from .neighbours import NeighbourList
@@ -16,54 +17,107 @@ from .state import ParticleState
 class Solver:
     """Evaluates ``(dv/dt, drho/dt, de/dt, dS/dt)`` for a state.
 
-    ``n_active`` particles are integrated; particles beyond (ghosts) only take part in sums.
-    The neighbour list carries a skin of ``skin_fraction`` times the kernel support and is
-    rebuilt when a particle has moved by half the skin.
+    The state's particles are integrated; rigid walls add ghost particles that only take part
+    in sums.  The rates returned have one row per particle, ghosts after the real ones.  The
+    neighbour list carries a skin of ``skin_fraction`` times the kernel support and is
+    rebuilt (with a new set of ghosts) when a particle has moved by half the skin.
     """
 
     def __init__(self, state: ParticleState, table: np.ndarray, viscosity: Viscosity,
-                 n_active: int | None = None, skin_fraction: float = 0.1):
+                 walls: Walls | None = None, skin_fraction: float = 0.1):
         self.table = table
         self.viscosity = viscosity
-        self.n_active = state.n if n_active is None else n_active
+        self.walls = walls if walls is not None and len(walls) else None
+        self.n_active = state.n
         self.dim = state.dim
-        self.buffers = RateBuffers(state.n, state.dim)
+        self.n_bodies = int(state.body.max()) + 1 if state.n else 1
         self._passes = rate_kernels(state.dim)
-        support = SUPPORT_RADIUS * float(state.smoothing_length.max())
-        self.neighbours = NeighbourList.build(state.position, support, skin_fraction * support)
+        self.skin_fraction = skin_fraction
         self.pair_evaluations = 0
         self.rate_evaluations = 0
-        self.dv = np.zeros((state.n, state.dim))
-        self.de = np.zeros(state.n)
-        self.powers = (0.0, 0.0, 0.0)
         self.corrected = viscosity.scheme == "ac"
         # AC evaluates the viscosity with (1, 1) (eq 31); AV with the case's parameters
         self.alpha = (1.0, 1.0) if self.corrected else (viscosity.alpha1, viscosity.alpha2)
+        self.powers = (0.0, 0.0, 0.0)
+        self.neighbours: NeighbourList | None = None
+        self._build(state)
+
+    def _build(self, state: ParticleState) -> None:
+        """Choose the ghosts, size the arrays and build the neighbour list."""
+        n = state.n
+        support = SUPPORT_RADIUS * float(state.smoothing_length.max())
+        skin = self.skin_fraction * support
+        if self.walls is not None:
+            self._ghost_src, self._ghost_wall = self.walls.select(state.position, support + skin)
+        else:
+            self._ghost_src = self._ghost_wall = np.zeros(0, dtype=np.int64)
+        n_ext = n + self._ghost_src.shape[0]
+        if self.walls is not None:
+            ext = {"x": np.zeros((n_ext, self.dim)), "v": np.zeros((n_ext, self.dim)),
+                   "rho": np.zeros(n_ext), "e": np.zeros(n_ext), "S": np.zeros((n_ext, 3, 3)),
+                   "m": np.zeros(n_ext), "h": np.zeros(n_ext),
+                   "material": np.zeros(n_ext, np.int32), "body": np.zeros(n_ext, np.int32)}
+            ext["m"][:n], ext["h"][:n] = state.mass, state.smoothing_length
+            ext["material"][:n], ext["body"][:n] = state.material, state.body
+            self._ext = ext
+            self._fill(state)
+            positions = ext["x"]
+        else:
+            self._ext = None
+            positions = state.position
+        if self.neighbours is None or self.buffers.drho.shape[0] != n_ext:
+            self.buffers = RateBuffers(n_ext, self.dim)
+            self.dv = np.zeros((n_ext, self.dim))
+            self.de = np.zeros(n_ext)
+        builds = self.neighbours.builds if self.neighbours is not None else 0
+        self.neighbours = NeighbourList.build(positions, support, skin)
+        self.neighbours.builds += builds
+
+    def _fill(self, state: ParticleState) -> None:
+        """Copy the real particles into the extended arrays and mirror them into ghosts."""
+        ext, n = self._ext, state.n
+        ext["x"][:n], ext["v"][:n] = state.position, state.velocity
+        ext["rho"][:n], ext["e"][:n] = state.density, state.specific_energy
+        ext["S"][:n] = state.deviatoric_stress
+        w = self.walls
+        fill_ghosts(self._ghost_src, self._ghost_wall, w.points, w.normals, w.kinds, n,
+                    ext["x"], ext["v"], ext["rho"], ext["e"], ext["S"], ext["m"], ext["h"],
+                    ext["material"], ext["body"], self.n_bodies)
+
+    def _arrays(self, state: ParticleState):
+        if self._ext is None:
+            return (state.position, state.velocity, state.density, state.specific_energy,
+                    state.deviatoric_stress, state.mass, state.smoothing_length, state.material,
+                    state.body)
+        self._fill(state)
+        e = self._ext
+        return (e["x"], e["v"], e["rho"], e["e"], e["S"], e["m"], e["h"], e["material"],
+                e["body"])
 
     def rates(self, state: ParticleState):
-        """Rates of the active particles at ``state`` (Table 1's subroutine RATES)."""
+        """Rates at ``state`` (Table 1's subroutine RATES); rows beyond ``state.n`` are
+        ghosts."""
         b = self.buffers
+        support = SUPPORT_RADIUS * float(state.smoothing_length.max())
+        if (self.neighbours.needs_rebuild(state.position)
+                or support + self.neighbours.skin > self.neighbours.radius * (1 + 1e-12)):
+            self._build(state)
+            b = self.buffers
+        x, v, rho, e, S, m, h, material, body = self._arrays(state)
         particle_pass, pair_pass, stress_pass, correction_pass = self._passes
-        self.neighbours.update(state.position,
-                               SUPPORT_RADIUS * float(state.smoothing_length.max()))
-        particle_pass(state.density, state.specific_energy, state.deviatoric_stress,
-                      state.material, self.table, b.pressure, b.sound_speed, b.A, b.pc)
+        particle_pass(rho, e, S, material, self.table, b.pressure, b.sound_speed, b.A, b.pc)
         visc = self.viscosity
-        pair_pass(self.n_active, state.position, state.velocity, state.mass, state.density,
-                  state.smoothing_length, state.body, b.sound_speed, b.A, b.pc,
-                  self.neighbours.offsets, self.neighbours.indices,
-                  self.alpha[0], self.alpha[1], visc.epsilon,
+        nl = self.neighbours
+        pair_pass(self.n_active, x, v, m, rho, h, body, b.sound_speed, b.A, b.pc,
+                  nl.offsets, nl.indices, self.alpha[0], self.alpha[1], visc.epsilon,
                   b.drho, b.dv_stress, b.dv_visc, b.de_stress, b.de_visc, b.L,
                   b.contact_force, b.pair_count)
-        stress_pass(self.n_active, state.deviatoric_stress, b.L, state.material, self.table,
-                    b.dS)
+        stress_pass(self.n_active, S, b.L, material, self.table, b.dS)
         np.add(b.dv_stress, b.dv_visc, out=self.dv)
         np.add(b.de_stress, b.de_visc, out=self.de)
         if self.corrected:
-            correction_pass(self.n_active, state.position, state.velocity, state.mass,
-                            state.density, state.smoothing_length, state.body,
-                            self.neighbours.offsets, self.neighbours.indices, b.dv_visc,
-                            visc.correction_h_ratio, VARIANTS[visc.correction],
+            correction_pass(self.n_active, x, v, m, rho, h, body, nl.offsets, nl.indices,
+                            b.dv_visc, visc.correction_h_ratio, VARIANTS[visc.correction],
                             ENERGY_CORRECTIONS[visc.energy_correction], b.dv_corr, b.de_corr)
             self.dv += b.dv_corr
             self.de += b.de_corr

@@ -129,7 +129,7 @@ def rate_kernels(dim: int):
                     for b in range(dim):
                         L[i, a, b] += velocity_gradient_pair(volume_j, v_ij[a], gradw[b])
                 de_s += stress_work_pair(m[j], A_i, v_ij, gradw)
-            else:
+            else:  # another body or a wall ghost: compression-only contact
                 s_ij = pc[i] + pc[j]
                 if in_contact(s_ij, vg):
                     drho_i += continuity_pair(rho[i], volume_j, vg)

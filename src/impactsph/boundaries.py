@@ -1,0 +1,101 @@
+"""Rigid walls modelled by ghost particles.
+
+A wall is a plane through ``point`` with unit normal ``n`` pointing into the material.  Every
+particle within the kernel's reach of a wall (``0 <= d < reach``, ``d = (x - point) . n``)
+gets a ghost, its mirror image::
+
+    x_g = x - 2 d n,      S_g = R S R   (R = I - 2 n n, the reflection)
+    v_g = v - 2 (v . n) n     free slip: the normal velocity reflected
+    v_g = -v                  no slip: the wall at rest in between
+
+with the density, internal energy, mass and material of its source.  Ghosts take part in the
+sums of the real particles but are not integrated.  A ghost interacts with real particles as a
+body of its own, through the contact law of :mod:`.physics.contact`: it pushes, never pulls,
+and transmits no shear stress; with no slip its mirrored velocity makes the artificial
+viscosity resist sliding along the wall as well as approach.
+The set of ghosts is chosen when the neighbour list is built (``reach`` includes the
+list's skin) and their states follow their sources at every rate evaluation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+from .config import Wall
+
+FREE_SLIP, NO_SLIP = 1, 2
+
+
+@dataclass
+class Walls:
+    """The rigid walls of a case, in array form."""
+
+    points: np.ndarray  #: (n_walls, dim)
+    normals: np.ndarray  #: (n_walls, dim), unit
+    kinds: np.ndarray  #: (n_walls,) FREE_SLIP or NO_SLIP
+
+    @classmethod
+    def from_config(cls, walls: list[Wall], dim: int) -> Walls:
+        normals = np.array([w.normal for w in walls], dtype=np.float64).reshape(-1, dim)
+        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+        return cls(np.array([w.point for w in walls], dtype=np.float64).reshape(-1, dim),
+                   normals,
+                   np.array([FREE_SLIP if w.slip == "free" else NO_SLIP for w in walls],
+                            dtype=np.int8))
+
+    def __len__(self) -> int:
+        return int(self.points.shape[0])
+
+    def distances(self, x: np.ndarray) -> np.ndarray:
+        """Signed distances (n, n_walls) of points to the walls, positive in the material."""
+        return np.einsum("iwa,wa->iw", x[:, None, :] - self.points[None], self.normals)
+
+    def select(self, x: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+        """Sources and walls of the ghosts: particles with ``0 <= d < reach``."""
+        d = self.distances(x)
+        src, wall = np.nonzero((d >= 0.0) & (d < reach))
+        return src.astype(np.int64), wall.astype(np.int64)
+
+
+@nb.njit(parallel=True, cache=True)
+def fill_ghosts(src, wall, points, normals, kinds, n_real, x, v, rho, e, S, m, h, material,
+                body, ghost_body0):
+    """Write the ghosts' states into rows ``n_real + k`` of the extended arrays."""
+    dim = x.shape[1]
+    for k in nb.prange(src.shape[0]):
+        i = src[k]
+        w = wall[k]
+        g = n_real + k
+        d = 0.0
+        vn = 0.0
+        for a in range(dim):
+            d += (x[i, a] - points[w, a]) * normals[w, a]
+            vn += v[i, a] * normals[w, a]
+        for a in range(dim):
+            x[g, a] = x[i, a] - 2.0 * d * normals[w, a]
+            if kinds[w] == 2:
+                v[g, a] = -v[i, a]
+            else:
+                v[g, a] = v[i, a] - 2.0 * vn * normals[w, a]
+        # S_g = R S R with R = I - 2 n n (in-plane components of n; n_z = 0 in 2D)
+        for a in range(3):
+            for b in range(3):
+                acc = 0.0
+                for c in range(3):
+                    rac = (1.0 if a == c else 0.0) - (
+                        2.0 * normals[w, a] * normals[w, c] if a < dim and c < dim else 0.0)
+                    for d2 in range(3):
+                        rdb = (1.0 if d2 == b else 0.0) - (
+                            2.0 * normals[w, d2] * normals[w, b] if d2 < dim and b < dim
+                            else 0.0)
+                        acc += rac * S[i, c, d2] * rdb
+                S[g, a, b] = acc
+        rho[g] = rho[i]
+        e[g] = e[i]
+        m[g] = m[i]
+        h[g] = h[i]
+        material[g] = material[i]
+        body[g] = ghost_body0 + w
