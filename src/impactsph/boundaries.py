@@ -53,6 +53,25 @@ class Walls:
         """Signed distances (n, n_walls) of points to the walls, positive in the material."""
         return np.einsum("iwa,wa->iw", x[:, None, :] - self.points[None], self.normals)
 
+    def enforce(self, x: np.ndarray, v: np.ndarray, m: np.ndarray) -> tuple[int, np.ndarray]:
+        """The wall as a constraint, after each integrator stage: a particle found behind a
+        wall is put back onto it and loses its velocity into the wall.  The ghosts' pressure
+        normally keeps particles off the wall; a particle in tension (which the compression-only
+        ghosts do not push) can still reach it, and this guarantees that none crosses.
+        Returns the number of particles moved and the impulse given to them (N s)."""
+        moved = 0
+        impulse = np.zeros(x.shape[1])
+        for point, normal in zip(self.points, self.normals, strict=True):
+            d = (x - point) @ normal
+            behind = np.flatnonzero(d < 0.0)
+            if behind.size:
+                x[behind] -= d[behind, None] * normal
+                dvn = -np.minimum(v[behind] @ normal, 0.0)
+                v[behind] += dvn[:, None] * normal
+                impulse += np.dot(m[behind], dvn) * normal
+                moved += int(behind.size)
+        return moved, impulse
+
     def select(self, x: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
         """Sources and walls of the ghosts: particles with ``0 <= d < reach``."""
         d = self.distances(x)

@@ -28,7 +28,10 @@ SUMMARY_KEYS = (
 
 
 def _fail(message: str, code: int = 2) -> None:
-    err.print(f"error: {message}", markup=False, highlight=False, soft_wrap=True)
+    # one line, printed as written: line breaks and control characters (from a key or a path
+    # in the input) are escaped, and rich replaces no emoji codes
+    message = "".join(ch if ch.isprintable() else ascii(ch)[1:-1] for ch in message)
+    err.print(f"error: {message}", markup=False, highlight=False, emoji=False, soft_wrap=True)
     raise typer.Exit(code)
 
 
@@ -71,6 +74,9 @@ def run(
         except SimulationError as exc:
             progress.stop()
             _fail(f"run stopped: {exc}; outputs so far are in {out}", code=3)
+        except CaseError as exc:  # found while setting up, e.g. an empty tip-mass region
+            progress.stop()
+            _fail(str(exc))
     shown = {k: summary[k] for k in SUMMARY_KEYS if k in summary}
     typer.echo(json.dumps(shown, indent=2))
     typer.echo(f"summary: {out / 'summary.json'}")

@@ -9,6 +9,7 @@ the value and what is allowed.
 from __future__ import annotations
 
 import copy
+import re
 import tomllib
 from importlib import resources
 from pathlib import Path
@@ -26,7 +27,8 @@ class CaseError(ValueError):
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", validate_default=True)
+    # strict: a string or a boolean is never taken for a number (TOML has real types)
+    model_config = ConfigDict(extra="forbid", validate_default=True, strict=True)
 
 
 class MieGruneisen(_Model):
@@ -298,6 +300,11 @@ def read_case_dict(source: str | Path) -> dict[str, Any]:
             return tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise CaseError(f"{path}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise CaseError(f"{path}: not valid UTF-8: {exc}") from None
+    except OSError as exc:
+        raise CaseError(f"case file {str(path)!r} cannot be read: {exc.strerror or exc}"
+                        ) from None
 
 
 def parse_override(text: str) -> tuple[list[str], Any]:
@@ -325,7 +332,7 @@ def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any
         for depth, part in enumerate(path[:-1]):
             where = ".".join(path[: depth + 1])
             if isinstance(node, list):
-                if not part.isdigit() or int(part) >= len(node):
+                if not part.isdecimal() or int(part) >= len(node):
                     raise CaseError(f"--set {text}: {where} is not an index of a list of "
                                     f"{len(node)}")
                 node = node[int(part)]
@@ -335,7 +342,7 @@ def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any
                 raise CaseError(f"--set {text}: {where} is not a table")
         last = path[-1]
         if isinstance(node, list):
-            if not last.isdigit() or int(last) >= len(node):
+            if not last.isdecimal() or int(last) >= len(node):
                 raise CaseError(f"--set {text}: index {last} is out of range")
             node[int(last)] = value
         elif isinstance(node, dict):
@@ -345,10 +352,20 @@ def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any
     return data
 
 
+_TYPE_TAGS = {"constrained-float", "constrained-int", "float", "int", "str", "bool", "list",
+              "dict", "nullable"}
+
+
+def _is_type_tag(part: object) -> bool:
+    """Pydantic's names of union members in an error location (not field names)."""
+    return isinstance(part, str) and (part in _TYPE_TAGS
+                                      or re.match(r"^[a-z-]+\[", part) is not None)
+
+
 def _format_error(exc: ValidationError) -> str:
     errors = exc.errors()
     err = errors[0]
-    loc = ".".join(str(p) for p in err["loc"])
+    loc = ".".join(str(p) for p in err["loc"] if not _is_type_tag(p))
     msg = err["msg"]
     if msg.startswith("Value error, "):
         msg = msg[len("Value error, "):]

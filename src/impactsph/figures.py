@@ -12,6 +12,7 @@ from .plotting import (
     bars_profile_figure,
     kinetic_energy_figure,
     label_of,
+    shapes_figure,
 )
 
 
@@ -27,6 +28,13 @@ def draw_figures(runs: list[dict[str, Any]], out: Path, labels: list[str] | None
           "kinetic_energy": r["history"]["kinetic_energy"]} for lab, r in zip(labels, runs,
                                                                               strict=True)],
         out / "kinetic_energy.png", title=f"Kinetic energy: {cases[0].name}")]
+    if cases[0].analysis in ("taylor", "cantilever"):
+        shapes = [{"label": lab, "x": r["snapshots"][-1]["position"]}
+                  for lab, r in zip(labels, runs, strict=True) if r["snapshots"]]
+        t_last = runs[0]["snapshots"][-1]["time"] if runs[0]["snapshots"] else 0.0
+        paths.append(shapes_figure(shapes, out / "deformed_shape.png",
+                                   f"{cases[0].name}: shape at t = {t_last * 1e6:.4g} us",
+                                   separate=cases[0].analysis == "taylor"))
     if cases[0].analysis == "bars":
         theory = theory_for(cases[0])
         profiles, mids = [], []

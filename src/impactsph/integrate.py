@@ -80,14 +80,22 @@ class MidpointIntegrator:
     """Table 1's predictor-corrector.  ``rates(state)`` must return
     ``(dv, drho, de, dS)`` for the active particles; see :class:`~impactsph.solver.Solver`."""
 
-    def __init__(self, rates, table: np.ndarray, n_active: int, dim: int):
+    def __init__(self, rates, table: np.ndarray, n_active: int, dim: int, constraint=None):
         self.rates = rates
+        # constraint(x, v, m) -> (count, impulse), applied after each stage
+        self.constraint = constraint
+        self.constraint_events = 0
+        self.constraint_impulse = np.zeros(dim)
+        # impulse of the supports that hold clamped particles: minus what the forces on them
+        # would have given them
+        self.clamp_impulse = np.zeros(dim)
         self.table = table
         self.n_active = n_active
         self._cfl, self._advance, self._return = _kernels(dim)
-        self._start: ParticleState | None = None
+        self._any_clamped: bool | None = None
 
-    def _stage(self, state: ParticleState, dt: float, start: ParticleState, v_rate, rates):
+    def _stage(self, state: ParticleState, dt: float, start: ParticleState, v_rate, rates,
+               final: bool):
         dv, drho, de, dS = rates
         state.plastic_work[:] = start.plastic_work
         self._advance(self.n_active, dt, start.position, start.velocity, start.density,
@@ -96,13 +104,24 @@ class MidpointIntegrator:
                       state.specific_energy, state.deviatoric_stress)
         self._return(self.n_active, state.deviatoric_stress, state.density, state.material,
                      self.table, state.plastic_work)
+        if self.constraint is not None:
+            count, impulse = self.constraint(state.position, state.velocity, state.mass)
+            if final:  # the predictor's state is discarded; only the step's own counts
+                self.constraint_events += count
+                self.constraint_impulse += impulse
 
     def step(self, state: ParticleState, dt: float) -> None:
         """Advance ``state`` by ``dt`` in place."""
+        if self._any_clamped is None:
+            self._any_clamped = bool(state.clamped.any())
         start = state.copy()
-        self._stage(state, 0.5 * dt, start, start.velocity, self.rates(state))
+        self._stage(state, 0.5 * dt, start, start.velocity, self.rates(state), final=False)
         mid_velocity = state.velocity.copy()
-        self._stage(state, dt, start, mid_velocity, self.rates(state))
+        rates = self.rates(state)
+        self._stage(state, dt, start, mid_velocity, rates, final=True)
+        if self._any_clamped:
+            clamped = state.clamped
+            self.clamp_impulse -= dt * (state.mass[clamped] @ rates[0][: state.n][clamped])
         state.time += dt
         state.step += 1
 

@@ -81,3 +81,31 @@ def label_of(case: Any) -> str:
     if v.scheme == "ac":
         return f"AC ({v.correction})"
     return f"AV ({v.alpha1:g}, {v.alpha2:g})"
+
+
+def shapes_figure(runs: list[dict[str, Any]], path: Path, title: str, *,
+                  separate: bool = False) -> Path:
+    """Deformed particle positions (paper Figs 11, 13, 15-17).  ``runs``: dicts with
+    ``label`` and ``x`` (n, 2).  Overlaid, or side by side with ``separate``."""
+    n = len(runs)
+    if separate:
+        fig, axes = plt.subplots(1, n, figsize=(3.2 * n, 4.5), sharey=True, squeeze=False)
+        axes = list(axes[0])
+    else:
+        fig, ax = plt.subplots(figsize=(6, 5))
+        axes = [ax] * n
+    for k, (ax, r) in enumerate(zip(axes, runs, strict=True)):
+        x = np.asarray(r["x"])
+        ax.scatter(x[:, 0] * 1e3, x[:, 1] * 1e3, s=3, color=f"C{k}", label=r["label"])
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (mm)")
+        ax.grid(alpha=0.3)
+        if separate:
+            ax.set_title(r["label"], fontsize=9)
+    axes[0].set_ylabel("y (mm)")
+    if not separate:
+        axes[0].legend(markerscale=4)
+        axes[0].set_title(title)
+    else:
+        fig.suptitle(title)
+    return _save(fig, path)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -41,11 +41,13 @@ class Problem:
     table: np.ndarray
     body_names: list[str]
     probes: dict[str, int]
+    info: dict[str, float] = field(default_factory=dict)  #: set-up facts worth reporting
 
 
 def build_problem(case: Case) -> Problem:
     """Place the particles of every body, set masses ``rho0 dx^dim`` (plus any tip mass),
     smoothing lengths ``h = (h/dx) dx``, initial velocities and clamped particles."""
+    info: dict[str, float] = {}
     mat_names = list(case.materials)
     materials = [resolve_material(n, case.materials[n]) for n in mat_names]
     dim = case.dimension
@@ -75,6 +77,8 @@ def build_problem(case: Case) -> Problem:
             own = float(mass[sel].sum())
             mass[sel] += extra / sel.sum()
             velocity[sel] = np.asarray(tip.velocity) * extra / (extra + own)
+            info["tip_initial_speed"] = float(np.linalg.norm(tip.velocity) * extra
+                                              / (extra + own))
         parts["x"].append(x)
         parts["v"].append(velocity)
         parts["rho"].append(np.full(n, rho0))
@@ -99,4 +103,4 @@ def build_problem(case: Case) -> Problem:
         d = np.linalg.norm(state.position[members] - np.asarray(probe.position), axis=1)
         probes[probe.name] = int(members[np.argmin(d)])
     return Problem(state, materials, material_table(materials, case.time.wave_speed),
-                   body_names, probes)
+                   body_names, probes, info)

@@ -22,9 +22,9 @@ def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], No
     """Run ``case`` and write its outputs into ``out``.  Returns the summary.  On an
     instability the history written so far is kept, and :class:`SimulationError` is raised."""
     out = Path(out)
+    sim = Simulation(case)  # a case that cannot be set up (CaseError) leaves no directory
     out.mkdir(parents=True, exist_ok=True)
     write_case(out, case)
-    sim = Simulation(case)
     log.info("%s: %d particles, %dD, to t = %g s", case.name, sim.state.n, sim.state.dim,
              case.time.end)
     try:

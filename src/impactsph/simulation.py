@@ -55,12 +55,14 @@ class Simulation:
         self.walls = Walls.from_config(case.boundaries, case.dimension)
         self.solver = Solver(self.state, self.problem.table, case.viscosity, walls=self.walls,
                              skin_fraction=case.time.neighbour_skin)
-        self.integrator = MidpointIntegrator(self.solver.rates, self.problem.table,
-                                             self.state.n, self.state.dim)
+        self.integrator = MidpointIntegrator(
+            self.solver.rates, self.problem.table, self.state.n, self.state.dim,
+            constraint=self.walls.enforce if len(self.walls) else None)
         self.record = RunRecord(probes={name: [] for name in self.problem.probes})
         self.viscous_dissipation = 0.0  # J, time integral of the AV heating
         self.correction_work = 0.0  # J, work of the AC correction force on the particles
         self.correction_heating = 0.0  # J, internal energy the AC energy term added
+        self.wall_impulse = np.zeros(self.state.dim)  # N s, time integral of the walls' push
         self._initial = self._diagnostics()
         self._abs_momentum0 = float(np.sum(self.state.mass *
                                            np.linalg.norm(self.state.velocity, axis=1)))
@@ -87,8 +89,12 @@ class Simulation:
                "viscous_dissipation": self.viscous_dissipation,
                "correction_work": self.correction_work,
                "correction_heating": self.correction_heating}
+        external = self.external_impulse()
+        supported = len(self.walls) or bool(s.clamped.any())
         for a, name in enumerate("xyz"[: s.dim]):
             row[f"momentum_{name}"] = float(d["momentum"][a])
+            if supported:
+                row[f"external_impulse_{name}"] = float(external[a])
         n_bodies = len(self.problem.body_names)
         if n_bodies > 1 or len(self.walls):
             force = self.solver.buffers.contact_force[: s.n]
@@ -98,6 +104,11 @@ class Simulation:
                     row[f"contact_force_{body}_{name}"] = float(per_body[b])
         self.record.history.append(row)
 
+    def external_impulse(self) -> np.ndarray:
+        """Impulse (N s) given to the particles by walls and clamps since t = 0."""
+        i = self.integrator
+        return self.wall_impulse + i.constraint_impulse + i.clamp_impulse
+
     def energy_error(self) -> float:
         """``|E(t) - E(0)| / E(0)`` now."""
         e0 = self._initial["kinetic"] + self._initial["internal"]
@@ -105,8 +116,9 @@ class Simulation:
         return abs(d["kinetic"] + d["internal"] - e0) / e0 if e0 > 0 else 0.0
 
     def momentum_drift(self) -> float:
-        """``|P(t) - P(0)| / sum m |v(0)|`` now."""
-        dp = np.linalg.norm(self._diagnostics()["momentum"] - self._initial["momentum"])
+        """``|P(t) - P(0) - J(t)| / sum m |v(0)|`` now, J the walls' and clamps' impulse."""
+        dp = np.linalg.norm(self._diagnostics()["momentum"] - self._initial["momentum"]
+                            - self.external_impulse())
         return float(dp / self._abs_momentum0) if self._abs_momentum0 > 0 else float(dp)
 
     # -- snapshots and probes ------------------------------------------------------------
@@ -190,6 +202,7 @@ class Simulation:
                 self.viscous_dissipation += dt * heating
                 self.correction_work += dt * work
                 self.correction_heating += dt * corr_heating
+                self.wall_impulse += dt * self.solver.wall_force
                 self._check(dt, dt0)
                 if self.state.step % every == 0 or self.state.time >= t_end * (1 - 1e-12):
                     self._record_row(dt)
@@ -210,7 +223,8 @@ class Simulation:
         ke = np.array([r["kinetic_energy"] for r in h])
         tot = np.array([r["total_energy"] for r in h])
         dims = "xyz"[: self.state.dim]
-        p = np.array([[r[f"momentum_{a}"] for a in dims] for r in h])
+        p = np.array([[r[f"momentum_{a}"] - r.get(f"external_impulse_{a}", 0.0) for a in dims]
+                      for r in h])
         e0 = tot[0]
         wall = self.record.wall_seconds
         return {
@@ -223,6 +237,7 @@ class Simulation:
             "pair_evaluations": self.solver.pair_evaluations,
             "pair_evaluations_per_second": self.solver.pair_evaluations / wall if wall else 0.0,
             "neighbour_list_builds": self.solver.neighbours.builds,
+            "wall_constraint_events": self.integrator.constraint_events,
             "kinetic_energy_initial": float(ke[0]),
             "kinetic_energy_final": float(ke[-1]),
             "kinetic_energy_ratio_final": float(ke[-1] / ke[0]) if ke[0] > 0 else None,

@@ -39,6 +39,7 @@ class Solver:
         # AC evaluates the viscosity with (1, 1) (eq 31); AV with the case's parameters
         self.alpha = (1.0, 1.0) if self.corrected else (viscosity.alpha1, viscosity.alpha2)
         self.powers = (0.0, 0.0, 0.0)
+        self.wall_force = np.zeros(state.dim)
         self.neighbours: NeighbourList | None = None
         self._build(state)
 
@@ -122,6 +123,8 @@ class Solver:
             self.dv += b.dv_corr
             self.de += b.de_corr
         self.powers = self._energy_powers(state)
+        if self.walls is not None:  # the ghosts' push on the real particles (N, or N/m)
+            self.wall_force = b.contact_force[: state.n].sum(axis=0)
         self.pair_evaluations += int(b.pair_count[: self.n_active].sum())
         self.rate_evaluations += 1
         return self.dv, b.drho, self.de, b.dS

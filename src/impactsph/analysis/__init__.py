@@ -11,4 +11,12 @@ def analyse(kind: str, sim: Any) -> dict[str, Any]:
         from .bars import bars_metrics
 
         return bars_metrics(sim)
+    if kind == "taylor":
+        from .taylor import taylor_metrics
+
+        return taylor_metrics(sim)
+    if kind == "cantilever":
+        from .cantilever import cantilever_metrics
+
+        return cantilever_metrics(sim)
     return {}
