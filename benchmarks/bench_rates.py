@@ -29,12 +29,14 @@ import math
 import os
 import platform
 import resource
+import subprocess
 import sys
 import time
 
 import numba
 import numpy as np
 
+import impactsph
 from impactsph.config import load_case, validate_case
 from impactsph.integrate import stable_time_step
 from impactsph.neighbours import NeighbourList
@@ -124,7 +126,7 @@ def bench_size(n_target: int, dim: int, repeat: int) -> dict:
 
     sim.solver.rates(state)  # warm: the new velocities, caches
     t_rates = best_of(lambda: sim.solver.rates(state), repeat)
-    pairs = int(sim.solver.buffers.pair_count.sum())
+    pairs = int(sim.solver.buffers.pair_count[: state.n].sum())  # real particles only
 
     h = float(state.smoothing_length.max())
     nl = NeighbourList.build(state.position, support=2.0 * h, skin=0.2 * h)  # warm
@@ -180,12 +182,27 @@ def fit_exponent(ns: list[int], ts: list[float]) -> float:
     return float(slope)
 
 
+def source_version() -> str:
+    """``impactsph`` version and, in a git checkout, the commit (``+dirty`` if modified)."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=here,
+                                capture_output=True, text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "src"],
+                               cwd=here, capture_output=True, text=True, timeout=10).stdout
+    except (OSError, subprocess.SubprocessError):
+        commit, dirty = "", ""
+    version = f"impactsph {impactsph.__version__}"
+    return f"{version} ({commit}{'+dirty src' if dirty.strip() else ''})" if commit else version
+
+
 def machine_info() -> dict:
     try:
         usable = len(os.sched_getaffinity(0))
     except AttributeError:
         usable = os.cpu_count()
     return {"date": _dt.datetime.now().isoformat(timespec="seconds"),
+            "source": source_version(),
             "python": platform.python_version(), "numpy": np.__version__,
             "numba": numba.__version__, "numba_threads": numba.get_num_threads(),
             "numba_threading_layer_env": os.environ.get("NUMBA_THREADING_LAYER", ""),
@@ -217,7 +234,7 @@ def main(argv: list[str] | None = None) -> int:
 
     info = machine_info()
     start, busy0, own0 = time.perf_counter(), cpu_busy_seconds(), own_cpu_seconds()
-    print(f"impactsph rate benchmark  {info['date']}")
+    print(f"impactsph rate benchmark  {info['date']}  {info['source']}")
     print(f"python {info['python']}  numpy {info['numpy']}  numba {info['numba']}  "
           f"({info['processor']})")
     print(f"numba threads: {info['numba_threads']}   cores: {info['cpu_count']} "

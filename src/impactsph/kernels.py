@@ -63,6 +63,25 @@ def cubic_spline_dwdr(r: float, h: float, dim: int) -> float:
     return normalisation(h, dim) * df / h
 
 
+@nb.njit(inline="always", cache=True)
+def cubic_spline_dwdr_q(q: float, inv_h: float, dim: int) -> float:
+    """``dW/dr`` of eq 20 from ``q = r/h`` and ``1/h`` (no division: the pair loops' form)."""
+    if q >= 2.0:
+        return 0.0
+    if q <= 1.0:
+        df = -3.0 * q + 2.25 * q * q
+    else:
+        t = 2.0 - q
+        df = -0.75 * t * t
+    if dim == 1:
+        norm = (2.0 / 3.0) * inv_h
+    elif dim == 2:
+        norm = (10.0 / (7.0 * math.pi)) * inv_h * inv_h
+    else:
+        norm = (1.0 / math.pi) * inv_h * inv_h * inv_h
+    return norm * df * inv_h
+
+
 @nb.njit(cache=True)
 def _kernel_values(r, h, dim):
     out = np.empty_like(r)

@@ -106,10 +106,11 @@ class Solver:
             b = self.buffers
         x, v, rho, e, S, m, h, material, body = self._arrays(state)
         particle_pass, pair_pass, stress_pass, correction_pass = self._passes
-        particle_pass(rho, e, S, material, self.table, b.pressure, b.sound_speed, b.A, b.pc)
+        particle_pass(m, rho, e, S, material, self.table, b.pressure, b.sound_speed, b.A, b.pc,
+                      b.volume)
         visc = self.viscosity
         nl = self.neighbours
-        pair_pass(self.n_active, x, v, m, rho, h, body, b.sound_speed, b.A, b.pc,
+        pair_pass(self.n_active, x, v, m, rho, h, body, b.sound_speed, b.A, b.pc, b.volume,
                   nl.offsets, nl.indices, self.alpha[0], self.alpha[1], visc.epsilon,
                   b.drho, b.dv_stress, b.dv_visc, b.de_stress, b.de_visc, b.L,
                   b.contact_force, b.pair_count)

@@ -15,11 +15,11 @@ import numba as nb
 
 
 @nb.njit(inline="always", cache=True)
-def stress_work_pair(m_j: float, A_i, v_ij, gradw) -> float:
+def stress_work_pair(m_j: float, A_i, v_ij, gradw, dim: int) -> float:
     """``-m_j A_i : (v_ij (x) grad W_ij)``."""
     s = 0.0
-    for a in range(gradw.shape[0]):
-        for b in range(gradw.shape[0]):
+    for a in range(dim):
+        for b in range(dim):
             s += A_i[a, b] * v_ij[a] * gradw[b]
     return -m_j * s
 

@@ -15,10 +15,10 @@ import numba as nb
 
 
 @nb.njit(inline="always", cache=True)
-def stress_acceleration_pair(m_j: float, A_i, A_j, gradw, a: int) -> float:
+def stress_acceleration_pair(m_j: float, A_i, A_j, gradw, a: int, dim: int) -> float:
     """Component ``a`` of ``m_j (A_i + A_j) . grad W_ij``."""
     s = 0.0
-    for b in range(gradw.shape[0]):
+    for b in range(dim):
         s += (A_i[a, b] + A_j[a, b]) * gradw[b]
     return m_j * s
 

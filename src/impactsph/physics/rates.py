@@ -25,7 +25,7 @@ from functools import cache
 import numba as nb
 import numpy as np
 
-from ..kernels import cubic_spline_dwdr
+from ..kernels import cubic_spline_dwdr_q
 from ..materials import B0, BULK, C0, EOS, GAMMA, RHO0, SHEAR, WAVE_MODULUS
 from .contact import contact_acceleration_pair, contact_work_pair, in_contact
 from .continuity import continuity_pair, velocity_gradient_pair
@@ -66,9 +66,11 @@ def rate_kernels(dim: int):
     stress_pass, correction_pass)``."""
 
     @nb.njit(parallel=True, cache=True)
-    def particle_pass(rho, e, S, material, table, pressure, sound_speed, A, pc):
-        """Pass 1: ``P``, ``c = sqrt(M/rho)``, ``A = (-P I + S)/rho^2``, ``P/rho^2``."""
+    def particle_pass(m, rho, e, S, material, table, pressure, sound_speed, A, pc, volume):
+        """Pass 1: ``P``, ``c = sqrt(M/rho)``, ``A = (-P I + S)/rho^2``, ``P/rho^2``,
+        ``V = m/rho``."""
         for i in nb.prange(rho.shape[0]):
+            volume[i] = m[i] / rho[i]
             k = material[i]
             p = material_pressure(table, k, rho[i], e[i])
             pressure[i] = p
@@ -82,7 +84,7 @@ def rate_kernels(dim: int):
 
     @nb.njit(inline="always", cache=True, fastmath=FASTMATH)
     def particle_sums(
-        i, x, v, m, rho, h, body, sound_speed, A, pc, offsets, indices,
+        i, x, v, m, rho, h, body, sound_speed, A, pc, volume, offsets, indices,
         alpha1, alpha2, epsilon,
         drho, dv_stress, dv_visc, de_stress, de_visc, L, contact_force, pair_count,
         gradw, v_ij, r_ij,
@@ -102,16 +104,18 @@ def rate_kernels(dim: int):
         count = 0
         for k in range(offsets[i], offsets[i + 1]):
             j = indices[k]
-            h_ij = 0.5 * (h[i] + h[j])
             r2 = 0.0
             for a in range(dim):
                 r_ij[a] = x[i, a] - x[j, a]
                 r2 += r_ij[a] * r_ij[a]
-            if r2 >= 4.0 * h_ij * h_ij or r2 == 0.0:
+            h_ij = 0.5 * (h[i] + h[j])
+            inv_h = 1.0 / h_ij
+            q2 = r2 * inv_h * inv_h
+            if q2 >= 4.0 or r2 == 0.0:
                 continue
             count += 1
             r = math.sqrt(r2)
-            f = cubic_spline_dwdr(r, h_ij, dim) / r
+            f = cubic_spline_dwdr_q(r * inv_h, inv_h, dim) / r
             vg = 0.0
             vr = 0.0
             for a in range(dim):
@@ -119,16 +123,16 @@ def rate_kernels(dim: int):
                 v_ij[a] = v[i, a] - v[j, a]
                 vg += v_ij[a] * gradw[a]
                 vr += v_ij[a] * r_ij[a]
-            volume_j = m[j] / rho[j]
+            volume_j = volume[j]
             same_body = body[i] == body[j]
             if same_body:
                 drho_i += continuity_pair(rho[i], volume_j, vg)
                 A_j = A[j]
                 for a in range(dim):
-                    dv_stress[i, a] += stress_acceleration_pair(m[j], A_i, A_j, gradw, a)
+                    dv_stress[i, a] += stress_acceleration_pair(m[j], A_i, A_j, gradw, a, dim)
                     for b in range(dim):
                         L[i, a, b] += velocity_gradient_pair(volume_j, v_ij[a], gradw[b])
-                de_s += stress_work_pair(m[j], A_i, v_ij, gradw)
+                de_s += stress_work_pair(m[j], A_i, v_ij, gradw, dim)
             else:  # another body or a wall ghost: compression-only contact
                 s_ij = pc[i] + pc[j]
                 if in_contact(s_ij, vg):
@@ -156,7 +160,7 @@ def rate_kernels(dim: int):
 
     @nb.njit(parallel=True, cache=True, fastmath=FASTMATH)
     def pair_pass(
-        n_active, x, v, m, rho, h, body, sound_speed, A, pc, offsets, indices,
+        n_active, x, v, m, rho, h, body, sound_speed, A, pc, volume, offsets, indices,
         alpha1, alpha2, epsilon,
         drho, dv_stress, dv_visc, de_stress, de_visc, L, contact_force, pair_count,
     ):
@@ -168,7 +172,7 @@ def rate_kernels(dim: int):
             r_ij = np.empty(dim)
             for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n_active)):
                 particle_sums(
-                    i, x, v, m, rho, h, body, sound_speed, A, pc, offsets, indices,
+                    i, x, v, m, rho, h, body, sound_speed, A, pc, volume, offsets, indices,
                     alpha1, alpha2, epsilon,
                     drho, dv_stress, dv_visc, de_stress, de_visc, L, contact_force, pair_count,
                     gradw, v_ij, r_ij,
@@ -244,6 +248,7 @@ class RateBuffers:
         self.sound_speed = np.zeros(n)
         self.A = np.zeros((n, dim, dim))
         self.pc = np.zeros(n)
+        self.volume = np.zeros(n)
         self.drho = np.zeros(n)
         self.dv_stress = np.zeros((n, dim))
         self.dv_visc = np.zeros((n, dim))
