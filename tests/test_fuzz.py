@@ -258,7 +258,7 @@ NAMES = {
     ("viscosity", "energy_correction"): {"work", "paper", "none"},
     ("time", "wave_speed"): {"bar", "p_wave"},
     ("analysis",): {"none", "bars", "taylor", "cantilever"},
-    ("bodies", 0, "geometry", "type"): {"block"},
+    ("bodies", 0, "geometry", "type"): {"block", "disk", "cylinder", "file"},
     ("output", "reference_viscosity", "scheme"): {"av", "ac"},
 }
 name_values = st.one_of(

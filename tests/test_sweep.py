@@ -68,3 +68,64 @@ def test_paper_command_draws_figs_3_to_9_and_the_table(tmp_path):
     assert table["AV3 (2.5, 2.5)"]["kinetic_energy_ratio_final"] < table["AV1 (1, 1)"][
         "kinetic_energy_ratio_final"] < table["AV (0.3, 0.3)"]["kinetic_energy_ratio_final"]
     assert "AC neighbours_only / work" in (out / "table.md").read_text()
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_sweep_on_an_existing_cluster_survives_a_lost_worker(tmp_path):
+    """A scheduler and two single-threaded worker processes on this machine (loopback); one
+    worker is killed once the first run has finished: every run still finishes, once."""
+    import subprocess
+    import sys
+    import threading
+    import time
+    from pathlib import Path
+
+    from impactsph.sweep import sweep
+
+    bindir = Path(sys.executable).parent
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    procs = [subprocess.Popen([str(bindir / "dask"), "scheduler", "--host", "127.0.0.1",
+                               "--port", str(port), "--no-dashboard"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        time.sleep(2.0)
+        for _ in range(2):
+            procs.append(subprocess.Popen(
+                [str(bindir / "dask"), "worker", address, "--nthreads", "1",
+                 "--nworkers", "1", "--no-dashboard", "--no-nanny"],
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        out = tmp_path / "sw"
+        values = "0.2,0.3,0.4,0.6,0.8,1.0"
+
+        def kill_one_worker():
+            deadline = time.time() + 120
+            while time.time() < deadline:
+                if (out / "sweep.csv").exists():
+                    procs[1].kill()
+                    return
+                time.sleep(0.05)
+
+        killer = threading.Thread(target=kill_one_worker)
+        killer.start()
+        result = sweep("bars", [f"viscosity.alpha1,viscosity.alpha2={values}"], out,
+                       scheduler=address)
+        killer.join()
+        assert procs[1].poll() is not None  # the worker really died mid-sweep
+        rows = result["rows"]
+        alphas = [r["viscosity.alpha1"] for r in rows]
+        assert sorted(alphas) == [0.2, 0.3, 0.4, 0.6, 0.8, 1.0]  # each once
+        assert all(r["status"] == "ok" for r in rows)
+        with open(out / "sweep.csv") as fh:
+            assert len(list(csv.DictReader(fh))) == 6
+    finally:
+        for p in procs:
+            p.kill()
+            p.wait()

@@ -44,6 +44,9 @@ def run(
     out: Annotated[Path | None, typer.Option(help="output directory (default runs/NAME)")
                    ] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+    restart: Annotated[Path | None, typer.Option(
+        help="continue from this checkpoint (written with output.checkpoint_interval)")
+                       ] = None,
 ) -> None:
     """Run a case: write history, snapshots, summary and figures into the output directory."""
     from .runner import run_case
@@ -70,7 +73,7 @@ def run(
                                 step=sim.state.step, dt=row["dt"])
 
         try:
-            summary = run_case(c, out, callback=update)
+            summary = run_case(c, out, callback=update, restart=restart)
         except SimulationError as exc:
             progress.stop()
             _fail(f"run stopped: {exc}; outputs so far are in {out}", code=3)
@@ -149,6 +152,80 @@ def paper(
         _fail(str(exc))
     typer.echo((out / "table.md").read_text())
     for fig in result["figures"]:
+        typer.echo(f"figure: {fig}")
+
+
+def _load_run_dir(path: Path) -> dict:
+    """A run directory's outputs (:func:`~impactsph.output.load_run`), its case validated;
+    refuses (exit code 2) a directory that is not one."""
+    import zipfile
+
+    from .config import validate_case
+    from .output import load_run
+
+    missing = [f for f in ("case.json", "history.csv") if not (path / f).is_file()]
+    if not path.is_dir() or missing:
+        _fail(f"{path} is not a run directory (written by impactsph run): "
+              f"{'it does not exist' if not path.exists() else 'no ' + ', '.join(missing)}")
+    try:
+        loaded = load_run(path)
+        validate_case(loaded["case"])
+        if "kinetic_energy" not in loaded["history"]:
+            raise ValueError("history.csv has no kinetic_energy rows")
+    except CaseError as exc:
+        _fail(f"{path / 'case.json'}: {exc}")
+    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+        _fail(f"{path}: cannot read the run: {exc}")
+    return loaded
+
+
+@app.command()
+def plot(
+    run_dir: Annotated[Path, typer.Argument(help="a run directory (written by impactsph run)")],
+    out: Annotated[Path | None, typer.Option(help="where to write (default: RUN_DIR)")] = None,
+) -> None:
+    """Redraw a run's figures from its output files (with its reference run, if it has one)."""
+    from .figures import draw_figures
+
+    runs = [_load_run_dir(run_dir)]
+    if (run_dir / "reference" / "case.json").is_file():
+        runs.append(_load_run_dir(run_dir / "reference"))
+    out = out or run_dir
+    out.mkdir(parents=True, exist_ok=True)
+    for fig in draw_figures(runs, out):
+        typer.echo(f"figure: {fig}")
+
+
+@app.command()
+def compare(
+    run_dirs: Annotated[list[Path], typer.Argument(help="run directories to overlay")],
+    out: Annotated[Path, typer.Option(help="where to write")] = Path("runs/compare"),
+    labels: Annotated[str | None, typer.Option(
+        help="comma-separated legend labels, one per run (default: the directories' names)")
+                      ] = None,
+) -> None:
+    """Overlay the figures of several runs.
+
+    The kinetic energy always; for runs of the same case also the case's figures (the bars:
+    velocity profile and mid-bar velocity with theory; Taylor bar and cantilever: deformed
+    shapes)."""
+    from .config import validate_case
+    from .figures import case_mismatch, draw_figures
+
+    if labels is not None:
+        names = [lab.strip() for lab in labels.split(",")]
+        if len(names) != len(run_dirs):
+            _fail(f"--labels gives {len(names)} labels for {len(run_dirs)} runs")
+    else:
+        names = [d.name or str(d) for d in run_dirs]
+        if len(set(names)) != len(names):
+            names = [str(d) for d in run_dirs]
+    runs = [_load_run_dir(d) for d in run_dirs]
+    mismatch = case_mismatch([validate_case(r["case"]) for r in runs])
+    if mismatch is not None:
+        typer.echo(f"note: {mismatch}; only the kinetic energy is overlaid", err=True)
+    out.mkdir(parents=True, exist_ok=True)
+    for fig in draw_figures(runs, out, names):
         typer.echo(f"figure: {fig}")
 
 

@@ -9,13 +9,23 @@ the value and what is allowed.
 from __future__ import annotations
 
 import copy
+import os
 import re
 import tomllib
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Discriminator,
+    Field,
+    Tag,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegativeFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
@@ -98,6 +108,101 @@ class Block(_Model):
         return [float(self.spacing)] * len(self.size)
 
 
+def _lattice_holds_a_particle(radius: float, spacing: float) -> bool:
+    """Whether a disk of ``radius`` holds a point of the lattice of :func:`geometry.disk_particles`
+    (the nearest points are ``spacing / sqrt 2`` from the centre)."""
+    return (radius / spacing) ** 2 >= 0.5
+
+
+class Disk(_Model):
+    """A disk of particles (2D): the cell centres of a square lattice of spacing ``spacing``
+    that lie within ``radius`` of ``centre``.  The lattice has a cell corner at the centre, so
+    the particles sit at ``centre + ((i + 1/2) dx, (j + 1/2) dx)``, symmetric about both axes
+    through the centre."""
+
+    type: Literal["disk"] = "disk"
+    centre: list[FiniteFloat] = Field(description="centre of the disk (m)")
+    radius: PositiveFloat = Field(description="radius (m)")
+    spacing: PositiveFloat = Field(description="particle spacing dx (m)")
+
+    def spacings(self) -> list[float]:
+        """Particle spacing along each axis (m)."""
+        return [float(self.spacing)] * 2
+
+    @model_validator(mode="after")
+    def _not_empty(self) -> Disk:
+        if not _lattice_holds_a_particle(self.radius, self.spacing):
+            raise ValueError(f"radius = {self.radius!r} holds no particle at spacing = "
+                             f"{self.spacing!r} (needs radius >= spacing / sqrt(2))")
+        return self
+
+
+class Cylinder(_Model):
+    """A circular cylinder of particles (3D): layers of the :class:`Disk` lattice across
+    ``axis``, ``round(length / spacing)`` of them (at least 1) at ``(k + 1/2) dx`` from the
+    base, whose centre is ``centre``; the cylinder extends from the base in the positive
+    direction of ``axis``."""
+
+    type: Literal["cylinder"] = "cylinder"
+    centre: list[FiniteFloat] = Field(description="centre of the base (m)")
+    radius: PositiveFloat = Field(description="radius (m)")
+    length: PositiveFloat = Field(description="length along the axis (m)")
+    axis: Literal["x", "y", "z"] = Field("z", description="direction of the axis")
+    spacing: PositiveFloat = Field(description="particle spacing dx (m)")
+
+    def spacings(self) -> list[float]:
+        """Particle spacing along each axis (m)."""
+        return [float(self.spacing)] * 3
+
+    @model_validator(mode="after")
+    def _not_empty(self) -> Cylinder:
+        if not _lattice_holds_a_particle(self.radius, self.spacing):
+            raise ValueError(f"radius = {self.radius!r} holds no particle at spacing = "
+                             f"{self.spacing!r} (needs radius >= spacing / sqrt(2))")
+        return self
+
+
+class ParticleFile(_Model):
+    """Particles read from a file: a CSV file with a header naming the columns ``x`` (``y``,
+    ``z`` by dimension) and optionally ``volume``, or an NPZ file with the arrays ``position``
+    (n, dim) and optionally ``volume`` (n,).  Each particle's mass is ``density * volume``, or
+    ``density * spacing**dim`` without a volume; ``h = h_over_dx * spacing``.  A relative
+    ``path`` in a case file is relative to the case file's directory (one given by ``--set``,
+    to the current directory); the validated case holds the absolute path."""
+
+    type: Literal["file"] = "file"
+    path: str = Field(min_length=1, description="the CSV or NPZ file")
+    spacing: PositiveFloat = Field(
+        description="particle spacing dx (m): sets h, and the volume dx^dim of particles "
+        "without one")
+
+    @field_validator("path")
+    @classmethod
+    def _absolute(cls, value: str) -> str:
+        return os.path.abspath(os.path.expanduser(value))
+
+
+GEOMETRY_TYPES = ("block", "disk", "cylinder", "file")
+
+
+def _geometry_type(value: Any) -> str | None:
+    """The geometry's ``type`` (``block`` when left out); None for an unknown one."""
+    if isinstance(value, dict):
+        kind = value.get("type", "block")
+    else:  # a model instance; anything else is reported as not a [geometry] table
+        kind = getattr(value, "type", "block")
+    return kind if isinstance(kind, str) and kind in GEOMETRY_TYPES else None
+
+
+Geometry = Annotated[
+    Annotated[Block, Tag("block")] | Annotated[Disk, Tag("disk")]
+    | Annotated[Cylinder, Tag("cylinder")] | Annotated[ParticleFile, Tag("file")],
+    Discriminator(_geometry_type, custom_error_type="geometry_type",
+                  custom_error_message="Input should be " + ", ".join(
+                      repr(t) for t in GEOMETRY_TYPES[:-1]) + f" or {GEOMETRY_TYPES[-1]!r}"),
+]
+
+
 class Region(_Model):
     """An axis-aligned box (m) selecting particles of a body."""
 
@@ -123,7 +228,7 @@ class Body(_Model):
 
     name: str = Field(min_length=1)
     material: str = Field(description="key of a [materials.NAME] table")
-    geometry: Block
+    geometry: Geometry = Field(description="the particles: a block, disk, cylinder or file")
     velocity: list[FiniteFloat] = Field(description="initial velocity (m/s)")
     clamped: Region | None = Field(
         None, description="particles inside are held at zero velocity; they take part in "
@@ -206,6 +311,14 @@ class Output(_Model):
     reference_viscosity: Viscosity | None = Field(
         None, description="a run whose viscosity differs from this one also runs the case "
         "with it and overlays it in its figures (the bars: AV (0.3, 0.3), the paper's optimum)")
+    vtk_interval: PositiveFloat | None = Field(
+        None, description="write a ParaView (VTK) snapshot every this much simulated time (s), "
+        "at the first step at or after each multiple, and at t = 0 and the end")
+    vtk_format: Literal["binary", "ascii"] = Field(
+        "binary", description="encoding of the VTK data arrays")
+    checkpoint_interval: PositiveFloat | None = Field(
+        None, description="write an HDF5 checkpoint every this much simulated time (s); "
+        "'impactsph run CASE --restart FILE' continues from one")
 
 
 class Case(_Model):
@@ -237,19 +350,29 @@ class Case(_Model):
             if body.material not in self.materials:
                 raise ValueError(f"{where}.material = {body.material!r} is not one of "
                                  f"{sorted(self.materials)}")
-            for field in ("origin", "size"):
-                if len(getattr(body.geometry, field)) != d:
-                    raise ValueError(f"{where}.geometry.{field} has "
-                                     f"{len(getattr(body.geometry, field))} components; "
+            g = body.geometry
+            if isinstance(g, Block):
+                for field in ("origin", "size"):
+                    if len(getattr(g, field)) != d:
+                        raise ValueError(f"{where}.geometry.{field} has "
+                                         f"{len(getattr(g, field))} components; "
+                                         f"dimension = {d} needs {d}")
+            elif isinstance(g, Disk | Cylinder):
+                needs = 2 if isinstance(g, Disk) else 3
+                if d != needs:
+                    raise ValueError(f"{where}.geometry: type = {g.type!r} is for dimension = "
+                                     f"{needs} only")
+                if len(g.centre) != d:
+                    raise ValueError(f"{where}.geometry.centre has {len(g.centre)} components; "
                                      f"dimension = {d} needs {d}")
             if len(body.velocity) != d:
                 raise ValueError(f"{where}.velocity has {len(body.velocity)} components; "
                                  f"dimension = {d} needs {d}")
-            g = body.geometry
-            if isinstance(g.spacing, list) and len(g.spacing) != d:
-                raise ValueError(f"{where}.geometry.spacing needs 1 or {d} values")
-            if g.count is not None and len(g.count) != d:
-                raise ValueError(f"{where}.geometry.count needs {d} values")
+            if isinstance(g, Block):
+                if isinstance(g.spacing, list) and len(g.spacing) != d:
+                    raise ValueError(f"{where}.geometry.spacing needs 1 or {d} values")
+                if g.count is not None and len(g.count) != d:
+                    raise ValueError(f"{where}.geometry.count needs {d} values")
             regions = [("clamped", body.clamped)]
             if body.tip_mass is not None:
                 regions.append(("tip_mass.region", body.tip_mass.region))
@@ -266,6 +389,15 @@ class Case(_Model):
                 raise ValueError(f"boundaries.{k}: point and normal need {d} components")
             if sum(c * c for c in wall.normal) == 0:
                 raise ValueError(f"boundaries.{k}.normal = {wall.normal}: must not be zero")
+        # the analyses measure bodies by their lattices: the bars by the blocks' lengths
+        needs = {"bars": (2, ("block",)), "taylor": (1, ("block", "disk", "cylinder")),
+                 "cantilever": (1, ("block", "disk", "cylinder"))}.get(self.analysis)
+        if needs is not None:
+            for k, body in enumerate(self.bodies[: needs[0]]):
+                if body.geometry.type not in needs[1]:
+                    raise ValueError(f"bodies.{k}.geometry: analysis = {self.analysis!r} "
+                                     f"needs type = {' or '.join(map(repr, needs[1]))}, not "
+                                     f"{body.geometry.type!r}")
         for name, mat in self.materials.items():
             if mat.model == "bar" and d != 1:
                 raise ValueError(f"materials.{name}.model = 'bar' is for dimension = 1 only")
@@ -285,8 +417,23 @@ def builtin_case_path(name: str) -> Path:
     return Path(str(resources.files("impactsph") / "cases" / f"{name}.toml"))
 
 
+def resolve_paths(data: dict[str, Any], directory: Path) -> dict[str, Any]:
+    """Make the relative ``path`` of every ``type = "file"`` geometry in a case dict relative to
+    ``directory`` (in place; entries that are not well formed are left for validation)."""
+    bodies = data.get("bodies") if isinstance(data, dict) else None
+    for body in bodies if isinstance(bodies, list) else []:
+        geometry = body.get("geometry") if isinstance(body, dict) else None
+        if not isinstance(geometry, dict) or geometry.get("type") != "file":
+            continue
+        path = geometry.get("path")
+        if isinstance(path, str) and path and not os.path.isabs(os.path.expanduser(path)):
+            geometry["path"] = os.path.abspath(os.path.join(directory, path))
+    return data
+
+
 def read_case_dict(source: str | Path) -> dict[str, Any]:
-    """Read a case file, or a built-in case by name, into a plain dict (not yet validated)."""
+    """Read a case file, or a built-in case by name, into a plain dict (not yet validated).
+    The relative paths of particle files are made relative to the case file's directory."""
     path = Path(source)
     if not path.suffix and str(source) in BUILTIN_CASES:
         path = builtin_case_path(str(source))
@@ -297,7 +444,7 @@ def read_case_dict(source: str | Path) -> dict[str, Any]:
                         f"built-in cases: {', '.join(BUILTIN_CASES)}")
     try:
         with open(path, "rb") as fh:
-            return tomllib.load(fh)
+            return resolve_paths(tomllib.load(fh), path.absolute().parent)
     except tomllib.TOMLDecodeError as exc:
         raise CaseError(f"{path}: not valid TOML: {exc}") from None
     except UnicodeDecodeError as exc:
@@ -362,14 +509,25 @@ def _is_type_tag(part: object) -> bool:
                                       or re.match(r"^[a-z-]+\[", part) is not None)
 
 
+def _location(loc: tuple[Any, ...]) -> str:
+    """The dotted field path of an error location, without pydantic's names of union members
+    (``constrained-float``, ...) and of the geometry's type (``bodies.0.geometry.disk.radius``
+    is ``bodies.0.geometry.radius``)."""
+    parts = [p for k, p in enumerate(loc) if not _is_type_tag(p)
+             and not (k > 0 and loc[k - 1] == "geometry" and p in GEOMETRY_TYPES)]
+    return ".".join(str(p) for p in parts)
+
+
 def _format_error(exc: ValidationError) -> str:
     errors = exc.errors()
     err = errors[0]
-    loc = ".".join(str(p) for p in err["loc"] if not _is_type_tag(p))
+    loc = _location(err["loc"])
     msg = err["msg"]
     if msg.startswith("Value error, "):
         msg = msg[len("Value error, "):]
     value = err.get("input")
+    if err["type"] == "geometry_type" and isinstance(value, dict):
+        loc, value = f"{loc}.type", value.get("type")
     more = f" (and {len(errors) - 1} more errors)" if len(errors) > 1 else ""
     if err["type"] == "extra_forbidden":
         return f"{loc}: unknown key{more}"
@@ -388,6 +546,20 @@ def validate_case(data: dict[str, Any]) -> Case:
         raise CaseError(_format_error(exc)) from None
 
 
+def check_particle_files(case: Case) -> None:
+    """Read every particle file of the case's ``type = "file"`` geometries; raise
+    :class:`CaseError` naming the field for a file that is missing or malformed."""
+    from .geometry import read_particle_file
+
+    for k, body in enumerate(case.bodies):
+        if isinstance(body.geometry, ParticleFile):
+            read_particle_file(body.geometry.path, case.dimension,
+                               where=f"bodies.{k}.geometry.path")
+
+
 def load_case(source: str | Path, overrides: list[str] | None = None) -> Case:
-    """Load and validate a case file or built-in case, with optional ``--set`` overrides."""
-    return validate_case(apply_overrides(read_case_dict(source), overrides or []))
+    """Load and validate a case file or built-in case, with optional ``--set`` overrides, and
+    check the particle files it reads."""
+    case = validate_case(apply_overrides(read_case_dict(source), overrides or []))
+    check_particle_files(case)
+    return case

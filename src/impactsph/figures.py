@@ -16,41 +16,75 @@ from .plotting import (
 )
 
 
+def case_mismatch(cases: list[Any]) -> str | None:
+    """Why runs of these (validated) cases cannot share the problem's figures: they differ in
+    name, analysis or dimension.  None when they can."""
+    if len({(c.name, c.analysis, c.dimension) for c in cases}) <= 1:
+        return None
+    kinds = ", ".join(dict.fromkeys(f"{c.name} ({c.dimension}D, analysis {c.analysis})"
+                                    for c in cases))
+    return f"the runs are of different cases: {kinds}"
+
+
+def _shapes(runs: list[dict[str, Any]], labels: list[str]) -> tuple[list[dict[str, Any]], str]:
+    """Deformed shapes to overlay: every run at the latest snapshot time they all have, or,
+    when they share none, each at its last (the time then in its label).  Also the title's
+    time."""
+    with_snaps = [(lab, r) for lab, r in zip(labels, runs, strict=True) if r["snapshots"]]
+    if not with_snaps:
+        return [], ""
+    common = set.intersection(*({s["time"] for s in r["snapshots"]} for _, r in with_snaps))
+    if common:
+        t = max(common)
+        return ([{"label": lab, "x": next(s for s in r["snapshots"] if s["time"] == t)
+                  ["position"]} for lab, r in with_snaps], f"t = {t * 1e6:.4g} us")
+    return ([{"label": f"{lab} (t = {r['snapshots'][-1]['time'] * 1e6:.4g} us)",
+              "x": r["snapshots"][-1]["position"]} for lab, r in with_snaps], "last snapshots")
+
+
 def draw_figures(runs: list[dict[str, Any]], out: Path, labels: list[str] | None = None
                  ) -> list[Path]:
     """Draw the figures of the loaded ``runs`` (see :func:`~impactsph.output.load_run`) into
-    ``out``; several runs are overlaid.  Returns the files written."""
+    ``out``; several runs are overlaid.  Runs of different cases (see :func:`case_mismatch`)
+    share the kinetic energy only.  Returns the files written."""
     out = Path(out)
     cases = [validate_case(r["case"]) for r in runs]
     labels = labels or [label_of(c) for c in cases]
+    mixed = case_mismatch(cases) is not None
+    dims = {c.dimension for c in cases}
     paths = [kinetic_energy_figure(
         [{"label": lab, "time": r["history"]["time"],
           "kinetic_energy": r["history"]["kinetic_energy"]} for lab, r in zip(labels, runs,
                                                                               strict=True)],
-        out / "kinetic_energy.png", title=f"Kinetic energy: {cases[0].name}")]
+        out / "kinetic_energy.png",
+        title="Kinetic energy: " + ", ".join(dict.fromkeys(c.name for c in cases)),
+        dimension=dims.pop() if len(dims) == 1 else None)]
+    if mixed:
+        return paths
     if cases[0].analysis in ("taylor", "cantilever"):
-        shapes = [{"label": lab, "x": r["snapshots"][-1]["position"]}
-                  for lab, r in zip(labels, runs, strict=True) if r["snapshots"]]
-        t_last = runs[0]["snapshots"][-1]["time"] if runs[0]["snapshots"] else 0.0
-        paths.append(shapes_figure(shapes, out / "deformed_shape.png",
-                                   f"{cases[0].name}: shape at t = {t_last * 1e6:.4g} us",
-                                   separate=cases[0].analysis == "taylor"))
+        shapes, when = _shapes(runs, labels)
+        if shapes:
+            paths.append(shapes_figure(shapes, out / "deformed_shape.png",
+                                       f"{cases[0].name}: shape at {when}",
+                                       separate=cases[0].analysis == "taylor"))
     if cases[0].analysis == "bars":
         theory = theory_for(cases[0])
         profiles, mids = [], []
+        X_mid = None
         for lab, r in zip(labels, runs, strict=True):
             for snap in r["snapshots"]:
                 if abs(snap["time"] - PROFILE_TIME) < 1e-12:
                     left = snap["body"] == 0
                     profiles.append({"label": lab, "X": snap["initial_position"][left, 0],
                                      "v": snap["velocity"][left, 0]})
-            if "mid_left_vx" in r["probes"]:
+            probe = r.get("summary", {}).get("probes", {}).get("mid_left")
+            if "mid_left_vx" in r["probes"] and probe is not None:
                 mids.append({"label": lab, "time": r["probes"]["time"],
                              "v": r["probes"]["mid_left_vx"]})
+                X_mid = float(probe["initial_position"][0]) if X_mid is None else X_mid
         if profiles:
             paths.append(bars_profile_figure(profiles, theory, out / "velocity_profile.png"))
         if mids:
-            X_mid = float(runs[0]["summary"]["probes"]["mid_left"]["initial_position"][0])
             paths.append(bars_mid_velocity_figure(mids, theory, X_mid,
                                                   out / "mid_velocity.png"))
     return paths
@@ -84,5 +118,5 @@ def draw_overlays(runs: list[tuple[str, dict[str, Any]]], out: Path, name: str,
         paths.append(kinetic_energy_figure(
             [{"label": lab, "time": r["history"]["time"],
               "kinetic_energy": r["history"]["kinetic_energy"]} for lab, r in runs],
-            out / f"{name}.png", title="Kinetic energy: bars"))
+            out / f"{name}.png", title="Kinetic energy: bars", dimension=case.dimension))
     return paths

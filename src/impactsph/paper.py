@@ -127,7 +127,7 @@ def _shape_figures(analysis: str, base: dict[str, Any], out: Path, workers: int 
         [{"label": n, "time": loaded[n]["history"]["time"],
           "kinetic_energy": loaded[n]["history"]["kinetic_energy"]}
          for n in ke_labels if n in loaded], out / f"{ke_name}.png",
-        title=f"Kinetic energy: {analysis}"))
+        title=f"Kinetic energy: {analysis}", dimension=2))
     table = []
     for lab in labels:
         summary = loaded[lab]["summary"] if lab in loaded else {}

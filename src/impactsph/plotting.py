@@ -24,14 +24,20 @@ def _save(fig, path: Path) -> Path:
     return path
 
 
-def kinetic_energy_figure(runs: list[dict[str, Any]], path: Path, title: str = "") -> Path:
+ENERGY_UNITS = {1: "J/m^2, per unit cross-section", 2: "J/m, per unit depth", 3: "J"}
+
+
+def kinetic_energy_figure(runs: list[dict[str, Any]], path: Path, title: str = "",
+                          dimension: int | None = 3) -> Path:
     """Kinetic energy against time (paper Figs 6, 9, 12).  ``runs``: dicts with ``label``,
-    ``time`` (s) and ``kinetic_energy``."""
+    ``time`` (s) and ``kinetic_energy``; ``dimension`` sets the unit (None: runs of several
+    dimensions)."""
     fig, ax = plt.subplots(figsize=(6, 4))
     for r in runs:
         ax.plot(np.asarray(r["time"]) * 1e6, r["kinetic_energy"], label=r["label"])
     ax.set_xlabel("time (us)")
-    ax.set_ylabel("kinetic energy (J per unit area)" if runs else "kinetic energy")
+    unit = ENERGY_UNITS.get(dimension, "J, J/m or J/m^2 by dimension")
+    ax.set_ylabel(f"kinetic energy ({unit})")
     ax.set_title(title or "Kinetic energy")
     ax.grid(alpha=0.3)
     ax.legend()

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .config import Case, CaseError, Material
-from .geometry import block_lattice, inside
+from .geometry import body_particles, inside
 from .materials import MaterialModel, material_table
 from .state import ParticleState
 
@@ -45,7 +45,8 @@ class Problem:
 
 
 def build_problem(case: Case) -> Problem:
-    """Place the particles of every body, set masses ``rho0 dx^dim`` (plus any tip mass),
+    """Place the particles of every body (:func:`~impactsph.geometry.body_particles`), set
+    masses ``rho0 V`` from their volumes V (``dx^dim`` on a lattice; plus any tip mass),
     smoothing lengths ``h = (h/dx) dx``, initial velocities and clamped particles."""
     info: dict[str, float] = {}
     mat_names = list(case.materials)
@@ -54,14 +55,12 @@ def build_problem(case: Case) -> Problem:
     parts: dict[str, list[np.ndarray]] = {k: [] for k in
                                           ("x", "v", "rho", "m", "h", "body", "mat", "clamped")}
     for b, body in enumerate(case.bodies):
-        g = body.geometry
-        spacing = g.spacings()
-        x = block_lattice(g.origin, g.size, spacing)
+        particles = body_particles(body.geometry, dim, where=f"bodies.{b}.geometry")
+        x = particles.position
         k = mat_names.index(body.material)
         rho0 = materials[k].density
         n = x.shape[0]
-        cell = float(np.prod(spacing))
-        mass = np.full(n, rho0 * cell)
+        mass = rho0 * particles.volume
         velocity = np.tile(np.asarray(body.velocity, dtype=np.float64), (n, 1))
         clamped = np.zeros(n, dtype=bool)
         if body.clamped is not None:
@@ -83,8 +82,8 @@ def build_problem(case: Case) -> Problem:
         parts["v"].append(velocity)
         parts["rho"].append(np.full(n, rho0))
         parts["m"].append(mass)
-        # anisotropic lattices: h scales with the geometric mean of the spacings
-        parts["h"].append(np.full(n, case.kernel.h_over_dx * cell ** (1.0 / dim)))
+        # anisotropic lattices: the spacing is the geometric mean of the axes' spacings
+        parts["h"].append(np.full(n, case.kernel.h_over_dx * particles.spacing))
         parts["body"].append(np.full(n, b, dtype=np.int32))
         parts["mat"].append(np.full(n, k, dtype=np.int32))
         parts["clamped"].append(clamped)

@@ -47,10 +47,16 @@ class RunRecord:
 class Simulation:
     """A case being run.  ``Simulation(case).run()`` runs it to ``case.time.end``."""
 
-    def __init__(self, case: Case, problem: Problem | None = None):
+    def __init__(self, case: Case, problem: Problem | None = None,
+                 state: ParticleState | None = None):
+        """``problem``: a set-up to use instead of building one from the case; ``state``: a
+        state to continue from (a restart; the record then starts empty and is expected to be
+        filled by the caller, see :func:`impactsph.checkpoint.load_checkpoint`)."""
         t0 = _time.perf_counter()
         self.case = case
         self.problem = problem or build_problem(case)
+        if state is not None:
+            self.problem.state = state
         self.state: ParticleState = self.problem.state
         self.walls = Walls.from_config(case.boundaries, case.dimension)
         self.solver = Solver(self.state, self.problem.table, case.viscosity, walls=self.walls,
@@ -69,8 +75,9 @@ class Simulation:
         self.solver.rates(self.state.copy())  # compile (or load from cache) before timing
         self.solver.pair_evaluations = 0
         self.solver.rate_evaluations = 0
-        self._record_row(0.0)
-        self._take_snapshots(previous=-np.inf)
+        if state is None:
+            self._record_row(0.0)
+            self._take_snapshots(previous=-np.inf)
         self.record.setup_seconds = _time.perf_counter() - t0
 
     # -- diagnostics -------------------------------------------------------------------

@@ -45,14 +45,29 @@ class Solver:
 
     def _build(self, state: ParticleState) -> None:
         """Choose the ghosts, size the arrays and build the neighbour list."""
-        n = state.n
         support = SUPPORT_RADIUS * float(state.smoothing_length.max())
         skin = self.skin_fraction * support
         if self.walls is not None:
-            self._ghost_src, self._ghost_wall = self.walls.select(state.position, support + skin)
+            src, wall = self.walls.select(state.position, support + skin)
         else:
-            self._ghost_src = self._ghost_wall = np.zeros(0, dtype=np.int64)
-        n_ext = n + self._ghost_src.shape[0]
+            src = wall = np.zeros(0, dtype=np.int64)
+        positions = self._allocate(state, src, wall)
+        builds = self.neighbours.builds if self.neighbours is not None else 0
+        self.neighbours = NeighbourList.build(positions, support, skin)
+        self.neighbours.builds += builds
+
+    def restore(self, state: ParticleState, neighbours: NeighbourList, ghost_src: np.ndarray,
+                ghost_wall: np.ndarray) -> None:
+        """Take over a stored neighbour list and set of ghosts (restart from a checkpoint)."""
+        self._allocate(state, ghost_src.astype(np.int64), ghost_wall.astype(np.int64))
+        self.neighbours = neighbours
+
+    def _allocate(self, state: ParticleState, ghost_src: np.ndarray, ghost_wall: np.ndarray
+                  ) -> np.ndarray:
+        """Arrays for the real particles and the given ghosts; returns all positions."""
+        n = state.n
+        self._ghost_src, self._ghost_wall = ghost_src, ghost_wall
+        n_ext = n + ghost_src.shape[0]
         if self.walls is not None:
             ext = {"x": np.zeros((n_ext, self.dim)), "v": np.zeros((n_ext, self.dim)),
                    "rho": np.zeros(n_ext), "e": np.zeros(n_ext), "S": np.zeros((n_ext, 3, 3)),
@@ -70,9 +85,7 @@ class Solver:
             self.buffers = RateBuffers(n_ext, self.dim)
             self.dv = np.zeros((n_ext, self.dim))
             self.de = np.zeros(n_ext)
-        builds = self.neighbours.builds if self.neighbours is not None else 0
-        self.neighbours = NeighbourList.build(positions, support, skin)
-        self.neighbours.builds += builds
+        return positions
 
     def _fill(self, state: ParticleState) -> None:
         """Copy the real particles into the extended arrays and mirror them into ghosts."""

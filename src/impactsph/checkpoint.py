@@ -1,0 +1,172 @@
+"""Checkpoints: everything a run needs to continue exactly where it was, in one HDF5 file.
+
+A checkpoint holds the particle state, the neighbour list and the wall ghosts in use (the
+order of the pair sums depends on them, so restoring them makes a restarted run end in
+bitwise the same state as an uninterrupted one), the energy and momentum accumulators, the
+record so far (history, probes, snapshots) and the resolved case.  It is written to a
+temporary file in the same directory and renamed, so a run killed while writing leaves the
+previous checkpoint whole.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from ._version import __version__
+from .config import CaseError, validate_case
+from .neighbours import NeighbourList
+from .simulation import Simulation, Snapshot
+from .state import ParticleState
+
+FORMAT = "impactsph-checkpoint-1"
+
+
+def write_checkpoint(sim: Simulation, path: Path | str) -> Path:
+    """Write ``sim`` to ``path`` atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        with h5py.File(tmp, "w") as f:
+            f.attrs["format"] = FORMAT
+            f.attrs["impactsph"] = __version__
+            f.attrs["case"] = json.dumps(sim.case.model_dump(mode="json"))
+            f.attrs["time"] = sim.state.time
+            f.attrs["step"] = sim.state.step
+            g = f.create_group("state")
+            for name, arr in sim.state.arrays().items():
+                g.create_dataset(name, data=arr)
+            nl = sim.solver.neighbours
+            g = f.create_group("neighbours")
+            for name in ("offsets", "indices", "reference_positions"):
+                g.create_dataset(name, data=getattr(nl, name))
+            g.attrs["radius"], g.attrs["skin"], g.attrs["builds"] = nl.radius, nl.skin, nl.builds
+            g.create_dataset("ghost_src", data=sim.solver._ghost_src)
+            g.create_dataset("ghost_wall", data=sim.solver._ghost_wall)
+            acc = f.create_group("accumulators")
+            for name, value in accumulators(sim).items():
+                acc.create_dataset(name, data=np.asarray(value))
+            rec = f.create_group("record")
+            hist = sim.record.history
+            columns = list(hist[0]) if hist else []
+            rec.attrs["history_columns"] = json.dumps(columns)
+            rec.create_dataset("history", data=np.array(
+                [[row.get(c, np.nan) for c in columns] for row in hist], dtype=np.float64))
+            for name, samples in sim.record.probes.items():
+                p = rec.create_group(f"probe_{name}")
+                p.create_dataset("time", data=np.array([t for t, _ in samples]))
+                p.create_dataset("velocity", data=np.array([v for _, v in samples]))
+            rec.attrs["probe_names"] = json.dumps(list(sim.record.probes))
+            rec.attrs["wall_seconds"] = sim.record.wall_seconds
+            rec.attrs["setup_seconds"] = sim.record.setup_seconds
+            for k, snap in enumerate(sim.record.snapshots):
+                sg = rec.create_group(f"snapshot_{k}")
+                sg.attrs["time"] = snap.time
+                for name, arr in snap.fields.items():
+                    sg.create_dataset(name, data=arr)
+            rec.attrs["n_snapshots"] = len(sim.record.snapshots)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def accumulators(sim: Simulation) -> dict[str, Any]:
+    """Run-wide running totals that the next steps add to."""
+    i, s = sim.integrator, sim.solver
+    return {
+        "viscous_dissipation": sim.viscous_dissipation,
+        "correction_work": sim.correction_work,
+        "correction_heating": sim.correction_heating,
+        "wall_impulse": sim.wall_impulse,
+        "constraint_impulse": i.constraint_impulse,
+        "constraint_events": i.constraint_events,
+        "clamp_impulse": i.clamp_impulse,
+        "pair_evaluations": s.pair_evaluations,
+        "rate_evaluations": s.rate_evaluations,
+        "initial_kinetic": sim._initial["kinetic"],
+        "initial_internal": sim._initial["internal"],
+        "initial_momentum": sim._initial["momentum"],
+        "abs_momentum0": sim._abs_momentum0,
+    }
+
+
+def read_case(path: Path | str) -> dict[str, Any]:
+    """The case stored in a checkpoint (a plain dict)."""
+    with h5py.File(path, "r") as f:
+        if f.attrs.get("format") != FORMAT:
+            raise CaseError(f"{path}: not an impactsph checkpoint")
+        return json.loads(f.attrs["case"])
+
+
+def load_checkpoint(path: Path | str, case: Any = None) -> Simulation:
+    """A :class:`Simulation` continued from a checkpoint.  ``case`` (validated) may differ
+    from the stored one only in ``time.end`` and ``output``."""
+    path = Path(path)
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise CaseError(f"--restart {path}: cannot be read as a checkpoint ({exc})") from None
+    with f:
+        if f.attrs.get("format") != FORMAT:
+            raise CaseError(f"--restart {path}: not an impactsph checkpoint")
+        stored = validate_case(json.loads(f.attrs["case"]))
+        if case is None:
+            case = stored
+        else:
+            a = case.model_dump(mode="json", exclude={"time": {"end"}, "output": True})
+            b = stored.model_dump(mode="json", exclude={"time": {"end"}, "output": True})
+            if a != b:
+                differ = sorted(k for k in a if a[k] != b.get(k))
+                raise CaseError(f"--restart {path}: the case differs from the checkpoint's in "
+                                f"{', '.join(differ)} (only time.end and output may change)")
+        arrays = {name: f["state"][name][()] for name in f["state"]}
+        state = ParticleState(**arrays, time=float(f.attrs["time"]),
+                              step=int(f.attrs["step"]))
+        sim = Simulation(case, state=state)
+        g = f["neighbours"]
+        nl = NeighbourList(g["offsets"][()], g["indices"][()], float(g.attrs["radius"]),
+                           float(g.attrs["skin"]), g["reference_positions"][()],
+                           int(g.attrs["builds"]))
+        sim.solver.restore(state, nl, g["ghost_src"][()], g["ghost_wall"][()])
+        acc = {name: f["accumulators"][name][()] for name in f["accumulators"]}
+        sim.viscous_dissipation = float(acc["viscous_dissipation"])
+        sim.correction_work = float(acc["correction_work"])
+        sim.correction_heating = float(acc["correction_heating"])
+        sim.wall_impulse = np.array(acc["wall_impulse"])
+        sim.integrator.constraint_impulse = np.array(acc["constraint_impulse"])
+        sim.integrator.constraint_events = int(acc["constraint_events"])
+        sim.integrator.clamp_impulse = np.array(acc["clamp_impulse"])
+        sim.solver.pair_evaluations = int(acc["pair_evaluations"])
+        sim.solver.rate_evaluations = int(acc["rate_evaluations"])
+        sim._initial = {"kinetic": float(acc["initial_kinetic"]),
+                        "internal": float(acc["initial_internal"]),
+                        "momentum": np.array(acc["initial_momentum"])}
+        sim._abs_momentum0 = float(acc["abs_momentum0"])
+        rec = f["record"]
+        columns = json.loads(rec.attrs["history_columns"])
+        sim.record.history = [dict(zip(columns, map(float, row), strict=True))
+                              for row in rec["history"][()]]
+        for row in sim.record.history:
+            row["step"] = int(row["step"])
+        for name in json.loads(rec.attrs["probe_names"]):
+            p = rec[f"probe_{name}"]
+            sim.record.probes[name] = list(zip(p["time"][()].tolist(), list(p["velocity"][()]),
+                                               strict=True))
+        sim.record.snapshots = [
+            Snapshot(float(rec[f"snapshot_{k}"].attrs["time"]),
+                     {n: rec[f"snapshot_{k}"][n][()] for n in rec[f"snapshot_{k}"]})
+            for k in range(int(rec.attrs["n_snapshots"]))]
+        sim.record.wall_seconds = float(rec.attrs["wall_seconds"])
+        sim.record.setup_seconds = float(rec.attrs["setup_seconds"])
+    return sim

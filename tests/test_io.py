@@ -1,0 +1,157 @@
+"""ParaView output, checkpoints and restart."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from impactsph.checkpoint import load_checkpoint, write_checkpoint
+from impactsph.cli import app
+from impactsph.config import load_case
+from impactsph.runner import run_case
+from impactsph.simulation import Simulation
+
+runner = CliRunner()
+FIELDS = {"velocity": 3, "density": 1, "pressure": 1, "deviatoric_stress": 9,
+          "von_mises_stress": 1, "plastic": 1, "specific_internal_energy": 1, "body": 1,
+          "plastic_work": 1}
+
+
+def read_vtu_ascii(path):
+    """An independent reader (the standard library's XML parser) for ASCII .vtu files."""
+    root = ET.parse(path).getroot()
+    piece = root.find("UnstructuredGrid/Piece")
+    n = int(piece.get("NumberOfPoints"))
+    data = {}
+    for arr in piece.find("PointData"):
+        values = np.array(arr.text.split(), dtype=float)
+        comps = int(arr.get("NumberOfComponents", "1"))
+        data[arr.get("Name")] = values.reshape(n, comps) if comps > 1 else values
+    points = np.array(piece.find("Points/DataArray").text.split(), dtype=float).reshape(n, 3)
+    return n, points, data
+
+
+def test_vtk_series_reads_back(tmp_path):
+    case = load_case("taylor", ["time.end=4e-6", "output.vtk_interval=1e-6",
+                                'output.vtk_format="ascii"', "output.figures=false"])
+    run_case(case, tmp_path)
+    index = ET.parse(tmp_path / "vtk" / "particles.pvd").getroot()
+    entries = [(float(d.get("timestep")), d.get("file")) for d in index.iter("DataSet")]
+    assert len(entries) == 5  # t = 0, then at the first step past 1, 2, 3 us, and 4 us (the end)
+    assert entries[0][0] == 0.0 and entries[-1][0] == pytest.approx(4e-6)
+    n, points, data = read_vtu_ascii(tmp_path / "vtk" / entries[-1][1])
+    assert n == 21 * 67
+    assert set(FIELDS) <= set(data)
+    for name, comps in FIELDS.items():
+        assert data[name].shape == ((n, comps) if comps > 1 else (n,)), name
+    assert np.all(points[:, 2] == 0.0) and points[:, 1].min() > 0.0
+    assert data["density"].min() > 7000 and data["von_mises_stress"].max() <= 600e6 * 1.0001
+    assert data["plastic"].sum() > 0  # the impact end has yielded
+    # the first snapshot is the initial state
+    _, _, first = read_vtu_ascii(tmp_path / "vtk" / entries[0][1])
+    np.testing.assert_allclose(first["velocity"][:, 1], -200.0)
+
+
+def test_vtk_binary_has_the_same_structure(tmp_path):
+    import meshio
+
+    case = load_case("bars", ["time.end=2e-6", "output.vtk_interval=1e-6",
+                              "output.figures=false"])
+    run_case(case, tmp_path)
+    files = sorted((tmp_path / "vtk").glob("*.vtu"))
+    root = ET.parse(files[-1]).getroot()  # the XML skeleton is readable without meshio
+    piece = root.find("UnstructuredGrid/Piece")
+    assert int(piece.get("NumberOfPoints")) == 202
+    assert {a.get("Name") for a in piece.find("PointData")} >= set(FIELDS)
+    mesh = meshio.read(files[-1])
+    assert mesh.points.shape == (202, 3)
+
+
+def final_arrays(sim):
+    return {k: v.copy() for k, v in sim.state.arrays().items()}
+
+
+@pytest.mark.parametrize("case_name,overrides", [
+    ("bars", ["time.end=12e-6"]),
+    ("taylor", ["time.end=6e-6"]),  # walls (ghosts), plasticity, AC
+])
+def test_restart_is_bitwise_identical(tmp_path, case_name, overrides):
+    end = float(overrides[0].split("=")[1])
+    case = load_case(case_name, [*overrides, f"output.checkpoint_interval={end / 3.5}",
+                                 "output.figures=false"])
+    whole = tmp_path / "whole"
+    run_case(case, whole)
+    reference = Simulation(case)
+    reference.run()
+    ckpt = whole / "checkpoint.h5"
+    restarted = load_checkpoint(ckpt, case)
+    assert 0 < restarted.state.time < end
+    t_ckpt = restarted.state.time
+    restarted.run()
+    for name, arr in final_arrays(reference).items():
+        np.testing.assert_array_equal(restarted.state.arrays()[name], arr, err_msg=name)
+    assert restarted.state.step == reference.state.step
+    assert restarted.summary()["momentum_drift"] == reference.summary()["momentum_drift"]
+    assert len(restarted.record.history) == len(reference.record.history)
+    # through the command line, into its own directory
+    res = runner.invoke(app, ["run", case_name, "--quiet", "--out", str(tmp_path / "cli"),
+                              "--restart", str(ckpt), *sum((["--set", o] for o in overrides),
+                                                           [])])
+    assert res.exit_code == 0, res.output
+    assert t_ckpt > 0
+
+
+def test_restart_refuses_another_case(tmp_path):
+    case = load_case("bars", ["time.end=3e-6", "output.checkpoint_interval=1e-6",
+                              "output.figures=false"])
+    run_case(case, tmp_path)
+    res = runner.invoke(app, ["run", "bars", "--quiet", "--out", str(tmp_path / "b"),
+                              "--restart", str(tmp_path / "checkpoint.h5"),
+                              "--set", "viscosity.alpha1=0.9"])
+    assert res.exit_code == 2
+    assert "viscosity" in res.output and len(res.output.strip().splitlines()) == 1
+    res = runner.invoke(app, ["run", "bars", "--quiet", "--restart",
+                              str(tmp_path / "history.csv")])
+    assert res.exit_code == 2
+
+
+def test_checkpoint_survives_sigkill_while_writing(tmp_path):
+    """A writer killed mid-write leaves the previous checkpoint loadable: checkpoints are
+    written to a temporary file and renamed."""
+    sim = Simulation(load_case("bars", ["time.end=1e-6"]))
+    sim.run()
+    path = tmp_path / "checkpoint.h5"
+    write_checkpoint(sim, path)
+    good = path.read_bytes()
+    script = (
+        "import time, impactsph.checkpoint as c\n"
+        "from impactsph.config import load_case\n"
+        "from impactsph.simulation import Simulation\n"
+        "import h5py\n"
+        "orig = h5py.File.create_dataset if hasattr(h5py.File, 'create_dataset') else None\n"
+        "sim = Simulation(load_case('bars', ['time.end=2e-6'])); sim.run()\n"
+        "import h5py._hl.group as g\n"
+        "real = g.Group.create_dataset\n"
+        "def slow(self, *a, **k):\n"
+        "    out = real(self, *a, **k); time.sleep(0.05); return out\n"
+        "g.Group.create_dataset = slow\n"
+        "print('writing', flush=True)\n"
+        f"c.write_checkpoint(sim, {str(path)!r})\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    assert proc.stdout.readline().strip() == b"writing"
+    time.sleep(0.3)  # inside the write: datasets are being created slowly
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert path.read_bytes() == good  # untouched
+    again = load_checkpoint(path)
+    assert again.state.time == pytest.approx(1e-6)

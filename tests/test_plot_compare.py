@@ -1,0 +1,130 @@
+"""``impactsph plot DIR`` redraws a run's figures from its files; ``impactsph compare DIR ...``
+overlays several runs (the kinetic energy always, the case's figures for runs of one case)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from impactsph.cli import app
+
+runner = CliRunner()
+
+# the bars case needs its snapshot at 5.75 us: end a little later
+SHORT_BARS = ["--set", "time.end=6.5e-6", "--quiet"]
+FIGURE = 5_000  # bytes: a PNG with axes and curves is larger than this
+
+
+def invoke(args: list[str]):
+    res = runner.invoke(app, [str(a) for a in args])
+    assert res.exit_code == 0, res.output
+    return res
+
+
+def figures_of(output: str) -> list[str]:
+    return [ln.split("figure: ", 1)[1] for ln in output.splitlines() if ln.startswith("figure: ")]
+
+
+def refused(args: list[str]) -> str:
+    res = runner.invoke(app, [str(a) for a in args])
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert res.exit_code == 2, res.output
+    assert len(lines) == 1 and lines[0].startswith("error: "), res.output
+    assert "Traceback" not in res.output
+    return lines[0]
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """Short runs: the bars with AV (0.3, 0.3) (figures drawn) and with AC (no figures, so no
+    reference run), a coarse Taylor bar with two snapshots, and a small 2D disk case."""
+    root = tmp_path_factory.mktemp("runs")
+    invoke(["run", "bars", *SHORT_BARS, "--out", root / "av"])
+    invoke(["run", "bars", *SHORT_BARS, "--set", "viscosity.scheme=ac",
+            "--set", "output.figures=false", "--out", root / "ac"])
+    invoke(["run", "taylor", "--quiet", "--set", "bodies.0.geometry.count=[7, 22]",
+            "--set", "time.end=3e-6", "--set", "output.snapshot_times=[1.5e-6, 3e-6]",
+            "--set", "output.figures=false", "--out", root / "taylor"])
+    case = root / "disk.toml"
+    case.write_text(
+        'name = "disk"\ndimension = 2\n[materials.steel]\nmodel = "elastic"\n'
+        'density = 7800.0\nyoungs_modulus = 2e11\n[[bodies]]\nname = "disk"\n'
+        'material = "steel"\nvelocity = [10.0, 0.0]\n[bodies.geometry]\ntype = "disk"\n'
+        'centre = [0.0, 0.0]\nradius = 0.004\nspacing = 0.001\n[time]\nend = 1e-5\n'
+        'max_steps = 5\n[output]\nsnapshot_times = [1e-9]\n')
+    invoke(["run", case, "--quiet", "--out", root / "disk"])
+    return root
+
+
+def test_plot_redraws_a_runs_figures_in_place(runs):
+    names = ("kinetic_energy.png", "velocity_profile.png", "mid_velocity.png")
+    for name in names:
+        assert not (runs / "ac" / name).exists()  # the run drew none
+    res = invoke(["plot", runs / "ac"])
+    drawn = figures_of(res.output)
+    assert drawn == [str(runs / "ac" / name) for name in names]
+    for name in names:
+        assert (runs / "ac" / name).stat().st_size > FIGURE
+
+
+def test_plot_writes_elsewhere_with_out(runs, tmp_path):
+    res = invoke(["plot", runs / "av", "--out", tmp_path / "figs"])
+    drawn = figures_of(res.output)
+    assert {p.rsplit("/", 1)[1] for p in drawn} == {"kinetic_energy.png", "velocity_profile.png",
+                                                     "mid_velocity.png"}
+    assert all(p.startswith(str(tmp_path / "figs")) for p in drawn)
+
+
+def test_plot_draws_the_shapes_of_the_taylor_bar(runs, tmp_path):
+    drawn = figures_of(invoke(["plot", runs / "taylor", "--out", tmp_path]).output)
+    assert [p.rsplit("/", 1)[1] for p in drawn] == ["kinetic_energy.png", "deformed_shape.png"]
+
+
+def test_plot_refuses_what_is_not_a_run_directory(runs, tmp_path):
+    line = refused(["plot", tmp_path / "nowhere"])
+    assert "is not a run directory" in line and "does not exist" in line
+    line = refused(["plot", tmp_path])
+    assert "is not a run directory" in line and "case.json" in line
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    (broken / "case.json").write_text("{not json")
+    (broken / "history.csv").write_text((runs / "av" / "history.csv").read_text())
+    assert "cannot read the run" in refused(["plot", broken])
+    (broken / "case.json").write_text(json.dumps({"case": {"name": "x"}}))
+    assert refused(["plot", broken]).startswith(f"error: {broken / 'case.json'}: ")
+    assert not (broken / "kinetic_energy.png").exists()
+
+
+def test_compare_overlays_the_bars_with_theory(runs, tmp_path):
+    out = tmp_path / "cmp"
+    res = invoke(["compare", runs / "av", runs / "ac", "--out", out, "--labels", "AV,AC"])
+    drawn = figures_of(res.output)
+    assert [p.rsplit("/", 1)[1] for p in drawn] == ["kinetic_energy.png",
+                                                     "velocity_profile.png", "mid_velocity.png"]
+    for p in drawn:
+        assert p.startswith(str(out)) and (out / p.rsplit("/", 1)[1]).stat().st_size > FIGURE
+    assert "note:" not in res.output
+
+
+def test_compare_of_different_cases_overlays_the_kinetic_energy_only(runs, tmp_path):
+    res = invoke(["compare", runs / "av", runs / "taylor", runs / "disk", "--out", tmp_path])
+    assert figures_of(res.output) == [str(tmp_path / "kinetic_energy.png")]
+    assert "note: the runs are of different cases" in res.output
+    assert not (tmp_path / "velocity_profile.png").exists()
+
+
+def test_compare_taylor_runs_draws_the_shapes(runs, tmp_path):
+    res = invoke(["compare", runs / "taylor", runs / "taylor", "--out", tmp_path,
+                  "--labels", "one, two"])
+    assert [p.rsplit("/", 1)[1] for p in figures_of(res.output)] == [
+        "kinetic_energy.png", "deformed_shape.png"]
+
+
+def test_compare_refuses_bad_input(runs, tmp_path):
+    line = refused(["compare", runs / "av", runs / "ac", "--labels", "one", "--out", tmp_path])
+    assert line == "error: --labels gives 1 labels for 2 runs"
+    line = refused(["compare", runs / "av", tmp_path / "nowhere", "--out", tmp_path / "o"])
+    assert "nowhere is not a run directory" in line
+    assert not (tmp_path / "o").exists()
