@@ -50,20 +50,6 @@ def cubic_spline(r: float, h: float, dim: int) -> float:
 
 
 @nb.njit(inline="always", cache=True)
-def cubic_spline_dwdr(r: float, h: float, dim: int) -> float:
-    """Radial derivative ``dW/dr`` of eq 20 (non-positive)."""
-    q = r / h
-    if q >= 2.0:
-        return 0.0
-    if q <= 1.0:
-        df = -3.0 * q + 2.25 * q * q
-    else:
-        t = 2.0 - q
-        df = -0.75 * t * t
-    return normalisation(h, dim) * df / h
-
-
-@nb.njit(inline="always", cache=True)
 def cubic_spline_dwdr_q(q: float, inv_h: float, dim: int) -> float:
     """``dW/dr`` of eq 20 from ``q = r/h`` and ``1/h`` (no division: the pair loops' form)."""
     if q >= 2.0:
@@ -80,6 +66,12 @@ def cubic_spline_dwdr_q(q: float, inv_h: float, dim: int) -> float:
     else:
         norm = (1.0 / math.pi) * inv_h * inv_h * inv_h
     return norm * df * inv_h
+
+
+@nb.njit(inline="always", cache=True)
+def cubic_spline_dwdr(r: float, h: float, dim: int) -> float:
+    """Radial derivative ``dW/dr`` of eq 20 (non-positive)."""
+    return cubic_spline_dwdr_q(r / h, 1.0 / h, dim)
 
 
 @nb.njit(cache=True)
