@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from functools import cache
+from types import SimpleNamespace
 
 import numba as nb
 import numpy as np
@@ -93,8 +94,22 @@ class MidpointIntegrator:
         self.n_active = n_active
         self._cfl, self._advance, self._return = _kernels(dim)
         self._any_clamped: bool | None = None
+        self._start: SimpleNamespace | None = None
 
-    def _stage(self, state: ParticleState, dt: float, start: ParticleState, v_rate, rates,
+    #: the fields the integrator advances (the rest of the state is constant within a step)
+    INTEGRATED = ("position", "velocity", "density", "specific_energy", "deviatoric_stress",
+                  "plastic_work")
+
+    def _save_start(self, state: ParticleState) -> SimpleNamespace:
+        """The integrated fields at the start of the step, in buffers reused every step."""
+        if self._start is None or self._start.position.shape != state.position.shape:
+            self._start = SimpleNamespace(**{f: np.empty_like(getattr(state, f))
+                                             for f in self.INTEGRATED})
+        for f in self.INTEGRATED:
+            np.copyto(getattr(self._start, f), getattr(state, f))
+        return self._start
+
+    def _stage(self, state: ParticleState, dt: float, start: SimpleNamespace, v_rate, rates,
                final: bool):
         dv, drho, de, dS = rates
         state.plastic_work[:] = start.plastic_work
@@ -114,7 +129,7 @@ class MidpointIntegrator:
         """Advance ``state`` by ``dt`` in place."""
         if self._any_clamped is None:
             self._any_clamped = bool(state.clamped.any())
-        start = state.copy()
+        start = self._save_start(state)
         self._stage(state, 0.5 * dt, start, start.velocity, self.rates(state), final=False)
         mid_velocity = state.velocity.copy()
         rates = self.rates(state)

@@ -155,6 +155,9 @@ class Simulation:
                 f"(body {self.problem.body_names[s.body[i]]!r}, position {s.position[i].tolist()})")
 
     def _check(self, dt: float, dt0: float) -> None:
+        """Stop on a non-finite value, a non-positive density, a particle behind a wall or a
+        collapsed step.  Run before every step (and once after the last), so it sees the
+        result of the previous step and of any callback."""
         s = self.state
         for name in ("position", "velocity", "density", "specific_energy",
                      "deviatoric_stress"):
@@ -210,12 +213,12 @@ class Simulation:
                 self.correction_work += dt * work
                 self.correction_heating += dt * corr_heating
                 self.wall_impulse += dt * self.solver.wall_force
-                self._check(dt, dt0)
                 if self.state.step % every == 0 or self.state.time >= t_end * (1 - 1e-12):
                     self._record_row(dt)
                 self._take_snapshots(previous)
                 if callback is not None:
                     callback(self)
+            self._check(stable_time_step(self.state, table, courant), dt0)
         except SimulationError as exc:
             self.record.failure = str(exc)
             raise
