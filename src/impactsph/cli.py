@@ -47,6 +47,9 @@ def run(
     restart: Annotated[Path | None, typer.Option(
         help="continue from this checkpoint (written with output.checkpoint_interval)")
                        ] = None,
+    device: Annotated[str | None, typer.Option(
+        help="cpu or gpu: where the rate passes run (same as --set compute.device=...); "
+             "gpu falls back to the CPU, with a warning, where no GPU is present")] = None,
 ) -> None:
     """Run a case: write history, snapshots, summary and figures into the output directory."""
     from .runner import run_case
@@ -55,7 +58,7 @@ def run(
     logging.basicConfig(level=logging.WARNING if quiet else logging.INFO,
                         format="%(levelname)s %(name)s: %(message)s")
     try:
-        c = load_case(case, set_ or [])
+        c = load_case(case, (set_ or []) + ([f"compute.device={device}"] if device else []))
     except CaseError as exc:
         _fail(str(exc))
     out = out or Path("runs") / c.name

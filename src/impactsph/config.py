@@ -321,6 +321,14 @@ class Output(_Model):
         "'impactsph run CASE --restart FILE' continues from one")
 
 
+class Compute(_Model):
+    """Where and how the rate passes run."""
+
+    device: Literal["cpu", "gpu"] = Field(
+        "cpu", description="'gpu' runs the rate passes on an NVIDIA GPU (numba-cuda); where "
+        "none is present the run falls back to the CPU and says so")
+
+
 class Case(_Model):
     """A complete simulation case."""
 
@@ -337,6 +345,7 @@ class Case(_Model):
     viscosity: Viscosity = Field(default_factory=Viscosity)
     time: Time
     output: Output = Field(default_factory=Output)
+    compute: Compute = Field(default_factory=Compute)
 
     @model_validator(mode="after")
     def _consistent(self) -> Case:

@@ -10,6 +10,7 @@ import numpy as np
 
 from .boundaries import Walls
 from .config import Case
+from .devices import select_backend
 from .integrate import MidpointIntegrator, stable_time_step
 from .problem import Problem, build_problem
 from .solver import Solver
@@ -60,7 +61,8 @@ class Simulation:
         self.state: ParticleState = self.problem.state
         self.walls = Walls.from_config(case.boundaries, case.dimension)
         self.solver = Solver(self.state, self.problem.table, case.viscosity, walls=self.walls,
-                             skin_fraction=case.time.neighbour_skin)
+                             skin_fraction=case.time.neighbour_skin,
+                             backend=select_backend(case.compute.device, case.dimension))
         self.integrator = MidpointIntegrator(
             self.solver.rates, self.problem.table, self.state.n, self.state.dim,
             constraint=self.walls.enforce if len(self.walls) else None)
@@ -247,6 +249,7 @@ class Simulation:
             "pair_evaluations": self.solver.pair_evaluations,
             "pair_evaluations_per_second": self.solver.pair_evaluations / wall if wall else 0.0,
             "neighbour_list_builds": self.solver.neighbours.builds,
+            "device": self.solver.backend.device,
             "wall_constraint_events": self.integrator.constraint_events,
             "kinetic_energy_initial": float(ke[0]),
             "kinetic_energy_final": float(ke[-1]),

@@ -10,7 +10,7 @@ from .config import Viscosity
 from .kernels import SUPPORT_RADIUS
 from .neighbours import NeighbourList
 from .physics.correction import ENERGY_CORRECTIONS, VARIANTS
-from .physics.rates import RateBuffers, rate_kernels
+from .physics.rates import CpuRates, RateBuffers
 from .state import ParticleState
 
 
@@ -21,23 +21,28 @@ class Solver:
     in sums.  The rates returned have one row per particle, ghosts after the real ones.  The
     neighbour list carries a skin of ``skin_fraction`` times the kernel support and is
     rebuilt (with a new set of ghosts) when a particle has moved by half the skin.
+    ``backend`` runs the rate passes: :class:`~impactsph.physics.rates.CpuRates` (default)
+    or :class:`impactsph.gpu.GpuRates`.
     """
 
     def __init__(self, state: ParticleState, table: np.ndarray, viscosity: Viscosity,
-                 walls: Walls | None = None, skin_fraction: float = 0.1):
+                 walls: Walls | None = None, skin_fraction: float = 0.1, backend=None):
         self.table = table
         self.viscosity = viscosity
         self.walls = walls if walls is not None and len(walls) else None
         self.n_active = state.n
         self.dim = state.dim
         self.n_bodies = int(state.body.max()) + 1 if state.n else 1
-        self._passes = rate_kernels(state.dim)
+        self.backend = backend if backend is not None else CpuRates(state.dim)
         self.skin_fraction = skin_fraction
         self.pair_evaluations = 0
         self.rate_evaluations = 0
         self.corrected = viscosity.scheme == "ac"
         # AC evaluates the viscosity with (1, 1) (eq 31); AV with the case's parameters
         self.alpha = (1.0, 1.0) if self.corrected else (viscosity.alpha1, viscosity.alpha2)
+        self._correction = ((viscosity.correction_h_ratio, VARIANTS[viscosity.correction],
+                             ENERGY_CORRECTIONS[viscosity.energy_correction])
+                            if self.corrected else None)
         self.powers = (0.0, 0.0, 0.0)
         self.wall_force = np.zeros(state.dim)
         self.neighbours: NeighbourList | None = None
@@ -117,23 +122,12 @@ class Solver:
                 or support + self.neighbours.skin > self.neighbours.radius * (1 + 1e-12)):
             self._build(state)
             b = self.buffers
-        x, v, rho, e, S, m, h, material, body = self._arrays(state)
-        particle_pass, pair_pass, stress_pass, correction_pass = self._passes
-        particle_pass(m, rho, e, S, material, self.table, b.pressure, b.sound_speed, b.A, b.pc,
-                      b.volume)
-        visc = self.viscosity
-        nl = self.neighbours
-        pair_pass(self.n_active, x, v, m, rho, h, body, b.sound_speed, b.A, b.pc, b.volume,
-                  nl.offsets, nl.indices, self.alpha[0], self.alpha[1], visc.epsilon,
-                  b.drho, b.dv_stress, b.dv_visc, b.de_stress, b.de_visc, b.L,
-                  b.contact_force, b.pair_count)
-        stress_pass(self.n_active, S, b.L, material, self.table, b.dS)
+        self.backend.evaluate(self.n_active, self._arrays(state), self.table, self.neighbours,
+                              self.alpha[0], self.alpha[1], self.viscosity.epsilon,
+                              self._correction, b)
         np.add(b.dv_stress, b.dv_visc, out=self.dv)
         np.add(b.de_stress, b.de_visc, out=self.de)
         if self.corrected:
-            correction_pass(self.n_active, x, v, m, rho, h, body, nl.offsets, nl.indices,
-                            b.dv_visc, visc.correction_h_ratio, VARIANTS[visc.correction],
-                            ENERGY_CORRECTIONS[visc.energy_correction], b.dv_corr, b.de_corr)
             self.dv += b.dv_corr
             self.de += b.de_corr
         self.powers = self._energy_powers(state)

@@ -240,6 +240,43 @@ def rate_kernels(dim: int):
     return particle_pass, pair_pass, stress_pass, correction_pass
 
 
+class CpuRates:
+    """The rate passes on the CPU (numba, threads): fills a :class:`RateBuffers`.
+
+    A backend has one method, :meth:`evaluate`; :class:`impactsph.gpu.GpuRates` is the
+    other one, with the same signature and the same results."""
+
+    device = "cpu"
+
+    def __init__(self, dim: int):
+        self.dim = dim
+        self._passes = rate_kernels(dim)
+
+    def evaluate(self, n_active: int, arrays: tuple, table: np.ndarray, neighbours,
+                 alpha1: float, alpha2: float, epsilon: float, correction: tuple | None,
+                 b: RateBuffers) -> None:
+        """Rates of the first ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h,
+        material, body)`` (all rows, ghosts included, take part in the sums) into ``b``:
+        ``pressure, sound_speed, A, pc, volume`` (pass 1), ``drho, dv_stress, dv_visc,
+        de_stress, de_visc, L, contact_force, pair_count`` (pass 2), ``dS`` (pass 3) and,
+        when ``correction = (h_ratio, variant, energy_mode)`` is given, ``dv_corr, de_corr``
+        (pass 4)."""
+        x, v, rho, e, S, m, h, material, body = arrays
+        particle_pass, pair_pass, stress_pass, correction_pass = self._passes
+        nl = neighbours
+        particle_pass(m, rho, e, S, material, table, b.pressure, b.sound_speed, b.A, b.pc,
+                      b.volume)
+        pair_pass(n_active, x, v, m, rho, h, body, b.sound_speed, b.A, b.pc, b.volume,
+                  nl.offsets, nl.indices, alpha1, alpha2, epsilon,
+                  b.drho, b.dv_stress, b.dv_visc, b.de_stress, b.de_visc, b.L,
+                  b.contact_force, b.pair_count)
+        stress_pass(n_active, S, b.L, material, table, b.dS)
+        if correction is not None:
+            h_ratio, variant, energy_mode = correction
+            correction_pass(n_active, x, v, m, rho, h, body, nl.offsets, nl.indices,
+                            b.dv_visc, h_ratio, variant, energy_mode, b.dv_corr, b.de_corr)
+
+
 class RateBuffers:
     """Work and output arrays of one rate evaluation, allocated once per run."""
 

@@ -1,0 +1,27 @@
+"""Choice of the device that runs the rate passes: the CPU, or an NVIDIA GPU where present."""
+
+from __future__ import annotations
+
+import logging
+
+from .physics.rates import CpuRates
+
+log = logging.getLogger(__name__)
+
+
+def select_backend(device: str, dim: int):
+    """A rate backend for ``device`` (``"cpu"`` or ``"gpu"``).
+
+    ``"gpu"`` without a usable GPU (no CUDA driver, no device, or numba-cuda missing) logs a
+    warning that says why and returns the CPU backend: a case written for a GPU still runs."""
+    if device == "cpu":
+        return CpuRates(dim)
+    if device != "gpu":
+        raise ValueError(f"compute.device = {device!r}: allowed are 'cpu' and 'gpu'")
+    from . import gpu
+
+    reason = gpu.unavailable_reason()
+    if reason is not None:
+        log.warning("compute.device = 'gpu' but %s; running on the CPU", reason)
+        return CpuRates(dim)
+    return gpu.GpuRates(dim)
