@@ -13,7 +13,7 @@ from impactsph.physics.correction import (
     VARIANTS,
     surviving_fraction,
 )
-from impactsph.physics.rates import rate_kernels
+from impactsph.physics.rates import correction_only
 
 DX = 1e-3
 H = 1.2 * DX
@@ -31,10 +31,8 @@ def apply_correction(x, u, variant, v=None, energy="work"):
     m = np.full(n, 7800.0 * DX**dim)
     rho = np.full(n, 7800.0)
     v = np.zeros((n, dim)) if v is None else v
-    dv_corr, de_corr = np.zeros((n, dim)), np.zeros(n)
-    rate_kernels(dim)[3](n, x, v, m, rho, np.full(n, H), np.zeros(n, np.int32), nl.offsets,
-                         nl.indices, u, 0.5, VARIANTS[variant], ENERGY_CORRECTIONS[energy],
-                         dv_corr, de_corr)
+    dv_corr, de_corr = correction_only(x, v, m, rho, np.full(n, H), np.zeros(n, np.int32), nl,
+                                       u, 0.5, VARIANTS[variant], ENERGY_CORRECTIONS[energy])
     return u + dv_corr, de_corr
 
 

@@ -9,8 +9,7 @@ from impactsph.neighbours import NeighbourList, brute_force_pairs
 
 
 def pairs_of(nl: NeighbourList) -> set[tuple[int, int]]:
-    n = nl.offsets.shape[0] - 1
-    return {(i, int(j)) for i in range(n) for j in nl.indices[nl.offsets[i]:nl.offsets[i + 1]]}
+    return nl.pairs()
 
 
 @pytest.mark.parametrize("dim", [1, 2, 3])

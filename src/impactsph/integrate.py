@@ -23,6 +23,9 @@ from .materials import SHEAR, WAVE_MODULUS, YIELD
 from .physics.strength import double_contraction, radial_return
 from .state import ParticleState
 
+#: Particles per work item of the survey's partial sums.
+CHUNK = 1024
+
 
 @cache
 def _kernels(dim: int):
@@ -39,9 +42,10 @@ def _kernels(dim: int):
         return courant * local.min() if n_active > 0 else np.inf
 
     @nb.njit(parallel=True, cache=True)
-    def advance(n_active, dt, x0, v0, rho0, e0, S0, v_rate, dv, drho, de, dS, clamped,
-                x, v, rho, e, S):
-        """``y = y0 + dt ydot`` with ``xdot = v_rate``; clamped particles keep ``v = 0``."""
+    def advance(n_active, dt, x0, v0, rho0, e0, S0, pw0, v_rate, dv, drho, de, dS, clamped,
+                material, table, x, v, rho, e, S, plastic_work):
+        """``y = y0 + dt ydot`` with ``xdot = v_rate`` (clamped particles keep ``v = 0``),
+        then the radial return (eqs 17-18) and the specific plastic work it dissipates."""
         for i in nb.prange(n_active):
             for a in range(dim):
                 x[i, a] = x0[i, a] + dt * v_rate[i, a]
@@ -51,11 +55,7 @@ def _kernels(dim: int):
             for a in range(3):
                 for b in range(3):
                     S[i, a, b] = S0[i, a, b] + dt * dS[i, a, b]
-
-    @nb.njit(parallel=True, cache=True)
-    def plastic_return(n_active, S, rho, material, table, plastic_work):
-        """Radial return (eqs 17-18) and the specific plastic work it dissipates."""
-        for i in nb.prange(n_active):
+            plastic_work[i] = pw0[i]
             k = material[i]
             sy = table[k, YIELD]
             if not math.isfinite(sy):
@@ -65,13 +65,74 @@ def _kernels(dim: int):
             if f < 1.0:
                 plastic_work[i] += before * (1.0 - f * f) / (4.0 * table[k, SHEAR] * rho[i])
 
-    return cfl_step, advance, plastic_return
+    @nb.njit(parallel=True, cache=True)
+    def survey(n_active, x, v, rho, e, S, m, h, material, table, courant):
+        """One pass over the state: the CFL step (eq 26), kinetic and internal energy,
+        momentum, and the first bad value.  Returns ``(dt, sums, bad)``: ``sums = (KE, IE,
+        p_x, p_y, p_z)``; ``bad = field * n + i`` for the first particle ``i`` of the first
+        field (0 position, 1 velocity, 2 density, 3 specific energy, 4 deviatoric stress:
+        non-finite; 5 density: not positive) that is bad, or -1.  Partial sums per chunk of
+        particles, added in a fixed order: the result does not depend on the threads."""
+        n_chunks = max(1, (n_active + CHUNK - 1) // CHUNK)
+        part = np.zeros((n_chunks, 6))
+        bad_of = np.full(n_chunks, -1, dtype=np.int64)
+        for chunk in nb.prange(n_chunks):
+            local_dt = np.inf
+            ke = ie = p0 = p1 = p2 = 0.0
+            first = -1
+            for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n_active)):
+                speed2 = 0.0
+                pos_ok = True
+                vel_ok = True
+                for a in range(dim):
+                    speed2 += v[i, a] * v[i, a]
+                    pos_ok = pos_ok and math.isfinite(x[i, a])
+                    vel_ok = vel_ok and math.isfinite(v[i, a])
+                stress_ok = True
+                for a in range(3):
+                    for b in range(3):
+                        stress_ok = stress_ok and math.isfinite(S[i, a, b])
+                for field, ok in enumerate((pos_ok, vel_ok, math.isfinite(rho[i]),
+                                            math.isfinite(e[i]), stress_ok, rho[i] > 0.0)):
+                    if not ok:
+                        code = field * n_active + i
+                        if first < 0 or code < first:
+                            first = code
+                        break
+                c = math.sqrt(table[material[i], WAVE_MODULUS] / rho[i])
+                local_dt = min(local_dt, h[i] / (c + math.sqrt(speed2)))
+                ke += 0.5 * m[i] * speed2
+                ie += m[i] * e[i]
+                p0 += m[i] * v[i, 0]
+                if dim > 1:
+                    p1 += m[i] * v[i, 1]
+                if dim > 2:
+                    p2 += m[i] * v[i, 2]
+            part[chunk, 0] = local_dt
+            part[chunk, 1] = ke
+            part[chunk, 2] = ie
+            part[chunk, 3] = p0
+            part[chunk, 4] = p1
+            part[chunk, 5] = p2
+            bad_of[chunk] = first
+        sums = np.zeros(5)
+        dt = np.inf
+        bad = -1
+        for chunk in range(n_chunks):
+            dt = min(dt, part[chunk, 0])
+            for k in range(5):
+                sums[k] += part[chunk, k + 1]
+            if bad_of[chunk] >= 0 and (bad < 0 or bad_of[chunk] < bad):
+                bad = bad_of[chunk]
+        return courant * dt, sums, bad
+
+    return cfl_step, advance, survey
 
 
 def stable_time_step(state: ParticleState, table: np.ndarray, courant: float,
                      n_active: int | None = None) -> float:
     """CFL step of eq 26."""
-    cfl_step, _, _ = _kernels(state.dim)
+    cfl_step = _kernels(state.dim)[0]
     n = state.n if n_active is None else n_active
     return float(cfl_step(n, state.velocity, state.density, state.smoothing_length,
                           state.material, table, courant))
@@ -92,9 +153,10 @@ class MidpointIntegrator:
         self.clamp_impulse = np.zeros(dim)
         self.table = table
         self.n_active = n_active
-        self._cfl, self._advance, self._return = _kernels(dim)
+        self._cfl, self._advance, self.survey_kernel = _kernels(dim)
         self._any_clamped: bool | None = None
         self._start: SimpleNamespace | None = None
+        self._mid_velocity: np.ndarray | None = None
 
     #: the fields the integrator advances (the rest of the state is constant within a step)
     INTEGRATED = ("position", "velocity", "density", "specific_energy", "deviatoric_stress",
@@ -112,13 +174,11 @@ class MidpointIntegrator:
     def _stage(self, state: ParticleState, dt: float, start: SimpleNamespace, v_rate, rates,
                final: bool):
         dv, drho, de, dS = rates
-        state.plastic_work[:] = start.plastic_work
         self._advance(self.n_active, dt, start.position, start.velocity, start.density,
-                      start.specific_energy, start.deviatoric_stress, v_rate, dv, drho, de,
-                      dS, state.clamped, state.position, state.velocity, state.density,
-                      state.specific_energy, state.deviatoric_stress)
-        self._return(self.n_active, state.deviatoric_stress, state.density, state.material,
-                     self.table, state.plastic_work)
+                      start.specific_energy, start.deviatoric_stress, start.plastic_work,
+                      v_rate, dv, drho, de, dS, state.clamped, state.material, self.table,
+                      state.position, state.velocity, state.density, state.specific_energy,
+                      state.deviatoric_stress, state.plastic_work)
         if self.constraint is not None:
             count, impulse = self.constraint(state.position, state.velocity, state.mass)
             if final:  # the predictor's state is discarded; only the step's own counts
@@ -131,7 +191,10 @@ class MidpointIntegrator:
             self._any_clamped = bool(state.clamped.any())
         start = self._save_start(state)
         self._stage(state, 0.5 * dt, start, start.velocity, self.rates(state), final=False)
-        mid_velocity = state.velocity.copy()
+        if self._mid_velocity is None or self._mid_velocity.shape != state.velocity.shape:
+            self._mid_velocity = np.empty_like(state.velocity)
+        mid_velocity = self._mid_velocity
+        np.copyto(mid_velocity, state.velocity)
         rates = self.rates(state)
         self._stage(state, dt, start, mid_velocity, rates, final=True)
         if self._any_clamped:

@@ -69,6 +69,25 @@ def cubic_spline_dwdr_q(q: float, inv_h: float, dim: int) -> float:
 
 
 @nb.njit(inline="always", cache=True)
+def cubic_spline_gradient_factor(q: float, inv_h: float, dim: int) -> float:
+    """``(dW/dr) / r`` for ``q = r/h < 2``, so that ``grad W_ij = factor * r_ij``.
+
+    The pair loops' form: the inner branch (``q <= 1``, most pairs) needs no division."""
+    if q <= 1.0:
+        df_over_q = -3.0 + 2.25 * q
+    else:
+        t = 2.0 - q
+        df_over_q = -0.75 * t * t / q
+    if dim == 1:
+        norm = (2.0 / 3.0) * inv_h
+    elif dim == 2:
+        norm = (10.0 / (7.0 * math.pi)) * inv_h * inv_h
+    else:
+        norm = (1.0 / math.pi) * inv_h * inv_h * inv_h
+    return norm * df_over_q * inv_h * inv_h
+
+
+@nb.njit(inline="always", cache=True)
 def cubic_spline_dwdr(r: float, h: float, dim: int) -> float:
     """Radial derivative ``dW/dr`` of eq 20 (non-positive)."""
     return cubic_spline_dwdr_q(r / h, 1.0 / h, dim)

@@ -27,12 +27,17 @@ def _build_functions(dim: int):
     """Compile the cell-list builder for one dimension (``dim`` is a compile-time constant)."""
     n_stencil = 3**dim
 
+    bits = 63 // dim  # bits per axis of the Morton code
+
     @nb.njit(cache=True)
-    def cell_coordinates(x, lo, cell, ncell):
+    def cell_keys(x, lo, cell, ncell):
+        """Row-major cell number and Morton (Z-order) code of each particle's cell."""
         n = x.shape[0]
         key = np.empty(n, dtype=np.int64)
+        morton = np.zeros(n, dtype=np.int64)
         for i in range(n):
             k = 0
+            z = 0
             for a in range(dim):
                 c = int((x[i, a] - lo[a]) / cell)
                 if c < 0:
@@ -40,19 +45,24 @@ def _build_functions(dim: int):
                 if c >= ncell[a]:
                     c = ncell[a] - 1
                 k = k * ncell[a] + c
+                for bit in range(bits):
+                    z |= ((c >> bit) & 1) << (bit * dim + a)
             key[i] = k
-        return key
+            morton[i] = z
+        return key, morton
 
     @nb.njit(inline="always", cache=True)
-    def visit(i, x, lo, radius, ncell, cell_start, order, r2max, indices, pos, write):
-        """Count (and if ``write``, store from ``pos``) the neighbours of particle ``i``."""
+    def visit(p, xs, lo, radius, ncell, cell_start, cell_end, r2max, indices, pos, write):
+        """Count (and if ``write``, store from ``pos``) the neighbours of sorted particle
+        ``p``; ``xs`` are the positions in cell order, so the particles of (row-major) cell
+        ``c`` are the range ``cell_start[c]:cell_end[c]``."""
         found = 0
         for s in range(n_stencil):
             t = s
             kc = 0
             inside = True
             for a in range(dim):
-                c = int((x[i, a] - lo[a]) / radius)
+                c = int((xs[p, a] - lo[a]) / radius)
                 c = min(max(c, 0), ncell[a] - 1) + t % 3 - 1
                 t //= 3
                 if c < 0 or c >= ncell[a]:
@@ -60,17 +70,16 @@ def _build_functions(dim: int):
                 kc = kc * ncell[a] + c
             if not inside:
                 continue
-            for p in range(cell_start[kc], cell_start[kc + 1]):
-                j = order[p]
-                if j == i:
+            for q in range(cell_start[kc], cell_end[kc]):
+                if q == p:
                     continue
                 r2 = 0.0
                 for a in range(dim):
-                    d = x[i, a] - x[j, a]
+                    d = xs[p, a] - xs[q, a]
                     r2 += d * d
                 if r2 < r2max:
                     if write:
-                        indices[pos + found] = j
+                        indices[pos + found] = q
                     found += 1
         return found
 
@@ -86,26 +95,34 @@ def _build_functions(dim: int):
         total_cells = 1
         for a in range(dim):
             total_cells *= ncell[a]
-        key = cell_coordinates(x, lo, radius, ncell)
-        order = np.argsort(key, kind="mergesort")
-        cell_start = np.zeros(total_cells + 1, dtype=np.int64)
-        for i in range(n):
-            cell_start[key[i] + 1] += 1
-        for c in range(total_cells):
-            cell_start[c + 1] += cell_start[c]
+        key, morton = cell_keys(x, lo, radius, ncell)
+        # cells in Z order (neighbouring cells mostly close in memory in 2D and 3D), the
+        # particles of a cell in their given order (stable sort)
+        order = np.argsort(morton, kind="mergesort")
+        xs = np.empty((n, dim))
+        for p in nb.prange(n):
+            for a in range(dim):
+                xs[p, a] = x[order[p], a]
+        cell_start = np.zeros(total_cells, dtype=np.int64)
+        cell_end = np.zeros(total_cells, dtype=np.int64)
+        for p in range(n):
+            c = key[order[p]]
+            if p == 0 or c != key[order[p - 1]]:
+                cell_start[c] = p
+            cell_end[c] = p + 1
         r2max = radius * radius
         offsets = np.zeros(n + 1, dtype=np.int64)
-        empty = np.empty(0, dtype=np.int64)
-        for i in nb.prange(n):
-            offsets[i + 1] = visit(
-                i, x, lo, radius, ncell, cell_start, order, r2max, empty, 0, False
-            )
-        for i in range(n):
-            offsets[i + 1] += offsets[i]
-        indices = np.empty(offsets[n], dtype=np.int64)
-        for i in nb.prange(n):
-            visit(i, x, lo, radius, ncell, cell_start, order, r2max, indices, offsets[i], True)
-        return offsets, indices
+        empty = np.empty(0, dtype=np.int32)
+        for p in nb.prange(n):
+            offsets[p + 1] = visit(p, xs, lo, radius, ncell, cell_start, cell_end, r2max, empty, 0,
+                                  False)
+        for p in range(n):
+            offsets[p + 1] += offsets[p]
+        indices = np.empty(offsets[n], dtype=np.int32)
+        for p in nb.prange(n):
+            visit(p, xs, lo, radius, ncell, cell_start, cell_end, r2max, indices, offsets[p],
+                  True)
+        return order, offsets, indices
 
     @nb.njit(cache=True)
     def max_displacement(x, x_ref):
@@ -123,11 +140,16 @@ def _build_functions(dim: int):
 
 @dataclass
 class NeighbourList:
-    """CSR neighbour list with a Verlet skin.
+    """CSR neighbour list with a Verlet skin, in *cell order*.
 
-    ``offsets`` has ``n + 1`` entries; ``indices[offsets[i]:offsets[i+1]]`` are the neighbours
-    of ``i`` within ``radius`` at the time of the build; ``reference_positions`` are the
-    positions then.
+    The particles are numbered in the order of the cells they lie in at the build:
+    ``order[p]`` is the particle at sorted position ``p``.  ``offsets`` has ``n + 1`` entries
+    and ``indices[offsets[p]:offsets[p+1]]`` are the sorted positions ``q`` of the neighbours
+    of ``order[p]`` within ``radius`` (so its neighbours are ``order[q]``).  The pair loops
+    work on copies of the particle data in this order, so that neighbours are close in
+    memory whatever order the particles were given in; the order is renewed at every
+    rebuild.  ``reference_positions`` are the positions at the build (in the particles' own
+    order).
     """
 
     offsets: np.ndarray
@@ -136,6 +158,11 @@ class NeighbourList:
     skin: float
     reference_positions: np.ndarray
     builds: int = 1
+    order: np.ndarray | None = None  #: sorted position -> particle; None: the identity
+
+    def __post_init__(self) -> None:
+        if self.order is None:
+            self.order = np.arange(self.offsets.shape[0] - 1, dtype=np.int64)
 
     @classmethod
     def build(cls, x: np.ndarray, support: float, skin: float = 0.0) -> NeighbourList:
@@ -143,8 +170,8 @@ class NeighbourList:
         dim = x.shape[1]
         build, _ = _build_functions(dim)
         radius = float(support + skin)
-        offsets, indices = build(np.ascontiguousarray(x), radius)
-        return cls(offsets, indices, radius, float(skin), x.copy())
+        order, offsets, indices = build(np.ascontiguousarray(x), radius)
+        return cls(offsets, indices, radius, float(skin), x.copy(), order=order)
 
     def needs_rebuild(self, x: np.ndarray) -> bool:
         """True once any particle has moved more than half the skin since the build."""
@@ -158,9 +185,20 @@ class NeighbourList:
         """Rebuild in place if the skin no longer covers the motion since the last build."""
         if self.needs_rebuild(x) or support + self.skin > self.radius + 1e-15 * self.radius:
             new = NeighbourList.build(x, support, self.skin)
-            self.offsets, self.indices = new.offsets, new.indices
+            self.offsets, self.indices, self.order = new.offsets, new.indices, new.order
             self.radius, self.reference_positions = new.radius, new.reference_positions
             self.builds += 1
+
+    def neighbours_of(self, i: int) -> np.ndarray:
+        """The neighbours of particle ``i`` (particle numbers, not sorted positions)."""
+        p = int(np.flatnonzero(self.order == i)[0])
+        return self.order[self.indices[self.offsets[p]:self.offsets[p + 1]]]
+
+    def pairs(self) -> set[tuple[int, int]]:
+        """All stored ordered pairs ``(i, j)`` of particle numbers (for tests: O(pairs))."""
+        rows = np.repeat(self.order, np.diff(self.offsets))
+        cols = self.order[self.indices]
+        return set(zip(rows.tolist(), cols.tolist(), strict=True))
 
     @property
     def n_pairs(self) -> int:

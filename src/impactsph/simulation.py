@@ -11,7 +11,7 @@ import numpy as np
 from .boundaries import Walls
 from .config import Case
 from .devices import select_backend
-from .integrate import MidpointIntegrator, stable_time_step
+from .integrate import MidpointIntegrator
 from .problem import Problem, build_problem
 from .solver import Solver
 from .state import ParticleState
@@ -43,6 +43,17 @@ class RunRecord:
     wall_seconds: float = 0.0
     setup_seconds: float = 0.0
     failure: str | None = None
+
+
+@dataclass
+class Survey:
+    """The state at a glance (see :meth:`Simulation._survey`)."""
+
+    dt: float  #: s, CFL step of eq 26
+    kinetic: float  #: J
+    internal: float  #: J
+    momentum: np.ndarray  #: N s
+    bad: int  #: first bad value, ``field * n + particle``, or -1
 
 
 class Simulation:
@@ -89,8 +100,21 @@ class Simulation:
         p = s.momentum()
         return {"kinetic": ke, "internal": ie, "momentum": p}
 
-    def _record_row(self, dt: float) -> None:
-        d = self._diagnostics()
+    def _survey(self) -> Survey:
+        """CFL step, energies, momentum and the first bad value of the state, in one pass."""
+        s = self.state
+        dt, sums, bad = self.integrator.survey_kernel(
+            s.n, s.position, s.velocity, s.density, s.specific_energy, s.deviatoric_stress,
+            s.mass, s.smoothing_length, s.material, self.problem.table, self.case.time.courant)
+        return Survey(float(dt), float(sums[0]), float(sums[1]), sums[2: 2 + s.dim].copy(),
+                      int(bad))
+
+    def _record_row(self, dt: float, survey: Survey | None = None) -> None:
+        if survey is None:
+            d = self._diagnostics()
+        else:
+            d = {"kinetic": survey.kinetic, "internal": survey.internal,
+                 "momentum": survey.momentum}
         s = self.state
         row = {"time": s.time, "step": s.step, "dt": dt, "kinetic_energy": d["kinetic"],
                "internal_energy": d["internal"],
@@ -156,21 +180,21 @@ class Simulation:
         return (f"at step {s.step}, t = {s.time:.6e} s, particle {i} "
                 f"(body {self.problem.body_names[s.body[i]]!r}, position {s.position[i].tolist()})")
 
-    def _check(self, dt: float, dt0: float) -> None:
+    #: what :meth:`_survey`'s bad-value code means, by field
+    BAD_VALUES = ("non-finite position", "non-finite velocity", "non-finite density",
+                  "non-finite specific_energy", "non-finite deviatoric_stress",
+                  "non-positive density")
+
+    def _check(self, survey: Survey, dt0: float) -> None:
         """Stop on a non-finite value, a non-positive density, a particle behind a wall or a
         collapsed step.  Run before every step (and once after the last), so it sees the
         result of the previous step and of any callback."""
         s = self.state
-        for name in ("position", "velocity", "density", "specific_energy",
-                     "deviatoric_stress"):
-            ok = np.isfinite(getattr(s, name).reshape(s.n, -1)).all(axis=1)
-            if not ok.all():
-                i = int(np.flatnonzero(~ok)[0])
-                raise SimulationError(f"non-finite {name} {self._where(i)}", s.step, s.time, i)
-        bad = np.flatnonzero(s.density <= 0)
-        if bad.size:
-            i = int(bad[0])
-            raise SimulationError(f"non-positive density {self._where(i)}", s.step, s.time, i)
+        dt = survey.dt
+        if survey.bad >= 0:
+            field, i = divmod(survey.bad, s.n)
+            raise SimulationError(f"{self.BAD_VALUES[field]} {self._where(i)}", s.step, s.time,
+                                  i)
         if len(self.walls):
             d = self.walls.distances(s.position)
             crossed = np.flatnonzero((d < 0).any(axis=1))
@@ -189,17 +213,17 @@ class Simulation:
         after every step.  Raises :class:`SimulationError` if the run goes unstable; the
         record keeps everything up to the last good step."""
         t_end = self.case.time.end if t_end is None else t_end
-        table, courant = self.problem.table, self.case.time.courant
         max_steps = self.case.time.max_steps
         every = self.case.output.history_every
-        dt0 = stable_time_step(self.state, table, courant)
+        survey = self._survey()
+        dt0 = survey.dt
         start = _time.perf_counter()
         try:
             while self.state.time < t_end * (1 - 1e-12):
                 if max_steps is not None and self.state.step >= max_steps:
                     break
-                dt = stable_time_step(self.state, table, courant)
-                self._check(dt, dt0)
+                dt = survey.dt
+                self._check(survey, dt0)
                 stop = self._next_stop(t_end)
                 reaches_stop = self.state.time + dt >= stop
                 if reaches_stop:
@@ -215,12 +239,14 @@ class Simulation:
                 self.correction_work += dt * work
                 self.correction_heating += dt * corr_heating
                 self.wall_impulse += dt * self.solver.wall_force
+                survey = self._survey()
                 if self.state.step % every == 0 or self.state.time >= t_end * (1 - 1e-12):
-                    self._record_row(dt)
+                    self._record_row(dt, survey)
                 self._take_snapshots(previous)
                 if callback is not None:
                     callback(self)
-            self._check(stable_time_step(self.state, table, courant), dt0)
+                    survey = self._survey()  # the callback may have changed the state
+            self._check(survey, dt0)
         except SimulationError as exc:
             self.record.failure = str(exc)
             raise

@@ -25,7 +25,7 @@ from functools import cache
 import numba as nb
 import numpy as np
 
-from ..kernels import cubic_spline_dwdr_q
+from ..kernels import cubic_spline_gradient_factor
 from ..materials import B0, BULK, C0, EOS, GAMMA, RHO0, SHEAR, WAVE_MODULUS
 from .contact import contact_acceleration_pair, contact_work_pair, in_contact
 from .continuity import continuity_pair, velocity_gradient_pair
@@ -36,9 +36,9 @@ from .correction import (
     corrected_viscous_acceleration,
     correction_weight,
 )
-from .energy import stress_work_pair, viscous_heating_pair
+from .energy import viscous_heating_pair
 from .eos import MIE_GRUNEISEN, linear_pressure, mie_gruneisen_pressure
-from .momentum import stress_acceleration_pair, viscous_acceleration_pair
+from .momentum import viscous_acceleration_pair
 from .stress_rate import jaumann_stress_rate
 from .viscosity import monaghan_viscosity
 
@@ -60,161 +60,259 @@ FASTMATH = {"contract", "arcp", "nsz"}
 CHUNK = 512
 
 
+def packed_layout(dim: int) -> dict[str, int]:
+    """Columns of the packed particle record read by the pair loop: position, velocity,
+    ``h``, ``m``, ``V = m/rho``, ``rho``, ``c``, ``P/rho^2``, body, ``A = sigma/rho^2``
+    (row-major ``dim x dim``); ``"width"`` is the row length, padded to whole cache lines."""
+    cols = {"x": 0, "v": dim, "h": 2 * dim, "m": 2 * dim + 1, "volume": 2 * dim + 2,
+            "rho": 2 * dim + 3, "c": 2 * dim + 4, "pc": 2 * dim + 5, "body": 2 * dim + 6,
+            "A": 2 * dim + 7}
+    cols["width"] = (cols["A"] + dim * dim + 7) // 8 * 8
+    return cols
+
+
 @cache
 def rate_kernels(dim: int):
     """Compile the rate passes for dimension ``dim``; returns ``(particle_pass, pair_pass,
-    stress_pass, correction_pass)``."""
+    correction_pass)``."""
+    lay = packed_layout(dim)
+    X, V, H, M, VOL, RHO, C, PC, BODY, A0 = (lay[k] for k in (
+        "x", "v", "h", "m", "volume", "rho", "c", "pc", "body", "A"))
 
     @nb.njit(parallel=True, cache=True)
-    def particle_pass(m, rho, e, S, material, table, pressure, sound_speed, A, pc, volume):
-        """Pass 1: ``P``, ``c = sqrt(M/rho)``, ``A = (-P I + S)/rho^2``, ``P/rho^2``,
-        ``V = m/rho``."""
-        for i in nb.prange(rho.shape[0]):
-            volume[i] = m[i] / rho[i]
+    def particle_pass(order, x, v, m, rho, e, S, h, body, material, table, pressure,
+                      sound_speed, packed):
+        """Pass 1: ``P``, ``c = sqrt(M/rho)``, and the packed record (``V = m/rho``,
+        ``P/rho^2``, ``A = (-P I + S)/rho^2``, ...) of every particle, ghosts included, at its
+        sorted position ``p`` (``order[p]`` is the particle)."""
+        for p in nb.prange(order.shape[0]):
+            i = order[p]
             k = material[i]
-            p = material_pressure(table, k, rho[i], e[i])
-            pressure[i] = p
-            sound_speed[i] = math.sqrt(table[k, WAVE_MODULUS] / rho[i])
+            pr = material_pressure(table, k, rho[i], e[i])
+            c = math.sqrt(table[k, WAVE_MODULUS] / rho[i])
+            pressure[i] = pr
+            sound_speed[i] = c
             inv_rho2 = 1.0 / (rho[i] * rho[i])
+            row = packed[p]
             for a in range(dim):
+                row[X + a] = x[i, a]
+                row[V + a] = v[i, a]
                 for b in range(dim):
-                    A[i, a, b] = S[i, a, b] * inv_rho2
-                A[i, a, a] -= p * inv_rho2
-            pc[i] = p * inv_rho2
+                    row[A0 + a * dim + b] = S[i, a, b] * inv_rho2
+                row[A0 + a * dim + a] -= pr * inv_rho2
+            row[H] = h[i]
+            row[M] = m[i]
+            row[VOL] = m[i] / rho[i]
+            row[RHO] = rho[i]
+            row[C] = c
+            row[PC] = pr * inv_rho2
+            row[BODY] = body[i]
 
     @nb.njit(inline="always", cache=True, fastmath=FASTMATH)
-    def particle_sums(
-        i, x, v, m, rho, h, body, sound_speed, A, pc, volume, offsets, indices,
-        alpha1, alpha2, epsilon,
-        drho, dv_stress, dv_visc, de_stress, de_visc, L, contact_force, pair_count,
-        gradw, v_ij, r_ij,
-    ):
-        """Sums over the neighbours of particle ``i`` (eqs 22, 27, 28); ``gradw``, ``v_ij``,
-        ``r_ij`` are scratch vectors."""
-        A_i = A[i]
-        drho_i = 0.0
-        de_s = 0.0
+    def particle_sums(p, i, P, offsets, indices, alpha1, alpha2, epsilon, S, shear,
+                      drho, dv_stress, dv_visc, de_stress, de_visc, L, contact_force,
+                      pair_count, dS, u_sorted):
+        """Sums over the neighbours of particle ``i`` at sorted position ``p`` (eqs 22, 27,
+        28) and its stress rate (eq 14), in scalar accumulators (the compiler keeps them in
+        registers).  Its viscous acceleration is also stored at ``u_sorted[p]`` for AC.
+
+        The stress terms are regrouped, exactly in arithmetic: ``sum_j m_j A_i . grad W_ij
+        = A_i . (sum_j m_j grad W_ij)`` and ``sum_j m_j A_i : (v_ij (x) grad W_ij) =
+        A_i : (sum_j m_j v_ij (x) grad W_ij)``, so ``A_i`` is applied once per particle."""
+        Pi_ = P[p]
+        xi0 = Pi_[X]
+        vi0 = Pi_[V]
+        xi1 = Pi_[X + 1] if dim > 1 else 0.0
+        vi1 = Pi_[V + 1] if dim > 1 else 0.0
+        xi2 = Pi_[X + 2] if dim > 2 else 0.0
+        vi2 = Pi_[V + 2] if dim > 2 else 0.0
+        hi, ci, rhoi, pci, bi = Pi_[H], Pi_[C], Pi_[RHO], Pi_[PC], Pi_[BODY]
+        inv_hi = 1.0 / hi
+        # accumulators: continuity / rho_i; sum m_j grad W (same body); sum m_j A_j . grad W;
+        # contact and viscous accelerations; L; T = sum m_j v_ij (x) grad W; energies
+        cont = 0.0
+        G0 = G1 = G2 = 0.0
+        a0 = a1 = a2 = 0.0
+        k0 = k1 = k2 = 0.0
+        w0 = w1 = w2 = 0.0
+        f0 = f1 = f2 = 0.0  # viscous push across bodies (part of the contact force)
+        L00 = L01 = L02 = L10 = L11 = L12 = L20 = L21 = L22 = 0.0
+        T00 = T01 = T02 = T10 = T11 = T12 = T20 = T21 = T22 = 0.0
+        de_contact = 0.0
         de_v = 0.0
-        for a in range(dim):
-            dv_stress[i, a] = 0.0
-            dv_visc[i, a] = 0.0
-            contact_force[i, a] = 0.0
-            for b in range(dim):
-                L[i, a, b] = 0.0
         count = 0
-        for k in range(offsets[i], offsets[i + 1]):
-            j = indices[k]
-            r2 = 0.0
-            for a in range(dim):
-                r_ij[a] = x[i, a] - x[j, a]
-                r2 += r_ij[a] * r_ij[a]
-            h_ij = 0.5 * (h[i] + h[j])
-            inv_h = 1.0 / h_ij
+        for k in range(offsets[p], offsets[p + 1]):
+            Pj = P[indices[k]]
+            d0 = xi0 - Pj[X]
+            r2 = d0 * d0
+            d1 = d2 = 0.0
+            if dim > 1:
+                d1 = xi1 - Pj[X + 1]
+                r2 += d1 * d1
+            if dim > 2:
+                d2 = xi2 - Pj[X + 2]
+                r2 += d2 * d2
+            h_j = Pj[H]
+            if h_j == hi:  # equal smoothing lengths (the common case): no division
+                h_ij = hi
+                inv_h = inv_hi
+            else:
+                h_ij = 0.5 * (hi + h_j)
+                inv_h = 1.0 / h_ij
             q2 = r2 * inv_h * inv_h
             if q2 >= 4.0 or r2 == 0.0:
                 continue
             count += 1
-            r = math.sqrt(r2)
-            f = cubic_spline_dwdr_q(r * inv_h, inv_h, dim) / r
-            vg = 0.0
-            vr = 0.0
-            for a in range(dim):
-                gradw[a] = f * r_ij[a]
-                v_ij[a] = v[i, a] - v[j, a]
-                vg += v_ij[a] * gradw[a]
-                vr += v_ij[a] * r_ij[a]
-            volume_j = volume[j]
-            same_body = body[i] == body[j]
+            fq = cubic_spline_gradient_factor(math.sqrt(q2), inv_h, dim)
+            g0 = fq * d0
+            g1 = fq * d1
+            g2 = fq * d2
+            u0 = vi0 - Pj[V]
+            u1 = vi1 - Pj[V + 1] if dim > 1 else 0.0
+            u2 = vi2 - Pj[V + 2] if dim > 2 else 0.0
+            vg = u0 * g0 + u1 * g1 + u2 * g2
+            vr = u0 * d0 + u1 * d1 + u2 * d2
+            m_j = Pj[M]
+            volume_j = Pj[VOL]
+            same_body = Pj[BODY] == bi
             if same_body:
-                drho_i += continuity_pair(rho[i], volume_j, vg)
-                A_j = A[j]
-                for a in range(dim):
-                    dv_stress[i, a] += stress_acceleration_pair(m[j], A_i, A_j, gradw, a, dim)
-                    for b in range(dim):
-                        L[i, a, b] += velocity_gradient_pair(volume_j, v_ij[a], gradw[b])
-                de_s += stress_work_pair(m[j], A_i, v_ij, gradw, dim)
+                cont += continuity_pair(1.0, volume_j, vg)
+                G0 += m_j * g0
+                a0 += m_j * Pj[A0] * g0
+                L00 += velocity_gradient_pair(volume_j, u0, g0)
+                T00 += m_j * u0 * g0
+                if dim > 1:
+                    G1 += m_j * g1
+                    a0 += m_j * Pj[A0 + 1] * g1
+                    a1 += m_j * (Pj[A0 + dim] * g0 + Pj[A0 + dim + 1] * g1)
+                    L01 += velocity_gradient_pair(volume_j, u0, g1)
+                    L10 += velocity_gradient_pair(volume_j, u1, g0)
+                    L11 += velocity_gradient_pair(volume_j, u1, g1)
+                    T01 += m_j * u0 * g1
+                    T10 += m_j * u1 * g0
+                    T11 += m_j * u1 * g1
+                if dim > 2:
+                    G2 += m_j * g2
+                    a0 += m_j * Pj[A0 + 2] * g2
+                    a1 += m_j * Pj[A0 + 5] * g2
+                    a2 += m_j * (Pj[A0 + 6] * g0 + Pj[A0 + 7] * g1 + Pj[A0 + 8] * g2)
+                    L02 += velocity_gradient_pair(volume_j, u0, g2)
+                    L12 += velocity_gradient_pair(volume_j, u1, g2)
+                    L20 += velocity_gradient_pair(volume_j, u2, g0)
+                    L21 += velocity_gradient_pair(volume_j, u2, g1)
+                    L22 += velocity_gradient_pair(volume_j, u2, g2)
+                    T02 += m_j * u0 * g2
+                    T12 += m_j * u1 * g2
+                    T20 += m_j * u2 * g0
+                    T21 += m_j * u2 * g1
+                    T22 += m_j * u2 * g2
             else:  # another body or a wall ghost: compression-only contact
-                s_ij = pc[i] + pc[j]
+                s_ij = pci + Pj[PC]
                 if in_contact(s_ij, vg):
-                    drho_i += continuity_pair(rho[i], volume_j, vg)
-                    for a in range(dim):
-                        fa = contact_acceleration_pair(m[j], s_ij, gradw[a])
-                        dv_stress[i, a] += fa
-                        contact_force[i, a] += m[i] * fa
-                    de_s += contact_work_pair(m[j], pc[i], s_ij, vg)
-            pi_ij = monaghan_viscosity(
-                vr, r2, h_ij, 0.5 * (sound_speed[i] + sound_speed[j]),
-                0.5 * (rho[i] + rho[j]), alpha1, alpha2, epsilon,
-            )
+                    cont += continuity_pair(1.0, volume_j, vg)
+                    push = contact_acceleration_pair(m_j, s_ij, 1.0)
+                    k0 += push * g0
+                    k1 += push * g1
+                    k2 += push * g2
+                    de_contact += contact_work_pair(m_j, pci, s_ij, vg)
+            pi_ij = monaghan_viscosity(vr, r2, h_ij, 0.5 * (ci + Pj[C]),
+                                       0.5 * (rhoi + Pj[RHO]), alpha1, alpha2, epsilon)
             if pi_ij != 0.0:
-                for a in range(dim):
-                    fa = viscous_acceleration_pair(m[j], pi_ij, gradw[a])
-                    dv_visc[i, a] += fa
-                    if not same_body:
-                        contact_force[i, a] += m[i] * fa
-                de_v += viscous_heating_pair(m[j], pi_ij, vg)
-        drho[i] = drho_i
+                visc = viscous_acceleration_pair(m_j, pi_ij, 1.0)
+                w0 += visc * g0
+                w1 += visc * g1
+                w2 += visc * g2
+                if not same_body:
+                    f0 += visc * g0
+                    f1 += visc * g1
+                    f2 += visc * g2
+                de_v += viscous_heating_pair(m_j, pi_ij, vg)
+        # A_i applied to the regrouped sums
+        G = (G0, G1, G2)
+        acc = (a0, a1, a2)
+        kc = (k0, k1, k2)
+        wv = (w0, w1, w2)
+        fv = (f0, f1, f2)
+        Lt = ((L00, L01, L02), (L10, L11, L12), (L20, L21, L22))
+        Tt = ((T00, T01, T02), (T10, T11, T12), (T20, T21, T22))
+        m_i = Pi_[M]
+        de_s = de_contact
+        for a in range(dim):
+            s = acc[a] + kc[a]
+            for b in range(dim):
+                A_ab = Pi_[A0 + a * dim + b]
+                s += A_ab * G[b]
+                de_s -= A_ab * Tt[a][b]
+                L[i, a, b] = Lt[a][b]
+            dv_stress[i, a] = s
+            dv_visc[i, a] = wv[a]
+            u_sorted[p, a] = wv[a]
+            contact_force[i, a] = m_i * (kc[a] + fv[a])
+        drho[i] = rhoi * cont
         de_stress[i] = de_s
         de_visc[i] = de_v
         pair_count[i] = count
+        jaumann_stress_rate(L[i], S[i], shear, dS[i])
 
     @nb.njit(parallel=True, cache=True, fastmath=FASTMATH)
-    def pair_pass(
-        n_active, x, v, m, rho, h, body, sound_speed, A, pc, volume, offsets, indices,
-        alpha1, alpha2, epsilon,
-        drho, dv_stress, dv_visc, de_stress, de_visc, L, contact_force, pair_count,
-    ):
-        """Pass 2: sums over neighbours for every active particle, in parallel chunks."""
-        n_chunks = (n_active + CHUNK - 1) // CHUNK
+    def pair_pass(n_active, order, packed, offsets, indices, alpha1, alpha2, epsilon, S,
+                  material, table, drho, dv_stress, dv_visc, de_stress, de_visc, L,
+                  contact_force, pair_count, dS, u_sorted):
+        """Pass 2: sums over neighbours and the stress rate of every active particle, in
+        parallel chunks of sorted positions (ghosts, ``order[p] >= n_active``, only take
+        part as neighbours)."""
+        n = order.shape[0]
+        n_chunks = (n + CHUNK - 1) // CHUNK
         for chunk in nb.prange(n_chunks):
-            gradw = np.empty(dim)  # scratch vectors, allocated once per chunk
-            v_ij = np.empty(dim)
-            r_ij = np.empty(dim)
-            for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n_active)):
-                particle_sums(
-                    i, x, v, m, rho, h, body, sound_speed, A, pc, volume, offsets, indices,
-                    alpha1, alpha2, epsilon,
-                    drho, dv_stress, dv_visc, de_stress, de_visc, L, contact_force, pair_count,
-                    gradw, v_ij, r_ij,
-                )
-
-    @nb.njit(parallel=True, cache=True)
-    def stress_pass(n_active, S, L, material, table, dS):
-        """Pass 3: Jaumann rate (eq 14) from the velocity gradient."""
-        for i in nb.prange(n_active):
-            jaumann_stress_rate(L[i], S[i], table[material[i], SHEAR], dS[i])
+            for p in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n)):
+                i = order[p]
+                if i >= n_active:
+                    for a in range(dim):
+                        u_sorted[p, a] = 0.0
+                    continue
+                particle_sums(p, i, packed, offsets, indices, alpha1, alpha2, epsilon, S,
+                              table[material[i], SHEAR], drho, dv_stress, dv_visc, de_stress,
+                              de_visc, L, contact_force, pair_count, dS, u_sorted)
 
     @nb.njit(inline="always", cache=True)
-    def particle_correction(i, x, v, m, rho, h, body, offsets, indices, u, h_ratio,
-                            variant, energy_mode, dv_corr, de_corr, weighted_u):
-        """``-u_corr_i`` and its energy term for particle ``i`` (``weighted_u``: scratch)."""
-        for a in range(dim):
-            weighted_u[a] = 0.0
+    def particle_correction(p, i, P, offsets, indices, u, h_ratio, variant, energy_mode,
+                            dv_corr, de_corr):
+        """``-u_corr_i`` and its energy term for particle ``i`` at sorted position ``p``;
+        ``u`` holds the viscous accelerations in sorted order."""
+        Pi_ = P[p]
+        u0 = u1 = u2 = 0.0
         weight_sum = 0.0
         paper_energy = 0.0
-        self_weight = correction_weight(m[i] / rho[i], 0.0, h_ratio * h[i], dim)
-        for k in range(offsets[i], offsets[i + 1]):
-            j = indices[k]
-            if body[j] != body[i]:
+        h_i = Pi_[H]
+        self_weight = correction_weight(Pi_[VOL], 0.0, h_ratio * h_i, dim)
+        for k in range(offsets[p], offsets[p + 1]):
+            q = indices[k]
+            Pj = P[q]
+            if Pj[BODY] != Pi_[BODY]:
                 continue
-            h_c = h_ratio * 0.5 * (h[i] + h[j])
+            h_c = h_ratio * 0.5 * (h_i + Pj[H])
             r2 = 0.0
             for a in range(dim):
-                d = x[i, a] - x[j, a]
+                d = Pi_[X + a] - Pj[X + a]
                 r2 += d * d
             if r2 >= 4.0 * h_c * h_c:
                 continue
-            w = correction_weight(m[j] / rho[j], math.sqrt(r2), h_c, dim)
+            w = correction_weight(Pj[VOL], math.sqrt(r2), h_c, dim)
             weight_sum += w
+            u0 += w * u[q, 0]
+            if dim > 1:
+                u1 += w * u[q, 1]
+            if dim > 2:
+                u2 += w * u[q, 2]
             for a in range(dim):
-                weighted_u[a] += w * u[j, a]
-                paper_energy += 0.5 * w * (v[i, a] - v[j, a]) * u[j, a]
+                paper_energy += 0.5 * w * (Pi_[V + a] - Pj[V + a]) * u[q, a]
+        weighted_u = (u0, u1, u2)
         work = 0.0
         for a in range(dim):
-            net = corrected_viscous_acceleration(u[i, a], self_weight, weight_sum,
+            net = corrected_viscous_acceleration(u[p, a], self_weight, weight_sum,
                                                  weighted_u[a], variant)
-            dv_corr[i, a] = net - u[i, a]
-            work -= v[i, a] * dv_corr[i, a]
+            dv_corr[i, a] = net - u[p, a]
+            work -= Pi_[V + a] * dv_corr[i, a]
         if energy_mode == ENERGY_WORK:
             de_corr[i] = work
         elif energy_mode == ENERGY_PAPER:
@@ -225,19 +323,21 @@ def rate_kernels(dim: int):
             de_corr[i] = 0.0
 
     @nb.njit(parallel=True, cache=True)
-    def correction_pass(n_active, x, v, m, rho, h, body, offsets, indices, u, h_ratio,
+    def correction_pass(n_active, order, packed, offsets, indices, u_sorted, h_ratio,
                         variant, energy_mode, dv_corr, de_corr):
         """Pass 4 (AC only): ``-u_corr_i`` (eqs 33-36) and its energy term, from the viscous
-        accelerations ``u`` of pass 2 (evaluated with (1, 1)); neighbours of the same body
-        within ``2 h_c``, ``h_c = h_ratio h``."""
-        n_chunks = (n_active + CHUNK - 1) // CHUNK
+        accelerations of pass 2 (evaluated with (1, 1)) in sorted order; neighbours of the
+        same body within ``2 h_c``, ``h_c = h_ratio h``."""
+        n = order.shape[0]
+        n_chunks = (n + CHUNK - 1) // CHUNK
         for chunk in nb.prange(n_chunks):
-            weighted_u = np.empty(dim)
-            for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n_active)):
-                particle_correction(i, x, v, m, rho, h, body, offsets, indices, u, h_ratio,
-                                    variant, energy_mode, dv_corr, de_corr, weighted_u)
+            for p in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n)):
+                i = order[p]
+                if i < n_active:
+                    particle_correction(p, i, packed, offsets, indices, u_sorted, h_ratio,
+                                        variant, energy_mode, dv_corr, de_corr)
 
-    return particle_pass, pair_pass, stress_pass, correction_pass
+    return particle_pass, pair_pass, correction_pass
 
 
 class CpuRates:
@@ -251,30 +351,59 @@ class CpuRates:
     def __init__(self, dim: int):
         self.dim = dim
         self._passes = rate_kernels(dim)
+        self._packed: np.ndarray | None = None  # the packed particle records, see pass 1
 
     def evaluate(self, n_active: int, arrays: tuple, table: np.ndarray, neighbours,
                  alpha1: float, alpha2: float, epsilon: float, correction: tuple | None,
                  b: RateBuffers) -> None:
         """Rates of the first ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h,
         material, body)`` (all rows, ghosts included, take part in the sums) into ``b``:
-        ``pressure, sound_speed, A, pc, volume`` (pass 1), ``drho, dv_stress, dv_visc,
-        de_stress, de_visc, L, contact_force, pair_count`` (pass 2), ``dS`` (pass 3) and,
+        ``pressure, sound_speed`` (pass 1), ``drho, dv_stress, dv_visc, de_stress, de_visc,
+        L, contact_force, pair_count, dS`` (pass 2) and,
         when ``correction = (h_ratio, variant, energy_mode)`` is given, ``dv_corr, de_corr``
         (pass 4)."""
         x, v, rho, e, S, m, h, material, body = arrays
-        particle_pass, pair_pass, stress_pass, correction_pass = self._passes
+        particle_pass, pair_pass, correction_pass = self._passes
         nl = neighbours
-        particle_pass(m, rho, e, S, material, table, b.pressure, b.sound_speed, b.A, b.pc,
-                      b.volume)
-        pair_pass(n_active, x, v, m, rho, h, body, b.sound_speed, b.A, b.pc, b.volume,
-                  nl.offsets, nl.indices, alpha1, alpha2, epsilon,
-                  b.drho, b.dv_stress, b.dv_visc, b.de_stress, b.de_visc, b.L,
-                  b.contact_force, b.pair_count)
-        stress_pass(n_active, S, b.L, material, table, b.dS)
+        n = x.shape[0]
+        if self._packed is None or self._packed.shape[0] != n:
+            self._packed = np.empty((n, packed_layout(self.dim)["width"]))
+            self._u_sorted = np.empty((n, self.dim))
+        particle_pass(nl.order, x, v, m, rho, e, S, h, body, material, table, b.pressure,
+                      b.sound_speed, self._packed)
+        pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, alpha1, alpha2,
+                  epsilon, S, material, table, b.drho, b.dv_stress, b.dv_visc, b.de_stress,
+                  b.de_visc, b.L, b.contact_force, b.pair_count, b.dS, self._u_sorted)
         if correction is not None:
             h_ratio, variant, energy_mode = correction
-            correction_pass(n_active, x, v, m, rho, h, body, nl.offsets, nl.indices,
-                            b.dv_visc, h_ratio, variant, energy_mode, b.dv_corr, b.de_corr)
+            correction_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
+                            self._u_sorted, h_ratio, variant, energy_mode, b.dv_corr,
+                            b.de_corr)
+
+
+def correction_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray,
+                    h: np.ndarray, body: np.ndarray, neighbours, u: np.ndarray,
+                    h_ratio: float, variant: int, energy_mode: int
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Pass 4 alone on given fields: ``(dv_corr, de_corr)`` for viscous accelerations ``u``
+    (all particles active).  For tests and analysis; the solver runs it inside
+    :meth:`CpuRates.evaluate`."""
+    n, dim = x.shape
+    lay = packed_layout(dim)
+    order = neighbours.order
+    packed = np.zeros((n, lay["width"]))
+    packed[:, lay["x"]:lay["x"] + dim] = x[order]
+    packed[:, lay["v"]:lay["v"] + dim] = v[order]
+    packed[:, lay["h"]] = h[order]
+    packed[:, lay["m"]] = m[order]
+    packed[:, lay["volume"]] = (m / rho)[order]
+    packed[:, lay["rho"]] = rho[order]
+    packed[:, lay["body"]] = body[order]
+    dv_corr, de_corr = np.zeros((n, dim)), np.zeros(n)
+    rate_kernels(dim)[2](n, order, packed, neighbours.offsets, neighbours.indices,
+                         np.ascontiguousarray(u[order]), h_ratio, variant, energy_mode,
+                         dv_corr, de_corr)
+    return dv_corr, de_corr
 
 
 class RateBuffers:
@@ -283,9 +412,6 @@ class RateBuffers:
     def __init__(self, n: int, dim: int):
         self.pressure = np.zeros(n)
         self.sound_speed = np.zeros(n)
-        self.A = np.zeros((n, dim, dim))
-        self.pc = np.zeros(n)
-        self.volume = np.zeros(n)
         self.drho = np.zeros(n)
         self.dv_stress = np.zeros((n, dim))
         self.dv_visc = np.zeros((n, dim))
