@@ -9,14 +9,18 @@ viscosity is active) is set up through the public API, and the script times
 * one full neighbour-list rebuild, ``NeighbourList.build(x, 2 h, 0.2 h)``;
 * one integrator step (two rate evaluations plus the state updates);
 
-taking the best of ``--repeat`` runs of each, and runs the built-in ``bars`` case end to
-end.  A *pair evaluation* is one ordered neighbour pair (i, j) with ``|x_i - x_j| < 2h``
-processed by the pair pass of one rate evaluation.
+taking the best of ``--repeat`` runs of each, with all threads and with one (the ratio is
+the parallel speed-up).  Each size runs in a fresh process, so that its memory is its own:
+*bytes per particle* is the growth of the peak resident set from just before the lattice is
+built (numba's code already loaded) to the end, divided by N.  Then the paper's three
+examples run end to end (``--examples``), and numba's one-time compilation is timed in a
+process with an empty cache (``--compile``).  A *pair evaluation* is one ordered neighbour
+pair (i, j) with ``|x_i - x_j| < 2h`` processed by the pair pass of one rate evaluation.
 
 Usage::
 
-    python benchmarks/bench_rates.py                      # 2D, N = 1e4, 1e5, 1e6
-    python benchmarks/bench_rates.py --sizes 1e4 --dims 1 2 3 --json rates.json
+    python benchmarks/bench_rates.py              # 2D and 3D, N = 1e4, 1e5, 1e6, examples
+    python benchmarks/bench_rates.py --sizes 1e4 --dims 1 2 3 --examples bars --json r.json
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ import platform
 import resource
 import subprocess
 import sys
+import tempfile
 import time
 
 import numba
@@ -115,8 +120,22 @@ def best_of(fn, repeat: int) -> float:
     return best
 
 
+def current_rss_mib() -> float:
+    """Resident set size of this process now (MiB), from /proc (0 where unknown)."""
+    try:
+        with open("/proc/self/statm") as fh:
+            return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+    except (OSError, ValueError):
+        return 0.0
+
+
 def bench_size(n_target: int, dim: int, repeat: int) -> dict:
     """Time rates, neighbour rebuild and a step for one lattice."""
+    warm = Simulation(validate_case(make_case(2**dim, dim)))  # load the compiled code
+    warm.integrator.step(warm.state, 1e-9)
+    del warm
+    gc.collect()
+    baseline = current_rss_mib()
     t0 = time.perf_counter()
     sim = Simulation(validate_case(make_case(n_target, dim)))
     setup = time.perf_counter() - t0
@@ -127,6 +146,10 @@ def bench_size(n_target: int, dim: int, repeat: int) -> dict:
     sim.solver.rates(state)  # warm: the new velocities, caches
     t_rates = best_of(lambda: sim.solver.rates(state), repeat)
     pairs = int(sim.solver.buffers.pair_count[: state.n].sum())  # real particles only
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    t_rates_1 = best_of(lambda: sim.solver.rates(state), repeat)
+    numba.set_num_threads(threads)
 
     h = float(state.smoothing_length.max())
     nl = NeighbourList.build(state.position, support=2.0 * h, skin=0.2 * h)  # warm
@@ -151,29 +174,74 @@ def bench_size(n_target: int, dim: int, repeat: int) -> dict:
         "stored_pairs_in_rebuild": stored_pairs,
         "rate_seconds": t_rates,
         "pair_evaluations_per_second": pairs / t_rates,
+        "rate_seconds_one_thread": t_rates_1,
+        "parallel_speedup": t_rates_1 / t_rates,
         "neighbour_rebuild_seconds": t_build,
         "dt": dt,
         "step_seconds": t_step,
         "step_over_two_rates": t_step / (2.0 * t_rates),
         "neighbour_rebuilds_during_steps": rebuilds_in_steps,
-        "peak_rss_mib_so_far": peak_rss_mib(),
+        "peak_rss_mib": peak_rss_mib(),
+        "bytes_per_particle": (peak_rss_mib() - baseline) * 2**20 / state.n,
     }
     return result
 
 
-def bench_bars() -> dict:
-    """The built-in bars case, end to end (``Simulation.run``)."""
+def child(argv: list[str]) -> dict:
+    """Run one benchmark item in this (fresh) process; see :func:`in_child`."""
+    kind = argv[0]
+    if kind == "size":
+        return bench_size(int(argv[1]), int(argv[2]), int(argv[3]))
+    if kind == "example":
+        return bench_example(argv[1])
+    if kind == "compile":
+        return bench_compile()
+    raise SystemExit(f"unknown child item {kind!r}")
+
+
+def in_child(*item: object, env: dict | None = None) -> dict:
+    """Run ``child(item)`` in a new Python process and return its JSON result."""
+    out = subprocess.run([sys.executable, os.path.abspath(__file__), "--child",
+                          *map(str, item)], capture_output=True, text=True,
+                         env={**os.environ, **(env or {})})
+    if out.returncode != 0:
+        raise RuntimeError(f"benchmark item {item} failed:\n{out.stderr[-3000:]}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def bench_example(name: str) -> dict:
+    """A built-in case end to end (``Simulation.run``), without its reference run."""
+    case = load_case(name)
+    case = case.model_copy(update={"output": case.output.model_copy(
+        update={"reference_viscosity": None, "figures": False})})
     t0 = time.perf_counter()
-    sim = Simulation(load_case("bars"))
+    sim = Simulation(case)
     setup = time.perf_counter() - t0
     sim.run()
     s = sim.summary()
-    return {"n_particles": s["n_particles"], "n_steps": s["n_steps"],
+    return {"case": name, "dimension": case.dimension, "scheme": case.viscosity.scheme,
+            "n_particles": s["n_particles"], "n_steps": s["n_steps"],
             "setup_seconds": setup, "wall_seconds": s["wall_seconds"],
             "seconds_per_step": s["wall_seconds"] / s["n_steps"],
             "pair_evaluations": s["pair_evaluations"],
             "pair_evaluations_per_second": s["pair_evaluations_per_second"],
             "neighbour_list_builds": s["neighbour_list_builds"]}
+
+
+def bench_compile() -> dict:
+    """Time to a first step of each dimension's solver (AC, walls) in this process; run
+    with an empty ``NUMBA_CACHE_DIR`` it is numba's one-time compilation."""
+    out = {}
+    for dim in (1, 2, 3):
+        d = make_case(4**dim, dim)
+        d["viscosity"] = {"scheme": "ac"}
+        d["boundaries"] = [{"type": "wall", "point": [0.0] * dim,
+                            "normal": [0.0] * (dim - 1) + [1.0]}]
+        d["time"]["max_steps"] = 1
+        t0 = time.perf_counter()
+        Simulation(validate_case(d)).run()
+        out[f"{dim}d_seconds"] = time.perf_counter() - t0
+    return out
 
 
 def fit_exponent(ns: list[int], ts: list[float]) -> float:
@@ -217,15 +285,23 @@ def _si(x: float) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    if argv is None and len(sys.argv) > 1 and sys.argv[1] == "--child":
+        print(json.dumps(child(sys.argv[2:])))
+        return 0
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", nargs="+", type=float, default=[1e4, 1e5, 1e6],
                     help="target particle counts (default: 1e4 1e5 1e6)")
-    ap.add_argument("--dims", nargs="+", type=int, choices=(1, 2, 3), default=[2],
-                    help="dimensions (default: 2)")
+    ap.add_argument("--dims", nargs="+", type=int, choices=(1, 2, 3), default=[2, 3],
+                    help="dimensions (default: 2 3)")
     ap.add_argument("--repeat", type=int, default=3, help="timings per quantity; best kept")
     ap.add_argument("--json", metavar="PATH", help="also write the results as JSON")
-    ap.add_argument("--no-bars", action="store_true", help="skip the bars case")
+    ap.add_argument("--examples", nargs="*", default=["bars", "taylor", "cantilever"],
+                    choices=("bars", "taylor", "cantilever"),
+                    help="built-in cases to run end to end (default: all three; the "
+                         "cantilever takes minutes)")
+    ap.add_argument("--no-compile", action="store_true",
+                    help="skip timing numba's compilation with an empty cache")
     args = ap.parse_args(argv)
     if args.repeat < 1:
         ap.error("--repeat must be >= 1")
@@ -244,26 +320,28 @@ def main(argv: list[str] | None = None) -> int:
         print(f"WARNING: other processes keep {info['other_load_at_start']:.2f} cores busy; "
               "competition for the cores slows numba's parallel regions a lot")
     print(f"lattice dx = {DX:g} m, h = {H_OVER_DX} dx, steel (7850 kg/m^3, E = 2e11 Pa, "
-          f"nu = 0.3), random v ~ N(0, 1 m/s), best of {args.repeat}")
+          f"nu = 0.3), random v ~ N(0, 1 m/s), AV, best of {args.repeat}; each size in a "
+          "fresh process")
     print()
 
     results: dict = {"machine": info, "repeat": args.repeat, "sizes": [], "fits": {}}
     header = (f"{'dim':>3} {'N':>9} {'pairs/i':>7} {'rates s':>9} {'pairs/s':>9} "
-              f"{'rebuild s':>9} {'step s':>9} {'step/2r':>7} {'setup s':>7} {'RSS MiB':>8}")
+              f"{'1-thr x':>7} {'rebuild s':>9} {'step s':>9} {'step/2r':>7} {'B/part':>7} "
+              f"{'RSS MiB':>8}")
     print(header)
     print("-" * len(header))
     for dim in args.dims:
         rows = []
         for n in sizes:
-            r = bench_size(n, dim, args.repeat)
-            gc.collect()  # free the previous lattice before the next, larger one
+            r = in_child("size", n, dim, args.repeat)
             rows.append(r)
             results["sizes"].append(r)
             print(f"{dim:>3} {r['n_particles']:>9} {r['pairs_per_particle']:>7.2f} "
                   f"{_si(r['rate_seconds']):>9} {_si(r['pair_evaluations_per_second']):>9} "
+                  f"{r['parallel_speedup']:>7.2f} "
                   f"{_si(r['neighbour_rebuild_seconds']):>9} {_si(r['step_seconds']):>9} "
-                  f"{r['step_over_two_rates']:>7.2f} {r['setup_seconds']:>7.1f} "
-                  f"{r['peak_rss_mib_so_far']:>8.0f}", flush=True)
+                  f"{r['step_over_two_rates']:>7.2f} {r['bytes_per_particle']:>7.0f} "
+                  f"{r['peak_rss_mib']:>8.0f}", flush=True)
         if len(rows) >= 2:
             ns = [r["n_particles"] for r in rows]
             fit = {"rates": fit_exponent(ns, [r["rate_seconds"] for r in rows]),
@@ -274,22 +352,39 @@ def main(argv: list[str] | None = None) -> int:
             print(f"    {dim}D fit t ~ N^p:  rates p = {fit['rates']:.3f}   "
                   f"rebuild p = {fit['neighbour_rebuild']:.3f}   step p = {fit['step']:.3f}")
     print()
-    print("pairs/i: pair evaluations per particle per rate evaluation (|r_ij| < 2h); "
-          "rates s: one rate")
-    print("evaluation (neighbour update check + 3 passes); pairs/s: pair evaluations per "
-          "second;")
-    print("rebuild s: NeighbourList.build(x, 2h, 0.2h); step s: one midpoint step; "
+    print("pairs/i: pair evaluations per particle per rate evaluation (|r_ij| < 2h); rates s: "
+          "one rate evaluation")
+    print("(neighbour update check + passes); pairs/s: pair evaluations per second; 1-thr x: "
+          "one-thread time / all-thread")
+    print("time; rebuild s: NeighbourList.build(x, 2h, 0.2h); step s: one midpoint step; "
           "step/2r: step / (2 rates s);")
-    print("RSS: peak resident set size of the process so far.")
+    print("B/part: growth of peak RSS while the lattice was built and run, per particle; RSS: "
+          "peak resident set of the process.")
 
-    if not args.no_bars:
-        b = bench_bars()
-        results["bars"] = b
+    results["examples"] = []
+    if args.examples:
         print()
-        print(f"bars case (1D, {b['n_particles']} particles): {b['n_steps']} steps in "
-              f"{b['wall_seconds']:.3f} s ({b['seconds_per_step'] * 1e6:.0f} us/step, "
-              f"setup {b['setup_seconds']:.2f} s), "
-              f"{_si(b['pair_evaluations_per_second'])} pair evaluations/s")
+        print(f"{'example':>10} {'dim':>3} {'N':>6} {'steps':>7} {'wall s':>8} {'us/step':>8} "
+              f"{'pairs/s':>9} {'setup s':>7}")
+    for name in args.examples:
+        b = in_child("example", name)
+        results["examples"].append(b)
+        print(f"{name:>10} {b['dimension']:>3} {b['n_particles']:>6} {b['n_steps']:>7} "
+              f"{b['wall_seconds']:>8.2f} {b['seconds_per_step'] * 1e6:>8.0f} "
+              f"{_si(b['pair_evaluations_per_second']):>9} {b['setup_seconds']:>7.2f}",
+              flush=True)
+
+    if not args.no_compile:
+        with tempfile.TemporaryDirectory() as cache:
+            cold = in_child("compile", env={"NUMBA_CACHE_DIR": cache})
+            warm = in_child("compile", env={"NUMBA_CACHE_DIR": cache})
+        results["compile"] = {"cold": cold, "warm": warm}
+        print()
+        print("time to a first step (AC, a wall) in a new process, s:   "
+              + "   ".join(f"{d}D {cold[f'{d}d_seconds']:.1f} (cached {warm[f'{d}d_seconds']:.1f})"
+                           for d in (1, 2, 3)))
+        print("(empty numba cache: the one-time compilation; cached: loading the compiled "
+              "code from disk)")
 
     results["peak_rss_mib"] = peak_rss_mib()
     total = results["total_seconds"] = time.perf_counter() - start
@@ -297,7 +392,7 @@ def main(argv: list[str] | None = None) -> int:
     others = (None if busy0 is None or busy1 is None else
               max(0.0, (busy1 - busy0) - (own_cpu_seconds() - own0)) / total)
     results["other_load_during_run"] = others
-    print(f"\npeak RSS {results['peak_rss_mib']:.0f} MiB, total {total:.1f} s"
+    print(f"\ntotal {total:.1f} s"
           + ("" if others is None else f", other processes used {others:.2f} cores on average"))
     if others is not None and others > 0.2:
         print("WARNING: the timings above were taken while other processes competed for the "

@@ -22,66 +22,69 @@ import numba as nb
 import numpy as np
 
 
+@nb.njit(cache=True)
+def cell_keys(x, lo, cell, ncell):
+    """Row-major cell number and Morton (Z-order) code of each particle's cell."""
+    n, dim = x.shape
+    bits = 63 // dim  # bits per axis of the Morton code
+    key = np.empty(n, dtype=np.int64)
+    morton = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        k = 0
+        z = 0
+        for a in range(dim):
+            c = int((x[i, a] - lo[a]) / cell)
+            if c < 0:
+                c = 0
+            if c >= ncell[a]:
+                c = ncell[a] - 1
+            k = k * ncell[a] + c
+            for bit in range(bits):
+                z |= ((c >> bit) & 1) << (bit * dim + a)
+        key[i] = k
+        morton[i] = z
+    return key, morton
+
+
+@nb.njit(inline="always", cache=True)
+def visit(p, xs, lo, radius, ncell, cell_start, cell_end, r2max, indices, pos, write):
+    """Count (and if ``write``, store from ``pos``) the neighbours of sorted particle
+    ``p``; ``xs`` are the positions in cell order, so the particles of (row-major) cell
+    ``c`` are the range ``cell_start[c]:cell_end[c]``."""
+    dim = xs.shape[1]
+    found = 0
+    for s in range(3**dim):
+        t = s
+        kc = 0
+        inside = True
+        for a in range(dim):
+            c = int((xs[p, a] - lo[a]) / radius)
+            c = min(max(c, 0), ncell[a] - 1) + t % 3 - 1
+            t //= 3
+            if c < 0 or c >= ncell[a]:
+                inside = False
+            kc = kc * ncell[a] + c
+        if not inside:
+            continue
+        for q in range(cell_start[kc], cell_end[kc]):
+            if q == p:
+                continue
+            r2 = 0.0
+            for a in range(dim):
+                d = xs[p, a] - xs[q, a]
+                r2 += d * d
+            if r2 < r2max:
+                if write:
+                    indices[pos + found] = q
+                found += 1
+    return found
+
+
 @cache
 def _build_functions(dim: int):
-    """Compile the cell-list builder for one dimension (``dim`` is a compile-time constant)."""
-    n_stencil = 3**dim
-
-    bits = 63 // dim  # bits per axis of the Morton code
-
-    @nb.njit(cache=True)
-    def cell_keys(x, lo, cell, ncell):
-        """Row-major cell number and Morton (Z-order) code of each particle's cell."""
-        n = x.shape[0]
-        key = np.empty(n, dtype=np.int64)
-        morton = np.zeros(n, dtype=np.int64)
-        for i in range(n):
-            k = 0
-            z = 0
-            for a in range(dim):
-                c = int((x[i, a] - lo[a]) / cell)
-                if c < 0:
-                    c = 0
-                if c >= ncell[a]:
-                    c = ncell[a] - 1
-                k = k * ncell[a] + c
-                for bit in range(bits):
-                    z |= ((c >> bit) & 1) << (bit * dim + a)
-            key[i] = k
-            morton[i] = z
-        return key, morton
-
-    @nb.njit(inline="always", cache=True)
-    def visit(p, xs, lo, radius, ncell, cell_start, cell_end, r2max, indices, pos, write):
-        """Count (and if ``write``, store from ``pos``) the neighbours of sorted particle
-        ``p``; ``xs`` are the positions in cell order, so the particles of (row-major) cell
-        ``c`` are the range ``cell_start[c]:cell_end[c]``."""
-        found = 0
-        for s in range(n_stencil):
-            t = s
-            kc = 0
-            inside = True
-            for a in range(dim):
-                c = int((xs[p, a] - lo[a]) / radius)
-                c = min(max(c, 0), ncell[a] - 1) + t % 3 - 1
-                t //= 3
-                if c < 0 or c >= ncell[a]:
-                    inside = False
-                kc = kc * ncell[a] + c
-            if not inside:
-                continue
-            for q in range(cell_start[kc], cell_end[kc]):
-                if q == p:
-                    continue
-                r2 = 0.0
-                for a in range(dim):
-                    d = xs[p, a] - xs[q, a]
-                    r2 += d * d
-                if r2 < r2max:
-                    if write:
-                        indices[pos + found] = q
-                    found += 1
-        return found
+    """Compile the cell-list builder for one dimension (``dim`` is a compile-time constant;
+    the helpers are module functions: numba caches a closure only if it captures no compiled
+    function)."""
 
     @nb.njit(parallel=True, cache=True)
     def build(x, radius):

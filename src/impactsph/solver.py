@@ -3,6 +3,7 @@ function for the integrator."""
 
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 
 from .boundaries import Walls, fill_ghosts
@@ -12,6 +13,42 @@ from .neighbours import NeighbourList
 from .physics.correction import ENERGY_CORRECTIONS, VARIANTS
 from .physics.rates import CpuRates, RateBuffers
 from .state import ParticleState
+
+#: Particles per work item of :func:`rate_totals`' partial sums.
+CHUNK = 2048
+
+
+@nb.njit(parallel=True, cache=True)
+def rate_totals(n, m, v, de_visc, dv_corr, de_corr, contact_force, pair_count, corrected):
+    """Sums over the first ``n`` particles: ``sum m de_visc`` (W), ``sum m v . dv_corr`` (W),
+    ``sum m de_corr`` (W), ``sum contact_force`` (N or N/m) and the pair count.  Partial sums
+    per chunk, added in a fixed order (independent of the number of threads)."""
+    dim = v.shape[1]
+    n_chunks = max(1, (n + CHUNK - 1) // CHUNK)
+    part = np.zeros((n_chunks, 7))
+    for chunk in nb.prange(n_chunks):
+        heat = work = corr_heat = pairs = 0.0
+        f = np.zeros(3)
+        for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n)):
+            heat += m[i] * de_visc[i]
+            pairs += pair_count[i]
+            for a in range(dim):
+                f[a] += contact_force[i, a]
+            if corrected:
+                corr_heat += m[i] * de_corr[i]
+                for a in range(dim):
+                    work += m[i] * v[i, a] * dv_corr[i, a]
+        part[chunk, 0] = heat
+        part[chunk, 1] = work
+        part[chunk, 2] = corr_heat
+        part[chunk, 3] = pairs
+        for a in range(3):
+            part[chunk, 4 + a] = f[a]
+    totals = np.zeros(7)
+    for chunk in range(n_chunks):
+        for k in range(7):
+            totals[k] += part[chunk, k]
+    return totals
 
 
 class Solver:
@@ -130,22 +167,15 @@ class Solver:
         if self.corrected:
             self.dv += b.dv_corr
             self.de += b.de_corr
-        self.powers = self._energy_powers(state)
+        n = self.n_active
+        totals = rate_totals(n, state.mass, state.velocity, b.de_visc, b.dv_corr, b.de_corr,
+                             b.contact_force, b.pair_count, self.corrected)
+        # powers at the evaluated state (W): the artificial viscosity's heating, the work rate
+        # of the AC correction force on the particles and the correction's heating; after a
+        # step, those of its midpoint evaluation
+        self.powers = (float(totals[0]), float(totals[1]), float(totals[2]))
         if self.walls is not None:  # the ghosts' push on the real particles (N, or N/m)
-            self.wall_force = b.contact_force[: state.n].sum(axis=0)
-        self.pair_evaluations += int(b.pair_count[: self.n_active].sum())
+            self.wall_force = totals[4: 4 + self.dim].copy()
+        self.pair_evaluations += int(totals[3])
         self.rate_evaluations += 1
         return self.dv, b.drho, self.de, b.dS
-
-    def _energy_powers(self, state: ParticleState) -> tuple[float, float, float]:
-        """Powers at the evaluated state (W): ``sum m (de/dt)_visc``, the artificial
-        viscosity's heating; ``sum m v . (dv/dt)_corr``, the work rate of the AC correction
-        force on the particles; ``sum m (de/dt)_corr``, the correction's heating.  Kept as
-        ``self.powers``: after a step, those of its midpoint evaluation."""
-        n, b = self.n_active, self.buffers
-        m = state.mass[:n]
-        heating = float(np.dot(m, b.de_visc[:n]))
-        if not self.corrected:
-            return heating, 0.0, 0.0
-        work = float(np.dot(m, np.einsum("ia,ia->i", state.velocity[:n], b.dv_corr[:n])))
-        return heating, work, float(np.dot(m, b.de_corr[:n]))

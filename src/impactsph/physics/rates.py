@@ -108,159 +108,21 @@ def rate_kernels(dim: int):
             row[PC] = pr * inv_rho2
             row[BODY] = body[i]
 
-    @nb.njit(inline="always", cache=True, fastmath=FASTMATH)
-    def particle_sums(p, i, P, offsets, indices, alpha1, alpha2, epsilon, S, shear,
-                      drho, dv_stress, dv_visc, de_stress, de_visc, L, contact_force,
-                      pair_count, dS, u_sorted):
-        """Sums over the neighbours of particle ``i`` at sorted position ``p`` (eqs 22, 27,
-        28) and its stress rate (eq 14), in scalar accumulators (the compiler keeps them in
-        registers).  Its viscous acceleration is also stored at ``u_sorted[p]`` for AC.
+    @nb.njit(parallel=True, cache=True, fastmath=FASTMATH)
+    def pair_pass(n_active, order, P, offsets, indices, alpha1, alpha2, epsilon, S,
+                  material, table, drho, dv_stress, dv_visc, de_stress, de_visc, L,
+                  contact_force, pair_count, dS, u_sorted):
+        """Pass 2: for every active particle ``i = order[p]``, in parallel chunks of sorted
+        positions ``p``, the sums over its neighbours (eqs 22, 27, 28) in scalar accumulators
+        (the compiler keeps them in registers) and its stress rate (eq 14); its viscous
+        acceleration is also stored at ``u_sorted[p]`` for AC.  Ghosts (``order[p] >=
+        n_active``) only take part as neighbours.
 
         The stress terms are regrouped, exactly in arithmetic: ``sum_j m_j A_i . grad W_ij
         = A_i . (sum_j m_j grad W_ij)`` and ``sum_j m_j A_i : (v_ij (x) grad W_ij) =
-        A_i : (sum_j m_j v_ij (x) grad W_ij)``, so ``A_i`` is applied once per particle."""
-        Pi_ = P[p]
-        xi0 = Pi_[X]
-        vi0 = Pi_[V]
-        xi1 = Pi_[X + 1] if dim > 1 else 0.0
-        vi1 = Pi_[V + 1] if dim > 1 else 0.0
-        xi2 = Pi_[X + 2] if dim > 2 else 0.0
-        vi2 = Pi_[V + 2] if dim > 2 else 0.0
-        hi, ci, rhoi, pci, bi = Pi_[H], Pi_[C], Pi_[RHO], Pi_[PC], Pi_[BODY]
-        inv_hi = 1.0 / hi
-        # accumulators: continuity / rho_i; sum m_j grad W (same body); sum m_j A_j . grad W;
-        # contact and viscous accelerations; L; T = sum m_j v_ij (x) grad W; energies
-        cont = 0.0
-        G0 = G1 = G2 = 0.0
-        a0 = a1 = a2 = 0.0
-        k0 = k1 = k2 = 0.0
-        w0 = w1 = w2 = 0.0
-        f0 = f1 = f2 = 0.0  # viscous push across bodies (part of the contact force)
-        L00 = L01 = L02 = L10 = L11 = L12 = L20 = L21 = L22 = 0.0
-        T00 = T01 = T02 = T10 = T11 = T12 = T20 = T21 = T22 = 0.0
-        de_contact = 0.0
-        de_v = 0.0
-        count = 0
-        for k in range(offsets[p], offsets[p + 1]):
-            Pj = P[indices[k]]
-            d0 = xi0 - Pj[X]
-            r2 = d0 * d0
-            d1 = d2 = 0.0
-            if dim > 1:
-                d1 = xi1 - Pj[X + 1]
-                r2 += d1 * d1
-            if dim > 2:
-                d2 = xi2 - Pj[X + 2]
-                r2 += d2 * d2
-            h_j = Pj[H]
-            if h_j == hi:  # equal smoothing lengths (the common case): no division
-                h_ij = hi
-                inv_h = inv_hi
-            else:
-                h_ij = 0.5 * (hi + h_j)
-                inv_h = 1.0 / h_ij
-            q2 = r2 * inv_h * inv_h
-            if q2 >= 4.0 or r2 == 0.0:
-                continue
-            count += 1
-            fq = cubic_spline_gradient_factor(math.sqrt(q2), inv_h, dim)
-            g0 = fq * d0
-            g1 = fq * d1
-            g2 = fq * d2
-            u0 = vi0 - Pj[V]
-            u1 = vi1 - Pj[V + 1] if dim > 1 else 0.0
-            u2 = vi2 - Pj[V + 2] if dim > 2 else 0.0
-            vg = u0 * g0 + u1 * g1 + u2 * g2
-            vr = u0 * d0 + u1 * d1 + u2 * d2
-            m_j = Pj[M]
-            volume_j = Pj[VOL]
-            same_body = Pj[BODY] == bi
-            if same_body:
-                cont += continuity_pair(1.0, volume_j, vg)
-                G0 += m_j * g0
-                a0 += m_j * Pj[A0] * g0
-                L00 += velocity_gradient_pair(volume_j, u0, g0)
-                T00 += m_j * u0 * g0
-                if dim > 1:
-                    G1 += m_j * g1
-                    a0 += m_j * Pj[A0 + 1] * g1
-                    a1 += m_j * (Pj[A0 + dim] * g0 + Pj[A0 + dim + 1] * g1)
-                    L01 += velocity_gradient_pair(volume_j, u0, g1)
-                    L10 += velocity_gradient_pair(volume_j, u1, g0)
-                    L11 += velocity_gradient_pair(volume_j, u1, g1)
-                    T01 += m_j * u0 * g1
-                    T10 += m_j * u1 * g0
-                    T11 += m_j * u1 * g1
-                if dim > 2:
-                    G2 += m_j * g2
-                    a0 += m_j * Pj[A0 + 2] * g2
-                    a1 += m_j * Pj[A0 + 5] * g2
-                    a2 += m_j * (Pj[A0 + 6] * g0 + Pj[A0 + 7] * g1 + Pj[A0 + 8] * g2)
-                    L02 += velocity_gradient_pair(volume_j, u0, g2)
-                    L12 += velocity_gradient_pair(volume_j, u1, g2)
-                    L20 += velocity_gradient_pair(volume_j, u2, g0)
-                    L21 += velocity_gradient_pair(volume_j, u2, g1)
-                    L22 += velocity_gradient_pair(volume_j, u2, g2)
-                    T02 += m_j * u0 * g2
-                    T12 += m_j * u1 * g2
-                    T20 += m_j * u2 * g0
-                    T21 += m_j * u2 * g1
-                    T22 += m_j * u2 * g2
-            else:  # another body or a wall ghost: compression-only contact
-                s_ij = pci + Pj[PC]
-                if in_contact(s_ij, vg):
-                    cont += continuity_pair(1.0, volume_j, vg)
-                    push = contact_acceleration_pair(m_j, s_ij, 1.0)
-                    k0 += push * g0
-                    k1 += push * g1
-                    k2 += push * g2
-                    de_contact += contact_work_pair(m_j, pci, s_ij, vg)
-            pi_ij = monaghan_viscosity(vr, r2, h_ij, 0.5 * (ci + Pj[C]),
-                                       0.5 * (rhoi + Pj[RHO]), alpha1, alpha2, epsilon)
-            if pi_ij != 0.0:
-                visc = viscous_acceleration_pair(m_j, pi_ij, 1.0)
-                w0 += visc * g0
-                w1 += visc * g1
-                w2 += visc * g2
-                if not same_body:
-                    f0 += visc * g0
-                    f1 += visc * g1
-                    f2 += visc * g2
-                de_v += viscous_heating_pair(m_j, pi_ij, vg)
-        # A_i applied to the regrouped sums
-        G = (G0, G1, G2)
-        acc = (a0, a1, a2)
-        kc = (k0, k1, k2)
-        wv = (w0, w1, w2)
-        fv = (f0, f1, f2)
-        Lt = ((L00, L01, L02), (L10, L11, L12), (L20, L21, L22))
-        Tt = ((T00, T01, T02), (T10, T11, T12), (T20, T21, T22))
-        m_i = Pi_[M]
-        de_s = de_contact
-        for a in range(dim):
-            s = acc[a] + kc[a]
-            for b in range(dim):
-                A_ab = Pi_[A0 + a * dim + b]
-                s += A_ab * G[b]
-                de_s -= A_ab * Tt[a][b]
-                L[i, a, b] = Lt[a][b]
-            dv_stress[i, a] = s
-            dv_visc[i, a] = wv[a]
-            u_sorted[p, a] = wv[a]
-            contact_force[i, a] = m_i * (kc[a] + fv[a])
-        drho[i] = rhoi * cont
-        de_stress[i] = de_s
-        de_visc[i] = de_v
-        pair_count[i] = count
-        jaumann_stress_rate(L[i], S[i], shear, dS[i])
-
-    @nb.njit(parallel=True, cache=True, fastmath=FASTMATH)
-    def pair_pass(n_active, order, packed, offsets, indices, alpha1, alpha2, epsilon, S,
-                  material, table, drho, dv_stress, dv_visc, de_stress, de_visc, L,
-                  contact_force, pair_count, dS, u_sorted):
-        """Pass 2: sums over neighbours and the stress rate of every active particle, in
-        parallel chunks of sorted positions (ghosts, ``order[p] >= n_active``, only take
-        part as neighbours)."""
+        A_i : (sum_j m_j v_ij (x) grad W_ij)``, so ``A_i`` is applied once per particle.
+        (One function, no helper: numba caches a closure only if it captures no compiled
+        function.)"""
         n = order.shape[0]
         n_chunks = (n + CHUNK - 1) // CHUNK
         for chunk in nb.prange(n_chunks):
@@ -270,72 +132,198 @@ def rate_kernels(dim: int):
                     for a in range(dim):
                         u_sorted[p, a] = 0.0
                     continue
-                particle_sums(p, i, packed, offsets, indices, alpha1, alpha2, epsilon, S,
-                              table[material[i], SHEAR], drho, dv_stress, dv_visc, de_stress,
-                              de_visc, L, contact_force, pair_count, dS, u_sorted)
-
-    @nb.njit(inline="always", cache=True)
-    def particle_correction(p, i, P, offsets, indices, u, h_ratio, variant, energy_mode,
-                            dv_corr, de_corr):
-        """``-u_corr_i`` and its energy term for particle ``i`` at sorted position ``p``;
-        ``u`` holds the viscous accelerations in sorted order."""
-        Pi_ = P[p]
-        u0 = u1 = u2 = 0.0
-        weight_sum = 0.0
-        paper_energy = 0.0
-        h_i = Pi_[H]
-        self_weight = correction_weight(Pi_[VOL], 0.0, h_ratio * h_i, dim)
-        for k in range(offsets[p], offsets[p + 1]):
-            q = indices[k]
-            Pj = P[q]
-            if Pj[BODY] != Pi_[BODY]:
-                continue
-            h_c = h_ratio * 0.5 * (h_i + Pj[H])
-            r2 = 0.0
-            for a in range(dim):
-                d = Pi_[X + a] - Pj[X + a]
-                r2 += d * d
-            if r2 >= 4.0 * h_c * h_c:
-                continue
-            w = correction_weight(Pj[VOL], math.sqrt(r2), h_c, dim)
-            weight_sum += w
-            u0 += w * u[q, 0]
-            if dim > 1:
-                u1 += w * u[q, 1]
-            if dim > 2:
-                u2 += w * u[q, 2]
-            for a in range(dim):
-                paper_energy += 0.5 * w * (Pi_[V + a] - Pj[V + a]) * u[q, a]
-        weighted_u = (u0, u1, u2)
-        work = 0.0
-        for a in range(dim):
-            net = corrected_viscous_acceleration(u[p, a], self_weight, weight_sum,
-                                                 weighted_u[a], variant)
-            dv_corr[i, a] = net - u[p, a]
-            work -= Pi_[V + a] * dv_corr[i, a]
-        if energy_mode == ENERGY_WORK:
-            de_corr[i] = work
-        elif energy_mode == ENERGY_PAPER:
-            if variant == SHEPARD:
-                paper_energy /= weight_sum + self_weight
-            de_corr[i] = paper_energy
-        else:
-            de_corr[i] = 0.0
+                shear = table[material[i], SHEAR]
+                Pi_ = P[p]
+                xi0 = Pi_[X]
+                vi0 = Pi_[V]
+                xi1 = Pi_[X + 1] if dim > 1 else 0.0
+                vi1 = Pi_[V + 1] if dim > 1 else 0.0
+                xi2 = Pi_[X + 2] if dim > 2 else 0.0
+                vi2 = Pi_[V + 2] if dim > 2 else 0.0
+                hi, ci, rhoi, pci, bi = Pi_[H], Pi_[C], Pi_[RHO], Pi_[PC], Pi_[BODY]
+                inv_hi = 1.0 / hi
+                # accumulators: continuity / rho_i; sum m_j grad W (same body);
+                # sum m_j A_j . grad W; contact and viscous accelerations; L;
+                # T = sum m_j v_ij (x) grad W; energies
+                cont = 0.0
+                G0 = G1 = G2 = 0.0
+                a0 = a1 = a2 = 0.0
+                k0 = k1 = k2 = 0.0
+                w0 = w1 = w2 = 0.0
+                f0 = f1 = f2 = 0.0  # viscous push across bodies (part of the contact force)
+                L00 = L01 = L02 = L10 = L11 = L12 = L20 = L21 = L22 = 0.0
+                T00 = T01 = T02 = T10 = T11 = T12 = T20 = T21 = T22 = 0.0
+                de_contact = 0.0
+                de_v = 0.0
+                count = 0
+                for k in range(offsets[p], offsets[p + 1]):
+                    Pj = P[indices[k]]
+                    d0 = xi0 - Pj[X]
+                    r2 = d0 * d0
+                    d1 = d2 = 0.0
+                    if dim > 1:
+                        d1 = xi1 - Pj[X + 1]
+                        r2 += d1 * d1
+                    if dim > 2:
+                        d2 = xi2 - Pj[X + 2]
+                        r2 += d2 * d2
+                    h_j = Pj[H]
+                    if h_j == hi:  # equal smoothing lengths (the common case): no division
+                        h_ij = hi
+                        inv_h = inv_hi
+                    else:
+                        h_ij = 0.5 * (hi + h_j)
+                        inv_h = 1.0 / h_ij
+                    q2 = r2 * inv_h * inv_h
+                    if q2 >= 4.0 or r2 == 0.0:
+                        continue
+                    count += 1
+                    fq = cubic_spline_gradient_factor(math.sqrt(q2), inv_h, dim)
+                    g0 = fq * d0
+                    g1 = fq * d1
+                    g2 = fq * d2
+                    u0 = vi0 - Pj[V]
+                    u1 = vi1 - Pj[V + 1] if dim > 1 else 0.0
+                    u2 = vi2 - Pj[V + 2] if dim > 2 else 0.0
+                    vg = u0 * g0 + u1 * g1 + u2 * g2
+                    vr = u0 * d0 + u1 * d1 + u2 * d2
+                    m_j = Pj[M]
+                    volume_j = Pj[VOL]
+                    same_body = Pj[BODY] == bi
+                    if same_body:
+                        cont += continuity_pair(1.0, volume_j, vg)
+                        G0 += m_j * g0
+                        a0 += m_j * Pj[A0] * g0
+                        L00 += velocity_gradient_pair(volume_j, u0, g0)
+                        T00 += m_j * u0 * g0
+                        if dim > 1:
+                            G1 += m_j * g1
+                            a0 += m_j * Pj[A0 + 1] * g1
+                            a1 += m_j * (Pj[A0 + dim] * g0 + Pj[A0 + dim + 1] * g1)
+                            L01 += velocity_gradient_pair(volume_j, u0, g1)
+                            L10 += velocity_gradient_pair(volume_j, u1, g0)
+                            L11 += velocity_gradient_pair(volume_j, u1, g1)
+                            T01 += m_j * u0 * g1
+                            T10 += m_j * u1 * g0
+                            T11 += m_j * u1 * g1
+                        if dim > 2:
+                            G2 += m_j * g2
+                            a0 += m_j * Pj[A0 + 2] * g2
+                            a1 += m_j * Pj[A0 + 5] * g2
+                            a2 += m_j * (Pj[A0 + 6] * g0 + Pj[A0 + 7] * g1 + Pj[A0 + 8] * g2)
+                            L02 += velocity_gradient_pair(volume_j, u0, g2)
+                            L12 += velocity_gradient_pair(volume_j, u1, g2)
+                            L20 += velocity_gradient_pair(volume_j, u2, g0)
+                            L21 += velocity_gradient_pair(volume_j, u2, g1)
+                            L22 += velocity_gradient_pair(volume_j, u2, g2)
+                            T02 += m_j * u0 * g2
+                            T12 += m_j * u1 * g2
+                            T20 += m_j * u2 * g0
+                            T21 += m_j * u2 * g1
+                            T22 += m_j * u2 * g2
+                    else:  # another body or a wall ghost: compression-only contact
+                        s_ij = pci + Pj[PC]
+                        if in_contact(s_ij, vg):
+                            cont += continuity_pair(1.0, volume_j, vg)
+                            push = contact_acceleration_pair(m_j, s_ij, 1.0)
+                            k0 += push * g0
+                            k1 += push * g1
+                            k2 += push * g2
+                            de_contact += contact_work_pair(m_j, pci, s_ij, vg)
+                    pi_ij = monaghan_viscosity(vr, r2, h_ij, 0.5 * (ci + Pj[C]),
+                                               0.5 * (rhoi + Pj[RHO]), alpha1, alpha2, epsilon)
+                    if pi_ij != 0.0:
+                        visc = viscous_acceleration_pair(m_j, pi_ij, 1.0)
+                        w0 += visc * g0
+                        w1 += visc * g1
+                        w2 += visc * g2
+                        if not same_body:
+                            f0 += visc * g0
+                            f1 += visc * g1
+                            f2 += visc * g2
+                        de_v += viscous_heating_pair(m_j, pi_ij, vg)
+                # A_i applied to the regrouped sums
+                G = (G0, G1, G2)
+                acc = (a0, a1, a2)
+                kc = (k0, k1, k2)
+                wv = (w0, w1, w2)
+                fv = (f0, f1, f2)
+                Lt = ((L00, L01, L02), (L10, L11, L12), (L20, L21, L22))
+                Tt = ((T00, T01, T02), (T10, T11, T12), (T20, T21, T22))
+                m_i = Pi_[M]
+                de_s = de_contact
+                for a in range(dim):
+                    s = acc[a] + kc[a]
+                    for b in range(dim):
+                        A_ab = Pi_[A0 + a * dim + b]
+                        s += A_ab * G[b]
+                        de_s -= A_ab * Tt[a][b]
+                        L[i, a, b] = Lt[a][b]
+                    dv_stress[i, a] = s
+                    dv_visc[i, a] = wv[a]
+                    u_sorted[p, a] = wv[a]
+                    contact_force[i, a] = m_i * (kc[a] + fv[a])
+                drho[i] = rhoi * cont
+                de_stress[i] = de_s
+                de_visc[i] = de_v
+                pair_count[i] = count
+                jaumann_stress_rate(L[i], S[i], shear, dS[i])
 
     @nb.njit(parallel=True, cache=True)
-    def correction_pass(n_active, order, packed, offsets, indices, u_sorted, h_ratio,
-                        variant, energy_mode, dv_corr, de_corr):
-        """Pass 4 (AC only): ``-u_corr_i`` (eqs 33-36) and its energy term, from the viscous
-        accelerations of pass 2 (evaluated with (1, 1)) in sorted order; neighbours of the
-        same body within ``2 h_c``, ``h_c = h_ratio h``."""
+    def correction_pass(n_active, order, P, offsets, indices, u, h_ratio, variant,
+                        energy_mode, dv_corr, de_corr):
+        """Pass 4 (AC only): ``-u_corr_i`` (eqs 33-36) and its energy term for every active
+        particle ``i = order[p]``, from the viscous accelerations ``u`` of pass 2 (evaluated
+        with (1, 1)) in sorted order; neighbours of the same body within ``2 h_c``,
+        ``h_c = h_ratio h``."""
         n = order.shape[0]
         n_chunks = (n + CHUNK - 1) // CHUNK
         for chunk in nb.prange(n_chunks):
             for p in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n)):
                 i = order[p]
                 if i < n_active:
-                    particle_correction(p, i, packed, offsets, indices, u_sorted, h_ratio,
-                                        variant, energy_mode, dv_corr, de_corr)
+                    Pi_ = P[p]
+                    u0 = u1 = u2 = 0.0
+                    weight_sum = 0.0
+                    paper_energy = 0.0
+                    h_i = Pi_[H]
+                    self_weight = correction_weight(Pi_[VOL], 0.0, h_ratio * h_i, dim)
+                    for k in range(offsets[p], offsets[p + 1]):
+                        q = indices[k]
+                        Pj = P[q]
+                        if Pj[BODY] != Pi_[BODY]:
+                            continue
+                        h_c = h_ratio * 0.5 * (h_i + Pj[H])
+                        r2 = 0.0
+                        for a in range(dim):
+                            d = Pi_[X + a] - Pj[X + a]
+                            r2 += d * d
+                        if r2 >= 4.0 * h_c * h_c:
+                            continue
+                        w = correction_weight(Pj[VOL], math.sqrt(r2), h_c, dim)
+                        weight_sum += w
+                        u0 += w * u[q, 0]
+                        if dim > 1:
+                            u1 += w * u[q, 1]
+                        if dim > 2:
+                            u2 += w * u[q, 2]
+                        for a in range(dim):
+                            paper_energy += 0.5 * w * (Pi_[V + a] - Pj[V + a]) * u[q, a]
+                    weighted_u = (u0, u1, u2)
+                    work = 0.0
+                    for a in range(dim):
+                        net = corrected_viscous_acceleration(u[p, a], self_weight, weight_sum,
+                                                             weighted_u[a], variant)
+                        dv_corr[i, a] = net - u[p, a]
+                        work -= Pi_[V + a] * dv_corr[i, a]
+                    if energy_mode == ENERGY_WORK:
+                        de_corr[i] = work
+                    elif energy_mode == ENERGY_PAPER:
+                        if variant == SHEPARD:
+                            paper_energy /= weight_sum + self_weight
+                        de_corr[i] = paper_energy
+                    else:
+                        de_corr[i] = 0.0
 
     return particle_pass, pair_pass, correction_pass
 
