@@ -46,7 +46,8 @@ def write_checkpoint(sim: Simulation, path: Path | str) -> Path:
                 g.create_dataset(name, data=arr)
             nl = sim.solver.neighbours
             g = f.create_group("neighbours")
-            for name in ("offsets", "indices", "reference_positions", "order"):
+            for name in ("offsets", "indices", "reference_positions", "order",
+                         "reference_origin"):
                 g.create_dataset(name, data=getattr(nl, name))
             g.attrs["radius"], g.attrs["skin"], g.attrs["builds"] = nl.radius, nl.skin, nl.builds
             g.create_dataset("ghost_src", data=sim.solver._ghost_src)
@@ -138,7 +139,9 @@ def load_checkpoint(path: Path | str, case: Any = None) -> Simulation:
         nl = NeighbourList(g["offsets"][()], g["indices"][()], float(g.attrs["radius"]),
                            float(g.attrs["skin"]), g["reference_positions"][()],
                            int(g.attrs["builds"]),
-                           order=g["order"][()] if "order" in g else None)
+                           order=g["order"][()] if "order" in g else None,
+                           reference_origin=(g["reference_origin"][()]
+                                             if "reference_origin" in g else None))
         sim.solver.restore(state, nl, g["ghost_src"][()], g["ghost_wall"][()])
         acc = {name: f["accumulators"][name][()] for name in f["accumulators"]}
         sim.viscous_dissipation = float(acc["viscous_dissipation"])

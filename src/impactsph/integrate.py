@@ -45,7 +45,9 @@ def _kernels(dim: int):
     def advance(n_active, dt, x0, v0, rho0, e0, S0, pw0, v_rate, dv, drho, de, dS, clamped,
                 material, table, x, v, rho, e, S, plastic_work):
         """``y = y0 + dt ydot`` with ``xdot = v_rate`` (clamped particles keep ``v = 0``),
-        then the radial return (eqs 17-18) and the specific plastic work it dissipates."""
+        then the radial return (eqs 17-18) and the specific plastic work it dissipates.
+        ``v_rate`` may be ``v`` itself: particle ``i``'s position is advanced before its
+        velocity."""
         for i in nb.prange(n_active):
             for a in range(dim):
                 x[i, a] = x0[i, a] + dt * v_rate[i, a]
@@ -156,7 +158,6 @@ class MidpointIntegrator:
         self._cfl, self._advance, self.survey_kernel = _kernels(dim)
         self._any_clamped: bool | None = None
         self._start: SimpleNamespace | None = None
-        self._mid_velocity: np.ndarray | None = None
 
     #: the fields the integrator advances (the rest of the state is constant within a step)
     INTEGRATED = ("position", "velocity", "density", "specific_energy", "deviatoric_stress",
@@ -191,12 +192,10 @@ class MidpointIntegrator:
             self._any_clamped = bool(state.clamped.any())
         start = self._save_start(state)
         self._stage(state, 0.5 * dt, start, start.velocity, self.rates(state), final=False)
-        if self._mid_velocity is None or self._mid_velocity.shape != state.velocity.shape:
-            self._mid_velocity = np.empty_like(state.velocity)
-        mid_velocity = self._mid_velocity
-        np.copyto(mid_velocity, state.velocity)
         rates = self.rates(state)
-        self._stage(state, dt, start, mid_velocity, rates, final=True)
+        # x(t + dt) = x(t) + dt v(t + dt/2): the kernel reads each particle's midpoint
+        # velocity before it overwrites it, so the velocity array itself is the position rate
+        self._stage(state, dt, start, state.velocity, rates, final=True)
         if self._any_clamped:
             clamped = state.clamped
             self.clamp_impulse -= dt * (state.mass[clamped] @ rates[0][: state.n][clamped])

@@ -128,12 +128,12 @@ def _build_functions(dim: int):
         return order, offsets, indices
 
     @nb.njit(cache=True)
-    def max_displacement(x, x_ref):
+    def max_displacement(x, x_ref, origin):
         largest = 0.0
         for i in range(x.shape[0]):
             s = 0.0
             for a in range(dim):
-                d = x[i, a] - x_ref[i, a]
+                d = (x[i, a] - origin[a]) - x_ref[i, a]
                 s += d * d
             largest = max(largest, s)
         return math.sqrt(largest)
@@ -152,7 +152,8 @@ class NeighbourList:
     work on copies of the particle data in this order, so that neighbours are close in
     memory whatever order the particles were given in; the order is renewed at every
     rebuild.  ``reference_positions`` are the positions at the build (in the particles' own
-    order).
+    order) less ``reference_origin``, in single precision: they only need to resolve a small
+    part of the skin.
     """
 
     offsets: np.ndarray
@@ -162,10 +163,13 @@ class NeighbourList:
     reference_positions: np.ndarray
     builds: int = 1
     order: np.ndarray | None = None  #: sorted position -> particle; None: the identity
+    reference_origin: np.ndarray | None = None  #: subtracted from reference_positions
 
     def __post_init__(self) -> None:
         if self.order is None:
-            self.order = np.arange(self.offsets.shape[0] - 1, dtype=np.int64)
+            self.order = np.arange(self.offsets.shape[0] - 1, dtype=np.int32)
+        if self.reference_origin is None:
+            self.reference_origin = np.zeros(self.reference_positions.shape[1])
 
     @classmethod
     def build(cls, x: np.ndarray, support: float, skin: float = 0.0) -> NeighbourList:
@@ -174,7 +178,9 @@ class NeighbourList:
         build, _ = _build_functions(dim)
         radius = float(support + skin)
         order, offsets, indices = build(np.ascontiguousarray(x), radius)
-        return cls(offsets, indices, radius, float(skin), x.copy(), order=order)
+        origin = x.min(axis=0) if x.shape[0] else np.zeros(dim)
+        return cls(offsets, indices, radius, float(skin), (x - origin).astype(np.float32),
+                   order=order.astype(np.int32), reference_origin=origin)
 
     def needs_rebuild(self, x: np.ndarray) -> bool:
         """True once any particle has moved more than half the skin since the build."""
@@ -182,7 +188,7 @@ class NeighbourList:
             return True
         _, max_disp = _build_functions(x.shape[1])
         reference = self.reference_positions[: x.shape[0]]  # ghosts follow their sources
-        return bool(max_disp(x, reference) > 0.5 * self.skin)
+        return bool(max_disp(x, reference, self.reference_origin) > 0.5 * self.skin)
 
     def update(self, x: np.ndarray, support: float) -> None:
         """Rebuild in place if the skin no longer covers the motion since the last build."""
@@ -190,6 +196,7 @@ class NeighbourList:
             new = NeighbourList.build(x, support, self.skin)
             self.offsets, self.indices, self.order = new.offsets, new.indices, new.order
             self.radius, self.reference_positions = new.radius, new.reference_positions
+            self.reference_origin = new.reference_origin
             self.builds += 1
 
     def neighbours_of(self, i: int) -> np.ndarray:

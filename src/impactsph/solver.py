@@ -32,8 +32,9 @@ def rate_totals(n, m, v, de_visc, dv_corr, de_corr, contact_force, pair_count, c
         for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n)):
             heat += m[i] * de_visc[i]
             pairs += pair_count[i]
-            for a in range(dim):
-                f[a] += contact_force[i, a]
+            if contact_force.shape[0] > 0:
+                for a in range(dim):
+                    f[a] += contact_force[i, a]
             if corrected:
                 corr_heat += m[i] * de_corr[i]
                 for a in range(dim):
@@ -95,6 +96,7 @@ class Solver:
             src = wall = np.zeros(0, dtype=np.int64)
         positions = self._allocate(state, src, wall)
         builds = self.neighbours.builds if self.neighbours is not None else 0
+        self.neighbours = None  # free the old list first: the peak memory is one list
         self.neighbours = NeighbourList.build(positions, support, skin)
         self.neighbours.builds += builds
 
@@ -124,9 +126,9 @@ class Solver:
             self._ext = None
             positions = state.position
         if self.neighbours is None or self.buffers.drho.shape[0] != n_ext:
-            self.buffers = RateBuffers(n_ext, self.dim)
-            self.dv = np.zeros((n_ext, self.dim))
-            self.de = np.zeros(n_ext)
+            self.buffers = RateBuffers(n_ext, self.dim,
+                                       contact=self.walls is not None or self.n_bodies > 1,
+                                       corrected=self.corrected)
         return positions
 
     def _fill(self, state: ParticleState) -> None:
@@ -162,11 +164,6 @@ class Solver:
         self.backend.evaluate(self.n_active, self._arrays(state), self.table, self.neighbours,
                               self.alpha[0], self.alpha[1], self.viscosity.epsilon,
                               self._correction, b)
-        np.add(b.dv_stress, b.dv_visc, out=self.dv)
-        np.add(b.de_stress, b.de_visc, out=self.de)
-        if self.corrected:
-            self.dv += b.dv_corr
-            self.de += b.de_corr
         n = self.n_active
         totals = rate_totals(n, state.mass, state.velocity, b.de_visc, b.dv_corr, b.de_corr,
                              b.contact_force, b.pair_count, self.corrected)
@@ -178,4 +175,4 @@ class Solver:
             self.wall_force = totals[4: 4 + self.dim].copy()
         self.pair_evaluations += int(totals[3])
         self.rate_evaluations += 1
-        return self.dv, b.drho, self.de, b.dS
+        return b.dv, b.drho, b.de, b.dS

@@ -62,13 +62,23 @@ CHUNK = 512
 
 def packed_layout(dim: int) -> dict[str, int]:
     """Columns of the packed particle record read by the pair loop: position, velocity,
-    ``h``, ``m``, ``V = m/rho``, ``rho``, ``c``, ``P/rho^2``, body, ``A = sigma/rho^2``
-    (row-major ``dim x dim``); ``"width"`` is the row length, padded to whole cache lines."""
+    ``h``, ``m``, ``V = m/rho``, ``rho``, ``c``, ``P/rho^2``, body, the symmetric
+    ``A = sigma/rho^2`` (its upper triangle, row by row: :func:`symmetric_index`), and the
+    viscous acceleration ``u`` that pass 2 writes for AC; ``"width"`` is the row length,
+    padded to whole cache lines (2, 2 and 3 lines of 64 bytes in 1D, 2D, 3D)."""
+    n_sym = dim * (dim + 1) // 2
     cols = {"x": 0, "v": dim, "h": 2 * dim, "m": 2 * dim + 1, "volume": 2 * dim + 2,
             "rho": 2 * dim + 3, "c": 2 * dim + 4, "pc": 2 * dim + 5, "body": 2 * dim + 6,
-            "A": 2 * dim + 7}
-    cols["width"] = (cols["A"] + dim * dim + 7) // 8 * 8
+            "A": 2 * dim + 7, "u": 2 * dim + 7 + n_sym}
+    cols["width"] = (cols["u"] + dim + 7) // 8 * 8
     return cols
+
+
+def symmetric_index(a: int, b: int, dim: int) -> int:
+    """Position of component ``(a, b)`` of a symmetric ``dim x dim`` tensor stored as its
+    upper triangle, row by row."""
+    a, b = min(a, b), max(a, b)
+    return a * dim - a * (a - 1) // 2 + (b - a)
 
 
 @cache
@@ -76,12 +86,18 @@ def rate_kernels(dim: int):
     """Compile the rate passes for dimension ``dim``; returns ``(particle_pass, pair_pass,
     correction_pass)``."""
     lay = packed_layout(dim)
-    X, V, H, M, VOL, RHO, C, PC, BODY, A0 = (lay[k] for k in (
-        "x", "v", "h", "m", "volume", "rho", "c", "pc", "body", "A"))
+    X, V, H, M, VOL, RHO, C, PC, BODY, A0, U = (lay[k] for k in (
+        "x", "v", "h", "m", "volume", "rho", "c", "pc", "body", "A", "u"))
+    # columns of A's components: SYM[a][b] (a tuple of tuples: a compile-time constant)
+    SYM = tuple(tuple(A0 + symmetric_index(a, b, dim) for b in range(dim))
+                for a in range(dim))
+    A00 = SYM[0][0]
+    A01, A11 = (SYM[0][1], SYM[1][1]) if dim > 1 else (0, 0)
+    A02, A12, A22 = (SYM[0][2], SYM[1][2], SYM[2][2]) if dim > 2 else (0, 0, 0)
 
     @nb.njit(parallel=True, cache=True)
     def particle_pass(order, x, v, m, rho, e, S, h, body, material, table, pressure,
-                      sound_speed, packed):
+                      packed):
         """Pass 1: ``P``, ``c = sqrt(M/rho)``, and the packed record (``V = m/rho``,
         ``P/rho^2``, ``A = (-P I + S)/rho^2``, ...) of every particle, ghosts included, at its
         sorted position ``p`` (``order[p]`` is the particle)."""
@@ -91,15 +107,14 @@ def rate_kernels(dim: int):
             pr = material_pressure(table, k, rho[i], e[i])
             c = math.sqrt(table[k, WAVE_MODULUS] / rho[i])
             pressure[i] = pr
-            sound_speed[i] = c
             inv_rho2 = 1.0 / (rho[i] * rho[i])
             row = packed[p]
             for a in range(dim):
                 row[X + a] = x[i, a]
                 row[V + a] = v[i, a]
-                for b in range(dim):
-                    row[A0 + a * dim + b] = S[i, a, b] * inv_rho2
-                row[A0 + a * dim + a] -= pr * inv_rho2
+                for b in range(a, dim):
+                    row[SYM[a][b]] = S[i, a, b] * inv_rho2
+                row[SYM[a][a]] -= pr * inv_rho2
             row[H] = h[i]
             row[M] = m[i]
             row[VOL] = m[i] / rho[i]
@@ -110,13 +125,13 @@ def rate_kernels(dim: int):
 
     @nb.njit(parallel=True, cache=True, fastmath=FASTMATH)
     def pair_pass(n_active, order, P, offsets, indices, alpha1, alpha2, epsilon, S,
-                  material, table, drho, dv_stress, dv_visc, de_stress, de_visc, L,
-                  contact_force, pair_count, dS, u_sorted):
+                  material, table, drho, dv, de, de_visc, contact_force, pair_count, dS):
         """Pass 2: for every active particle ``i = order[p]``, in parallel chunks of sorted
         positions ``p``, the sums over its neighbours (eqs 22, 27, 28) in scalar accumulators
         (the compiler keeps them in registers) and its stress rate (eq 14); its viscous
-        acceleration is also stored at ``u_sorted[p]`` for AC.  Ghosts (``order[p] >=
-        n_active``) only take part as neighbours.
+        acceleration is also stored in its packed record for AC.  Ghosts (``order[p] >=
+        n_active``) only take part as neighbours.  ``contact_force`` is written only if it
+        has a row per particle (runs with several bodies or walls).
 
         The stress terms are regrouped, exactly in arithmetic: ``sum_j m_j A_i . grad W_ij
         = A_i . (sum_j m_j grad W_ij)`` and ``sum_j m_j A_i : (v_ij (x) grad W_ij) =
@@ -125,12 +140,14 @@ def rate_kernels(dim: int):
         function.)"""
         n = order.shape[0]
         n_chunks = (n + CHUNK - 1) // CHUNK
+        track_contact = contact_force.shape[0] > 0
         for chunk in nb.prange(n_chunks):
+            L = np.empty((dim, dim))  # scratch: the velocity gradient of one particle
             for p in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n)):
                 i = order[p]
                 if i >= n_active:
                     for a in range(dim):
-                        u_sorted[p, a] = 0.0
+                        P[p, U + a] = 0.0
                     continue
                 shear = table[material[i], SHEAR]
                 Pi_ = P[p]
@@ -193,13 +210,13 @@ def rate_kernels(dim: int):
                     if same_body:
                         cont += continuity_pair(1.0, volume_j, vg)
                         G0 += m_j * g0
-                        a0 += m_j * Pj[A0] * g0
+                        a0 += m_j * Pj[A00] * g0
                         L00 += velocity_gradient_pair(volume_j, u0, g0)
                         T00 += m_j * u0 * g0
                         if dim > 1:
                             G1 += m_j * g1
-                            a0 += m_j * Pj[A0 + 1] * g1
-                            a1 += m_j * (Pj[A0 + dim] * g0 + Pj[A0 + dim + 1] * g1)
+                            a0 += m_j * Pj[A01] * g1
+                            a1 += m_j * (Pj[A01] * g0 + Pj[A11] * g1)
                             L01 += velocity_gradient_pair(volume_j, u0, g1)
                             L10 += velocity_gradient_pair(volume_j, u1, g0)
                             L11 += velocity_gradient_pair(volume_j, u1, g1)
@@ -208,9 +225,9 @@ def rate_kernels(dim: int):
                             T11 += m_j * u1 * g1
                         if dim > 2:
                             G2 += m_j * g2
-                            a0 += m_j * Pj[A0 + 2] * g2
-                            a1 += m_j * Pj[A0 + 5] * g2
-                            a2 += m_j * (Pj[A0 + 6] * g0 + Pj[A0 + 7] * g1 + Pj[A0 + 8] * g2)
+                            a0 += m_j * Pj[A02] * g2
+                            a1 += m_j * Pj[A12] * g2
+                            a2 += m_j * (Pj[A02] * g0 + Pj[A12] * g1 + Pj[A22] * g2)
                             L02 += velocity_gradient_pair(volume_j, u0, g2)
                             L12 += velocity_gradient_pair(volume_j, u1, g2)
                             L20 += velocity_gradient_pair(volume_j, u2, g0)
@@ -255,27 +272,27 @@ def rate_kernels(dim: int):
                 for a in range(dim):
                     s = acc[a] + kc[a]
                     for b in range(dim):
-                        A_ab = Pi_[A0 + a * dim + b]
+                        A_ab = Pi_[SYM[a][b]]
                         s += A_ab * G[b]
                         de_s -= A_ab * Tt[a][b]
-                        L[i, a, b] = Lt[a][b]
-                    dv_stress[i, a] = s
-                    dv_visc[i, a] = wv[a]
-                    u_sorted[p, a] = wv[a]
-                    contact_force[i, a] = m_i * (kc[a] + fv[a])
+                        L[a, b] = Lt[a][b]
+                    dv[i, a] = s + wv[a]
+                    P[p, U + a] = wv[a]
+                    if track_contact:
+                        contact_force[i, a] = m_i * (kc[a] + fv[a])
                 drho[i] = rhoi * cont
-                de_stress[i] = de_s
+                de[i] = de_s + de_v
                 de_visc[i] = de_v
                 pair_count[i] = count
-                jaumann_stress_rate(L[i], S[i], shear, dS[i])
+                jaumann_stress_rate(L, S[i], shear, dS[i])
 
     @nb.njit(parallel=True, cache=True)
-    def correction_pass(n_active, order, P, offsets, indices, u, h_ratio, variant,
-                        energy_mode, dv_corr, de_corr):
+    def correction_pass(n_active, order, P, offsets, indices, h_ratio, variant,
+                        energy_mode, dv_corr, de_corr, dv, de):
         """Pass 4 (AC only): ``-u_corr_i`` (eqs 33-36) and its energy term for every active
-        particle ``i = order[p]``, from the viscous accelerations ``u`` of pass 2 (evaluated
-        with (1, 1)) in sorted order; neighbours of the same body within ``2 h_c``,
-        ``h_c = h_ratio h``."""
+        particle ``i = order[p]``, from the viscous accelerations ``u`` that pass 2 (evaluated
+        with (1, 1)) left in the packed records; neighbours of the same body within ``2 h_c``,
+        ``h_c = h_ratio h``.  Adds them to the totals ``dv``, ``de``."""
         n = order.shape[0]
         n_chunks = (n + CHUNK - 1) // CHUNK
         for chunk in nb.prange(n_chunks):
@@ -302,19 +319,20 @@ def rate_kernels(dim: int):
                             continue
                         w = correction_weight(Pj[VOL], math.sqrt(r2), h_c, dim)
                         weight_sum += w
-                        u0 += w * u[q, 0]
+                        u0 += w * Pj[U]
                         if dim > 1:
-                            u1 += w * u[q, 1]
+                            u1 += w * Pj[U + 1]
                         if dim > 2:
-                            u2 += w * u[q, 2]
+                            u2 += w * Pj[U + 2]
                         for a in range(dim):
-                            paper_energy += 0.5 * w * (Pi_[V + a] - Pj[V + a]) * u[q, a]
+                            paper_energy += 0.5 * w * (Pi_[V + a] - Pj[V + a]) * Pj[U + a]
                     weighted_u = (u0, u1, u2)
                     work = 0.0
                     for a in range(dim):
-                        net = corrected_viscous_acceleration(u[p, a], self_weight, weight_sum,
+                        net = corrected_viscous_acceleration(Pi_[U + a], self_weight,
+                                                             weight_sum,
                                                              weighted_u[a], variant)
-                        dv_corr[i, a] = net - u[p, a]
+                        dv_corr[i, a] = net - Pi_[U + a]
                         work -= Pi_[V + a] * dv_corr[i, a]
                     if energy_mode == ENERGY_WORK:
                         de_corr[i] = work
@@ -324,6 +342,9 @@ def rate_kernels(dim: int):
                         de_corr[i] = paper_energy
                     else:
                         de_corr[i] = 0.0
+                    for a in range(dim):
+                        dv[i, a] += dv_corr[i, a]
+                    de[i] += de_corr[i]
 
     return particle_pass, pair_pass, correction_pass
 
@@ -346,8 +367,9 @@ class CpuRates:
                  b: RateBuffers) -> None:
         """Rates of the first ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h,
         material, body)`` (all rows, ghosts included, take part in the sums) into ``b``:
-        ``pressure, sound_speed`` (pass 1), ``drho, dv_stress, dv_visc, de_stress, de_visc,
-        L, contact_force, pair_count, dS`` (pass 2) and,
+        ``pressure`` (pass 1); ``drho``, the total accelerations ``dv`` and specific-energy
+        rates ``de``, the viscous heating ``de_visc``,
+        ``contact_force, pair_count, dS`` (pass 2) and,
         when ``correction = (h_ratio, variant, energy_mode)`` is given, ``dv_corr, de_corr``
         (pass 4)."""
         x, v, rho, e, S, m, h, material, body = arrays
@@ -356,17 +378,16 @@ class CpuRates:
         n = x.shape[0]
         if self._packed is None or self._packed.shape[0] != n:
             self._packed = np.empty((n, packed_layout(self.dim)["width"]))
-            self._u_sorted = np.empty((n, self.dim))
         particle_pass(nl.order, x, v, m, rho, e, S, h, body, material, table, b.pressure,
-                      b.sound_speed, self._packed)
+                      self._packed)
         pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, alpha1, alpha2,
-                  epsilon, S, material, table, b.drho, b.dv_stress, b.dv_visc, b.de_stress,
-                  b.de_visc, b.L, b.contact_force, b.pair_count, b.dS, self._u_sorted)
+                  epsilon, S, material, table, b.drho, b.dv, b.de, b.de_visc,
+                  b.contact_force, b.pair_count, b.dS)
         if correction is not None:
             h_ratio, variant, energy_mode = correction
             correction_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
-                            self._u_sorted, h_ratio, variant, energy_mode, b.dv_corr,
-                            b.de_corr)
+                            h_ratio, variant, energy_mode, b.dv_corr,
+                            b.de_corr, b.dv, b.de)
 
 
 def correction_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray,
@@ -387,27 +408,27 @@ def correction_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray
     packed[:, lay["volume"]] = (m / rho)[order]
     packed[:, lay["rho"]] = rho[order]
     packed[:, lay["body"]] = body[order]
+    packed[:, lay["u"]:lay["u"] + dim] = u[order]
     dv_corr, de_corr = np.zeros((n, dim)), np.zeros(n)
-    rate_kernels(dim)[2](n, order, packed, neighbours.offsets, neighbours.indices,
-                         np.ascontiguousarray(u[order]), h_ratio, variant, energy_mode,
-                         dv_corr, de_corr)
+    rate_kernels(dim)[2](n, order, packed, neighbours.offsets, neighbours.indices, h_ratio,
+                         variant, energy_mode, dv_corr, de_corr, np.zeros((n, dim)),
+                         np.zeros(n))
     return dv_corr, de_corr
 
 
 class RateBuffers:
-    """Work and output arrays of one rate evaluation, allocated once per run."""
+    """Output arrays of one rate evaluation, allocated once per run.  The contact force has
+    a row per particle only where there is contact (several bodies, or walls), and the AC
+    terms only with AC: otherwise they have no rows."""
 
-    def __init__(self, n: int, dim: int):
+    def __init__(self, n: int, dim: int, contact: bool = True, corrected: bool = True):
         self.pressure = np.zeros(n)
-        self.sound_speed = np.zeros(n)
         self.drho = np.zeros(n)
-        self.dv_stress = np.zeros((n, dim))
-        self.dv_visc = np.zeros((n, dim))
-        self.de_stress = np.zeros(n)
+        self.dv = np.zeros((n, dim))
+        self.de = np.zeros(n)
         self.de_visc = np.zeros(n)
-        self.L = np.zeros((n, dim, dim))
         self.dS = np.zeros((n, 3, 3))
-        self.contact_force = np.zeros((n, dim))
-        self.pair_count = np.zeros(n, dtype=np.int64)
-        self.dv_corr = np.zeros((n, dim))
-        self.de_corr = np.zeros(n)
+        self.contact_force = np.zeros((n if contact else 0, dim))
+        self.pair_count = np.zeros(n, dtype=np.int32)
+        self.dv_corr = np.zeros((n if corrected else 0, dim))
+        self.de_corr = np.zeros(n if corrected else 0)
