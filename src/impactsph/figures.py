@@ -5,9 +5,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from .analysis.bars import PROFILE_TIME, theory_for
+from .analysis.taylor import bar_axis, bar_wall, cylinder_measures
 from .config import validate_case
 from .plotting import (
+    bar_views_figure,
     bars_mid_velocity_figure,
     bars_profile_figure,
     kinetic_energy_figure,
@@ -29,17 +33,47 @@ def case_mismatch(cases: list[Any]) -> str | None:
 def _shapes(runs: list[dict[str, Any]], labels: list[str]) -> tuple[list[dict[str, Any]], str]:
     """Deformed shapes to overlay: every run at the latest snapshot time they all have, or,
     when they share none, each at its last (the time then in its label).  Also the title's
-    time."""
+    time.  Each shape: ``label``, ``x``, ``x0`` (initial positions) and ``case`` (the run's
+    validated case)."""
     with_snaps = [(lab, r) for lab, r in zip(labels, runs, strict=True) if r["snapshots"]]
     if not with_snaps:
         return [], ""
+
+    def shape(label: str, run: dict[str, Any], snap: dict[str, Any]) -> dict[str, Any]:
+        return {"label": label, "x": snap["position"], "x0": snap["initial_position"],
+                "case": validate_case(run["case"])}
+
     common = set.intersection(*({s["time"] for s in r["snapshots"]} for _, r in with_snaps))
     if common:
         t = max(common)
-        return ([{"label": lab, "x": next(s for s in r["snapshots"] if s["time"] == t)
-                  ["position"]} for lab, r in with_snaps], f"t = {t * 1e6:.4g} us")
-    return ([{"label": f"{lab} (t = {r['snapshots'][-1]['time'] * 1e6:.4g} us)",
-              "x": r["snapshots"][-1]["position"]} for lab, r in with_snaps], "last snapshots")
+        return ([shape(lab, r, next(s for s in r["snapshots"] if s["time"] == t))
+                 for lab, r in with_snaps], f"t = {t * 1e6:.4g} us")
+    return ([shape(f"{lab} (t = {r['snapshots'][-1]['time'] * 1e6:.4g} us)", r,
+                   r["snapshots"][-1]) for lab, r in with_snaps], "last snapshots")
+
+
+def deformed_shapes_figure(shapes: list[dict[str, Any]], path: Path, title: str, *,
+                           separate: bool = False) -> Path:
+    """The deformed shapes of :func:`_shapes` (or any dicts with ``label``, ``x``, ``x0`` and
+    ``case``): the particles in the plane in 1D and 2D (:func:`~.plotting.shapes_figure`), and
+    for a 3D Taylor bar its section, r-z projection and footprint
+    (:func:`~.plotting.bar_views_figure`), a row per run."""
+    first = shapes[0]["case"]
+    if first.dimension != 3 or first.analysis != "taylor":
+        return shapes_figure(shapes, path, title, separate=separate)
+    views = []
+    for s in shapes:
+        case = s["case"]
+        axis = bar_axis(case)
+        x0 = np.asarray(s["x0"])
+        m = cylinder_measures(x0, np.asarray(s["x"]), axis, case.bodies[0].geometry.spacings(),
+                              bar_wall(case, axis))
+        views.append({"label": s["label"], "x": s["x"],
+                      "centre": x0[:, [a for a in range(3) if a != axis]].mean(axis=0),
+                      "R0": m["initial_radius"], "Rf": m["footprint_radius"]})
+    axis = bar_axis(first)
+    return bar_views_figure(views, path, title, axis=axis, wall_level=bar_wall(first, axis),
+                            spacing=first.bodies[0].geometry.spacings()[axis])
 
 
 def draw_figures(runs: list[dict[str, Any]], out: Path, labels: list[str] | None = None
@@ -64,9 +98,9 @@ def draw_figures(runs: list[dict[str, Any]], out: Path, labels: list[str] | None
     if cases[0].analysis in ("taylor", "cantilever"):
         shapes, when = _shapes(runs, labels)
         if shapes:
-            paths.append(shapes_figure(shapes, out / "deformed_shape.png",
-                                       f"{cases[0].name}: shape at {when}",
-                                       separate=cases[0].analysis == "taylor"))
+            paths.append(deformed_shapes_figure(shapes, out / "deformed_shape.png",
+                                                f"{cases[0].name}: shape at {when}",
+                                                separate=cases[0].analysis == "taylor"))
     if cases[0].analysis == "bars":
         theory = theory_for(cases[0])
         profiles, mids = [], []

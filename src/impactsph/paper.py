@@ -73,6 +73,9 @@ def paper_figures(case_source: str, out: Path | str, *, workers: int | None = No
 
 TAYLOR_KEYS = ("final_length_ratio", "footprint_half_width_ratio", "plastic_work",
                "kinetic_energy_ratio_final", "total_energy_relative_error", "momentum_drift")
+#: The Taylor bar as a 3D cylinder: the footprint is a radius.
+TAYLOR_3D_KEYS = tuple("footprint_radius_ratio" if k == "footprint_half_width_ratio" else k
+                       for k in TAYLOR_KEYS)
 CANTILEVER_KEYS = ("tip_deflection", "tip_deflection_ratio", "plastic_work",
                    "max_neighbour_gap_over_h", "kinetic_energy_ratio_final",
                    "total_energy_relative_error", "momentum_drift")
@@ -92,8 +95,10 @@ def shape_runs(analysis: str) -> dict[str, list[str]]:
 
 def _shape_figures(analysis: str, base: dict[str, Any], out: Path, workers: int | None,
                    scheduler: str | None) -> dict[str, Any]:
-    from .plotting import kinetic_energy_figure, shapes_figure
+    from .figures import deformed_shapes_figure
+    from .plotting import kinetic_energy_figure
 
+    dimension = validate_case(base).dimension
     runs = shape_runs(analysis)
     labels = list(runs)
     rows = run_many(base, [[*runs[k], "output.figures=false"] for k in labels], out,
@@ -104,17 +109,20 @@ def _shape_figures(analysis: str, base: dict[str, Any], out: Path, workers: int 
     ac = f"AC {DEFAULT_AC}"
 
     def shapes(names: list[str], name: str, title: str) -> list[Path]:
-        sel = [{"label": n, "x": loaded[n]["snapshots"][-1]["position"]}
+        sel = [{"label": n, "x": loaded[n]["snapshots"][-1]["position"],
+                "x0": loaded[n]["snapshots"][-1]["initial_position"],
+                "case": validate_case(loaded[n]["case"])}
                for n in names if n in loaded and loaded[n]["snapshots"]]
-        return [shapes_figure(sel, out / f"{name}.png", title,
-                              separate=analysis == "taylor")] if sel else []
+        return [deformed_shapes_figure(sel, out / f"{name}.png", title,
+                                       separate=analysis == "taylor")] if sel else []
 
     av = ["AV1 (1, 1)", "AV2 (1, 2)", "AV3 (2.5, 2.5)"]
     if analysis == "taylor":
         ref = "AV (0.5, 0.5)"
         paths = shapes(av, "fig11_shapes_av", "Taylor bar at 50 us: AV1, AV2, AV3")
         paths += shapes([ref, ac], "fig13_shapes", "Taylor bar at 50 us: AV (0.5, 0.5) and AC")
-        ke_name, keys = "fig12_kinetic_energy", TAYLOR_KEYS
+        ke_name = "fig12_kinetic_energy"
+        keys = TAYLOR_3D_KEYS if dimension == 3 else TAYLOR_KEYS
     else:
         ref = "AV (0.1, 0.1)"
         paths = shapes(av, "fig15_shapes_av", "Cantilever at 15.8 ms: AV1, AV2, AV3")
@@ -127,7 +135,7 @@ def _shape_figures(analysis: str, base: dict[str, Any], out: Path, workers: int 
         [{"label": n, "time": loaded[n]["history"]["time"],
           "kinetic_energy": loaded[n]["history"]["kinetic_energy"]}
          for n in ke_labels if n in loaded], out / f"{ke_name}.png",
-        title=f"Kinetic energy: {analysis}", dimension=2))
+        title=f"Kinetic energy: {analysis}", dimension=dimension))
     table = []
     for lab in labels:
         summary = loaded[lab]["summary"] if lab in loaded else {}

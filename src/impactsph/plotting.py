@@ -115,3 +115,50 @@ def shapes_figure(runs: list[dict[str, Any]], path: Path, title: str, *,
     else:
         fig.suptitle(title)
     return _save(fig, path)
+
+
+def bar_views_figure(runs: list[dict[str, Any]], path: Path, title: str, *, axis: int,
+                     wall_level: float, spacing: float) -> Path:
+    """A 3D bar standing on a wall along ``axis`` (the Taylor bar as a cylinder), one row per
+    run: the mid-plane section (the particles within one ``spacing`` of the plane through the
+    axis and the first lateral axis), every particle's distance from the axis against its
+    height (an r-z projection), and the footprint seen from below (the particles within one
+    spacing of the wall) with the circles of radius ``R0`` and ``Rf`` (dashed, solid).
+    ``runs``: dicts with ``label``, ``x`` (n, 3), ``centre`` (the axis's two lateral
+    coordinates), ``R0`` and ``Rf`` (m)."""
+    lateral = [a for a in range(3) if a != axis]
+    names = ["xyz"[a] for a in lateral] + ["xyz"[axis]]
+    n = len(runs)
+    fig, axes = plt.subplots(n, 3, figsize=(11, 4.6 * n), squeeze=False,
+                             gridspec_kw={"width_ratios": [1, 0.6, 1]})
+    t = np.linspace(0, 2 * np.pi, 361)
+    for k, (row, r) in enumerate(zip(axes, runs, strict=True)):
+        x = np.asarray(r["x"])
+        a = x[:, lateral[0]] - r["centre"][0]
+        b = x[:, lateral[1]] - r["centre"][1]
+        z = x[:, axis] - wall_level
+        mid = np.abs(b) < spacing
+        row[0].scatter(a[mid] * 1e3, z[mid] * 1e3, s=2, color=f"C{k}")
+        row[0].set_xlabel(f"{names[0]} (mm)")
+        row[0].set_ylabel(f"{names[2]} above the wall (mm)")
+        row[0].set_title(f"{r['label']}: section |{names[1]}| < dx", fontsize=9)
+        row[1].scatter(np.hypot(a, b) * 1e3, z * 1e3, s=0.5, color=f"C{k}", alpha=0.3)
+        row[1].set_xlabel("distance from the axis r (mm)")
+        row[1].set_title("r-z projection, every particle", fontsize=9)
+        foot = z < spacing
+        row[2].scatter(a[foot] * 1e3, b[foot] * 1e3, s=3, color=f"C{k}")
+        for radius, style, what in ((r["R0"], "k--", "R0"), (r["Rf"], "k-", "Rf")):
+            row[2].plot(radius * 1e3 * np.cos(t), radius * 1e3 * np.sin(t), style, lw=0.8,
+                        label=f"{what} = {radius * 1e3:.3g} mm")
+        row[2].set_xlabel(f"{names[0]} (mm)")
+        row[2].set_ylabel(f"{names[1]} (mm)")
+        row[2].set_title(f"footprint: {names[2]} < dx, Rf/R0 = {r['Rf'] / r['R0']:.3f}",
+                         fontsize=9)
+        row[2].legend(fontsize=8, loc="upper right")
+        for ax in row:
+            ax.set_aspect("equal")
+            ax.grid(alpha=0.3)
+        row[1].set_xlim(left=0)
+        row[1].sharey(row[0])
+    fig.suptitle(title)
+    return _save(fig, path)
