@@ -7,6 +7,10 @@
 with ``A_i = sigma_i / rho_i^2``.  These are the work terms that match eq 27 pair by pair, so
 ``sum_i m_i (v_i . dv_i/dt + de_i/dt) = 0``: total energy is conserved by the semi-discrete
 equations.  The viscous part is the dissipation of the artificial viscosity (non-negative).
+
+The pair loop (:mod:`.rates`) applies the stress work regrouped,
+``-A_i : sum_j m_j v_ij (x) grad W_ij``, equal in exact arithmetic;
+``tests/test_rates_reference.py`` checks it against :func:`stress_work_pair`.
 """
 
 from __future__ import annotations

@@ -7,6 +7,10 @@ With ``sigma = -P I + S`` and ``A_i = sigma_i / rho_i^2``::
 The stress part and the artificial-viscosity part are accumulated separately so that the
 viscosity can be corrected (AC) and its power booked in the energy budget.  The pair terms
 are antisymmetric in ``i, j``, so linear momentum is conserved to round-off.
+
+The pair loop (:mod:`.rates`) applies the stress term regrouped, ``A_i . sum_j m_j grad W_ij +
+sum_j m_j A_j . grad W_ij``, equal in exact arithmetic; ``tests/test_rates_reference.py``
+checks it against :func:`stress_acceleration_pair` summed pair by pair.
 """
 
 from __future__ import annotations
