@@ -1,20 +1,23 @@
 """The rate equations: the one place where the pair loop applies the physical terms.
 
-``compute_rates`` evaluates, for every active particle ``i``, the right-hand sides of the
-continuity (eq 22), momentum (eq 27), energy (eq 28) and Jaumann stress-rate (eq 14)
-equations from its neighbour list.  Three passes:
+For every active particle ``i`` the passes evaluate the right-hand sides of the continuity
+(eq 22), momentum (eq 27), energy (eq 28) and Jaumann stress-rate (eq 14) equations from its
+neighbour list:
 
-1. per particle: pressure from the EOS, wave speed, ``A = sigma/rho^2`` and the compressive
-   pressure term shown to other bodies;
+1. per particle: pressure from the EOS, wave speed, ``A = sigma/rho^2``, ``P/rho^2`` and
+   ``V = m/rho``, written into one *packed record* per particle, in the neighbour list's cell
+   (Morton) order, so that a particle's neighbours are close in memory and each is read as
+   two or three cache lines instead of a dozen arrays;
 2. per pair (gather: each ``i`` sums over its ``j``, so threads never write the same memory and
    the result does not depend on the thread count): continuity, velocity gradient, stress and
-   viscous accelerations, stress work and viscous heating, contact terms;
-3. per particle: Jaumann stress rate from the velocity gradient;
-4. with the acceleration correction only, per pair again: the smoothed viscous acceleration
+   viscous accelerations, stress work and viscous heating, contact terms; then, still per
+   particle, the Jaumann stress rate;
+3. with the acceleration correction only, per pair again: the smoothed viscous acceleration
    that AC subtracts (:mod:`.correction`).
 
 The dimension is a compile-time constant: :func:`rate_kernels` compiles the same source once
-per dimension, so the small loops over components unroll.
+per dimension, so the small loops over components unroll.  The kernels are closures over
+integers only, so numba's on-disk cache serves them to later processes.
 """
 
 from __future__ import annotations
