@@ -252,16 +252,15 @@ def rate_kernels(dim: int):
                             de_contact += contact_work_pair(m_j, pci, s_ij, vg)
                     pi_ij = monaghan_viscosity(vr, r2, h_ij, 0.5 * (ci + Pj[C]),
                                                0.5 * (rhoi + Pj[RHO]), alpha1, alpha2, epsilon)
-                    if pi_ij != 0.0:
-                        visc = viscous_acceleration_pair(m_j, pi_ij, 1.0)
-                        w0 += visc * g0
-                        w1 += visc * g1
-                        w2 += visc * g2
-                        if not same_body:
-                            f0 += visc * g0
-                            f1 += visc * g1
-                            f2 += visc * g2
-                        de_v += viscous_heating_pair(m_j, pi_ij, vg)
+                    visc = viscous_acceleration_pair(m_j, pi_ij, 1.0)  # 0 if receding
+                    w0 += visc * g0
+                    w1 += visc * g1
+                    w2 += visc * g2
+                    if not same_body:
+                        f0 += visc * g0
+                        f1 += visc * g1
+                        f2 += visc * g2
+                    de_v += viscous_heating_pair(m_j, pi_ij, vg)
                 # A_i applied to the regrouped sums
                 G = (G0, G1, G2)
                 acc = (a0, a1, a2)

@@ -29,7 +29,7 @@ def monaghan_viscosity(
     epsilon: float,
 ) -> float:
     """``Pi_ij`` of eq 29 for a pair with ``vr = v_ij . r_ij`` and ``r2 = |r_ij|^2``."""
-    if vr >= 0.0:
-        return 0.0
-    mu_ij = h_ij * vr / (r2 + epsilon * h_ij * h_ij)
+    # min(vr, 0): zero for a receding pair, without a branch (whether a pair approaches is
+    # close to random in a noisy flow, and a mispredicted branch costs more than the division)
+    mu_ij = h_ij * min(vr, 0.0) / (r2 + epsilon * h_ij * h_ij)
     return (-alpha1 * c_ij * mu_ij + alpha2 * mu_ij * mu_ij) / rho_ij
