@@ -59,8 +59,11 @@ def material_pressure(table, k: int, rho: float, e: float) -> float:
 #: LLVM may fuse multiply-adds and use reciprocals (deterministic on one machine; no
 #: reassociation, so sums keep their order).
 FASTMATH = {"contract", "arcp", "nsz"}
-#: Particles per parallel work item: scratch arrays are allocated once per chunk.
-CHUNK = 512
+def chunk_size(n: int) -> int:
+    """Particles per parallel work item: about eight items per thread (so that the threads
+    share the work evenly even for a thousand particles), 16 to 512.  Each particle's sums
+    are the same whatever the chunking."""
+    return int(min(512, max(16, n // (8 * nb.get_num_threads()))))
 
 
 def packed_layout(dim: int) -> dict[str, int]:
@@ -128,7 +131,8 @@ def rate_kernels(dim: int):
 
     @nb.njit(parallel=True, cache=True, fastmath=FASTMATH)
     def pair_pass(n_active, order, P, offsets, indices, alpha1, alpha2, epsilon, S,
-                  material, table, drho, dv, de, de_visc, contact_force, pair_count, dS):
+                  material, table, drho, dv, de, de_visc, contact_force, pair_count, dS,
+                  chunk_size):
         """Pass 2: for every active particle ``i = order[p]``, in parallel chunks of sorted
         positions ``p``, the sums over its neighbours (eqs 22, 27, 28) in scalar accumulators
         (the compiler keeps them in registers) and its stress rate (eq 14); its viscous
@@ -142,11 +146,11 @@ def rate_kernels(dim: int):
         (One function, no helper: numba caches a closure only if it captures no compiled
         function.)"""
         n = order.shape[0]
-        n_chunks = (n + CHUNK - 1) // CHUNK
+        n_chunks = (n + chunk_size - 1) // chunk_size
         track_contact = contact_force.shape[0] > 0
         for chunk in nb.prange(n_chunks):
             L = np.empty((dim, dim))  # scratch: the velocity gradient of one particle
-            for p in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n)):
+            for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
                 i = order[p]
                 if i >= n_active:
                     for a in range(dim):
@@ -290,15 +294,15 @@ def rate_kernels(dim: int):
 
     @nb.njit(parallel=True, cache=True)
     def correction_pass(n_active, order, P, offsets, indices, h_ratio, variant,
-                        energy_mode, dv_corr, de_corr, dv, de):
+                        energy_mode, dv_corr, de_corr, dv, de, chunk_size):
         """Pass 4 (AC only): ``-u_corr_i`` (eqs 33-36) and its energy term for every active
         particle ``i = order[p]``, from the viscous accelerations ``u`` that pass 2 (evaluated
         with (1, 1)) left in the packed records; neighbours of the same body within ``2 h_c``,
         ``h_c = h_ratio h``.  Adds them to the totals ``dv``, ``de``."""
         n = order.shape[0]
-        n_chunks = (n + CHUNK - 1) // CHUNK
+        n_chunks = (n + chunk_size - 1) // chunk_size
         for chunk in nb.prange(n_chunks):
-            for p in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n)):
+            for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
                 i = order[p]
                 if i < n_active:
                     Pi_ = P[p]
@@ -382,14 +386,15 @@ class CpuRates:
             self._packed = np.empty((n, packed_layout(self.dim)["width"]))
         particle_pass(nl.order, x, v, m, rho, e, S, h, body, material, table, b.pressure,
                       self._packed)
+        chunk = chunk_size(n)
         pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, alpha1, alpha2,
                   epsilon, S, material, table, b.drho, b.dv, b.de, b.de_visc,
-                  b.contact_force, b.pair_count, b.dS)
+                  b.contact_force, b.pair_count, b.dS, chunk)
         if correction is not None:
             h_ratio, variant, energy_mode = correction
             correction_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
                             h_ratio, variant, energy_mode, b.dv_corr,
-                            b.de_corr, b.dv, b.de)
+                            b.de_corr, b.dv, b.de, chunk)
 
 
 def correction_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray,
@@ -414,7 +419,7 @@ def correction_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray
     dv_corr, de_corr = np.zeros((n, dim)), np.zeros(n)
     rate_kernels(dim)[2](n, order, packed, neighbours.offsets, neighbours.indices, h_ratio,
                          variant, energy_mode, dv_corr, de_corr, np.zeros((n, dim)),
-                         np.zeros(n))
+                         np.zeros(n), chunk_size(n))
     return dv_corr, de_corr
 
 
