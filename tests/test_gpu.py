@@ -1,0 +1,473 @@
+"""The GPU backend (:mod:`impactsph.gpu`) gives the CPU backend's rates, and ``--device gpu``
+without a GPU runs on the CPU and says why.
+
+CI has no GPU: the GPU kernels run in numba's CUDA simulator, which is switched on by
+``NUMBA_ENABLE_CUDASIM=1`` before numba is imported, so they run in a subprocess: this file is
+also that worker (``python tests/test_gpu.py TASK DIR``).  The parent computes the CPU
+reference, the worker the same evaluations with :class:`~impactsph.gpu.GpuRates`, and every
+output buffer must agree to 1e-10 of its largest value.  Where a GPU is present the same
+checks run on it too (``mode = "gpu"``).
+"""
+
+from __future__ import annotations
+
+import copy
+import importlib.util
+import json
+import logging
+import os
+import pickle
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+TOL = 1e-10
+SKIP_CODE = 77  # the worker's exit code for "cannot run here", with the reason on stdout
+FIELDS = ("x", "v", "rho", "e", "S", "m", "h", "material", "body")
+
+#: Small problems (the simulator interprets the kernels in Python).
+CASES = {
+    # two bars, 25 particles each, colliding: AV, contact between bodies
+    "bars-1d": ("bars", ["bodies.0.geometry.spacing=0.0008",
+                         "bodies.1.geometry.spacing=0.0008"]),
+    # plane-strain Taylor bar on a wall, 8 x 12: ghosts, Mie-Gruneisen, AC (defaults)
+    "taylor-2d": ("taylor", ["bodies.0.geometry.count=[8, 12]"]),
+    # 4 x 4 x 5 block on a wall: 3D, ghosts, AC with the Shepard variant and the paper's energy
+    "block-3d": ("taylor", ["dimension=3", "analysis=none",
+                            "bodies.0.velocity=[0.0, 0.0, -200.0]",
+                            "bodies.0.geometry.origin=[-0.0015, -0.0015, 0.0]",
+                            "bodies.0.geometry.size=[0.003, 0.003, 0.00375]",
+                            "bodies.0.geometry.count=[4, 4, 5]",
+                            "boundaries.0.point=[0.0, 0.0, 0.0]",
+                            "boundaries.0.normal=[0.0, 0.0, 1.0]",
+                            "viscosity.correction=shepard", "viscosity.energy_correction=paper"]),
+}
+#: Cases evaluated into buffers without rows for the contact force and AC, as the solver makes
+#: for runs without them (the bars have no AC; their contact force is then not recorded).
+LEAN = {"bars-1d"}
+#: Whole runs of 100 steps: the bars, and a 4 x 6 Taylor bar (its neighbour list and ghosts
+#: are rebuilt several times, so the uploads after a rebuild are exercised).
+RUNS = {
+    "bars-1d": CASES["bars-1d"],
+    "taylor-2d": ("taylor", ["bodies.0.geometry.count=[4, 6]"]),
+}
+STEPS = 100
+
+
+# -- shared by the parent and the worker ------------------------------------------------------
+def _prefilled_buffers(n: int, dim: int, seed: int, lean: bool = False):
+    """Rate buffers filled with noise: rows a backend leaves alone must stay as they were.
+    ``lean``: the buffers the solver makes for a run without contact or AC (no rows for the
+    contact force and the correction), where ``RateBuffers`` has such."""
+    import inspect
+
+    from impactsph.physics.rates import RateBuffers
+
+    options = {"contact": False, "corrected": False} if lean else {}
+    b = RateBuffers(n, dim, **{k: v for k, v in options.items()
+                               if k in inspect.signature(RateBuffers).parameters})
+    rng = np.random.default_rng(seed)
+    for arr in vars(b).values():
+        arr[...] = rng.integers(-9, 9, arr.shape) if arr.dtype.kind == "i" else rng.normal(
+            size=arr.shape)
+    return b
+
+
+def _same_list(a, b) -> bool:
+    return all(np.array_equal(getattr(a, k, None), getattr(b, k, None))
+               for k in ("offsets", "indices", "order"))
+
+
+def _load_call(path: Path, previous: dict | None) -> dict:
+    """One evaluation's inputs.  Like the solver: the evolving fields are the same arrays as in
+    the previous call, overwritten; the others are the same objects where unchanged, new ones
+    where changed (a rebuilt neighbour list, new ghosts)."""
+    call = pickle.loads(path.read_bytes())
+    if previous is not None:
+        for k in ("x", "v", "rho", "e", "S"):
+            np.copyto(previous[k], call[k])
+            call[k] = previous[k]
+        for k in ("m", "h", "material", "body", "table"):
+            if np.array_equal(previous[k], call[k]):
+                call[k] = previous[k]
+        if _same_list(previous["neighbours"], call["neighbours"]):
+            call["neighbours"] = previous["neighbours"]
+    return call
+
+
+def _evaluate(backend, call: dict, b) -> None:
+    backend.evaluate(call["n_active"], tuple(call[k] for k in FIELDS), call["table"],
+                     call["neighbours"], call["alpha1"], call["alpha2"], call["epsilon"],
+                     call["correction"], b)
+
+
+def _gpu_run(name: str, overrides: list[str], steps: int):
+    """Run a case for ``steps`` steps with the rate passes on the GPU backend."""
+    import impactsph.simulation as simulation
+    from impactsph.config import load_case
+    from impactsph.gpu import GpuRates
+
+    simulation.select_backend = lambda device, dim: GpuRates(dim)
+    sim = simulation.Simulation(load_case(name, [*overrides, f"time.max_steps={steps}"]))
+    sim.run()
+    return sim
+
+
+# -- the worker --------------------------------------------------------------------------------
+def _worker(task: str, folder: Path) -> int:
+    try:
+        from numba import cuda  # noqa: F401
+    except ImportError as exc:
+        print(f"numba.cuda cannot be imported here: {exc}")
+        return SKIP_CODE
+    from impactsph.gpu import GpuRates, simulator_enabled, unavailable_reason
+
+    reason = unavailable_reason()
+    if not simulator_enabled() and reason is not None:
+        print(f"no GPU: {reason}")
+        return SKIP_CODE
+    report = {"simulator": simulator_enabled(), "reason": reason, "seconds": {}}
+    if task == "rates":
+        for case_dir in sorted(p for p in folder.iterdir() if p.is_dir()):
+            t0 = time.perf_counter()
+            meta = json.loads((case_dir / "meta.json").read_text())
+            backend = GpuRates(meta["dim"])
+            b = _prefilled_buffers(meta["n_rows"], meta["dim"], meta["seed"], meta["lean"])
+            previous = None
+            uploads = []
+            for k in range(meta["calls"]):
+                call = _load_call(case_dir / f"call{k}.pickle", previous)
+                before = backend.uploads
+                _evaluate(backend, call, b)
+                uploads.append(backend.uploads - before)
+                np.savez(case_dir / f"gpu{k}.npz", **vars(b))
+                previous = call
+            report["seconds"][case_dir.name] = time.perf_counter() - t0
+            report.setdefault("uploads", {})[case_dir.name] = uploads
+            report.setdefault("ordered", {})[case_dir.name] = getattr(
+                call["neighbours"], "order", None) is not None
+    elif task == "run":
+        for name, spec in json.loads((folder / "runs.json").read_text()).items():
+            t0 = time.perf_counter()
+            sim = _gpu_run(spec["case"], spec["overrides"], spec["steps"])
+            np.savez(folder / f"{name}.npz", **sim.state.arrays())
+            report[name] = {"device": sim.solver.backend.device, "steps": sim.state.step,
+                            "builds": sim.solver.neighbours.builds,
+                            "rate_evaluations": sim.solver.rate_evaluations}
+            report["seconds"][name] = time.perf_counter() - t0
+    else:
+        raise SystemExit(f"unknown task {task!r}")
+    (folder / "report.json").write_text(json.dumps(report))
+    return 0
+
+
+def _run_worker(mode: str, task: str, folder: Path) -> dict:
+    env = dict(os.environ)
+    env.setdefault("NUMBA_NUM_THREADS", "1")
+    if mode == "simulator":
+        env["NUMBA_ENABLE_CUDASIM"] = "1"
+    else:
+        env.pop("NUMBA_ENABLE_CUDASIM", None)
+    res = subprocess.run([sys.executable, __file__, task, str(folder)], env=env,
+                         capture_output=True, text=True, timeout=900)
+    if res.returncode == SKIP_CODE:
+        pytest.skip(res.stdout.strip())
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-6000:]
+    return json.loads((folder / "report.json").read_text())
+
+
+# -- the parent: CPU references and comparisons ------------------------------------------------
+MODES = ["simulator", "gpu"]
+
+
+def _skip_without_gpu(mode: str) -> None:
+    if mode == "gpu":
+        from impactsph.gpu import unavailable_reason
+
+        reason = unavailable_reason()
+        if reason is not None:
+            pytest.skip(f"no GPU here: {reason}")
+
+
+class _Recorder:
+    """A backend that keeps copies of what the solver hands over, then runs the CPU passes."""
+
+    device = "cpu"
+
+    def __init__(self, inner):
+        self.inner = inner
+        self.call = None
+
+    def evaluate(self, n_active, arrays, table, neighbours, alpha1, alpha2, epsilon,
+                 correction, b):
+        self.call = {**{k: np.array(a) for k, a in zip(FIELDS, arrays, strict=True)},
+                     "table": np.array(table), "neighbours": copy.deepcopy(neighbours),
+                     "n_active": n_active, "alpha1": alpha1, "alpha2": alpha2,
+                     "epsilon": epsilon, "correction": correction}
+        self.inner.evaluate(n_active, arrays, table, neighbours, alpha1, alpha2, epsilon,
+                            correction, b)
+
+
+def _perturb(state, rng) -> None:
+    """A state off the lattice: random velocities, densities, energies and deviators."""
+    n, dim = state.n, state.dim
+    state.velocity += rng.normal(0.0, 30.0, (n, dim))
+    state.density *= 1.0 + rng.normal(0.0, 2e-3, n)
+    state.specific_energy[:] = rng.uniform(0.0, 5e3, n)
+    if dim > 1:
+        s = rng.normal(0.0, 2e8, (n, 3, 3))
+        s = 0.5 * (s + s.transpose(0, 2, 1))
+        s -= np.einsum("ab,i->iab", np.eye(3), np.trace(s, axis1=1, axis2=2) / 3.0)
+        if dim == 2:  # plane strain: no xz, yz shear
+            s[:, 2, :2] = s[:, :2, 2] = 0.0
+        state.deviatoric_stress[:] = s
+
+
+def _thinned(offsets: np.ndarray, indices: np.ndarray):
+    """Every other neighbour of each particle: a different list, as after a rebuild."""
+    rows = [indices[offsets[i]:offsets[i + 1]][::2] for i in range(offsets.size - 1)]
+    new_offsets = np.zeros_like(offsets)
+    np.cumsum([r.size for r in rows], out=new_offsets[1:])
+    return new_offsets, np.concatenate(rows).astype(indices.dtype)
+
+
+def _rate_calls(name: str, overrides: list[str], seed: int) -> list[dict]:
+    """Three evaluations of a perturbed state: the first; a second state with the same
+    neighbour list and constant fields; the second state with another neighbour list and
+    other masses (so stale device copies would show)."""
+    from impactsph.config import load_case
+    from impactsph.physics.rates import CpuRates
+    from impactsph.simulation import Simulation
+
+    sim = Simulation(load_case(name, overrides))
+    solver, state = sim.solver, sim.state
+    rng = np.random.default_rng(seed)
+    recorder = _Recorder(CpuRates(state.dim))
+    solver.backend = recorder
+    _perturb(state, rng)
+    solver.rates(state)
+    first = recorder.call
+    _perturb(state, rng)
+    state.position += rng.normal(0.0, 0.01 * float(state.smoothing_length.min()),
+                                 state.position.shape)
+    solver.rates(state)
+    second = recorder.call
+    third = dict(second)
+    third["neighbours"] = copy.copy(second["neighbours"])
+    nl = third["neighbours"]
+    nl.offsets, nl.indices = _thinned(nl.offsets, nl.indices)
+    third["m"] = second["m"] * (1.0 + 0.1 * rng.random(second["m"].shape))
+    return [first, second, third]
+
+
+def _relative_errors(cpu, gpu) -> dict[str, float]:
+    """``max |gpu - cpu| / max |cpu|`` per buffer (absolute where the buffer is zero)."""
+    errors = {}
+    for name, ref in cpu.items():
+        got = np.asarray(gpu[name])
+        scale = float(np.abs(ref).max()) if ref.size else 0.0
+        diff = float(np.abs(got.astype(float) - ref).max()) if ref.size else 0.0
+        errors[name] = diff / scale if scale > 0 else diff
+    return errors
+
+
+@pytest.fixture(scope="module", params=MODES)
+def rate_comparison(request, tmp_path_factory):
+    """``{case: [per call: {buffer: relative error}]}`` and the worker's report."""
+    from impactsph.physics.rates import CpuRates
+
+    mode = request.param
+    _skip_without_gpu(mode)
+    folder = tmp_path_factory.mktemp(f"rates-{mode}")
+    references = {}
+    for seed, (case, (name, overrides)) in enumerate(CASES.items()):
+        calls = _rate_calls(name, overrides, seed)
+        case_dir = folder / case
+        case_dir.mkdir()
+        dim = calls[0]["x"].shape[1]
+        n_rows = calls[0]["rho"].shape[0]
+        assert all(c["rho"].shape[0] == n_rows for c in calls)
+        (case_dir / "meta.json").write_text(json.dumps(
+            {"dim": dim, "n_rows": n_rows, "seed": seed, "calls": len(calls),
+             "lean": case in LEAN}))
+        cpu = CpuRates(dim)
+        b = _prefilled_buffers(n_rows, dim, seed, case in LEAN)
+        references[case] = []
+        previous = None
+        for k, call in enumerate(calls):
+            (case_dir / f"call{k}.pickle").write_bytes(pickle.dumps(call))
+            call = _load_call(case_dir / f"call{k}.pickle", previous)
+            _evaluate(cpu, call, b)
+            references[case].append({name: arr.copy() for name, arr in vars(b).items()})
+            previous = call
+        references[case].append({"n": int(calls[0]["n_active"]), "rows": n_rows,
+                                 "pairs": int(calls[0]["neighbours"].indices.size)})
+    report = _run_worker(mode, "rates", folder)
+    errors = {}
+    for case, refs in references.items():
+        errors[case] = []
+        for k, ref in enumerate(refs[:-1]):
+            with np.load(folder / case / f"gpu{k}.npz") as z:
+                errors[case].append(_relative_errors(ref, {n: z[n] for n in z.files}))
+    return mode, errors, report, {case: refs[-1] for case, refs in references.items()}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_rates_match_cpu(rate_comparison, case):
+    """Every buffer of three successive evaluations (same list; a new list and new masses)
+    within 1e-10 of the CPU backend's, rows the CPU leaves alone left alone."""
+    mode, errors, report, sizes = rate_comparison
+    assert sizes[case]["n"] > 0
+    for k, call_errors in enumerate(errors[case]):
+        bad = {name: err for name, err in call_errors.items() if not err <= TOL}
+        assert not bad, f"{mode}, {case}, evaluation {k}: {bad}"
+    if mode == "simulator":
+        assert report["simulator"] and report["reason"] is not None
+
+
+def test_only_changed_inputs_are_uploaded(rate_comparison):
+    """After the first evaluation the state (x, v, rho, e, S) is copied every time; the
+    neighbour list and the masses only when new arrays come (here: offsets, indices, m, and
+    the list's order where it has one)."""
+    _, _, report, _ = rate_comparison
+    for case, uploads in report["uploads"].items():
+        assert uploads[1:] == [5, 8 + report["ordered"][case]], (case, uploads)
+
+
+@pytest.fixture(scope="module", params=MODES)
+def run_comparison(request, tmp_path_factory):
+    """Final states of 100-step runs on the CPU (here) and the GPU backend (the worker)."""
+    from impactsph.config import load_case
+    from impactsph.simulation import Simulation
+
+    mode = request.param
+    _skip_without_gpu(mode)
+    folder = tmp_path_factory.mktemp(f"runs-{mode}")
+    (folder / "runs.json").write_text(json.dumps(
+        {name: {"case": case, "overrides": overrides, "steps": STEPS}
+         for name, (case, overrides) in RUNS.items()}))
+    report = _run_worker(mode, "run", folder)
+    cpu = {}
+    for name, (case, overrides) in RUNS.items():
+        sim = Simulation(load_case(case, [*overrides, f"time.max_steps={STEPS}"]))
+        sim.run()
+        cpu[name] = (sim.state.arrays(), sim.solver.neighbours.builds)
+    return mode, report, cpu, folder
+
+
+@pytest.mark.parametrize("name", list(RUNS))
+def test_run_matches_cpu(run_comparison, name):
+    """100 steps with the rate passes on the GPU end in the CPU run's state to 1e-10."""
+    mode, report, cpu, folder = run_comparison
+    state, builds = cpu[name]
+    info = report[name]
+    assert info["device"] == "gpu"
+    assert info["steps"] == STEPS
+    assert info["builds"] == builds
+    with np.load(folder / f"{name}.npz") as z:
+        errors = _relative_errors(state, {k: z[k] for k in z.files})
+    bad = {k: e for k, e in errors.items() if not e <= TOL}
+    assert not bad, f"{mode}, {name}: {bad}"
+
+
+def test_taylor_run_rebuilds_its_neighbour_list(run_comparison):
+    """The 2D run exercises the uploads after a rebuild (new list, new ghosts)."""
+    _, report, _, _ = run_comparison
+    assert report["taylor-2d"]["builds"] > 2
+
+
+# -- falling back to the CPU -------------------------------------------------------------------
+def test_device_gpu_without_a_gpu_falls_back_with_a_reason(caplog):
+    from impactsph.devices import select_backend
+    from impactsph.gpu import unavailable_reason
+
+    reason = unavailable_reason()
+    if reason is None:
+        pytest.skip("a GPU is present: no fallback")
+    with caplog.at_level(logging.WARNING):
+        backend = select_backend("gpu", 2)
+    assert backend.device == "cpu"
+    assert reason in caplog.text and "running on the CPU" in caplog.text
+
+
+def test_cli_device_gpu_without_a_gpu_runs_on_the_cpu(tmp_path, caplog):
+    """``impactsph run CASE --device gpu`` where no GPU is present: exit 0, a warning that
+    says why, and the summary records the CPU."""
+    from typer.testing import CliRunner
+
+    from impactsph.cli import app
+    from impactsph.gpu import unavailable_reason
+
+    reason = unavailable_reason()
+    if reason is None:
+        pytest.skip("a GPU is present: no fallback")
+    out = tmp_path / "bars"
+    with caplog.at_level(logging.WARNING):
+        res = CliRunner().invoke(app, ["run", "bars", "--device", "gpu", "--quiet", "--out",
+                                       str(out), "--set", "time.max_steps=5",
+                                       "--set", "output.figures=false"])
+    assert res.exit_code == 0, res.output
+    assert "compute.device = 'gpu' but" in caplog.text and reason in caplog.text
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["device"] == "cpu"
+
+
+def test_unavailable_reason_names_the_missing_package():
+    from impactsph.gpu import unavailable_reason
+
+    if importlib.util.find_spec("numba_cuda") is not None:
+        pytest.skip("numba-cuda is installed")
+    assert "numba-cuda is not installed" in unavailable_reason()
+
+
+def _kernel_argument_types(dim: int) -> dict:
+    """numba types of the kernels' arguments, by name, as the solver hands them over."""
+    import numba as nb
+
+    from impactsph.neighbours import NeighbourList
+    from impactsph.physics.rates import RateBuffers
+
+    x = np.random.default_rng(0).random((12, dim))
+    nl = NeighbourList.build(x, 0.5)
+    f1, f2, f3 = nb.float64[::1], nb.float64[:, ::1], nb.float64[:, :, ::1]
+    types = {"order": nb.typeof(np.ascontiguousarray(getattr(nl, "order", np.arange(12)))),
+             "offsets": nb.typeof(nl.offsets), "indices": nb.typeof(nl.indices),
+             "material": nb.int32[::1], "body": nb.int32[::1], "bodies": nb.int32[::1],
+             "pair_count": nb.typeof(RateBuffers(2, dim).pair_count), "table": f2}
+    for names, t in (("n_rows n_active variant energy_mode", nb.int64),
+                     ("alpha1 alpha2 epsilon h_ratio", nb.float64),
+                     ("m rho e h pressure sound_speed hs ms rhos cs pcs vols drho de_stress "
+                      "de_visc de_corr de", f1),
+                     ("x v xs vs dv_stress dv_visc contact_force u_sorted dv_corr dv", f2),
+                     ("S As L dS", f3)):
+        types.update(dict.fromkeys(names.split(), t))
+    return types
+
+
+@pytest.mark.skipif(importlib.util.find_spec("numba_cuda") is None,
+                    reason="numba-cuda (the gpu extra) is not installed")
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_kernels_compile_for_a_gpu(dim):
+    """With numba-cuda, every kernel compiles to PTX for an H100 (sm_90), no GPU needed:
+    the term functions called from the kernels are accepted as device functions."""
+    import inspect
+
+    from numba import cuda
+
+    from impactsph.gpu import gpu_kernels, simulator_enabled
+
+    if simulator_enabled():
+        pytest.skip("the CUDA simulator is on")
+    types = _kernel_argument_types(dim)
+    for kernel in gpu_kernels(dim, False):
+        names = inspect.signature(kernel.py_func).parameters
+        ptx, _ = cuda.compile_ptx(kernel.py_func, tuple(types[k] for k in names), cc=(9, 0))
+        assert ".target sm_90" in ptx
+
+
+if __name__ == "__main__":
+    sys.exit(_worker(sys.argv[1], Path(sys.argv[2])))
