@@ -17,6 +17,28 @@ import os as _os
 # Set before numba loads libgomp; a value already in the environment wins.
 _os.environ.setdefault("GOMP_SPINCOUNT", "100000")
 
+
+def _preload_tbb() -> None:
+    """With ``NUMBA_THREADING_LAYER=tbb``, load the TBB library that ``pip install tbb`` puts
+    in the environment's ``lib`` folder (not on the loader's path), so numba finds it.
+
+    OpenMP (the default) is the faster on an idle machine; TBB's work stealing keeps going
+    when another process holds a core, where OpenMP's barriers wait for a descheduled thread
+    (measured in benchmarks/README.md)."""
+    if _os.environ.get("NUMBA_THREADING_LAYER", "").lower() != "tbb":
+        return
+    import ctypes
+    import sys
+
+    for name in ("libtbb.so.12", "libtbb.12.dylib"):
+        path = _os.path.join(sys.prefix, "lib", name)
+        if _os.path.exists(path):
+            ctypes.CDLL(path, mode=ctypes.RTLD_GLOBAL)
+            return
+
+
+_preload_tbb()
+
 from ._version import __version__  # noqa: E402
 from .config import Case, CaseError, load_case  # noqa: E402
 from .runner import run_case  # noqa: E402
