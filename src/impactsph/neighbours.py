@@ -178,6 +178,8 @@ class NeighbourList:
         build, _ = _build_functions(dim)
         radius = float(support + skin)
         order, offsets, indices = build(np.ascontiguousarray(x), radius)
+        if offsets[-1] < np.iinfo(np.int32).max:  # 4 bytes per particle less
+            offsets = offsets.astype(np.int32)
         origin = x.min(axis=0) if x.shape[0] else np.zeros(dim)
         return cls(offsets, indices, radius, float(skin), (x - origin).astype(np.float32),
                    order=order.astype(np.int32), reference_origin=origin)

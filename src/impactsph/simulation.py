@@ -158,7 +158,7 @@ class Simulation:
     def _snapshot_fields(self) -> dict[str, np.ndarray]:
         s = self.state
         fields = {k: v.copy() for k, v in s.arrays().items()}
-        fields["pressure"] = self.solver.buffers.pressure[: s.n].copy()
+        fields["pressure"] = self.solver.pressure(s)
         return fields
 
     def _take_snapshots(self, previous: float) -> None:
@@ -300,3 +300,23 @@ class Simulation:
                               "initial_position": self.state.initial_position[i].tolist()}
                        for name, i in self.problem.probes.items()},
         }
+
+
+def compile_kernels(dim: int) -> None:
+    """Compile (or load from numba's disk cache) every kernel a run of dimension ``dim``
+    needs, by running one step of a tiny case with AC and a wall.  Parallel processes
+    starting on a cold cache at once can overwrite each other's cache files (numba's cache
+    takes no lock between processes): calling this first, in one process, avoids that."""
+    from .config import validate_case
+
+    case = validate_case({
+        "name": f"compile_{dim}d", "dimension": dim,
+        "materials": {"m": {"model": "elastic", "density": 1000.0, "youngs_modulus": 1e9}},
+        "bodies": [{"name": "b", "material": "m", "velocity": [0.0] * (dim - 1) + [-1.0],
+                    "geometry": {"origin": [0.0] * dim, "size": [4e-3] * dim,
+                                 "spacing": 1e-3}}],
+        "boundaries": [{"type": "wall", "point": [0.0] * dim,
+                        "normal": [0.0] * (dim - 1) + [1.0]}],
+        "viscosity": {"scheme": "ac"}, "time": {"end": 1.0, "max_steps": 1},
+        "output": {"figures": False}})
+    Simulation(case).run()

@@ -11,7 +11,7 @@ from .config import Viscosity
 from .kernels import SUPPORT_RADIUS
 from .neighbours import NeighbourList
 from .physics.correction import ENERGY_CORRECTIONS, VARIANTS
-from .physics.rates import CpuRates, RateBuffers
+from .physics.rates import CpuRates, RateBuffers, pressures
 from .state import ParticleState
 
 #: Particles per work item of :func:`rate_totals`' partial sums.
@@ -176,3 +176,8 @@ class Solver:
         self.pair_evaluations += int(totals[3])
         self.rate_evaluations += 1
         return b.dv, b.drho, b.de, b.dS
+
+    def pressure(self, state: ParticleState) -> np.ndarray:
+        """Pressure (Pa) of each particle of ``state``, from the equations of state."""
+        return pressures(state.density, state.specific_energy, state.material, self.table,
+                         np.empty(state.n))

@@ -115,6 +115,10 @@ def run_many(base: dict[str, Any], run_overrides: list[list[str]], out: Path, *,
         logging.getLogger(name).setLevel(logging.WARNING)
     for ov in run_overrides:  # validate every run before starting any
         validate_case(apply_overrides(base, ov))
+    if not scheduler:  # fill numba's disk cache once, before the workers start together
+        from .simulation import compile_kernels
+
+        compile_kernels(validate_case(base).dimension)
     rows: dict[int, dict[str, Any]] = {}
     cluster = None
     if scheduler:

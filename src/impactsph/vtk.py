@@ -32,7 +32,7 @@ def particle_fields(sim: Any) -> dict[str, np.ndarray]:
     return {
         "velocity": vel,
         "density": s.density.copy(),
-        "pressure": sim.solver.buffers.pressure[:n].copy(),
+        "pressure": sim.solver.pressure(sim.state)[:n],
         "deviatoric_stress": s.deviatoric_stress.reshape(n, 9).copy(),
         "von_mises_stress": vm,
         "plastic": plastic.astype(np.int32),

@@ -102,8 +102,7 @@ def rate_kernels(dim: int):
     A02, A12, A22 = (SYM[0][2], SYM[1][2], SYM[2][2]) if dim > 2 else (0, 0, 0)
 
     @nb.njit(parallel=True, cache=True)
-    def particle_pass(order, x, v, m, rho, e, S, h, body, material, table, pressure,
-                      packed):
+    def particle_pass(order, x, v, m, rho, e, S, h, body, material, table, packed):
         """Pass 1: ``P``, ``c = sqrt(M/rho)``, and the packed record (``V = m/rho``,
         ``P/rho^2``, ``A = (-P I + S)/rho^2``, ...) of every particle, ghosts included, at its
         sorted position ``p`` (``order[p]`` is the particle)."""
@@ -112,7 +111,6 @@ def rate_kernels(dim: int):
             k = material[i]
             pr = material_pressure(table, k, rho[i], e[i])
             c = math.sqrt(table[k, WAVE_MODULUS] / rho[i])
-            pressure[i] = pr
             inv_rho2 = 1.0 / (rho[i] * rho[i])
             row = packed[p]
             for a in range(dim):
@@ -314,14 +312,14 @@ def rate_kernels(dim: int):
                     for k in range(offsets[p], offsets[p + 1]):
                         q = indices[k]
                         Pj = P[q]
-                        if Pj[BODY] != Pi_[BODY]:
-                            continue
+                        # distance first: most neighbours lie beyond 2 h_c, and position and
+                        # h share the record's first cache line
                         h_c = h_ratio * 0.5 * (h_i + Pj[H])
                         r2 = 0.0
                         for a in range(dim):
                             d = Pi_[X + a] - Pj[X + a]
                             r2 += d * d
-                        if r2 >= 4.0 * h_c * h_c:
+                        if r2 >= 4.0 * h_c * h_c or Pj[BODY] != Pi_[BODY]:
                             continue
                         w = correction_weight(Pj[VOL], math.sqrt(r2), h_c, dim)
                         weight_sum += w
@@ -373,8 +371,8 @@ class CpuRates:
                  b: RateBuffers) -> None:
         """Rates of the first ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h,
         material, body)`` (all rows, ghosts included, take part in the sums) into ``b``:
-        ``pressure`` (pass 1); ``drho``, the total accelerations ``dv`` and specific-energy
-        rates ``de``, the viscous heating ``de_visc``,
+        ``drho``, the total accelerations ``dv`` and specific-energy rates ``de``, the
+        viscous heating ``de_visc``,
         ``contact_force, pair_count, dS`` (pass 2) and,
         when ``correction = (h_ratio, variant, energy_mode)`` is given, ``dv_corr, de_corr``
         (pass 4)."""
@@ -384,8 +382,7 @@ class CpuRates:
         n = x.shape[0]
         if self._packed is None or self._packed.shape[0] != n:
             self._packed = np.empty((n, packed_layout(self.dim)["width"]))
-        particle_pass(nl.order, x, v, m, rho, e, S, h, body, material, table, b.pressure,
-                      self._packed)
+        particle_pass(nl.order, x, v, m, rho, e, S, h, body, material, table, self._packed)
         chunk = chunk_size(n)
         pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, alpha1, alpha2,
                   epsilon, S, material, table, b.drho, b.dv, b.de, b.de_visc,
@@ -395,6 +392,14 @@ class CpuRates:
             correction_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
                             h_ratio, variant, energy_mode, b.dv_corr,
                             b.de_corr, b.dv, b.de, chunk)
+
+
+@nb.njit(parallel=True, cache=True)
+def pressures(rho, e, material, table, out):
+    """``out[i]``: the pressure of particle ``i`` from its material's EOS (Pa)."""
+    for i in nb.prange(rho.shape[0]):
+        out[i] = material_pressure(table, material[i], rho[i], e[i])
+    return out
 
 
 def correction_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray,
@@ -429,7 +434,6 @@ class RateBuffers:
     terms only with AC: otherwise they have no rows."""
 
     def __init__(self, n: int, dim: int, contact: bool = True, corrected: bool = True):
-        self.pressure = np.zeros(n)
         self.drho = np.zeros(n)
         self.dv = np.zeros((n, dim))
         self.de = np.zeros(n)
