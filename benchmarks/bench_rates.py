@@ -199,7 +199,7 @@ def child(argv: list[str]) -> dict:
     if kind == "size":
         return bench_size(int(argv[1]), int(argv[2]), int(argv[3]))
     if kind == "example":
-        return bench_example(argv[1])
+        return bench_example(argv[1], *argv[2:])
     if kind == "compile":
         return bench_compile()
     raise SystemExit(f"unknown child item {kind!r}")
@@ -215,9 +215,9 @@ def in_child(*item: object, env: dict | None = None) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def bench_example(name: str) -> dict:
+def bench_example(name: str, *overrides: str) -> dict:
     """A built-in case end to end (``Simulation.run``), without its reference run."""
-    case = load_case(name)
+    case = load_case(name, list(overrides))
     case = case.model_copy(update={"output": case.output.model_copy(
         update={"reference_viscosity": None, "figures": False})})
     t0 = time.perf_counter()
@@ -306,6 +306,10 @@ def main(argv: list[str] | None = None) -> int:
                     choices=("bars", "taylor", "cantilever"),
                     help="built-in cases to run end to end (default: all three; the "
                          "cantilever takes minutes)")
+    ap.add_argument("--skins", nargs="*", type=float, default=[0.0, 0.05, 0.1, 0.2],
+                    help="neighbour skins (fractions of the support) at which the taylor case "
+                         "also runs, to show what reusing the list saves (default: 0 0.05 0.1 "
+                         "0.2; none to skip)")
     ap.add_argument("--no-compile", action="store_true",
                     help="skip timing numba's compilation with an empty cache")
     args = ap.parse_args(argv)
@@ -379,6 +383,21 @@ def main(argv: list[str] | None = None) -> int:
               f"{b['wall_seconds']:>8.2f} {b['seconds_per_step'] * 1e6:>8.0f} "
               f"{_si(b['pair_evaluations_per_second']):>9} {b['setup_seconds']:>7.2f}",
               flush=True)
+
+    results["skins"] = []
+    if args.skins:
+        print()
+        print("taylor with other neighbour skins (default 0.1 of the support 2h):")
+        print(f"{'skin':>6} {'builds':>7} {'wall s':>8} {'us/step':>8} {'vs 0.1':>7}")
+    for skin in args.skins:
+        b = in_child("example", "taylor", f"time.neighbour_skin={skin}")
+        b["skin"] = skin
+        results["skins"].append(b)
+    default = next((b for b in results["skins"] if b["skin"] == 0.1), None)
+    for b in results["skins"]:
+        ratio = b["wall_seconds"] / default["wall_seconds"] if default else float("nan")
+        print(f"{b['skin']:>6.2f} {b['neighbour_list_builds']:>7} {b['wall_seconds']:>8.2f} "
+              f"{b['seconds_per_step'] * 1e6:>8.0f} {ratio:>7.2f}")
 
     if not args.no_compile:
         with tempfile.TemporaryDirectory() as cache:
