@@ -59,24 +59,54 @@ class Walls:
         normally keeps particles off the wall; a particle in tension (which the compression-only
         ghosts do not push) can still reach it, and this guarantees that none crosses.
         Returns the number of particles moved and the impulse given to them (N s)."""
-        moved = 0
         impulse = np.zeros(x.shape[1])
-        for point, normal in zip(self.points, self.normals, strict=True):
-            d = (x - point) @ normal
-            behind = np.flatnonzero(d < 0.0)
-            if behind.size:
-                x[behind] -= d[behind, None] * normal
-                dvn = -np.minimum(v[behind] @ normal, 0.0)
-                v[behind] += dvn[:, None] * normal
-                impulse += np.dot(m[behind], dvn) * normal
-                moved += int(behind.size)
+        moved = _enforce(x, v, m, self.points, self.normals, impulse)
         return moved, impulse
+
+    def first_behind(self, x: np.ndarray) -> int:
+        """The first particle behind a wall (``d < 0``), or -1."""
+        return int(_first_behind(x, self.points, self.normals))
 
     def select(self, x: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
         """Sources and walls of the ghosts: particles with ``0 <= d < reach``."""
         d = self.distances(x)
         src, wall = np.nonzero((d >= 0.0) & (d < reach))
         return src.astype(np.int64), wall.astype(np.int64)
+
+
+@nb.njit(cache=True)
+def _enforce(x, v, m, points, normals, impulse):
+    """:meth:`Walls.enforce` for each wall in turn; adds the impulse, returns the count."""
+    dim = x.shape[1]
+    moved = 0
+    for w in range(points.shape[0]):
+        for i in range(x.shape[0]):
+            d = 0.0
+            for a in range(dim):
+                d += (x[i, a] - points[w, a]) * normals[w, a]
+            if d < 0.0:
+                vn = 0.0
+                for a in range(dim):
+                    x[i, a] -= d * normals[w, a]
+                    vn += v[i, a] * normals[w, a]
+                dvn = -min(vn, 0.0)
+                for a in range(dim):
+                    v[i, a] += dvn * normals[w, a]
+                    impulse[a] += m[i] * dvn * normals[w, a]
+                moved += 1
+    return moved
+
+
+@nb.njit(cache=True)
+def _first_behind(x, points, normals):
+    for i in range(x.shape[0]):
+        for w in range(points.shape[0]):
+            d = 0.0
+            for a in range(x.shape[1]):
+                d += (x[i, a] - points[w, a]) * normals[w, a]
+            if d < 0.0:
+                return i
+    return -1
 
 
 @nb.njit(parallel=True, cache=True)

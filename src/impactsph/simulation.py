@@ -82,6 +82,7 @@ class Simulation:
         self.correction_work = 0.0  # J, work of the AC correction force on the particles
         self.correction_heating = 0.0  # J, internal energy the AC energy term added
         self.wall_impulse = np.zeros(self.state.dim)  # N s, time integral of the walls' push
+        self._supported: bool | None = None  # walls or clamped particles (see _record_row)
         self._initial = self._diagnostics()
         self._abs_momentum0 = float(np.sum(self.state.mass *
                                            np.linalg.norm(self.state.velocity, axis=1)))
@@ -123,13 +124,19 @@ class Simulation:
                "correction_work": self.correction_work,
                "correction_heating": self.correction_heating}
         external = self.external_impulse()
-        supported = len(self.walls) or bool(s.clamped.any())
+        if self._supported is None:  # walls or clamps: fixed for the run
+            self._supported = bool(len(self.walls) or s.clamped.any())
+        supported = self._supported
         for a, name in enumerate("xyz"[: s.dim]):
             row[f"momentum_{name}"] = float(d["momentum"][a])
             if supported:
                 row[f"external_impulse_{name}"] = float(external[a])
         n_bodies = len(self.problem.body_names)
-        if n_bodies > 1 or len(self.walls):
+        if n_bodies == 1 and len(self.walls):  # one body: its force is the walls' push
+            for a, name in enumerate("xyz"[: s.dim]):
+                row[f"contact_force_{self.problem.body_names[0]}_{name}"] = float(
+                    self.solver.wall_force[a])
+        elif n_bodies > 1:
             force = self.solver.buffers.contact_force[: s.n]
             for a, name in enumerate("xyz"[: s.dim]):
                 per_body = np.bincount(s.body, weights=force[:, a], minlength=n_bodies)
@@ -196,10 +203,8 @@ class Simulation:
             raise SimulationError(f"{self.BAD_VALUES[field]} {self._where(i)}", s.step, s.time,
                                   i)
         if len(self.walls):
-            d = self.walls.distances(s.position)
-            crossed = np.flatnonzero((d < 0).any(axis=1))
-            if crossed.size:
-                i = int(crossed[0])
+            i = self.walls.first_behind(s.position)
+            if i >= 0:
                 raise SimulationError(f"particle crossed a wall {self._where(i)}", s.step,
                                       s.time, i)
         if dt < 1e-6 * dt0:

@@ -365,6 +365,7 @@ class CpuRates:
         self.dim = dim
         self._passes = rate_kernels(dim)
         self._packed: np.ndarray | None = None  # the packed particle records, see pass 1
+        self._chunk: tuple[int, int] | None = None  # (rows, particles per work item)
 
     def evaluate(self, n_active: int, arrays: tuple, table: np.ndarray, neighbours,
                  alpha1: float, alpha2: float, epsilon: float, correction: tuple | None,
@@ -383,7 +384,9 @@ class CpuRates:
         if self._packed is None or self._packed.shape[0] != n:
             self._packed = np.empty((n, packed_layout(self.dim)["width"]))
         particle_pass(nl.order, x, v, m, rho, e, S, h, body, material, table, self._packed)
-        chunk = chunk_size(n)
+        if self._chunk is None or self._chunk[0] != n:  # get_num_threads takes a lock
+            self._chunk = (n, chunk_size(n))
+        chunk = self._chunk[1]
         pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, alpha1, alpha2,
                   epsilon, S, material, table, b.drho, b.dv, b.de, b.de_visc,
                   b.contact_force, b.pair_count, b.dS, chunk)
