@@ -11,7 +11,7 @@ kernels per evaluation, over the list's sorted positions ``p`` (particle ``order
 identity for a list without an order), so that threads of a warp work on neighbouring
 particles and read neighbouring memory:
 
-1. every row, ghosts included: ``P`` and ``c``, and copies of what the pair loop reads
+1. every row, ghosts included: the copies of what the pair loop reads
    (``x, v, h, m, rho, c, P/rho^2, V = m/rho``, body, ``A = sigma/rho^2``) in sorted order;
 2. every active particle: the neighbour sums of eqs 22, 27, 28 (continuity, stress and
    viscous accelerations, stress work, viscous heating, velocity gradient, contact terms,
@@ -130,20 +130,18 @@ def gpu_kernels(dim: int, simulated: bool):
 
     @cuda.jit
     def particle_kernel(n_rows, order, x, v, m, rho, e, S, h, body, material, table,
-                        pressure, sound_speed, xs, vs, hs, ms, rhos, cs, pcs, vols, bodies, As):
+                        xs, vs, hs, ms, rhos, cs, pcs, vols, bodies, As):
         """Pass 1 for sorted position ``p``, particle ``i = order[p]``, ghosts included:
-        ``P`` and ``c`` into the particle's row; ``V = m/rho``, ``P/rho^2``,
-        ``A = (-P I + S)/rho^2`` and copies of what the pair loop reads into row ``p`` of the
-        sorted arrays (neighbours close in space are close in memory)."""
+        ``c``, ``V = m/rho``, ``P/rho^2``, ``A = (-P I + S)/rho^2`` and copies of what the
+        pair loop reads into row ``p`` of the sorted arrays (neighbours close in space are
+        close in memory)."""
         p = cuda.grid(1)
         if p >= n_rows:
             return
         i = order[p]
         k = material[i]
         pr = pressure_of(table, k, rho[i], e[i])
-        pressure[i] = pr
         c = math.sqrt(table[k, WAVE_MODULUS] / rho[i])
-        sound_speed[i] = c
         inv_rho2 = 1.0 / (rho[i] * rho[i])
         for a in range(dim):
             xs[p, a] = x[i, a]
@@ -162,14 +160,12 @@ def gpu_kernels(dim: int, simulated: bool):
     @cuda.jit
     def pair_kernel(n_rows, n_active, order, xs, vs, hs, ms, rhos, cs, pcs, vols, bodies, As,
                     offsets, indices, alpha1, alpha2, epsilon, S, material, table,
-                    drho, dv_stress, dv_visc, dv, de_stress, de_visc, de, L, contact_force,
-                    pair_count, dS, u_sorted):
+                    drho, dv, de, de_visc, contact_force, pair_count, dS, u_sorted):
         """Pass 2 for the active particle ``i = order[p]``: the neighbour sums (eqs 22, 27,
-        28; the CPU's terms pair by pair, summed in the order of the list in thread-local
-        arrays), then its Jaumann rate (eq 14).  The accelerations and energy rates are
-        written both split (stress and contact; viscous) and added up (``dv``, ``de``); the
-        viscous acceleration is also kept in sorted order (``u_sorted``) for the correction
-        kernel."""
+        28; the term functions pair by pair, summed in the order of the list in thread-local
+        arrays), then its Jaumann rate (eq 14).  Writes the totals ``dv``, ``de`` and the
+        viscous heating; the viscous acceleration is kept in sorted order (``u_sorted``) for
+        the correction kernel."""
         p = cuda.grid(1)
         if p >= n_rows:
             return
@@ -249,15 +245,10 @@ def gpu_kernels(dim: int, simulated: bool):
                         force[a] += m_i * fa
                 de_v += visc_heat(m_j, pi_ij, vg)
         for a in range(dim):
-            dv_stress[i, a] = acc_s[a]
-            dv_visc[i, a] = acc_v[a]
             dv[i, a] = acc_s[a] + acc_v[a]
             u_sorted[p, a] = acc_v[a]
             contact_force[i, a] = force[a]
-            for b in range(dim):
-                L[i, a, b] = L_i[a, b]
         drho[i] = drho_i
-        de_stress[i] = de_s
         de_visc[i] = de_v
         de[i] = de_s + de_v
         pair_count[i] = count
@@ -319,39 +310,25 @@ def gpu_kernels(dim: int, simulated: bool):
     return particle_kernel, pair_kernel, correction_kernel
 
 
-#: The kernels' outputs, by the rows they fill: every row, ghosts included (pass 1); the active
-#: rows (passes 2 and 4).  Each is copied into the buffer of that name where the
-#: ``RateBuffers`` has one: the totals ``dv, de`` or their parts ``dv_stress, de_stress``,
-#: and ``L`` (the buffers have changed with the CPU passes; the kernels write them all).
-_ROW_OUT = ("pressure", "sound_speed")
-_ACTIVE_OUT = ("drho", "dv", "dv_stress", "dv_visc", "de", "de_stress", "de_visc", "L",
-               "contact_force", "pair_count", "dS")
+#: The kernels' outputs for the active rows, copied into the ``RateBuffers`` of that name
+#: (a buffer without rows, e.g. no contact or no AC, is skipped).
+_ACTIVE_OUT = ("drho", "dv", "de", "de_visc", "contact_force", "pair_count", "dS")
 _CORRECTION_OUT = ("dv_corr", "de_corr")
-#: Buffers that nothing reads after the passes: copied back only with ``intermediates=True``.
-INTERMEDIATES = ("sound_speed", "L", "A", "pc", "volume")
-#: Pass-1 quantities kept in sorted order on the device: (name, host buffer it fills where
-#: the ``RateBuffers`` has one, in particle order).
-_SORTED_OUT = (("As", "A"), ("pcs", "pc"), ("vols", "volume"))
 
 
 class GpuRates:
     """The rate passes on an NVIDIA GPU: fills a :class:`RateBuffers` as
-    :class:`~impactsph.physics.rates.CpuRates` does, to round-off.
-
-    ``intermediates=False`` leaves on the device the buffers that nothing reads after the
-    passes (``sound_speed``, and ``L, A, pc, volume`` where the buffers have them).  Under the
-    CUDA simulator the same kernels run on the CPU, slowly (for tests).
+    :class:`~impactsph.physics.rates.CpuRates` does, to round-off.  Under the CUDA
+    simulator the same kernels run on the CPU, slowly (for tests).
     """
 
     device = "gpu"
 
-    def __init__(self, dim: int, *, intermediates: bool = True,
-                 threads_per_block: int | None = None):
+    def __init__(self, dim: int, *, threads_per_block: int | None = None):
         if cuda is None:  # pragma: no cover - a numba without any CUDA target
             raise RuntimeError(f"numba.cuda cannot be imported ({_IMPORT_ERROR}; "
                                f"{INSTALL_HINT})")
         self.dim = dim
-        self.intermediates = intermediates
         simulated = simulator_enabled()
         self.threads_per_block = threads_per_block or (
             SIMULATOR_THREADS_PER_BLOCK if simulated else THREADS_PER_BLOCK)
@@ -432,26 +409,22 @@ class GpuRates:
             "hs", "ms", "rhos", "cs", "pcs", "vols"))
         bodies = buf("bodies", (n_rows,), body.dtype)
         u_sorted = buf("u_sorted", (n_rows, dim), np.float64)
-        shapes = {"pressure": (n_rows,), "sound_speed": (n_rows,), "drho": (n_rows,),
-                  "de": (n_rows,), "de_stress": (n_rows,), "de_visc": (n_rows,),
-                  "de_corr": (n_rows,), "pair_count": (n_rows,), "L": (n_rows, dim, dim),
-                  "dS": (n_rows, 3, 3)}
+        shapes = {"drho": (n_rows,), "de": (n_rows,), "de_visc": (n_rows,),
+                  "de_corr": (n_rows,), "pair_count": (n_rows,), "dS": (n_rows, 3, 3)}
         count_type = getattr(b.pair_count, "dtype", np.int64)
         out = {name: buf("out_" + name, shapes.get(name, (n_rows, dim)),
                          count_type if name == "pair_count" else np.float64)
-               for name in (*_ROW_OUT, *_ACTIVE_OUT, *_CORRECTION_OUT)}
+               for name in (*_ACTIVE_OUT, *_CORRECTION_OUT)}
         if n_rows:
             blocks = (n_rows + tpb - 1) // tpb
             particle_kernel[blocks, tpb, stream](
                 n_rows, dorder, dx, dv, dm, drho_, de, dS_, dh, dbody, dmat, dtable,
-                out["pressure"], out["sound_speed"], xs, vs, hs, ms, rhos, cs, pcs, vols,
-                bodies, As)
+                xs, vs, hs, ms, rhos, cs, pcs, vols, bodies, As)
             if n_active:
                 pair_kernel[blocks, tpb, stream](
                     n_rows, n_active, dorder, xs, vs, hs, ms, rhos, cs, pcs, vols, bodies, As,
                     doff, dind, float(alpha1), float(alpha2), float(epsilon), dS_, dmat,
-                    dtable, out["drho"], out["dv_stress"], out["dv_visc"], out["dv"],
-                    out["de_stress"], out["de_visc"], out["de"], out["L"],
+                    dtable, out["drho"], out["dv"], out["de"], out["de_visc"],
                     out["contact_force"], out["pair_count"], out["dS"], u_sorted)
                 if correction is not None:
                     h_ratio, variant, energy_mode = correction
@@ -460,16 +433,8 @@ class GpuRates:
                         u_sorted, float(h_ratio), int(variant), int(energy_mode),
                         out["dv_corr"], out["de_corr"], out["dv"], out["de"])
         # results into the host buffers
-        wanted = (lambda name: self.intermediates or name not in INTERMEDIATES)  # noqa: E731
-        for names, rows in ((_ROW_OUT, n_rows), (_ACTIVE_OUT, n_active),
-                            (_CORRECTION_OUT if correction is not None else (), n_active)):
+        for names in (_ACTIVE_OUT, _CORRECTION_OUT if correction is not None else ()):
             for name in names:
-                if wanted(name) and hasattr(b, name):
-                    self._download("out_" + name, getattr(b, name), rows)
-        sorted_host = {}
-        for dev_name, name in _SORTED_OUT:  # buffers of older RateBuffers, in particle order
-            if wanted(name) and hasattr(b, name) and n_rows:
-                sorted_host[name] = self._device[dev_name].copy_to_host(stream=stream)
+                if hasattr(b, name):
+                    self._download("out_" + name, getattr(b, name), n_active)
         stream.synchronize()
-        for name, values in sorted_host.items():
-            getattr(b, name)[order] = values
