@@ -46,45 +46,12 @@ def cell_keys(x, lo, cell, ncell):
     return key, morton
 
 
-@nb.njit(inline="always", cache=True)
-def visit(p, xs, lo, radius, ncell, cell_start, cell_end, r2max, indices, pos, write):
-    """Count (and if ``write``, store from ``pos``) the neighbours of sorted particle
-    ``p``; ``xs`` are the positions in cell order, so the particles of (row-major) cell
-    ``c`` are the range ``cell_start[c]:cell_end[c]``."""
-    dim = xs.shape[1]
-    found = 0
-    for s in range(3**dim):
-        t = s
-        kc = 0
-        inside = True
-        for a in range(dim):
-            c = int((xs[p, a] - lo[a]) / radius)
-            c = min(max(c, 0), ncell[a] - 1) + t % 3 - 1
-            t //= 3
-            if c < 0 or c >= ncell[a]:
-                inside = False
-            kc = kc * ncell[a] + c
-        if not inside:
-            continue
-        for q in range(cell_start[kc], cell_end[kc]):
-            if q == p:
-                continue
-            r2 = 0.0
-            for a in range(dim):
-                d = xs[p, a] - xs[q, a]
-                r2 += d * d
-            if r2 < r2max:
-                if write:
-                    indices[pos + found] = q
-                found += 1
-    return found
-
-
 @cache
 def _build_functions(dim: int):
     """Compile the cell-list builder for one dimension (``dim`` is a compile-time constant;
     the helpers are module functions: numba caches a closure only if it captures no compiled
     function)."""
+    n_stencil = 3**dim
 
     @nb.njit(parallel=True, cache=True)
     def build(x, radius):
@@ -115,16 +82,46 @@ def _build_functions(dim: int):
             cell_end[c] = p + 1
         r2max = radius * radius
         offsets = np.zeros(n + 1, dtype=np.int64)
-        empty = np.empty(0, dtype=np.int32)
-        for p in nb.prange(n):
-            offsets[p + 1] = visit(p, xs, lo, radius, ncell, cell_start, cell_end, r2max, empty, 0,
-                                  False)
-        for p in range(n):
-            offsets[p + 1] += offsets[p]
-        indices = np.empty(offsets[n], dtype=np.int32)
-        for p in nb.prange(n):
-            visit(p, xs, lo, radius, ncell, cell_start, cell_end, r2max, indices, offsets[p],
-                  True)
+        indices = np.empty(0, dtype=np.int32)
+        # two sweeps of the same loop: count the neighbours, then (offsets known) store them;
+        # written out here, not in a helper, so that dim is a compile-time constant and the
+        # small loops unroll
+        for sweep in range(2):
+            if sweep == 1:
+                for p in range(n):
+                    offsets[p + 1] += offsets[p]
+                indices = np.empty(offsets[n], dtype=np.int32)
+            for p in nb.prange(n):
+                own = np.empty(dim, dtype=np.int64)
+                for a in range(dim):
+                    own[a] = min(max(int((xs[p, a] - lo[a]) / radius), 0), ncell[a] - 1)
+                found = 0
+                pos = offsets[p]
+                for s in range(n_stencil):
+                    t = s
+                    kc = 0
+                    inside = True
+                    for a in range(dim):
+                        c = own[a] + t % 3 - 1
+                        t //= 3
+                        if c < 0 or c >= ncell[a]:
+                            inside = False
+                        kc = kc * ncell[a] + c
+                    if not inside:
+                        continue
+                    for q in range(cell_start[kc], cell_end[kc]):
+                        if q == p:
+                            continue
+                        r2 = 0.0
+                        for a in range(dim):
+                            d = xs[p, a] - xs[q, a]
+                            r2 += d * d
+                        if r2 < r2max:
+                            if sweep == 1:
+                                indices[pos + found] = q
+                            found += 1
+                if sweep == 0:
+                    offsets[p + 1] = found
         return order, offsets, indices
 
     @nb.njit(cache=True)
