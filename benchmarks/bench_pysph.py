@@ -269,18 +269,6 @@ def impactsph_worker(steps: int, threads: int) -> dict:
 # -- the driver -------------------------------------------------------------------------------
 
 
-def cpu_busy_seconds() -> float | None:
-    """CPU seconds the whole machine spent busy since boot (Linux ``/proc/stat``), or None."""
-    try:
-        with open("/proc/stat") as fh:
-            fields = fh.readline().split()[1:]
-        user, nice, system, _idle, _iowait, irq, softirq = (int(v) for v in fields[:7])
-        steal = int(fields[7]) if len(fields) > 7 else 0
-        return (user + nice + system + irq + softirq + steal) / os.sysconf("SC_CLK_TCK")
-    except (OSError, ValueError):
-        return None
-
-
 def children_cpu_seconds() -> float:
     ru = resource.getrusage(resource.RUSAGE_CHILDREN)
     return ru.ru_utime + ru.ru_stime
@@ -292,6 +280,8 @@ def run_worker(python: str, args: list[str], threads: int, timeout: float) -> di
     env = dict(os.environ, OMP_NUM_THREADS=str(threads), NUMBA_NUM_THREADS=str(threads))
     if args[1] == "pysph":  # the PySPH virtualenv sees nothing of this one
         env.pop("PYTHONPATH", None)
+    from bench_rates import cpu_busy_seconds  # this script's folder; the driver's venv
+
     busy0, own0, t0 = cpu_busy_seconds(), children_cpu_seconds(), time.perf_counter()
     proc = subprocess.run([python, str(Path(__file__).resolve()), *args], env=env,
                           capture_output=True, text=True, timeout=timeout, cwd=REPO)

@@ -46,10 +46,8 @@ from .materials import SHEAR, WAVE_MODULUS
 from .physics.contact import contact_acceleration_pair, contact_work_pair, in_contact
 from .physics.continuity import continuity_pair, velocity_gradient_pair
 from .physics.correction import (
-    ENERGY_PAPER,
-    ENERGY_WORK,
-    SHEPARD,
     corrected_viscous_acceleration,
+    correction_energy_rate,
     correction_weight,
 )
 from .physics.energy import stress_work_pair, viscous_heating_pair
@@ -127,6 +125,7 @@ def gpu_kernels(dim: int, simulated: bool):
     jaumann = device(jaumann_stress_rate)
     weight = device(correction_weight)
     corrected = device(corrected_viscous_acceleration)
+    energy_rate = device(correction_energy_rate)
 
     @cuda.jit
     def particle_kernel(n_rows, order, x, v, m, rho, e, S, h, body, material, table,
@@ -295,14 +294,8 @@ def gpu_kernels(dim: int, simulated: bool):
             net = corrected(u_i, self_weight, weight_sum, weighted_u[a], variant)
             dv_corr[i, a] = net - u_i
             work -= vs[p, a] * (net - u_i)
-        if energy_mode == ENERGY_WORK:
-            de_corr[i] = work
-        elif energy_mode == ENERGY_PAPER:
-            if variant == SHEPARD:
-                paper_energy /= weight_sum + self_weight
-            de_corr[i] = paper_energy
-        else:
-            de_corr[i] = 0.0
+        de_corr[i] = energy_rate(work, paper_energy, weight_sum, self_weight, variant,
+                                 energy_mode)
         for a in range(dim):
             dv[i, a] += dv_corr[i, a]
         de[i] += de_corr[i]
@@ -337,7 +330,6 @@ class GpuRates:
         self._device: dict[str, object] = {}  # name -> device array, reused while it fits
         self._uploaded: dict[str, np.ndarray] = {}  # name -> host array last uploaded
         self.uploads = 0  # host-to-device copies so far (for tests and tuning)
-        self._identity: np.ndarray | None = None
 
     # -- device memory ---------------------------------------------------------------------
     def _buffer(self, name: str, shape: tuple, dtype) -> object:
@@ -361,16 +353,6 @@ class GpuRates:
         if keep:
             self._uploaded[name] = host
         return d
-
-    def _order(self, neighbours, n_rows: int) -> np.ndarray:
-        """The list's sorted position -> particle map (the identity for a list without one,
-        the same array while the size holds, so that it is uploaded once)."""
-        order = getattr(neighbours, "order", None)
-        if order is not None:
-            return order
-        if self._identity is None or self._identity.shape[0] != n_rows:
-            self._identity = np.arange(n_rows, dtype=np.int64)
-        return self._identity
 
     def _download(self, name: str, host: np.ndarray, rows: int) -> None:
         """Rows ``:rows`` of the device array ``name`` into ``host`` (a buffer the solver
@@ -397,7 +379,7 @@ class GpuRates:
         dm, dh, dmat, dbody = (up("m", m, True), up("h", h, True),
                                up("material", material, True), up("body", body, True))
         dtable = up("table", table, True)
-        order = self._order(neighbours, n_rows)
+        order = neighbours.order
         dorder = up("order", order, True)
         doff = up("offsets", neighbours.offsets, True)
         dind = up("indices", neighbours.indices, True)

@@ -30,18 +30,6 @@ CHUNK = 1024
 @cache
 def _kernels(dim: int):
     @nb.njit(parallel=True, cache=True)
-    def cfl_step(n_active, v, rho, h, material, table, courant):
-        """Eq 26 over the active particles."""
-        local = np.full(n_active, np.inf)
-        for i in nb.prange(n_active):
-            c = math.sqrt(table[material[i], WAVE_MODULUS] / rho[i])
-            speed = 0.0
-            for a in range(dim):
-                speed += v[i, a] * v[i, a]
-            local[i] = h[i] / (c + math.sqrt(speed))
-        return courant * local.min() if n_active > 0 else np.inf
-
-    @nb.njit(parallel=True, cache=True)
     def advance(n_active, dt, x0, v0, rho0, e0, S0, pw0, v_rate, dv, drho, de, dS, clamped,
                 material, table, x, v, rho, e, S, plastic_work):
         """``y = y0 + dt ydot`` with ``xdot = v_rate`` (clamped particles keep ``v = 0``),
@@ -128,16 +116,18 @@ def _kernels(dim: int):
                 bad = bad_of[chunk]
         return courant * dt, sums, bad
 
-    return cfl_step, advance, survey
+    return advance, survey
 
 
 def stable_time_step(state: ParticleState, table: np.ndarray, courant: float,
                      n_active: int | None = None) -> float:
     """CFL step of eq 26."""
-    cfl_step = _kernels(state.dim)[0]
+    survey = _kernels(state.dim)[1]
     n = state.n if n_active is None else n_active
-    return float(cfl_step(n, state.velocity, state.density, state.smoothing_length,
-                          state.material, table, courant))
+    dt, _, _ = survey(n, state.position, state.velocity, state.density, state.specific_energy,
+                      state.deviatoric_stress, state.mass, state.smoothing_length,
+                      state.material, table, courant)
+    return float(dt)
 
 
 class MidpointIntegrator:
@@ -155,7 +145,7 @@ class MidpointIntegrator:
         self.clamp_impulse = np.zeros(dim)
         self.table = table
         self.n_active = n_active
-        self._cfl, self._advance, self.survey_kernel = _kernels(dim)
+        self._advance, self.survey_kernel = _kernels(dim)
         self._any_clamped: bool | None = None
         self._start: SimpleNamespace | None = None
 

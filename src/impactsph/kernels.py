@@ -36,6 +36,16 @@ def normalisation(h: float, dim: int) -> float:
 
 
 @nb.njit(inline="always", cache=True)
+def normalisation_inverse(inv_h: float, dim: int) -> float:
+    """``alpha_D`` of eq 20 from ``1/h`` (no division: the pair loops' form)."""
+    if dim == 1:
+        return (2.0 / 3.0) * inv_h
+    if dim == 2:
+        return (10.0 / (7.0 * math.pi)) * inv_h * inv_h
+    return (1.0 / math.pi) * inv_h * inv_h * inv_h
+
+
+@nb.njit(inline="always", cache=True)
 def cubic_spline(r: float, h: float, dim: int) -> float:
     """Kernel value ``W(r, h)`` (eq 20)."""
     q = r / h
@@ -59,13 +69,7 @@ def cubic_spline_dwdr_q(q: float, inv_h: float, dim: int) -> float:
     else:
         t = 2.0 - q
         df = -0.75 * t * t
-    if dim == 1:
-        norm = (2.0 / 3.0) * inv_h
-    elif dim == 2:
-        norm = (10.0 / (7.0 * math.pi)) * inv_h * inv_h
-    else:
-        norm = (1.0 / math.pi) * inv_h * inv_h * inv_h
-    return norm * df * inv_h
+    return normalisation_inverse(inv_h, dim) * df * inv_h
 
 
 @nb.njit(inline="always", cache=True)
@@ -78,13 +82,7 @@ def cubic_spline_gradient_factor(q: float, inv_h: float, dim: int) -> float:
     else:
         t = 2.0 - q
         df_over_q = -0.75 * t * t / q
-    if dim == 1:
-        norm = (2.0 / 3.0) * inv_h
-    elif dim == 2:
-        norm = (10.0 / (7.0 * math.pi)) * inv_h * inv_h
-    else:
-        norm = (1.0 / math.pi) * inv_h * inv_h * inv_h
-    return norm * df_over_q * inv_h * inv_h
+    return normalisation_inverse(inv_h, dim) * df_over_q * inv_h * inv_h
 
 
 @nb.njit(inline="always", cache=True)

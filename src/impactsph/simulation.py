@@ -90,7 +90,7 @@ class Simulation:
         self.solver.pair_evaluations = 0
         self.solver.rate_evaluations = 0
         if state is None:
-            self._record_row(0.0)
+            self._record_row(0.0, self._survey())
             self._take_snapshots(previous=-np.inf)
         self.record.setup_seconds = _time.perf_counter() - t0
 
@@ -110,12 +110,9 @@ class Simulation:
         return Survey(float(dt), float(sums[0]), float(sums[1]), sums[2: 2 + s.dim].copy(),
                       int(bad))
 
-    def _record_row(self, dt: float, survey: Survey | None = None) -> None:
-        if survey is None:
-            d = self._diagnostics()
-        else:
-            d = {"kinetic": survey.kinetic, "internal": survey.internal,
-                 "momentum": survey.momentum}
+    def _record_row(self, dt: float, survey: Survey) -> None:
+        d = {"kinetic": survey.kinetic, "internal": survey.internal,
+             "momentum": survey.momentum}
         s = self.state
         row = {"time": s.time, "step": s.step, "dt": dt, "kinetic_energy": d["kinetic"],
                "internal_energy": d["internal"],

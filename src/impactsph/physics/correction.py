@@ -67,6 +67,21 @@ def corrected_viscous_acceleration(u_i: float, self_weight: float, weight_sum: f
     return u_i - u_corr
 
 
+@nb.njit(inline="always", cache=True)
+def correction_energy_rate(work: float, paper_sum: float, weight_sum: float,
+                           self_weight: float, variant: int, energy_mode: int) -> float:
+    """The specific-energy rate that goes with the correction: ``work = -v_i . (dv/dt)_corr``
+    (``energy_correction = "work"``), eq 37's ``paper_sum = 1/2 sum_j w_ij v_ij . u_j``
+    (``"paper"``; normalised by the weights for the Shepard reading) or nothing."""
+    if energy_mode == ENERGY_WORK:
+        return work
+    if energy_mode == ENERGY_PAPER:
+        if variant == SHEPARD:
+            return paper_sum / (weight_sum + self_weight)
+        return paper_sum
+    return 0.0
+
+
 def surviving_fraction(variant: str, dim: int, h_over_dx: float = 1.2,
                        h_ratio: float = 0.5) -> float:
     """``1 - sum of weights``: the fraction of a uniform viscous acceleration that survives

@@ -33,10 +33,8 @@ from ..materials import B0, BULK, C0, EOS, GAMMA, RHO0, SHEAR, WAVE_MODULUS
 from .contact import contact_acceleration_pair, contact_work_pair, in_contact
 from .continuity import continuity_pair, velocity_gradient_pair
 from .correction import (
-    ENERGY_PAPER,
-    ENERGY_WORK,
-    SHEPARD,
     corrected_viscous_acceleration,
+    correction_energy_rate,
     correction_weight,
 )
 from .energy import viscous_heating_pair
@@ -338,14 +336,8 @@ def rate_kernels(dim: int):
                                                              weighted_u[a], variant)
                         dv_corr[i, a] = net - Pi_[U + a]
                         work -= Pi_[V + a] * dv_corr[i, a]
-                    if energy_mode == ENERGY_WORK:
-                        de_corr[i] = work
-                    elif energy_mode == ENERGY_PAPER:
-                        if variant == SHEPARD:
-                            paper_energy /= weight_sum + self_weight
-                        de_corr[i] = paper_energy
-                    else:
-                        de_corr[i] = 0.0
+                    de_corr[i] = correction_energy_rate(work, paper_energy, weight_sum,
+                                                        self_weight, variant, energy_mode)
                     for a in range(dim):
                         dv[i, a] += dv_corr[i, a]
                     de[i] += de_corr[i]
