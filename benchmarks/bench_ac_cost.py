@@ -15,8 +15,8 @@ import time
 
 import numpy as np
 
-from impactsph.config import validate_case
 from impactsph.integrate import stable_time_step
+from impactsph.loading import validate_case
 from impactsph.simulation import Simulation
 
 

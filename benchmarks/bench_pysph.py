@@ -223,7 +223,7 @@ def impactsph_worker(steps: int, threads: int) -> dict:
     import numba
 
     import impactsph
-    from impactsph.config import validate_case
+    from impactsph.loading import validate_case
     from impactsph.simulation import Simulation
 
     x0 = pysph_bar_positions()

@@ -42,8 +42,8 @@ import numba
 import numpy as np
 
 import impactsph
-from impactsph.config import load_case, validate_case
 from impactsph.integrate import stable_time_step
+from impactsph.loading import load_case, validate_case
 from impactsph.neighbours import NeighbourList
 from impactsph.simulation import Simulation, compile_kernels
 

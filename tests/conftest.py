@@ -6,8 +6,8 @@ from functools import cache
 
 import pytest
 
-from impactsph.analysis import analyse
-from impactsph.config import load_case
+from impactsph.loading import load_case
+from impactsph.problems import analyse
 from impactsph.simulation import Simulation
 
 

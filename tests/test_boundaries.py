@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from impactsph.config import load_case, validate_case
+from impactsph.boundaries import FREE_SLIP, NO_SLIP, Walls, fill_ghosts, walls_of
+from impactsph.loading import load_case, validate_case
 from impactsph.problem import build_problem
 from impactsph.simulation import Simulation
 
@@ -66,6 +68,45 @@ def test_wall_constraint_stops_crossing():
     assert x[0, 1] == 0.0 and v[0, 1] == 0.0 and v[0, 0] == 1.0  # tangential kept
     assert v[1, 1] == -5.0  # the particle in front is untouched
     np.testing.assert_allclose(impulse, [0.0, 10.0])
+
+
+def test_walls_from_plain_data_and_from_case_walls():
+    """Walls take plain sequences; :func:`walls_of` reads anything with point, normal and slip
+    (the case's pydantic walls, or simple namespaces) into the same arrays."""
+    walls = Walls.from_planes([[0.0, 1.0], [2.0, 0.0]], [[0.0, 3.0], [-1.0, -1.0]],
+                              ["free", "no"], 2)
+    np.testing.assert_array_equal(walls.points, [[0.0, 1.0], [2.0, 0.0]])
+    np.testing.assert_allclose(walls.normals, [[0.0, 1.0], [-math.sqrt(0.5)] * 2])
+    np.testing.assert_array_equal(walls.kinds, [FREE_SLIP, NO_SLIP])
+    assert len(Walls.from_planes([], [], [], 3)) == 0
+    assert Walls.from_planes([], [], [], 3).points.shape == (0, 3)
+    specs = [SimpleNamespace(point=[0.0, 1.0], normal=[0.0, 3.0], slip="free"),
+             SimpleNamespace(point=[2.0, 0.0], normal=[-1.0, -1.0], slip="no")]
+    again = walls_of(specs, 2)
+    for name in ("points", "normals", "kinds"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(walls, name))
+    case = validate_case(bar_on_wall(2, slip="no"))
+    from_case = walls_of(case.boundaries, 2)
+    np.testing.assert_array_equal(from_case.normals, [[0.0, 1.0]])
+    np.testing.assert_array_equal(from_case.kinds, [NO_SLIP])
+
+
+@pytest.mark.parametrize("slip", ["free", "no"])
+def test_ghost_velocity_follows_the_slip_kind(slip):
+    """Free slip mirrors the normal velocity only; no slip mirrors the whole velocity."""
+    walls = Walls.from_planes([[0.0, 0.0]], [[0.0, 1.0]], [slip], 2)
+    x = np.zeros((2, 2))
+    x[0] = [0.3, 0.2]
+    v = np.zeros((2, 2))
+    v[0] = [1.0, -2.0]
+    S = np.zeros((2, 3, 3))
+    rho, e, m, h = np.ones(2), np.ones(2), np.ones(2), np.ones(2)
+    material, body = np.zeros(2, np.int32), np.zeros(2, np.int32)
+    fill_ghosts(np.array([0]), np.array([0]), walls.points, walls.normals, walls.kinds, 1,
+                x, v, rho, e, S, m, h, material, body, 1)
+    np.testing.assert_array_equal(x[1], [0.3, -0.2])
+    np.testing.assert_array_equal(v[1], [1.0, 2.0] if slip == "free" else [-1.0, 2.0])
+    assert body[1] == 1
 
 
 def cantilever_case(n_long: int = 60, tip_speed: float = 1.0, t_end: float = 1e-3) -> dict:

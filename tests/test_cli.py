@@ -13,7 +13,7 @@ import pytest
 from typer.testing import CliRunner
 
 from impactsph.cli import app
-from impactsph.config import builtin_case_path, load_case
+from impactsph.loading import builtin_case_path, load_case
 from impactsph.runner import run_case
 from impactsph.simulation import SimulationError
 

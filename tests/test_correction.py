@@ -3,16 +3,17 @@ budget, and AC's imbalance and momentum drift in the summary."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from impactsph.kernels import cubic_spline
-from impactsph.neighbours import NeighbourList
-from impactsph.physics.correction import (
-    ENERGY_CORRECTIONS,
+from impactsph.models.viscosity.correction import (
     VARIANTS,
     surviving_fraction,
 )
+from impactsph.neighbours import NeighbourList
 from impactsph.physics.rates import correction_only
 
 DX = 1e-3
@@ -31,8 +32,10 @@ def apply_correction(x, u, variant, v=None, energy="work"):
     m = np.full(n, 7800.0 * DX**dim)
     rho = np.full(n, 7800.0)
     v = np.zeros((n, dim)) if v is None else v
+    viscosity = SimpleNamespace(scheme="ac", epsilon=0.01, correction=variant,
+                                energy_correction=energy, correction_h_ratio=0.5)
     dv_corr, de_corr = correction_only(x, v, m, rho, np.full(n, H), np.zeros(n, np.int32), nl,
-                                       u, 0.5, VARIANTS[variant], ENERGY_CORRECTIONS[energy])
+                                       u, viscosity)
     return u + dv_corr, de_corr
 
 
@@ -144,7 +147,7 @@ def test_ac_paper_energy_shows_its_imbalance(run_bars):
 def test_ac_momentum_drift_is_measured_not_hidden():
     """In 2D with random velocities the correction is not antisymmetric: the summary's drift
     is the true change of total momentum, and it is far above AV's round-off."""
-    from impactsph.config import validate_case
+    from impactsph.loading import validate_case
     from impactsph.problem import build_problem
     from impactsph.simulation import Simulation
 

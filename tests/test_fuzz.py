@@ -24,13 +24,8 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from impactsph.cli import app
-from impactsph.config import (
-    CaseError,
-    builtin_case_path,
-    load_case,
-    read_case_dict,
-    validate_case,
-)
+from impactsph.config import CaseError
+from impactsph.loading import builtin_case_path, load_case, read_case_dict, validate_case
 
 try:  # the serialiser below is used where tomli_w is not installed
     import tomli_w

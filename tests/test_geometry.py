@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from impactsph.cli import app
-from impactsph.config import CaseError, load_case, validate_case
+from impactsph.config import CaseError
 from impactsph.geometry import (
     block_particles,
     body_particles,
@@ -19,6 +19,7 @@ from impactsph.geometry import (
     disk_particles,
     read_particle_file,
 )
+from impactsph.loading import load_case, validate_case
 from impactsph.problem import build_problem
 
 runner = CliRunner()

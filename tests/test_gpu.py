@@ -101,15 +101,14 @@ def _load_call(path: Path, previous: dict | None) -> dict:
 
 def _evaluate(backend, call: dict, b) -> None:
     backend.evaluate(call["n_active"], tuple(call[k] for k in FIELDS), call["table"],
-                     call["neighbours"], call["alpha1"], call["alpha2"], call["epsilon"],
-                     call["correction"], b)
+                     call["neighbours"], call["viscosity"], b)
 
 
 def _gpu_run(name: str, overrides: list[str], steps: int):
     """Run a case for ``steps`` steps with the rate passes on the GPU backend."""
     import impactsph.simulation as simulation
-    from impactsph.config import load_case
     from impactsph.gpu import GpuRates
+    from impactsph.loading import load_case
 
     simulation.select_backend = lambda device, dim: GpuRates(dim)
     sim = simulation.Simulation(load_case(name, [*overrides, f"time.max_steps={steps}"]))
@@ -202,14 +201,11 @@ class _Recorder:
         self.inner = inner
         self.call = None
 
-    def evaluate(self, n_active, arrays, table, neighbours, alpha1, alpha2, epsilon,
-                 correction, b):
+    def evaluate(self, n_active, arrays, table, neighbours, viscosity, b):
         self.call = {**{k: np.array(a) for k, a in zip(FIELDS, arrays, strict=True)},
                      "table": np.array(table), "neighbours": copy.deepcopy(neighbours),
-                     "n_active": n_active, "alpha1": alpha1, "alpha2": alpha2,
-                     "epsilon": epsilon, "correction": correction}
-        self.inner.evaluate(n_active, arrays, table, neighbours, alpha1, alpha2, epsilon,
-                            correction, b)
+                     "n_active": n_active, "viscosity": viscosity}
+        self.inner.evaluate(n_active, arrays, table, neighbours, viscosity, b)
 
 
 def _perturb(state, rng) -> None:
@@ -239,7 +235,7 @@ def _rate_calls(name: str, overrides: list[str], seed: int) -> list[dict]:
     """Three evaluations of a perturbed state: the first; a second state with the same
     neighbour list and constant fields; the second state with another neighbour list and
     other masses (so stale device copies would show)."""
-    from impactsph.config import load_case
+    from impactsph.loading import load_case
     from impactsph.physics.rates import CpuRates
     from impactsph.simulation import Simulation
 
@@ -341,7 +337,7 @@ def test_only_changed_inputs_are_uploaded(rate_comparison):
 @pytest.fixture(scope="module", params=MODES)
 def run_comparison(request, tmp_path_factory):
     """Final states of 100-step runs on the CPU (here) and the GPU backend (the worker)."""
-    from impactsph.config import load_case
+    from impactsph.loading import load_case
     from impactsph.simulation import Simulation
 
     mode = request.param
@@ -438,12 +434,11 @@ def _kernel_argument_types(dim: int) -> dict:
              "offsets": nb.typeof(nl.offsets), "indices": nb.typeof(nl.indices),
              "material": nb.int32[::1], "body": nb.int32[::1], "bodies": nb.int32[::1],
              "pair_count": nb.typeof(RateBuffers(2, dim).pair_count), "table": f2}
-    for names, t in (("n_rows n_active variant energy_mode", nb.int64),
-                     ("alpha1 alpha2 epsilon h_ratio", nb.float64),
-                     ("m rho e h pressure sound_speed hs ms rhos cs pcs vols drho de_stress "
-                      "de_visc de_corr de", f1),
-                     ("x v xs vs dv_stress dv_visc contact_force u_sorted dv_corr dv", f2),
-                     ("S As L dS", f3)):
+    types["visc_params"] = types["correction_params"] = nb.types.UniTuple(nb.float64, 4)
+    for names, t in (("n_rows n_active visc_kind", nb.int64),
+                     ("m rho e h drho de_visc de_corr de", f1),
+                     ("x v P contact_force dv_corr dv", f2),
+                     ("S dS", f3)):
         types.update(dict.fromkeys(names.split(), t))
     return types
 
@@ -463,7 +458,7 @@ def test_kernels_compile_for_a_gpu(dim):
     if simulator_enabled():
         pytest.skip("the CUDA simulator is on")
     types = _kernel_argument_types(dim)
-    for kernel in gpu_kernels(dim, False):
+    for kernel in gpu_kernels(dim, False, -1):
         names = inspect.signature(kernel.py_func).parameters
         ptx, _ = cuda.compile_ptx(kernel.py_func, tuple(types[k] for k in names), cc=(9, 0))
         assert ".target sm_90" in ptx

@@ -9,13 +9,15 @@ import sys
 import time
 import xml.etree.ElementTree as ET
 
+import h5py
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from impactsph.atomic import atomic_path, write_text
 from impactsph.checkpoint import load_checkpoint, write_checkpoint
 from impactsph.cli import app
-from impactsph.config import load_case
+from impactsph.loading import load_case
 from impactsph.runner import run_case
 from impactsph.simulation import Simulation
 
@@ -133,7 +135,7 @@ def test_checkpoint_survives_sigkill_while_writing(tmp_path):
     good = path.read_bytes()
     script = (
         "import time, impactsph.checkpoint as c\n"
-        "from impactsph.config import load_case\n"
+        "from impactsph.loading import load_case\n"
         "from impactsph.simulation import Simulation\n"
         "import h5py\n"
         "orig = h5py.File.create_dataset if hasattr(h5py.File, 'create_dataset') else None\n"
@@ -155,3 +157,39 @@ def test_checkpoint_survives_sigkill_while_writing(tmp_path):
     assert path.read_bytes() == good  # untouched
     again = load_checkpoint(path)
     assert again.state.time == pytest.approx(1e-6)
+
+
+def test_atomic_path_writes_whole_or_leaves_the_old_file(tmp_path):
+    path = tmp_path / "figure.png"
+    write_text(path, "old")
+    with pytest.raises(RuntimeError), atomic_path(path) as tmp:
+        assert tmp.parent == path.parent and tmp.name.startswith(".")
+        assert tmp.suffix == ".png"  # writers that infer the format from it get it right
+        tmp.write_text("half")
+        raise RuntimeError("killed")
+    assert path.read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["figure.png"]  # no temporary left
+    with atomic_path(path) as tmp:
+        tmp.write_text("new")
+        assert path.read_text() == "old"  # not before the block ends
+    assert path.read_text() == "new" and len(list(tmp_path.iterdir())) == 1
+    reference = tmp_path / "plain"
+    reference.write_text("")  # written files get the usual permissions (not mkstemp's 0600)
+    assert path.stat().st_mode == reference.stat().st_mode
+
+
+def test_checkpoint_of_an_older_version_with_more_accumulators_loads(tmp_path):
+    """Datasets an older version wrote and nothing reads any more are ignored."""
+    case = load_case("bars", ["time.end=2e-6"])
+    sim = Simulation(case)
+    sim.run(t_end=1e-6)
+    path = write_checkpoint(sim, tmp_path / "checkpoint.h5")
+    with h5py.File(path, "a") as f:
+        f["accumulators"].create_dataset("initial_kinetic", data=1.0)
+        f["accumulators"].create_dataset("initial_internal", data=0.0)
+        f["accumulators"].create_dataset("initial_momentum", data=np.zeros(1))
+    again = load_checkpoint(path, case)
+    again.run()
+    sim.run()
+    for name, arr in final_arrays(sim).items():
+        np.testing.assert_array_equal(again.state.arrays()[name], arr, err_msg=name)

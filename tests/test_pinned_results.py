@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 
 import pytest
-
 from pinned_runs import DATA, RUNS, pinned_values
 
 PINNED = json.loads(DATA.read_text())

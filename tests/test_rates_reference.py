@@ -13,26 +13,26 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from impactsph.config import validate_case
 from impactsph.kernels import cubic_spline_dwdr
+from impactsph.loading import validate_case
 from impactsph.materials import SHEAR, WAVE_MODULUS
+from impactsph.models.viscosity.correction import (
+    ENERGY_CORRECTIONS,
+    VARIANTS,
+    corrected_viscous_acceleration,
+    correction_weight,
+)
+from impactsph.models.viscosity.monaghan import monaghan_viscosity
 from impactsph.physics.contact import (
     contact_acceleration_pair,
     contact_work_pair,
     in_contact,
 )
 from impactsph.physics.continuity import continuity_pair, velocity_gradient_pair
-from impactsph.physics.correction import (
-    ENERGY_CORRECTIONS,
-    VARIANTS,
-    corrected_viscous_acceleration,
-    correction_weight,
-)
 from impactsph.physics.energy import stress_work_pair, viscous_heating_pair
 from impactsph.physics.momentum import stress_acceleration_pair, viscous_acceleration_pair
-from impactsph.physics.rates import material_pressure
+from impactsph.physics.rates import pressures
 from impactsph.physics.stress_rate import jaumann_stress_rate
-from impactsph.physics.viscosity import monaghan_viscosity
 from impactsph.simulation import Simulation
 
 DX = 1e-3
@@ -84,8 +84,7 @@ def reference_rates(sim: Simulation):
     n, dim = s.n, s.dim
     x, v, rho, m, h, body = (s.position, s.velocity, s.density, s.mass, s.smoothing_length,
                              s.body)
-    p = np.array([material_pressure(table, s.material[i], rho[i], s.specific_energy[i])
-                  for i in range(n)])
+    p = pressures(rho, s.specific_energy, s.material, table)
     c = np.sqrt(table[s.material, WAVE_MODULUS] / rho)
     A = s.deviatoric_stress[:, :dim, :dim] / rho[:, None, None] ** 2
     A -= (p / rho**2)[:, None, None] * np.eye(dim)

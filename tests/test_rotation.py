@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from impactsph.config import validate_case
 from impactsph.kernels import gradient_moment
+from impactsph.loading import validate_case
 from impactsph.simulation import Simulation
 
 

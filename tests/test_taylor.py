@@ -6,9 +6,9 @@ from functools import cache
 
 import numpy as np
 
-from impactsph.analysis import analyse
-from impactsph.analysis.taylor import LENGTH_RATIO_BAND
-from impactsph.config import load_case
+from impactsph.loading import load_case
+from impactsph.problems import analyse
+from impactsph.problems.taylor import LENGTH_RATIO_BAND
 from impactsph.simulation import Simulation
 
 

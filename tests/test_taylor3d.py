@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from impactsph.config import load_case
+from impactsph.loading import load_case
 from impactsph.runner import run_case
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "taylor3d.toml"

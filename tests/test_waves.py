@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from impactsph.config import validate_case
 from impactsph.kernels import gradient_moment
+from impactsph.loading import validate_case
 from impactsph.simulation import Simulation
 
 RHO, E, NU = 7850.0, 2.0e11, 0.3

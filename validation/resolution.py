@@ -15,7 +15,7 @@ import argparse
 import json
 from pathlib import Path
 
-from impactsph.config import read_case_dict
+from impactsph.loading import read_case_dict
 from impactsph.output import load_run
 from impactsph.sweep import run_many
 

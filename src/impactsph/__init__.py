@@ -40,7 +40,8 @@ def _preload_tbb() -> None:
 _preload_tbb()
 
 from ._version import __version__  # noqa: E402
-from .config import Case, CaseError, load_case  # noqa: E402
+from .config import Case, CaseError  # noqa: E402
+from .loading import load_case  # noqa: E402
 from .runner import run_case  # noqa: E402
 from .simulation import Simulation, SimulationError  # noqa: E402
 

@@ -19,14 +19,18 @@ list's skin) and their states follow their sources at every rate evaluation.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numba as nb
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .config import Wall
-
+#: wall kinds (``Walls.kinds``); module-level ints, so compile-time constants in the kernels
 FREE_SLIP, NO_SLIP = 1, 2
+#: the kind of each ``slip`` name of a case's wall
+SLIP_KINDS = {"free": FREE_SLIP, "no": NO_SLIP}
 
 
 @dataclass
@@ -38,13 +42,15 @@ class Walls:
     kinds: np.ndarray  #: (n_walls,) FREE_SLIP or NO_SLIP
 
     @classmethod
-    def from_config(cls, walls: list[Wall], dim: int) -> Walls:
-        normals = np.array([w.normal for w in walls], dtype=np.float64).reshape(-1, dim)
+    def from_planes(cls, points: ArrayLike, normals: ArrayLike, slips: Sequence[str],
+                    dim: int) -> Walls:
+        """Walls through ``points`` with ``normals`` (into the material, any length: they
+        are normalised) and slip names of :data:`SLIP_KINDS` (``"free"``, ``"no"``), one
+        of each per wall; no wall at all is allowed."""
+        normals = np.array(normals, dtype=np.float64).reshape(-1, dim)
         normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-        return cls(np.array([w.point for w in walls], dtype=np.float64).reshape(-1, dim),
-                   normals,
-                   np.array([FREE_SLIP if w.slip == "free" else NO_SLIP for w in walls],
-                            dtype=np.int8))
+        return cls(np.array(points, dtype=np.float64).reshape(-1, dim), normals,
+                   np.array([SLIP_KINDS[s] for s in slips], dtype=np.int8))
 
     def __len__(self) -> int:
         return int(self.points.shape[0])
@@ -72,6 +78,14 @@ class Walls:
         d = self.distances(x)
         src, wall = np.nonzero((d >= 0.0) & (d < reach))
         return src.astype(np.int64), wall.astype(np.int64)
+
+
+def walls_of(specs: Iterable[Any], dim: int) -> Walls:
+    """The walls described by objects with ``point``, ``normal`` and ``slip`` attributes, such
+    as a case's ``boundaries``."""
+    specs = list(specs)
+    return Walls.from_planes([w.point for w in specs], [w.normal for w in specs],
+                             [w.slip for w in specs], dim)
 
 
 @nb.njit(cache=True)
@@ -125,7 +139,7 @@ def fill_ghosts(src, wall, points, normals, kinds, n_real, x, v, rho, e, S, m, h
             vn += v[i, a] * normals[w, a]
         for a in range(dim):
             x[g, a] = x[i, a] - 2.0 * d * normals[w, a]
-            if kinds[w] == 2:
+            if kinds[w] == NO_SLIP:
                 v[g, a] = -v[i, a]
             else:
                 v[g, a] = v[i, a] - 2.0 * vn * normals[w, a]

@@ -11,8 +11,6 @@ previous checkpoint whole.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +18,9 @@ import h5py
 import numpy as np
 
 from ._version import __version__
-from .config import CaseError, validate_case
+from .atomic import atomic_path
+from .errors import CaseError
+from .loading import validate_case
 from .neighbours import NeighbourList
 from .simulation import Simulation, Snapshot
 from .state import ParticleState
@@ -32,53 +32,45 @@ def write_checkpoint(sim: Simulation, path: Path | str) -> Path:
     """Write ``sim`` to ``path`` atomically."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
-        with h5py.File(tmp, "w") as f:
-            f.attrs["format"] = FORMAT
-            f.attrs["impactsph"] = __version__
-            f.attrs["case"] = json.dumps(sim.case.model_dump(mode="json"))
-            f.attrs["time"] = sim.state.time
-            f.attrs["step"] = sim.state.step
-            g = f.create_group("state")
-            for name, arr in sim.state.arrays().items():
-                g.create_dataset(name, data=arr)
-            nl = sim.solver.neighbours
-            g = f.create_group("neighbours")
-            for name in ("offsets", "indices", "reference_positions", "order",
-                         "reference_origin"):
-                g.create_dataset(name, data=getattr(nl, name))
-            g.attrs["radius"], g.attrs["skin"], g.attrs["builds"] = nl.radius, nl.skin, nl.builds
-            g.create_dataset("ghost_src", data=sim.solver._ghost_src)
-            g.create_dataset("ghost_wall", data=sim.solver._ghost_wall)
-            acc = f.create_group("accumulators")
-            for name, value in accumulators(sim).items():
-                acc.create_dataset(name, data=np.asarray(value))
-            rec = f.create_group("record")
-            hist = sim.record.history
-            columns = list(hist[0]) if hist else []
-            rec.attrs["history_columns"] = json.dumps(columns)
-            rec.create_dataset("history", data=np.array(
-                [[row.get(c, np.nan) for c in columns] for row in hist], dtype=np.float64))
-            for name, samples in sim.record.probes.items():
-                p = rec.create_group(f"probe_{name}")
-                p.create_dataset("time", data=np.array([t for t, _ in samples]))
-                p.create_dataset("velocity", data=np.array([v for _, v in samples]))
-            rec.attrs["probe_names"] = json.dumps(list(sim.record.probes))
-            rec.attrs["wall_seconds"] = sim.record.wall_seconds
-            rec.attrs["setup_seconds"] = sim.record.setup_seconds
-            for k, snap in enumerate(sim.record.snapshots):
-                sg = rec.create_group(f"snapshot_{k}")
-                sg.attrs["time"] = snap.time
-                for name, arr in snap.fields.items():
-                    sg.create_dataset(name, data=arr)
-            rec.attrs["n_snapshots"] = len(sim.record.snapshots)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+        f.attrs["format"] = FORMAT
+        f.attrs["impactsph"] = __version__
+        f.attrs["case"] = json.dumps(sim.case.model_dump(mode="json"))
+        f.attrs["time"] = sim.state.time
+        f.attrs["step"] = sim.state.step
+        g = f.create_group("state")
+        for name, arr in sim.state.arrays().items():
+            g.create_dataset(name, data=arr)
+        nl = sim.solver.neighbours
+        g = f.create_group("neighbours")
+        for name in ("offsets", "indices", "reference_positions", "order",
+                     "reference_origin"):
+            g.create_dataset(name, data=getattr(nl, name))
+        g.attrs["radius"], g.attrs["skin"], g.attrs["builds"] = nl.radius, nl.skin, nl.builds
+        g.create_dataset("ghost_src", data=sim.solver._ghost_src)
+        g.create_dataset("ghost_wall", data=sim.solver._ghost_wall)
+        acc = f.create_group("accumulators")
+        for name, value in accumulators(sim).items():
+            acc.create_dataset(name, data=np.asarray(value))
+        rec = f.create_group("record")
+        hist = sim.record.history
+        columns = list(hist[0]) if hist else []
+        rec.attrs["history_columns"] = json.dumps(columns)
+        rec.create_dataset("history", data=np.array(
+            [[row.get(c, np.nan) for c in columns] for row in hist], dtype=np.float64))
+        for name, samples in sim.record.probes.items():
+            p = rec.create_group(f"probe_{name}")
+            p.create_dataset("time", data=np.array([t for t, _ in samples]))
+            p.create_dataset("velocity", data=np.array([v for _, v in samples]))
+        rec.attrs["probe_names"] = json.dumps(list(sim.record.probes))
+        rec.attrs["wall_seconds"] = sim.record.wall_seconds
+        rec.attrs["setup_seconds"] = sim.record.setup_seconds
+        for k, snap in enumerate(sim.record.snapshots):
+            sg = rec.create_group(f"snapshot_{k}")
+            sg.attrs["time"] = snap.time
+            for name, arr in snap.fields.items():
+                sg.create_dataset(name, data=arr)
+        rec.attrs["n_snapshots"] = len(sim.record.snapshots)
     return path
 
 
@@ -95,19 +87,8 @@ def accumulators(sim: Simulation) -> dict[str, Any]:
         "clamp_impulse": i.clamp_impulse,
         "pair_evaluations": s.pair_evaluations,
         "rate_evaluations": s.rate_evaluations,
-        "initial_kinetic": sim._initial["kinetic"],
-        "initial_internal": sim._initial["internal"],
-        "initial_momentum": sim._initial["momentum"],
         "abs_momentum0": sim._abs_momentum0,
     }
-
-
-def read_case(path: Path | str) -> dict[str, Any]:
-    """The case stored in a checkpoint (a plain dict)."""
-    with h5py.File(path, "r") as f:
-        if f.attrs.get("format") != FORMAT:
-            raise CaseError(f"{path}: not an impactsph checkpoint")
-        return json.loads(f.attrs["case"])
 
 
 def load_checkpoint(path: Path | str, case: Any = None) -> Simulation:
@@ -143,6 +124,8 @@ def load_checkpoint(path: Path | str, case: Any = None) -> Simulation:
                            reference_origin=(g["reference_origin"][()]
                                              if "reference_origin" in g else None))
         sim.solver.restore(state, nl, g["ghost_src"][()], g["ghost_wall"][()])
+        # read by name: datasets of older checkpoints that nothing reads any more (their
+        # initial_kinetic, initial_internal, initial_momentum) are ignored
         acc = {name: f["accumulators"][name][()] for name in f["accumulators"]}
         sim.viscous_dissipation = float(acc["viscous_dissipation"])
         sim.correction_work = float(acc["correction_work"])
@@ -153,9 +136,6 @@ def load_checkpoint(path: Path | str, case: Any = None) -> Simulation:
         sim.integrator.clamp_impulse = np.array(acc["clamp_impulse"])
         sim.solver.pair_evaluations = int(acc["pair_evaluations"])
         sim.solver.rate_evaluations = int(acc["rate_evaluations"])
-        sim._initial = {"kinetic": float(acc["initial_kinetic"]),
-                        "internal": float(acc["initial_internal"]),
-                        "momentum": np.array(acc["initial_momentum"])}
         sim._abs_momentum0 = float(acc["abs_momentum0"])
         rec = f["record"]
         columns = json.loads(rec.attrs["history_columns"])

@@ -12,18 +12,19 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
-from .config import BUILTIN_CASES, CaseError, load_case
+from .config import CaseError
+from .loading import BUILTIN_CASES, load_case
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="SPH for solids under impact, with the Shaw-Reid acceleration "
                        "correction.")
 err = Console(stderr=True)
 
+#: What ``impactsph run`` prints of every run's summary; the case's problem adds its own
+#: (:meth:`impactsph.problems.ProblemKind.summary_keys`).
 SUMMARY_KEYS = (
     "n_particles", "n_steps", "t_end", "wall_seconds", "pair_evaluations_per_second",
     "kinetic_energy_ratio_final", "total_energy_relative_error", "momentum_drift",
-    "contact_time_us", "contact_time_theory_us", "velocity_profile_l1_error",
-    "velocity_profile_oscillation", "mid_velocity_l1_error",
 )
 
 
@@ -83,7 +84,10 @@ def run(
         except CaseError as exc:  # found while setting up, e.g. an empty tip-mass region
             progress.stop()
             _fail(str(exc))
-    shown = {k: summary[k] for k in SUMMARY_KEYS if k in summary}
+    from .problems.registry import get_problem
+
+    keys = (*SUMMARY_KEYS, *get_problem(c.analysis).summary_keys(c))
+    shown = {k: summary[k] for k in keys if k in summary}
     typer.echo(json.dumps(shown, indent=2))
     typer.echo(f"summary: {out / 'summary.json'}")
     for fig in summary.get("figures", []):
@@ -112,11 +116,15 @@ def sweep(
     scheduler: Annotated[str | None, typer.Option(
         help="address of an existing Dask scheduler (default: a local cluster)")] = None,
     workers: Annotated[int | None, typer.Option(help="local workers (default: cores)")] = None,
-    threshold: Annotated[float, typer.Option(
-        help="oscillation criterion: excess total variation / V below this")] = 0.5,
+    threshold: Annotated[float | None, typer.Option(
+        help="threshold of the problem's sweep criterion (the bars: oscillation, excess "
+             "total variation / V below this, default 0.5); unused by a problem without "
+             "one")] = None,
 ) -> None:
     """Run a case over a grid of parameters in parallel (Dask); write sweep.csv, sweep.json
-    and sweep.png, and name the smallest oscillation-free value of the first parameter."""
+    and sweep.png.  For a problem with a sweep criterion (the bars: a profile free of
+    spurious oscillation), name the smallest value of the first parameter that meets it."""
+    from .problems.registry import get_problem
     from .sweep import sweep as run_sweep
 
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
@@ -127,33 +135,40 @@ def sweep(
                            threshold=threshold)
     except CaseError as exc:
         _fail(str(exc))
-    cols = [*result["columns"], "status", "kinetic_energy_ratio_final",
-            "velocity_profile_l1_error", "velocity_profile_oscillation"]
+    problem = get_problem(c.analysis)
+    cols = [*result["columns"], "status", "kinetic_energy_ratio_final", *problem.table_keys(c)]
     typer.echo("  ".join(cols))
     for row in result["rows"]:
         typer.echo("  ".join(_fmt(row.get(k)) for k in cols))
-    f = result["finding"]
-    typer.echo(f"smallest oscillation-free {f['parameter']}: {f['smallest_oscillation_free']} "
-               f"({f['criterion']})")
+    f, criterion = result["finding"], problem.sweep_criterion
+    if f is not None and criterion is not None:
+        typer.echo(f"smallest {criterion.name.replace('_', '-')} {f['parameter']}: "
+                   f"{f[f'smallest_{criterion.name}']} ({f['criterion']})")
 
 
 @app.command()
 def paper(
-    case: Annotated[str, typer.Argument(help="the bars case (built-in 'bars' or a file)")
-                    ] = "bars",
-    out: Annotated[Path, typer.Option(help="output directory")] = Path("runs/paper-bars"),
+    case: Annotated[str, typer.Argument(
+        help="a case of one of the paper's examples: a file, or a built-in case "
+             "(bars, taylor, cantilever)")] = "bars",
+    out: Annotated[Path | None, typer.Option(help="output directory (default "
+                                                  "runs/paper-NAME)")] = None,
     workers: Annotated[int | None, typer.Option(help="local workers (default: cores)")] = None,
     scheduler: Annotated[str | None, typer.Option(help="existing Dask scheduler")] = None,
 ) -> None:
-    """Regenerate the paper's Figs 3-9 for the bars, AC overlaid, and the AV/AC table."""
+    """Regenerate the paper's figures of the case's example, AC overlaid, and its comparison
+    table: the bars, Figs 3-9 and the AV/AC table; the Taylor bar, Figs 11-13; the
+    cantilever, Figs 15-17 (the case's analysis chooses)."""
     from .paper import paper_figures
 
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
+        out = out or Path("runs") / f"paper-{load_case(case).name}"
         result = paper_figures(case, out, workers=workers, scheduler=scheduler)
     except (CaseError, ValueError) as exc:
         _fail(str(exc))
-    typer.echo((out / "table.md").read_text())
+    if (out / "table.md").is_file():
+        typer.echo((out / "table.md").read_text())
     for fig in result["figures"]:
         typer.echo(f"figure: {fig}")
 
@@ -163,7 +178,7 @@ def _load_run_dir(path: Path) -> dict:
     refuses (exit code 2) a directory that is not one."""
     import zipfile
 
-    from .config import validate_case
+    from .loading import validate_case
     from .output import load_run
 
     missing = [f for f in ("case.json", "history.csv") if not (path / f).is_file()]
@@ -212,8 +227,8 @@ def compare(
     The kinetic energy always; for runs of the same case also the case's figures (the bars:
     velocity profile and mid-bar velocity with theory; Taylor bar and cantilever: deformed
     shapes)."""
-    from .config import validate_case
     from .figures import case_mismatch, draw_figures
+    from .loading import validate_case
 
     if labels is not None:
         names = [lab.strip() for lab in labels.split(",")]

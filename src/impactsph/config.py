@@ -1,82 +1,86 @@
-"""Case files: the schema, validated by pydantic, and the loading of TOML files.
+"""The case schema: the tables of a case file as pydantic models, every field in SI units
+(``docs/case-files.md``).
 
-A case is a TOML file (see ``examples/`` and ``docs/case-files.md``); every field has SI
-units.  Loading validates the whole case before any computation: an unknown key, a value of the
-wrong type or out of range raises :class:`CaseError` whose message is one line naming the field,
-the value and what is allowed.
+The models' names and parameters are not written here: :func:`schema` adds those of every
+registered equation of state, strength model and viscosity scheme (:mod:`impactsph.models`) to
+the classes below.  Reading files, ``--set`` overrides and one-line errors are
+:mod:`impactsph.loading`'s.
 """
 
 from __future__ import annotations
 
-import copy
 import os
-import re
-import tomllib
-from importlib import resources
-from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from pydantic import (
-    BaseModel,
-    ConfigDict,
     Discriminator,
     Field,
     Tag,
-    ValidationError,
     field_validator,
     model_validator,
 )
 
-PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegativeFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
-FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
-
-
-class CaseError(ValueError):
-    """A case that cannot be run; the message is one line for the user."""
-
-
-class _Model(BaseModel):
-    # strict: a string or a boolean is never taken for a number (TOML has real types)
-    model_config = ConfigDict(extra="forbid", validate_default=True, strict=True)
-
-
-class MieGruneisen(_Model):
-    """Mie-Gruneisen EOS parameters (eqs 7-12)."""
-
-    sound_speed: PositiveFloat = Field(description="bulk sound speed C of eq 10 (m/s)")
-    slope: NonNegativeFloat = Field(description="Hugoniot slope S of eqs 11-12")
-    gamma: NonNegativeFloat = Field(description="Gruneisen parameter Gamma of eq 7")
+from .errors import CaseError  # noqa: F401  (defined there, kept importable from here)
+from .models import EOS, STRENGTH, VISCOSITY
+from .models import registry as _registry
+from .models.registry import Parameters as _Model
+from .models.types import FiniteFloat, NonNegativeFloat, PositiveFloat
 
 
 class Material(_Model):
-    """A material: elastic constants, equation of state, strength."""
+    """A material: elastic constants, equation of state, strength model.
 
-    model: Literal["bar", "elastic", "elastic_plastic"] = Field(
-        description="'bar': 1D uniaxial stress with modulus E; 'elastic'; 'elastic_plastic' "
-        "(von Mises perfect plasticity)"
-    )
+    The strength ``model`` and the ``eos`` are names of registered models
+    (:mod:`impactsph.models`); each model's parameters are its part of this table: a sub-table
+    named after the model (``[materials.iron.mie_gruneisen]``) or, for models registered
+    ``flat``, fields of this table (``yield_stress`` of ``elastic_plastic``).  The fields of
+    the registered models are added by :func:`schema`; this class holds the common ones."""
+
+    model: str = Field(
+        description="strength model: 'bar' (1D uniaxial stress with modulus E), 'elastic', "
+        "'elastic_plastic' (von Mises perfect plasticity), or a registered one")
     density: PositiveFloat = Field(description="reference density rho0 (kg/m^3)")
     youngs_modulus: PositiveFloat = Field(description="Young's modulus E (Pa)")
     poisson_ratio: float = Field(0.3, gt=-1.0, lt=0.5, description="Poisson's ratio, in (-1, 0.5)")
     shear_modulus: PositiveFloat | None = Field(
         None, description="shear modulus mu (Pa); default E / (2 (1 + nu))"
     )
-    eos: Literal["linear", "mie_gruneisen"] = Field(
-        "linear", description="'linear' (eq 6, K = E / (3 (1 - 2 nu))) or 'mie_gruneisen'"
-    )
-    mie_gruneisen: MieGruneisen | None = None
-    yield_stress: PositiveFloat | None = Field(None, description="von Mises yield stress (Pa)")
+    eos: str = Field(
+        "linear", description="equation of state: 'linear' (eq 6, K = E / (3 (1 - 2 nu))), "
+        "'mie_gruneisen' (eqs 7-12), or a registered one")
 
     @model_validator(mode="after")
     def _consistent(self) -> Material:
-        if self.eos == "mie_gruneisen" and self.mie_gruneisen is None:
-            raise ValueError("eos = 'mie_gruneisen' needs a [mie_gruneisen] table")
-        if self.model == "elastic_plastic" and self.yield_stress is None:
-            raise ValueError("model = 'elastic_plastic' needs yield_stress (Pa)")
-        if self.model == "bar" and self.eos != "linear":
-            raise ValueError("model = 'bar' takes eos = 'linear' only")
+        eos, strength = EOS[self.eos], STRENGTH[self.model]
+        if eos.parameters is not None and getattr(self, eos.name, None) is None:
+            raise ValueError(f"eos = {eos.name!r} needs a [{eos.name}] table")
+        if strength.parameters is not None:
+            if strength.flat:
+                missing = [f for f, info in strength.parameters.model_fields.items()
+                           if info.is_required() and getattr(self, f, None) is None]
+                if missing:
+                    raise ValueError(f"model = {strength.name!r} needs {missing[0]}")
+            elif getattr(self, strength.name, None) is None:
+                raise ValueError(f"model = {strength.name!r} needs a [{strength.name}] table")
+        if strength.equations_of_state is not None and eos.name not in strength.equations_of_state:
+            raise ValueError(f"model = {strength.name!r} takes eos = "
+                             f"{' or '.join(map(repr, strength.equations_of_state))} only")
         return self
+
+    def eos_parameters(self) -> Any:
+        """The validated parameters of the selected equation of state (None if it has none)."""
+        return getattr(self, self.eos, None) if EOS[self.eos].parameters is not None else None
+
+    def strength_parameters(self) -> Any:
+        """The validated parameters of the selected strength model (None if it has none)."""
+        strength = STRENGTH[self.model]
+        if strength.parameters is None:
+            return None
+        if strength.flat:
+            return strength.parameters.model_validate(
+                {f: getattr(self, f) for f in strength.parameters.model_fields
+                 if getattr(self, f, None) is not None})
+        return getattr(self, strength.name)
 
 
 class Block(_Model):
@@ -213,7 +217,7 @@ class Region(_Model):
 class TipMass(_Model):
     """An extra mass spread evenly over the body's particles inside a region; those particles
     start at the velocity that conserves the momentum of the mass arriving at ``velocity``:
-    ``V0 G / (G + M)``, M the particles' own mass (the Parkes cantilever, NOTES 10)."""
+    ``V0 G / (G + M)``, M the particles' own mass (the Parkes cantilever, section 5.3 of the paper)."""
 
     mass: PositiveFloat = Field(description="the extra mass G (kg)")
     depth: PositiveFloat | None = Field(
@@ -256,23 +260,16 @@ class Kernel(_Model):
 
 
 class Viscosity(_Model):
-    """Artificial viscosity (eqs 29-30) and its acceleration correction (eqs 31-37)."""
+    """Artificial viscosity: the ``scheme`` is a registered viscosity scheme
+    (:mod:`impactsph.models.viscosity`: ``av``, Monaghan's eqs 29-30; ``ac``, the acceleration
+    correction of eqs 31-37) and the other fields are the schemes' parameters, added by
+    :func:`schema` (alpha1, alpha2, epsilon; correction, energy_correction,
+    correction_h_ratio)."""
 
-    scheme: Literal["av", "ac"] = Field(
+    scheme: str = Field(
         "av", description="'av': Monaghan artificial viscosity with (alpha1, alpha2); 'ac': "
         "the Shaw-Reid acceleration correction, which always uses (1, 1) (alpha1 and alpha2 "
-        "are then not used)")
-    alpha1: NonNegativeFloat = Field(1.0, description="linear coefficient alpha1 of eq 29")
-    alpha2: NonNegativeFloat = Field(1.0, description="quadratic coefficient alpha2 of eq 29")
-    epsilon: PositiveFloat = Field(0.01, description="epsilon of eq 30")
-    correction: Literal["volume_weighted", "shepard", "neighbours_only"] = Field(
-        "neighbours_only", description="AC reading of eq 34 (NOTES 8 a, b, c); see "
-        "docs/acceleration-correction.md")
-    energy_correction: Literal["work", "paper", "none"] = Field(
-        "work", description="AC energy term: 'work' books the correction's work exactly, "
-        "'paper' is eq 37 with its typo mended, 'none' adds nothing")
-    correction_h_ratio: float = Field(
-        0.5, gt=0.0, le=1.0, description="h_c / h of the correction kernel (section 4.1: 1/2)")
+        "are then not used); or a registered scheme")
 
 
 class Time(_Model):
@@ -334,9 +331,14 @@ class Case(_Model):
 
     name: str = Field(min_length=1)
     description: str = ""
+    plugins: list[str] = Field(
+        default_factory=list, description="Python modules (dotted names) or .py files "
+        "(relative to the case file) imported before the case is validated: where models, "
+        "problems or boundaries of your own are registered")
     dimension: Literal[1, 2, 3]
-    analysis: Literal["none", "bars", "taylor", "cantilever"] = Field(
-        "none", description="problem-specific analysis and figures"
+    analysis: str = Field(
+        "none", description="problem-specific analysis and figures: 'none' or the name of a "
+        "registered problem (impactsph.problems: 'bars', 'taylor', 'cantilever', ...)"
     )
     materials: dict[str, Material] = Field(min_length=1)
     bodies: list[Body] = Field(min_length=1)
@@ -346,6 +348,17 @@ class Case(_Model):
     time: Time
     output: Output = Field(default_factory=Output)
     compute: Compute = Field(default_factory=Compute)
+
+    @field_validator("analysis")
+    @classmethod
+    def _registered_problem(cls, value: str) -> str:
+        from .problems.registry import problem_names  # at use: it registers the problems
+
+        if value not in problem_names():
+            *rest, last = map(repr, problem_names())
+            raise ValueError(f"Input should be {', '.join(rest) + ' or ' if rest else ''}{last} "
+                             f"(the registered problems)")
+        return value
 
     @model_validator(mode="after")
     def _consistent(self) -> Case:
@@ -398,18 +411,25 @@ class Case(_Model):
                 raise ValueError(f"boundaries.{k}: point and normal need {d} components")
             if sum(c * c for c in wall.normal) == 0:
                 raise ValueError(f"boundaries.{k}.normal = {wall.normal}: must not be zero")
-        # the analyses measure bodies by their lattices: the bars by the blocks' lengths
-        needs = {"bars": (2, ("block",)), "taylor": (1, ("block", "disk", "cylinder")),
-                 "cantilever": (1, ("block", "disk", "cylinder"))}.get(self.analysis)
+        # the analyses measure bodies by their lattices (the bars by the blocks' lengths):
+        # what the problem needs of the leading bodies (impactsph.problems.GeometryNeeds)
+        from .problems.registry import get_problem
+
+        needs = get_problem(self.analysis).geometry_needs
         if needs is not None:
-            for k, body in enumerate(self.bodies[: needs[0]]):
-                if body.geometry.type not in needs[1]:
+            for k, body in enumerate(self.bodies[: needs.bodies]):
+                if body.geometry.type not in needs.types:
                     raise ValueError(f"bodies.{k}.geometry: analysis = {self.analysis!r} "
-                                     f"needs type = {' or '.join(map(repr, needs[1]))}, not "
+                                     f"needs type = {' or '.join(map(repr, needs.types))}, not "
                                      f"{body.geometry.type!r}")
+            if len(self.bodies) < needs.bodies:
+                raise ValueError(f"bodies: analysis = {self.analysis!r} needs {needs.bodies} "
+                                 f"bodies, the case has {len(self.bodies)}")
         for name, mat in self.materials.items():
-            if mat.model == "bar" and d != 1:
-                raise ValueError(f"materials.{name}.model = 'bar' is for dimension = 1 only")
+            allowed = STRENGTH[mat.model].dimensions
+            if d not in allowed:
+                raise ValueError(f"materials.{name}.model = {mat.model!r} is for dimension = "
+                                 f"{' or '.join(map(str, allowed))} only")
         for k, probe in enumerate(self.output.probes):
             if probe.body not in names:
                 raise ValueError(f"output.probes.{k}.body = {probe.body!r} is not a body name")
@@ -418,157 +438,82 @@ class Case(_Model):
         return self
 
 
-BUILTIN_CASES = ("bars", "taylor", "cantilever")
+def _optional(info: Any) -> tuple[Any, Any]:
+    """A field of a model's parameters as an optional field of the enclosing table (required
+    only when that model is selected, which the table's validator checks)."""
+    annotation = Annotated[(info.annotation, *info.metadata)] if info.metadata else \
+        info.annotation
+    return annotation | None, Field(None, description=info.description)
 
 
-def builtin_case_path(name: str) -> Path:
-    """Path of a case shipped with the package."""
-    return Path(str(resources.files("impactsph") / "cases" / f"{name}.toml"))
+def _same_field(a: Any, b: Any) -> bool:
+    """Whether two pydantic fields take the same values with the same default."""
+    return (a.annotation, repr(a.metadata), a.default) == (b.annotation, repr(b.metadata),
+                                                           b.default)
 
 
-def resolve_paths(data: dict[str, Any], directory: Path) -> dict[str, Any]:
-    """Make the relative ``path`` of every ``type = "file"`` geometry in a case dict relative to
-    ``directory`` (in place; entries that are not well formed are left for validation)."""
-    bodies = data.get("bodies") if isinstance(data, dict) else None
-    for body in bodies if isinstance(bodies, list) else []:
-        geometry = body.get("geometry") if isinstance(body, dict) else None
-        if not isinstance(geometry, dict) or geometry.get("type") != "file":
+def _union_fields(tables: list[tuple[str, type[_Model]]], where: str) -> dict[str, Any]:
+    """The fields of several models' parameters, merged into one table; a name declared by
+    two models must mean the same in both."""
+    fields: dict[str, Any] = {}
+    owner: dict[str, str] = {}
+    for name, params in tables:
+        for field, info in params.model_fields.items():
+            if field in fields and not _same_field(fields[field][1], info):
+                raise ValueError(f"{where}: {name!r} and {owner[field]!r} both declare the "
+                                 f"field {field!r}, differently")
+            if field not in fields:
+                fields[field], owner[field] = (info.annotation, info), name
+    return {f: (Annotated[(info.annotation, *info.metadata)] if info.metadata
+                else info.annotation, info) for f, (_, info) in fields.items()}
+
+
+def _names(registry: Any) -> Any:
+    return Literal[registry.names()]
+
+
+_SCHEMA: dict[int, Any] = {}
+
+
+def schema() -> Any:
+    """The case schema for the models registered now: a namespace with the classes
+    ``Material``, ``Viscosity``, ``Output`` and ``Case`` (subclasses of this module's
+    classes, with the registered models' names and parameters added).  Rebuilt when a model
+    is registered (:func:`impactsph.models.register`)."""
+    from types import SimpleNamespace
+
+    from pydantic import create_model
+
+    version = _registry.version()
+    if version in _SCHEMA:
+        return _SCHEMA[version]
+    material_fields: dict[str, Any] = {"model": (_names(STRENGTH), Material.model_fields[
+        "model"]), "eos": (_names(EOS), Material.model_fields["eos"])}
+    for eos in EOS:
+        if eos.parameters is not None:
+            material_fields[eos.name] = (eos.parameters | None, Field(None))
+    for strength in STRENGTH:
+        if strength.parameters is None:
             continue
-        path = geometry.get("path")
-        if isinstance(path, str) and path and not os.path.isabs(os.path.expanduser(path)):
-            geometry["path"] = os.path.abspath(os.path.join(directory, path))
-    return data
-
-
-def read_case_dict(source: str | Path) -> dict[str, Any]:
-    """Read a case file, or a built-in case by name, into a plain dict (not yet validated).
-    The relative paths of particle files are made relative to the case file's directory."""
-    path = Path(source)
-    if not path.suffix and str(source) in BUILTIN_CASES:
-        path = builtin_case_path(str(source))
-    elif not path.exists():
-        if path.suffix:
-            raise CaseError(f"case file {str(source)!r} does not exist")
-        raise CaseError(f"case {str(source)!r} is neither a file nor a built-in case; "
-                        f"built-in cases: {', '.join(BUILTIN_CASES)}")
-    try:
-        with open(path, "rb") as fh:
-            return resolve_paths(tomllib.load(fh), path.absolute().parent)
-    except tomllib.TOMLDecodeError as exc:
-        raise CaseError(f"{path}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise CaseError(f"{path}: not valid UTF-8: {exc}") from None
-    except OSError as exc:
-        raise CaseError(f"case file {str(path)!r} cannot be read: {exc.strerror or exc}"
-                        ) from None
-
-
-def parse_override(text: str) -> tuple[list[str], Any]:
-    """``'a.b.0.c=value'`` -> (['a', 'b', '0', 'c'], value); the value is read as TOML
-    (numbers, booleans, strings in quotes, arrays) and otherwise kept as a bare string."""
-    if "=" not in text:
-        raise CaseError(f"--set {text!r}: expected KEY=VALUE, e.g. viscosity.alpha1=0.3")
-    key, raw = text.split("=", 1)
-    key = key.strip()
-    if not key or any(not part for part in key.split(".")):
-        raise CaseError(f"--set {text!r}: the key must be a dotted path such as time.end")
-    try:
-        value = tomllib.loads(f"v = {raw}")["v"]
-    except tomllib.TOMLDecodeError:
-        value = raw.strip()
-    return key.split("."), value
-
-
-def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
-    """Apply ``--set`` overrides to a case dict (a copy is returned)."""
-    data = copy.deepcopy(data)
-    for text in overrides:
-        path, value = parse_override(text)
-        node: Any = data
-        for depth, part in enumerate(path[:-1]):
-            where = ".".join(path[: depth + 1])
-            if isinstance(node, list):
-                if not part.isdecimal() or int(part) >= len(node):
-                    raise CaseError(f"--set {text}: {where} is not an index of a list of "
-                                    f"{len(node)}")
-                node = node[int(part)]
-            elif isinstance(node, dict):
-                node = node.setdefault(part, {})
-            else:
-                raise CaseError(f"--set {text}: {where} is not a table")
-        last = path[-1]
-        if isinstance(node, list):
-            if not last.isdecimal() or int(last) >= len(node):
-                raise CaseError(f"--set {text}: index {last} is out of range")
-            node[int(last)] = value
-        elif isinstance(node, dict):
-            node[last] = value
+        if strength.flat:
+            for field, info in strength.parameters.model_fields.items():
+                material_fields[field] = _optional(info)
         else:
-            raise CaseError(f"--set {text}: {'.'.join(path[:-1])} is not a table")
-    return data
-
-
-_TYPE_TAGS = {"constrained-float", "constrained-int", "float", "int", "str", "bool", "list",
-              "dict", "nullable"}
-
-
-def _is_type_tag(part: object) -> bool:
-    """Pydantic's names of union members in an error location (not field names)."""
-    return isinstance(part, str) and (part in _TYPE_TAGS
-                                      or re.match(r"^[a-z-]+\[", part) is not None)
-
-
-def _location(loc: tuple[Any, ...]) -> str:
-    """The dotted field path of an error location, without pydantic's names of union members
-    (``constrained-float``, ...) and of the geometry's type (``bodies.0.geometry.disk.radius``
-    is ``bodies.0.geometry.radius``)."""
-    parts = [p for k, p in enumerate(loc) if not _is_type_tag(p)
-             and not (k > 0 and loc[k - 1] == "geometry" and p in GEOMETRY_TYPES)]
-    return ".".join(str(p) for p in parts)
-
-
-def _format_error(exc: ValidationError) -> str:
-    errors = exc.errors()
-    err = errors[0]
-    loc = _location(err["loc"])
-    msg = err["msg"]
-    if msg.startswith("Value error, "):
-        msg = msg[len("Value error, "):]
-    value = err.get("input")
-    if err["type"] == "geometry_type" and isinstance(value, dict):
-        loc, value = f"{loc}.type", value.get("type")
-    more = f" (and {len(errors) - 1} more errors)" if len(errors) > 1 else ""
-    if err["type"] == "extra_forbidden":
-        return f"{loc}: unknown key{more}"
-    if err["type"] == "missing":
-        return f"{loc}: required field is missing{more}"
-    if loc and not isinstance(value, dict):
-        return f"{loc} = {value!r}: {msg}{more}"
-    return f"{loc + ': ' if loc else ''}{msg}{more}"
-
-
-def validate_case(data: dict[str, Any]) -> Case:
-    """Validate a case dict; raise :class:`CaseError` with a one-line message."""
-    try:
-        return Case.model_validate(data)
-    except ValidationError as exc:
-        raise CaseError(_format_error(exc)) from None
-
-
-def check_particle_files(case: Case) -> None:
-    """Read every particle file of the case's ``type = "file"`` geometries; raise
-    :class:`CaseError` naming the field for a file that is missing or malformed."""
-    from .geometry import read_particle_file
-
-    for k, body in enumerate(case.bodies):
-        if isinstance(body.geometry, ParticleFile):
-            read_particle_file(body.geometry.path, case.dimension,
-                               where=f"bodies.{k}.geometry.path")
-
-
-def load_case(source: str | Path, overrides: list[str] | None = None) -> Case:
-    """Load and validate a case file or built-in case, with optional ``--set`` overrides, and
-    check the particle files it reads."""
-    case = validate_case(apply_overrides(read_case_dict(source), overrides or []))
-    check_particle_files(case)
-    return case
+            material_fields[strength.name] = (strength.parameters | None, Field(None))
+    material = create_model("Material", __base__=Material, **material_fields)
+    viscosity = create_model(
+        "Viscosity", __base__=Viscosity,
+        scheme=(_names(VISCOSITY), Viscosity.model_fields["scheme"]),
+        **_union_fields([(v.name, v.parameters) for v in VISCOSITY if v.parameters is not None],
+                        "viscosity schemes"))
+    output = create_model("Output", __base__=Output, reference_viscosity=(
+        viscosity | None, Output.model_fields["reference_viscosity"]))
+    case = create_model(
+        "Case", __base__=Case,
+        materials=(dict[str, material], Case.model_fields["materials"]),
+        viscosity=(viscosity, Field(default_factory=viscosity)),
+        output=(output, Field(default_factory=output)))
+    _SCHEMA.clear()
+    _SCHEMA[version] = SimpleNamespace(Material=material, Viscosity=viscosity, Output=output,
+                                       Case=case)
+    return _SCHEMA[version]

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from .config import CaseError
+from .errors import CaseError
 
 AXES = "xyz"
 
@@ -147,7 +147,7 @@ def read_particle_file(path: str | Path, dim: int, where: str = "geometry.path"
       optionally ``volume`` of shape ``(n,)``.
 
     Every coordinate must be finite, every volume finite and > 0, and the file must hold at
-    least one particle.  Raises :class:`~impactsph.config.CaseError`, one line starting with
+    least one particle.  Raises :class:`~impactsph.errors.CaseError`, one line starting with
     ``where = 'PATH': ``, for a file that is missing, unreadable or malformed."""
     path = Path(path)
 

@@ -1,12 +1,13 @@
-"""Time integration: the explicit midpoint predictor-corrector of Table 1 (NOTES 9).
+"""Time integration: the explicit midpoint predictor-corrector of Table 1 (docs/modelling.md).
 
 ::
 
     rates at t            ->  y(t + dt/2) = y(t) + dt/2 ydot(t)        (predictor)
     rates at t + dt/2     ->  y(t + dt)   = y(t) + dt   ydot(t + dt/2)  (corrector)
 
-for ``y = (x, v, rho, e, S)``, with the radial return of :mod:`.physics.strength` after each
-stage and clamped particles held at zero velocity.  The step follows the CFL condition
+for ``y = (x, v, rho, e, S)``, with the strength model's return map (:mod:`.models.strength`)
+after each stage and clamped particles held at zero velocity; one stage of one particle is
+:func:`impactsph.physics.passes.advance_particle`.  The step follows the CFL condition
 (eq 26): ``dt = cs min_i h_i / (c_i + |v_i|)``, ``cs = 0.3`` in the paper.
 """
 
@@ -19,8 +20,8 @@ from types import SimpleNamespace
 import numba as nb
 import numpy as np
 
-from .materials import SHEAR, WAVE_MODULUS, YIELD
-from .physics.strength import double_contraction, radial_return
+from .materials import WAVE_MODULUS
+from .physics.rates import compiled_passes
 from .state import ParticleState
 
 #: Particles per work item of the survey's partial sums.
@@ -28,33 +29,7 @@ CHUNK = 1024
 
 
 @cache
-def _kernels(dim: int):
-    @nb.njit(parallel=True, cache=True)
-    def advance(n_active, dt, x0, v0, rho0, e0, S0, pw0, v_rate, dv, drho, de, dS, clamped,
-                material, table, x, v, rho, e, S, plastic_work):
-        """``y = y0 + dt ydot`` with ``xdot = v_rate`` (clamped particles keep ``v = 0``),
-        then the radial return (eqs 17-18) and the specific plastic work it dissipates.
-        ``v_rate`` may be ``v`` itself: particle ``i``'s position is advanced before its
-        velocity."""
-        for i in nb.prange(n_active):
-            for a in range(dim):
-                x[i, a] = x0[i, a] + dt * v_rate[i, a]
-                v[i, a] = 0.0 if clamped[i] else v0[i, a] + dt * dv[i, a]
-            rho[i] = rho0[i] + dt * drho[i]
-            e[i] = e0[i] + dt * de[i]
-            for a in range(3):
-                for b in range(3):
-                    S[i, a, b] = S0[i, a, b] + dt * dS[i, a, b]
-            plastic_work[i] = pw0[i]
-            k = material[i]
-            sy = table[k, YIELD]
-            if not math.isfinite(sy):
-                continue
-            before = double_contraction(S[i])
-            f = radial_return(S[i], sy)
-            if f < 1.0:
-                plastic_work[i] += before * (1.0 - f * f) / (4.0 * table[k, SHEAR] * rho[i])
-
+def _survey_kernel(dim: int):
     @nb.njit(parallel=True, cache=True)
     def survey(n_active, x, v, rho, e, S, m, h, material, table, courant):
         """One pass over the state: the CFL step (eq 26), kinetic and internal energy,
@@ -116,13 +91,13 @@ def _kernels(dim: int):
                 bad = bad_of[chunk]
         return courant * dt, sums, bad
 
-    return advance, survey
+    return survey
 
 
 def stable_time_step(state: ParticleState, table: np.ndarray, courant: float,
                      n_active: int | None = None) -> float:
     """CFL step of eq 26."""
-    survey = _kernels(state.dim)[1]
+    survey = _survey_kernel(state.dim)
     n = state.n if n_active is None else n_active
     dt, _, _ = survey(n, state.position, state.velocity, state.density, state.specific_energy,
                       state.deviatoric_stress, state.mass, state.smoothing_length,
@@ -145,13 +120,14 @@ class MidpointIntegrator:
         self.clamp_impulse = np.zeros(dim)
         self.table = table
         self.n_active = n_active
-        self._advance, self.survey_kernel = _kernels(dim)
+        self._advance = compiled_passes(dim).advance
+        self.survey_kernel = _survey_kernel(dim)
         self._any_clamped: bool | None = None
         self._start: SimpleNamespace | None = None
 
     #: the fields the integrator advances (the rest of the state is constant within a step)
     INTEGRATED = ("position", "velocity", "density", "specific_energy", "deviatoric_stress",
-                  "plastic_work")
+                  "plastic_work", "strength_state")
 
     def _save_start(self, state: ParticleState) -> SimpleNamespace:
         """The integrated fields at the start of the step, in buffers reused every step."""
@@ -167,9 +143,10 @@ class MidpointIntegrator:
         dv, drho, de, dS = rates
         self._advance(self.n_active, dt, start.position, start.velocity, start.density,
                       start.specific_energy, start.deviatoric_stress, start.plastic_work,
-                      v_rate, dv, drho, de, dS, state.clamped, state.material, self.table,
-                      state.position, state.velocity, state.density, state.specific_energy,
-                      state.deviatoric_stress, state.plastic_work)
+                      start.strength_state, v_rate, dv, drho, de, dS, state.clamped,
+                      state.material, self.table, state.position, state.velocity,
+                      state.density, state.specific_energy, state.deviatoric_stress,
+                      state.plastic_work, state.strength_state)
         if self.constraint is not None:
             count, impulse = self.constraint(state.position, state.velocity, state.mass)
             if final:  # the predictor's state is discarded; only the step's own counts

@@ -1,4 +1,4 @@
-"""Cubic-spline smoothing kernel (paper eq 20, NOTES 6).
+"""Cubic-spline smoothing kernel (Shaw & Reid 2009, section 2.3, eq 20).
 
 With ``q = r / h`` the kernel is
 
@@ -6,8 +6,9 @@ With ``q = r / h`` the kernel is
                         { 1/4 (2 - q)^3              1 <= q <= 2
                         { 0                          q >= 2
 
-with ``alpha_D = 2/(3h)`` in 1D, ``10/(7 pi h^2)`` in 2D and ``1/(pi h^3)`` in 3D, so that
-the kernel integrates to one over its support of radius ``2h``.  The gradient with respect to
+with ``alpha_D = 2/(3h)`` in 1D, ``10/(7 pi h^2)`` in 2D (eq 20) and ``1/(pi h^3)`` in 3D
+(the same spline's usual 3D constant; the paper has no 3D example), so that the kernel
+integrates to one over its support of radius ``2h``.  The gradient with respect to
 ``x_i`` is ``grad W_ij = dW/dr * r_ij / r``.
 
 The functions are compiled with numba and inlined into the pair loops of

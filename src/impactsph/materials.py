@@ -1,70 +1,141 @@
-"""Material models and their packed, compiled-kernel form.
+"""Materials resolved from a case, and their packed form for the compiled kernels: the
+material table, one row of floats per material.
 
-Three models:
-
-- ``bar``: one-dimensional uniaxial stress (the bars of Example 1).  Pressure
-  ``P = E (rho/rho0 - 1)``, no deviatoric stress; wave speed ``sqrt(E/rho)``.
-- ``elastic``: linear EOS with ``K = E / (3 (1 - 2 nu))`` (or Mie-Gruneisen), shear modulus
-  ``mu = E / (2 (1 + nu))``, Jaumann deviatoric stress.
-- ``elastic_plastic``: ``elastic`` plus von Mises perfect plasticity with yield stress
-  ``sigma_y``.
-
-The kernels read a float table with one row per material; the column indices are below.
+A row holds the columns every kernel reads (named below), then the columns of the material's
+equation of state and of its strength model, as those models declare them
+(:mod:`impactsph.models`).  :class:`TableLayout` says where each block starts; it is the same
+for every material of a run, sized for the widest registered model, and the generated passes
+(:mod:`impactsph.physics.passes`) are compiled for it.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from .physics.eos import LINEAR, MIE_GRUNEISEN, mie_gruneisen_coefficients
+from .models import EOS, STRENGTH, ElasticConstants
 
-RHO0, EOS, BULK, B0, C0, GAMMA, SHEAR, YIELD, WAVE_MODULUS = range(9)
-N_COLUMNS = 9
+#: Columns every material has: reference density, bulk modulus K, shear modulus mu, the
+#: modulus M of the wave speed ``c = sqrt(M / rho)`` (eq 26), and the kind codes of its
+#: equation of state and strength model (their positions in the registries).
+RHO0, BULK, SHEAR, WAVE_MODULUS, EOS_KIND, STRENGTH_KIND = range(6)
+COMMON_COLUMNS = ("density", "bulk_modulus", "shear_modulus", "wave_modulus", "eos_kind",
+                  "strength_kind")
+
+
+@dataclass(frozen=True)
+class TableLayout:
+    """Where the models' blocks start in a row of the material table, and the width of the
+    per-particle strength state (:attr:`impactsph.state.ParticleState.strength_state`)."""
+
+    eos_width: int
+    strength_width: int
+    state_width: int
+
+    @classmethod
+    def registered(cls) -> TableLayout:
+        """The layout that fits every registered model."""
+        return cls(max((len(m.columns) for m in EOS), default=0),
+                   max((len(m.columns) for m in STRENGTH), default=0),
+                   max((len(m.state) for m in STRENGTH), default=0))
+
+    @property
+    def eos_params(self) -> int:
+        """First column of the equation of state's parameters."""
+        return len(COMMON_COLUMNS)
+
+    @property
+    def strength_params(self) -> int:
+        """First column of the strength model's parameters."""
+        return self.eos_params + self.eos_width
+
+    @property
+    def n_columns(self) -> int:
+        """Length of a row (at least one column per block, so that slices are never empty)."""
+        return self.strength_params + max(self.strength_width, 1)
 
 
 @dataclass(frozen=True)
 class MaterialModel:
-    """Resolved material constants in SI units."""
+    """A case material resolved to SI constants and its models' table columns."""
 
     name: str
-    model: str
+    model: str  #: the strength model's registered name
+    eos: str  #: the equation of state's registered name
     density: float
     youngs_modulus: float
     poisson_ratio: float
     shear_modulus: float
     bulk_modulus: float
-    eos: str = "linear"
-    yield_stress: float = math.inf
-    mg_sound_speed: float = 0.0
-    mg_slope: float = 0.0
-    mg_gamma: float = 0.0
+    eos_columns: tuple[float, ...] = ()
+    strength_columns: tuple[float, ...] = ()
+
+    @property
+    def yield_stress(self) -> float:
+        """The (initial) yield stress (Pa): the strength model's column named
+        ``yield_stress``; infinite for a model without one."""
+        columns = STRENGTH[self.model].columns
+        if "yield_stress" in columns:
+            return self.strength_columns[columns.index("yield_stress")]
+        return math.inf
 
     def wave_modulus(self, wave_speed: str) -> float:
         """Modulus ``M`` with ``c = sqrt(M / rho)``: ``E`` for the paper's bar-wave speed
         (eq 26), ``K + 4/3 mu`` for the longitudinal (P-wave) speed."""
-        if self.model == "bar" or wave_speed == "bar":
+        if STRENGTH[self.model].uniaxial_stress or wave_speed == "bar":
             return self.youngs_modulus
         return self.bulk_modulus + 4.0 / 3.0 * self.shear_modulus
 
-    def row(self, wave_speed: str) -> np.ndarray:
+    def row(self, wave_speed: str, layout: TableLayout) -> np.ndarray:
         """This material as one row of the kernels' table."""
-        r = np.zeros(N_COLUMNS)
+        r = np.zeros(layout.n_columns)
         r[RHO0] = self.density
+        r[BULK] = self.bulk_modulus
         r[SHEAR] = self.shear_modulus
-        r[YIELD] = self.yield_stress
         r[WAVE_MODULUS] = self.wave_modulus(wave_speed)
-        if self.eos == "mie_gruneisen":
-            a0, b0, c0 = mie_gruneisen_coefficients(
-                self.density, self.mg_sound_speed, self.mg_slope)
-            r[EOS], r[BULK], r[B0], r[C0], r[GAMMA] = MIE_GRUNEISEN, a0, b0, c0, self.mg_gamma
-        else:
-            r[EOS], r[BULK] = LINEAR, self.bulk_modulus
+        r[EOS_KIND] = EOS.index(self.eos)
+        r[STRENGTH_KIND] = STRENGTH.index(self.model)
+        r[layout.eos_params: layout.eos_params + len(self.eos_columns)] = self.eos_columns
+        r[layout.strength_params: layout.strength_params + len(self.strength_columns)] = \
+            self.strength_columns
         return r
 
 
-def material_table(materials: list[MaterialModel], wave_speed: str) -> np.ndarray:
-    """Stack the materials' rows into the (n_materials, N_COLUMNS) table of the kernels."""
-    return np.ascontiguousarray(np.stack([m.row(wave_speed) for m in materials]))
+def resolve_material(name: str, material: Any) -> MaterialModel:
+    """Constants of a validated case material (``config.Material``): ``mu = E / (2(1 + nu))``
+    unless given, ``K = E / (3(1 - 2 nu))``; for a uniaxial-stress model (the 1D ``bar``)
+    ``K = E`` and ``mu = 0``; the models' table columns from their ``coefficients``."""
+    E, nu = material.youngs_modulus, material.poisson_ratio
+    strength, eos = STRENGTH[material.model], EOS[material.eos]
+    if strength.uniaxial_stress:
+        mu, K = 0.0, E
+    else:
+        mu = (material.shear_modulus if material.shear_modulus is not None
+              else E / (2.0 * (1.0 + nu)))
+        K = E / (3.0 * (1.0 - 2.0 * nu))
+    constants = ElasticConstants(material.density, E, nu, K, mu)
+
+    def columns(model: Any, parameters: Any) -> tuple[float, ...]:
+        if model.coefficients is None:
+            return ()
+        values = tuple(float(c) for c in model.coefficients(parameters, constants))
+        if len(values) != len(model.columns):
+            raise ValueError(f"{model.name}.coefficients gave {len(values)} values for the "
+                             f"{len(model.columns)} columns {model.columns}")
+        return values
+
+    return MaterialModel(
+        name=name, model=material.model, eos=material.eos, density=material.density,
+        youngs_modulus=E, poisson_ratio=nu, shear_modulus=mu, bulk_modulus=K,
+        eos_columns=columns(eos, material.eos_parameters()),
+        strength_columns=columns(strength, material.strength_parameters()))
+
+
+def material_table(materials: list[MaterialModel], wave_speed: str,
+                   layout: TableLayout | None = None) -> np.ndarray:
+    """Stack the materials' rows into the ``(n_materials, layout.n_columns)`` table."""
+    layout = layout or TableLayout.registered()
+    return np.ascontiguousarray(np.stack([m.row(wave_speed, layout) for m in materials]))

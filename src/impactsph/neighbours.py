@@ -8,8 +8,9 @@ The result is a compressed (CSR) list: the neighbours of particle ``i`` are
 
 The list is built with a *skin*: the search radius is ``2 h_max + skin``, and the list stays
 valid until some particle has moved more than ``skin / 2`` from where it was when the list
-was built (:class:`NeighbourList.needs_rebuild`).  Pairs beyond the kernel's support are then
-skipped by the pair loops, whose kernel value is zero there.
+was built, or the support has grown past what the radius covers
+(:meth:`NeighbourList.stale`).  Pairs beyond the kernel's support are then skipped by the
+pair loops, whose kernel value is zero there.
 """
 
 from __future__ import annotations
@@ -20,6 +21,10 @@ from functools import cache
 
 import numba as nb
 import numpy as np
+
+#: relative round-off allowed when comparing ``support + skin`` with the list's radius (the
+#: sum recomputed from an unchanged support may differ from the stored radius in its last bit)
+RADIUS_TOLERANCE = 1e-12
 
 
 @nb.njit(cache=True)
@@ -181,8 +186,17 @@ class NeighbourList:
         return cls(offsets, indices, radius, float(skin), (x - origin).astype(np.float32),
                    order=order.astype(np.int32), reference_origin=origin)
 
-    def needs_rebuild(self, x: np.ndarray) -> bool:
-        """True once any particle has moved more than half the skin since the build."""
+    def stale(self, x: np.ndarray, support: float) -> bool:
+        """Whether the list no longer holds every pair within ``support`` of particles at
+        ``x``: true once any particle has moved more than half the skin since the build
+        (always, with no skin), or once ``support + skin`` exceeds the list's radius (beyond
+        :data:`RADIUS_TOLERANCE`).  ``x`` may be the first rows of the positions the list was
+        built from (the real particles, whose ghosts follow them)."""
+        if self._moved_past_skin(x):
+            return True
+        return support + self.skin > self.radius * (1 + RADIUS_TOLERANCE)
+
+    def _moved_past_skin(self, x: np.ndarray) -> bool:
         if self.skin <= 0.0:
             return True
         _, max_disp = _build_functions(x.shape[1])
@@ -190,18 +204,13 @@ class NeighbourList:
         return bool(max_disp(x, reference, self.reference_origin) > 0.5 * self.skin)
 
     def update(self, x: np.ndarray, support: float) -> None:
-        """Rebuild in place if the skin no longer covers the motion since the last build."""
-        if self.needs_rebuild(x) or support + self.skin > self.radius + 1e-15 * self.radius:
+        """Rebuild in place if the list is :meth:`stale`."""
+        if self.stale(x, support):
             new = NeighbourList.build(x, support, self.skin)
             self.offsets, self.indices, self.order = new.offsets, new.indices, new.order
             self.radius, self.reference_positions = new.radius, new.reference_positions
             self.reference_origin = new.reference_origin
             self.builds += 1
-
-    def neighbours_of(self, i: int) -> np.ndarray:
-        """The neighbours of particle ``i`` (particle numbers, not sorted positions)."""
-        p = int(np.flatnonzero(self.order == i)[0])
-        return self.order[self.indices[self.offsets[p]:self.offsets[p + 1]]]
 
     def pairs(self) -> set[tuple[int, int]]:
         """All stored ordered pairs ``(i, j)`` of particle numbers (for tests: O(pairs))."""

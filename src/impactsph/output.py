@@ -1,4 +1,4 @@
-"""Run outputs: files written atomically (temporary file, then rename), read back by
+"""Run outputs: files written atomically (:mod:`.atomic`), read back by
 :func:`load_run`, so figures can always be redrawn from a run directory.
 
 A run directory holds:
@@ -16,37 +16,17 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
 import platform
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ._version import __version__
+from .atomic import write_bytes, write_text
 
-
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same directory and a rename,
-    so a reader never sees a partial file."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
-def atomic_write_text(path: Path, text: str) -> None:
-    """Text version of :func:`atomic_write_bytes`."""
-    atomic_write_bytes(path, text.encode())
+#: :func:`.atomic.write_text`, under the name paper.py and sweep.py import from here
+atomic_write_text = write_text
 
 
 def provenance() -> dict[str, str]:
@@ -69,13 +49,13 @@ def _csv_text(rows: list[dict[str, Any]]) -> str:
 
 def write_case(out: Path, case: Any) -> None:
     """``case.json``: the resolved case and the versions that produced the run."""
-    atomic_write_text(out / "case.json", json.dumps(
+    write_text(out / "case.json", json.dumps(
         {"provenance": provenance(), "case": case.model_dump(mode="json")}, indent=2))
 
 
 def write_history(out: Path, sim: Any) -> None:
     """``history.csv`` and ``probes.csv`` as far as the run has got."""
-    atomic_write_text(out / "history.csv", _csv_text(sim.record.history))
+    write_text(out / "history.csv", _csv_text(sim.record.history))
     dims = "xyz"[: sim.state.dim]
     rows = []
     probes = sim.record.probes
@@ -87,7 +67,7 @@ def write_history(out: Path, sim: Any) -> None:
                 for a, d in enumerate(dims):
                     row[f"{name}_v{d}"] = float(probes[name][k][1][a])
             rows.append(row)
-    atomic_write_text(out / "probes.csv", _csv_text(rows))
+    write_text(out / "probes.csv", _csv_text(rows))
 
 
 def write_snapshots(out: Path, sim: Any) -> None:
@@ -99,12 +79,13 @@ def write_snapshots(out: Path, sim: Any) -> None:
             arrays[f"s{k}_{name}"] = arr
     buf = io.BytesIO()
     np.savez_compressed(buf, **arrays)
-    atomic_write_bytes(out / "snapshots.npz", buf.getvalue())
+    write_bytes(out / "snapshots.npz", buf.getvalue())
 
 
-def write_summary(out: Path, summary: dict[str, Any]) -> None:
-    """``summary.json``."""
-    atomic_write_text(out / "summary.json", json.dumps(
+def write_summary(out: Path | str, summary: dict[str, Any]) -> None:
+    """``summary.json``: ``summary`` and the provenance.  The only writer of that file, for
+    runs and for the runs of a sweep (which add the case)."""
+    write_text(Path(out) / "summary.json", json.dumps(
         {**summary, "provenance": provenance()}, indent=2, default=float))
 
 

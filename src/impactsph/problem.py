@@ -2,34 +2,14 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .config import Case, CaseError, Material
+from .config import Case, CaseError
 from .geometry import body_particles, inside
-from .materials import MaterialModel, material_table
+from .materials import MaterialModel, TableLayout, material_table, resolve_material
 from .state import ParticleState
-
-
-def resolve_material(name: str, mat: Material) -> MaterialModel:
-    """Elastic constants of a case material: ``mu = E / (2(1 + nu))`` unless given,
-    ``K = E / (3(1 - 2 nu))``; for the 1D ``bar`` model ``K = E`` and ``mu = 0``."""
-    E, nu = mat.youngs_modulus, mat.poisson_ratio
-    if mat.model == "bar":
-        mu, K = 0.0, E
-    else:
-        mu = mat.shear_modulus if mat.shear_modulus is not None else E / (2.0 * (1.0 + nu))
-        K = E / (3.0 * (1.0 - 2.0 * nu))
-    mg = mat.mie_gruneisen
-    return MaterialModel(
-        name=name, model=mat.model, density=mat.density, youngs_modulus=E, poisson_ratio=nu,
-        shear_modulus=mu, bulk_modulus=K, eos=mat.eos,
-        yield_stress=mat.yield_stress if mat.model == "elastic_plastic" else math.inf,
-        mg_sound_speed=mg.sound_speed if mg else 0.0, mg_slope=mg.slope if mg else 0.0,
-        mg_gamma=mg.gamma if mg else 0.0,
-    )
 
 
 @dataclass
@@ -49,6 +29,7 @@ def build_problem(case: Case) -> Problem:
     masses ``rho0 V`` from their volumes V (``dx^dim`` on a lattice; plus any tip mass),
     smoothing lengths ``h = (h/dx) dx``, initial velocities and clamped particles."""
     info: dict[str, float] = {}
+    layout = TableLayout.registered()
     mat_names = list(case.materials)
     materials = [resolve_material(n, case.materials[n]) for n in mat_names]
     dim = case.dimension
@@ -93,7 +74,7 @@ def build_problem(case: Case) -> Problem:
         position=np.ascontiguousarray(cat["x"]), velocity=np.ascontiguousarray(cat["v"]),
         density=cat["rho"], specific_energy=np.zeros(n), deviatoric_stress=np.zeros((n, 3, 3)),
         mass=cat["m"], smoothing_length=cat["h"], body=cat["body"], material=cat["mat"],
-        clamped=cat["clamped"],
+        clamped=cat["clamped"], strength_state=np.zeros((n, layout.state_width)),
     )
     body_names = [b.name for b in case.bodies]
     probes = {}
@@ -101,5 +82,5 @@ def build_problem(case: Case) -> Problem:
         members = np.flatnonzero(state.body == body_names.index(probe.body))
         d = np.linalg.norm(state.position[members] - np.asarray(probe.position), axis=1)
         probes[probe.name] = int(members[np.argmin(d)])
-    return Problem(state, materials, material_table(materials, case.time.wave_speed),
+    return Problem(state, materials, material_table(materials, case.time.wave_speed, layout),
                    body_names, probes, info)

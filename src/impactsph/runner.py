@@ -7,11 +7,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from .analysis import analyse
 from .config import Case
 from .figures import draw_figures
 from .output import load_run, write_case, write_history, write_snapshots, write_summary
 from .plotting import label_of
+from .problems.registry import analyse
 from .simulation import Simulation, SimulationError
 
 log = logging.getLogger("impactsph")
@@ -96,7 +96,7 @@ def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], No
     write_history(out, sim)
     write_snapshots(out, sim)
     summary = {**sim.summary(), **analyse(case.analysis, sim)}
-    write_summary(out, summary)
+    write_summary(out, summary)  # before the figures, which read it back (load_run)
     if case.output.figures if figures is None else figures:
         runs = [load_run(out)]
         ref = case.output.reference_viscosity
@@ -109,5 +109,5 @@ def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], No
             run_case(ref_case, out / "reference", figures=False)
             runs.append(load_run(out / "reference"))
         summary["figures"] = [str(p) for p in draw_figures(runs, out)]
-        write_summary(out, summary)
+        write_summary(out, summary)  # again, with the list of figures
     return summary

@@ -8,21 +8,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .boundaries import Walls
+from .boundaries import walls_of
 from .config import Case
 from .devices import select_backend
+from .errors import SimulationError
 from .integrate import MidpointIntegrator
+from .physics.rates import ViscositySettings
 from .problem import Problem, build_problem
 from .solver import Solver
 from .state import ParticleState
-
-
-class SimulationError(RuntimeError):
-    """The run went unstable; the message says where and when."""
-
-    def __init__(self, message: str, step: int, time: float, particle: int | None):
-        super().__init__(message)
-        self.step, self.time, self.particle = step, time, particle
 
 
 @dataclass
@@ -70,8 +64,9 @@ class Simulation:
         if state is not None:
             self.problem.state = state
         self.state: ParticleState = self.problem.state
-        self.walls = Walls.from_config(case.boundaries, case.dimension)
-        self.solver = Solver(self.state, self.problem.table, case.viscosity, walls=self.walls,
+        self.walls = walls_of(case.boundaries, case.dimension)
+        self.solver = Solver(self.state, self.problem.table,
+                             ViscositySettings.of(case.viscosity), walls=self.walls,
                              skin_fraction=case.time.neighbour_skin,
                              backend=select_backend(case.compute.device, case.dimension))
         self.integrator = MidpointIntegrator(
@@ -83,7 +78,6 @@ class Simulation:
         self.correction_heating = 0.0  # J, internal energy the AC energy term added
         self.wall_impulse = np.zeros(self.state.dim)  # N s, time integral of the walls' push
         self._supported: bool | None = None  # walls or clamped particles (see _record_row)
-        self._initial = self._diagnostics()
         self._abs_momentum0 = float(np.sum(self.state.mass *
                                            np.linalg.norm(self.state.velocity, axis=1)))
         self.solver.rates(self.state.copy())  # compile (or load from cache) before timing
@@ -95,12 +89,6 @@ class Simulation:
         self.record.setup_seconds = _time.perf_counter() - t0
 
     # -- diagnostics -------------------------------------------------------------------
-    def _diagnostics(self) -> dict[str, float]:
-        s = self.state
-        ke, ie = s.kinetic_energy(), s.internal_energy()
-        p = s.momentum()
-        return {"kinetic": ke, "internal": ie, "momentum": p}
-
     def _survey(self) -> Survey:
         """CFL step, energies, momentum and the first bad value of the state, in one pass."""
         s = self.state
@@ -145,18 +133,6 @@ class Simulation:
         """Impulse (N s) given to the particles by walls and clamps since t = 0."""
         i = self.integrator
         return self.wall_impulse + i.constraint_impulse + i.clamp_impulse
-
-    def energy_error(self) -> float:
-        """``|E(t) - E(0)| / E(0)`` now."""
-        e0 = self._initial["kinetic"] + self._initial["internal"]
-        d = self._diagnostics()
-        return abs(d["kinetic"] + d["internal"] - e0) / e0 if e0 > 0 else 0.0
-
-    def momentum_drift(self) -> float:
-        """``|P(t) - P(0) - J(t)| / sum m |v(0)|`` now, J the walls' and clamps' impulse."""
-        dp = np.linalg.norm(self._diagnostics()["momentum"] - self._initial["momentum"]
-                            - self.external_impulse())
-        return float(dp / self._abs_momentum0) if self._abs_momentum0 > 0 else float(dp)
 
     # -- snapshots and probes ------------------------------------------------------------
     def _snapshot_fields(self) -> dict[str, np.ndarray]:
@@ -309,7 +285,7 @@ def compile_kernels(dim: int) -> None:
     needs, by running one step of a tiny case with AC and a wall.  Parallel processes
     starting on a cold cache at once can overwrite each other's cache files (numba's cache
     takes no lock between processes): calling this first, in one process, avoids that."""
-    from .config import validate_case
+    from .loading import validate_case
 
     case = validate_case({
         "name": f"compile_{dim}d", "dimension": dim,

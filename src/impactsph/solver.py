@@ -1,5 +1,6 @@
-"""The solver: neighbour list, rate passes and viscosity scheme composed into one ``rates``
-function for the integrator."""
+"""The solver: neighbour list, wall ghosts, rate passes and viscosity scheme composed into one
+``rates`` function for the integrator.  It takes plain data (arrays, the material table, a
+:class:`~impactsph.physics.rates.ViscositySettings`), never the case's pydantic models."""
 
 from __future__ import annotations
 
@@ -7,11 +8,9 @@ import numba as nb
 import numpy as np
 
 from .boundaries import Walls, fill_ghosts
-from .config import Viscosity
 from .kernels import SUPPORT_RADIUS
 from .neighbours import NeighbourList
-from .physics.correction import ENERGY_CORRECTIONS, VARIANTS
-from .physics.rates import CpuRates, RateBuffers, pressures
+from .physics.rates import CpuRates, RateBuffers, ViscositySettings, pressures
 from .state import ParticleState
 
 #: Particles per work item of :func:`rate_totals`' partial sums.
@@ -63,7 +62,7 @@ class Solver:
     or :class:`impactsph.gpu.GpuRates`.
     """
 
-    def __init__(self, state: ParticleState, table: np.ndarray, viscosity: Viscosity,
+    def __init__(self, state: ParticleState, table: np.ndarray, viscosity: ViscositySettings,
                  walls: Walls | None = None, skin_fraction: float = 0.1, backend=None):
         self.table = table
         self.viscosity = viscosity
@@ -75,12 +74,7 @@ class Solver:
         self.skin_fraction = skin_fraction
         self.pair_evaluations = 0
         self.rate_evaluations = 0
-        self.corrected = viscosity.scheme == "ac"
-        # AC evaluates the viscosity with (1, 1) (eq 31); AV with the case's parameters
-        self.alpha = (1.0, 1.0) if self.corrected else (viscosity.alpha1, viscosity.alpha2)
-        self._correction = ((viscosity.correction_h_ratio, VARIANTS[viscosity.correction],
-                             ENERGY_CORRECTIONS[viscosity.energy_correction])
-                            if self.corrected else None)
+        self.corrected = viscosity.correction is not None
         self.powers = (0.0, 0.0, 0.0)
         self.wall_force = np.zeros(state.dim)
         self.neighbours: NeighbourList | None = None
@@ -157,13 +151,11 @@ class Solver:
         ghosts."""
         b = self.buffers
         support = SUPPORT_RADIUS * float(state.smoothing_length.max())
-        if (self.neighbours.needs_rebuild(state.position)
-                or support + self.neighbours.skin > self.neighbours.radius * (1 + 1e-12)):
+        if self.neighbours.stale(state.position, support):
             self._build(state)
             b = self.buffers
         self.backend.evaluate(self.n_active, self._arrays(state), self.table, self.neighbours,
-                              self.alpha[0], self.alpha[1], self.viscosity.epsilon,
-                              self._correction, b)
+                              self.viscosity, b)
         n = self.n_active
         totals = rate_totals(n, state.mass, state.velocity, b.de_visc, b.dv_corr, b.de_corr,
                              b.contact_force, b.pair_count, self.corrected)

@@ -12,7 +12,9 @@ class ParticleState:
     """All per-particle fields of a run.
 
     Vectors have shape ``(n, dim)``; the deviatoric stress is always ``(n, 3, 3)`` so that the
-    out-of-plane component of plane strain (``S_zz``) is carried (NOTES 3).
+    out-of-plane component of plane strain (``S_zz``) is carried: it enters the von Mises norm
+    (eqs 17-18; the plane-strain Taylor bar of section 5.2; see ``docs/modelling.md``,
+    "Deviatoric stress").
     """
 
     position: np.ndarray  #: (n, dim) m
@@ -20,13 +22,16 @@ class ParticleState:
     density: np.ndarray  #: (n,) kg/m^3
     specific_energy: np.ndarray  #: (n,) J/kg, specific internal energy
     deviatoric_stress: np.ndarray  #: (n, 3, 3) Pa, Cauchy convention (tension positive)
-    mass: np.ndarray  #: (n,) kg (per unit area in 2D, per unit cross-section in 1D)
+    mass: np.ndarray  #: (n,) kg (kg/m per unit depth in 2D, kg/m^2 per unit section in 1D)
     smoothing_length: np.ndarray  #: (n,) m
     body: np.ndarray  #: (n,) int32 body index
     material: np.ndarray  #: (n,) int32 row of the material table
     clamped: np.ndarray  #: (n,) bool, held at zero velocity
     plastic_work: np.ndarray = field(default=None)  #: (n,) J/kg dissipated by yielding
     initial_position: np.ndarray = field(default=None)  #: (n, dim) m, position at t = 0
+    #: (n, k) the per-particle state of the strength models (as each declares it: see
+    #: :class:`impactsph.models.StrengthModel`); k is the widest registered model's
+    strength_state: np.ndarray = field(default=None)
     time: float = 0.0
     step: int = 0
 
@@ -35,6 +40,8 @@ class ParticleState:
             self.plastic_work = np.zeros(self.n)
         if self.initial_position is None:
             self.initial_position = self.position.copy()
+        if self.strength_state is None:
+            self.strength_state = np.zeros((self.n, 0))
 
     @property
     def n(self) -> int:
@@ -60,7 +67,7 @@ class ParticleState:
                 if isinstance(getattr(self, f.name), np.ndarray)}
 
     def kinetic_energy(self) -> float:
-        """``sum 1/2 m |v|^2`` (J; J/m^2 in 2D, J/m^2... per unit depth or area)."""
+        """``sum 1/2 m |v|^2`` (J; J/m per unit depth in 2D, J/m^2 per unit section in 1D)."""
         return float(0.5 * np.dot(self.mass, np.einsum("ia,ia->i", self.velocity, self.velocity)))
 
     def internal_energy(self) -> float:

@@ -6,6 +6,11 @@ A grid is given as ``KEY=V1,V2,...``; several grids make a Cartesian product, an
     impactsph sweep bars --grid viscosity.alpha1,viscosity.alpha2=0.05,0.1,0.2,0.3
     impactsph sweep bars --grid viscosity.alpha1=0 --grid viscosity.alpha2=0.5,1,1.5,2
 
+The table's columns and the finding are the case's problem's (:mod:`impactsph.problems`):
+the kinetic energy kept, the problem's own columns, the conservation errors and the cost; and,
+for a problem with a sweep criterion (the bars: a profile free of spurious oscillation), the
+smallest value of the first grid parameter that meets it.
+
 Each run is a task on a Dask cluster: a local one (one single-threaded worker process per
 core) by default, or an existing one given its scheduler address.  A run that fails is
 retried; a run whose directory already holds a finished summary of the same case is not run
@@ -19,24 +24,28 @@ import hashlib
 import itertools
 import json
 import logging
-import math
 import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .config import CaseError, apply_overrides, read_case_dict, validate_case
-from .output import _csv_text, atomic_write_text
+from .config import Case, CaseError
+from .loading import apply_overrides, read_case_dict, validate_case
+from .output import _csv_text, atomic_write_text, write_summary
+from .problems.base import SweepCriterion
+from .problems.registry import get_problem
 
 log = logging.getLogger("impactsph.sweep")
 
-TABLE_KEYS = ("kinetic_energy_ratio_final", "velocity_profile_l1_error",
-              "velocity_profile_oscillation", "mid_velocity_l1_error", "contact_time_us",
-              "total_energy_relative_error", "momentum_drift", "energy_imbalance",
-              "n_steps", "wall_seconds")
-#: Default oscillation criterion: spurious total variation below half the impact speed.
-OSCILLATION_THRESHOLD = 0.5
+
+def table_keys(case: Case) -> tuple[str, ...]:
+    """The summary entries a sweep's table gives for runs of ``case``: the kinetic energy
+    kept, the problem's columns (:meth:`~impactsph.problems.ProblemKind.table_keys`), the
+    conservation errors and the cost."""
+    return ("kinetic_energy_ratio_final", *get_problem(case.analysis).table_keys(case),
+            "total_energy_relative_error", "momentum_drift", "energy_imbalance",
+            "n_steps", "wall_seconds")
 
 
 def parse_grid(specs: list[str]) -> tuple[list[str], list[list[tuple[str, Any]]]]:
@@ -78,12 +87,13 @@ def run_one(case_data: dict[str, Any], overrides: list[str], out: str) -> dict[s
 
     numba.set_num_threads(1)
     case = validate_case(apply_overrides(case_data, overrides))
+    keys = table_keys(case)
     summary_path = Path(out) / "summary.json"
     if summary_path.exists():
         done = json.loads(summary_path.read_text())
         if done.get("case") == case.model_dump(mode="json"):
             return {"status": "ok" if not done.get("failure") else "unstable",
-                    **{k: done.get(k) for k in TABLE_KEYS}, "reused": True}
+                    **{k: done.get(k) for k in keys}, "reused": True}
     try:
         summary = run_case(case, out, figures=False)
         status = "ok"
@@ -91,15 +101,8 @@ def run_one(case_data: dict[str, Any], overrides: list[str], out: str) -> dict[s
         summary = json.loads(summary_path.read_text())
         status = f"unstable: {exc}"
     summary["case"] = case.model_dump(mode="json")
-    atomic_write_text(summary_path, json.dumps(summary, indent=2, default=float))
-    return {"status": status, **{k: summary.get(k) for k in TABLE_KEYS}, "reused": False}
-
-
-def oscillation_free(row: dict[str, Any], threshold: float) -> bool:
-    """The criterion: a stable run whose velocity profile's total variation exceeds theory's
-    by less than ``threshold`` times the impact speed."""
-    osc = row.get("velocity_profile_oscillation")
-    return row["status"] == "ok" and osc is not None and math.isfinite(osc) and osc < threshold
+    write_summary(out, summary)
+    return {"status": status, **{k: summary.get(k) for k in keys}, "reused": False}
 
 
 def run_many(base: dict[str, Any], run_overrides: list[list[str]], out: Path, *,
@@ -153,11 +156,14 @@ def run_many(base: dict[str, Any], run_overrides: list[list[str]], out: Path, *,
 
 def sweep(case_source: str, grids: list[str], out: Path | str, *, scheduler: str | None = None,
           workers: int | None = None, overrides: list[str] | None = None,
-          threshold: float = OSCILLATION_THRESHOLD) -> dict[str, Any]:
+          threshold: float | None = None) -> dict[str, Any]:
     """Run ``case_source`` over the grids; write ``sweep.csv``, ``sweep.json`` and
-    ``sweep.png`` into ``out``.  Returns the result (table rows and the finding)."""
+    ``sweep.png`` into ``out``.  Returns the result: the grid's ``columns``, the table's
+    ``rows`` and the ``finding`` of the problem's sweep criterion (at ``threshold``, the
+    criterion's own when None; the finding is None for a problem without a criterion)."""
     out = Path(out)
     base = apply_overrides(read_case_dict(case_source), overrides or [])
+    criterion = get_problem(validate_case(base).analysis).sweep_criterion
     columns, runs = parse_grid(grids)
     run_overrides = [[f"{k}={json.dumps(v)}" for k, v in kv] + ["output.figures=false"]
                      for kv in runs]
@@ -171,28 +177,35 @@ def sweep(case_source: str, grids: list[str], out: Path | str, *, scheduler: str
     run_many(base, run_overrides, out, scheduler=scheduler, workers=workers, on_result=record)
     table = [done[i] for i in sorted(done)]
     first = columns[0]
-    free = [r for r in table if oscillation_free(r, threshold)]
-    finding = {
-        "criterion": f"status ok and velocity_profile_oscillation < {threshold} (spurious "
-                     f"total variation of the 5.75 us profile under {threshold} V)",
-        "parameter": first,
-        "smallest_oscillation_free": min((r[first] for r in free), default=None),
-    }
+    finding = None
+    if criterion is not None:
+        passed = [r for r in table if criterion.passes(r, threshold)]
+        finding = {
+            "criterion": criterion.describe(threshold),
+            "parameter": first,
+            f"smallest_{criterion.name}": min((r[first] for r in passed), default=None),
+        }
     result = {"columns": columns, "rows": table, "finding": finding}
     atomic_write_text(out / "sweep.json", json.dumps(result, indent=2, default=float))
-    sweep_figure(table, columns, out / "sweep.png", threshold)
+    sweep_figure(table, columns, out / "sweep.png", criterion, threshold)
     return result
 
 
 def sweep_figure(table: list[dict[str, Any]], columns: list[str], path: Path,
-                 threshold: float) -> Path:
-    """Kinetic energy kept and profile oscillation against the first grid parameter, one line
-    per value of the others."""
-    from .plotting import _save, plt
+                 criterion: SweepCriterion | None = None, threshold: float | None = None
+                 ) -> Path:
+    """Kinetic energy kept against the first grid parameter, one line per value of the
+    others, and beside it the column of the problem's sweep ``criterion`` (if any) with its
+    ``threshold`` (the criterion's own when None)."""
+    from .plotting import plt, save_figure
 
     first = columns[0]
     others = [c for c in columns[1:] if not all(r.get(c) == r.get(first) for r in table)]
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    panels = [("kinetic_energy_ratio_final", "kinetic energy kept at the end")]
+    if criterion is not None:
+        panels.append((criterion.key, criterion.label))
+    fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4), squeeze=False)
+    axes = list(axes[0])
     groups: dict[tuple, list[dict[str, Any]]] = {}
     for r in table:
         groups.setdefault(tuple(r.get(c) for c in others), []).append(r)
@@ -200,15 +213,16 @@ def sweep_figure(table: list[dict[str, Any]], columns: list[str], path: Path,
         rs = sorted(rs, key=lambda r: r[first])
         x = [r[first] for r in rs]
         label = ", ".join(f"{c}={v}" for c, v in zip(others, key, strict=True)) or None
-        for ax, col in zip(axes, ("kinetic_energy_ratio_final",
-                                  "velocity_profile_oscillation"), strict=True):
+        for ax, (col, _) in zip(axes, panels, strict=True):
             y = [r.get(col) if r.get(col) is not None else np.nan for r in rs]
             ax.plot(x, y, "o-", label=label)
-    axes[0].set_ylabel("kinetic energy kept at the end")
-    axes[1].set_ylabel("profile oscillation (excess total variation / V)")
-    axes[1].axhline(threshold, color="k", ls=":", label="criterion")
-    for ax in axes:
+    for ax, (_, ylabel) in zip(axes, panels, strict=True):
+        ax.set_ylabel(ylabel)
         ax.set_xlabel(first)
         ax.grid(alpha=0.3)
-    axes[1].legend()
-    return _save(fig, path)
+    if criterion is not None:
+        axes[-1].axhline(criterion.threshold if threshold is None else threshold, color="k",
+                         ls=":", label="criterion")
+    if axes[-1].get_legend_handles_labels()[0]:
+        axes[-1].legend()
+    return save_figure(fig, path)

@@ -16,8 +16,8 @@ from xml.sax.saxutils import quoteattr
 import meshio
 import numpy as np
 
-from .output import atomic_write_text
-from .physics.strength import von_mises_stress
+from .atomic import atomic_path, write_text
+from .models.strength.von_mises import von_mises_stress
 
 
 def particle_fields(sim: Any) -> dict[str, np.ndarray]:
@@ -27,7 +27,7 @@ def particle_fields(sim: Any) -> dict[str, np.ndarray]:
     vel = np.zeros((n, 3))
     vel[:, : s.dim] = s.velocity
     vm = von_mises_stress(s.deviatoric_stress)
-    yield_stress = sim.problem.table[s.material, 7]  # YIELD column
+    yield_stress = np.array([m.yield_stress for m in sim.problem.materials])[s.material]
     plastic = np.isfinite(yield_stress) & (vm >= yield_stress * (1 - 1e-9))
     return {
         "velocity": vel,
@@ -45,7 +45,7 @@ def particle_fields(sim: Any) -> dict[str, np.ndarray]:
 class VTKSeries:
     """A growing time series of particle snapshots in ``directory``."""
 
-    def __init__(self, directory: Path, name: str = "particles", binary: bool = True):
+    def __init__(self, directory: Path, name: str = "particles", binary: bool = True) -> None:
         self.binary = binary
         self.directory = Path(directory)
         self.directory.mkdir(parents=True, exist_ok=True)
@@ -71,9 +71,8 @@ class VTKSeries:
         mesh = meshio.Mesh(points, cells, point_data=particle_fields(sim))
         fname = f"{self.name}_{len(self.entries):05d}.vtu"
         path = self.directory / fname
-        tmp = self.directory / f".{fname}.tmp.vtu"  # written whole, then renamed
-        meshio.write(tmp, mesh, file_format="vtu", binary=self.binary)
-        tmp.replace(path)
+        with atomic_path(path) as tmp:
+            meshio.write(tmp, mesh, file_format="vtu", binary=self.binary)
         self.entries.append((s.time, fname))
         self._write_index()
         return path
@@ -86,4 +85,4 @@ class VTKSeries:
             lines.append(f'    <DataSet timestep="{t!r}" group="" part="0" '
                          f"file={quoteattr(fname)}/>")
         lines += ["  </Collection>", "</VTKFile>", ""]
-        atomic_write_text(self.directory / f"{self.name}.pvd", "\n".join(lines))
+        write_text(self.directory / f"{self.name}.pvd", "\n".join(lines))

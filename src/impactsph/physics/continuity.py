@@ -1,4 +1,4 @@
-"""Continuity equation and velocity gradient (paper eqs 22, 15-16, NOTES 2).
+"""Continuity equation and velocity gradient (paper eqs 22, 15-16).
 
 Pair contributions, with ``V_j = m_j / rho_j`` and ``grad W_ij`` taken at ``x_i``::
 

@@ -1,4 +1,4 @@
-"""Energy equation (paper eq 28, NOTES 2): specific internal energy ``e`` (J/kg).
+"""Energy equation (paper eq 28; docs/modelling.md): specific internal energy ``e`` (J/kg).
 
 ::
 

@@ -1,4 +1,4 @@
-"""Momentum equation (paper eq 27, NOTES 1-2), Cauchy stress, tension positive.
+"""Momentum equation (paper eq 27; docs/modelling.md), Cauchy stress, tension positive.
 
 With ``sigma = -P I + S`` and ``A_i = sigma_i / rho_i^2``::
 

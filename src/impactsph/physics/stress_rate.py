@@ -1,4 +1,4 @@
-"""Deviatoric stress rate with the Jaumann co-rotational derivative (eqs 14-16, NOTES 2).
+"""Deviatoric stress rate with the Jaumann co-rotational derivative (eqs 14-16).
 
 From the SPH velocity gradient ``L^ab = dv^a/dx^b`` (see :mod:`.rates`)::
 
@@ -6,7 +6,7 @@ From the SPH velocity gradient ``L^ab = dv^a/dx^b`` (see :mod:`.rates`)::
     omega   = (L - L^T) / 2            spin (eq 16)
     dS/dt   = 2 mu (eps_dot - tr(eps_dot)/3 I) + omega.S - S.omega
 
-The factor 2 is missing from the printed eqs 13 and 25 (NOTES 2).  ``L`` has the dimension of
+The factor 2 is missing from the printed eqs 13 and 25 (docs/modelling.md).  ``L`` has the dimension of
 the problem; ``S`` is always 3x3, and the components of ``L`` out of the plane are zero (plane
 strain in 2D), so ``dS_zz/dt = -2 mu tr(eps_dot)/3`` keeps ``S`` traceless.
 """

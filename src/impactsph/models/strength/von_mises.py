@@ -1,4 +1,4 @@
-"""Von Mises perfect plasticity by radial return (paper eqs 17-18, NOTES 3-4).
+"""Von Mises perfect plasticity by radial return (paper eqs 17-18; docs/modelling.md).
 
 The deviatoric stress ``S`` is stored as a full 3x3 tensor: in plane strain its out-of-plane
 component ``S_zz = -(S_xx + S_yy)`` is carried and enters the norm.  The von Mises equivalent
@@ -8,7 +8,8 @@ deviator is scaled back onto the yield surface::
     S <- f S,    f = min(sigma_y / sigma_eq, 1)
 
 The specific plastic work of one return is the drop in stored deviatoric elastic energy,
-``(S_trial:S_trial - S:S) / (4 mu rho)`` (J/kg).
+``(S_trial:S_trial - S:S) / (4 mu rho)`` (J/kg).  Registered as ``model = "elastic_plastic"``
+with the flat material field ``yield_stress`` (Pa).
 """
 
 from __future__ import annotations
@@ -17,6 +18,16 @@ import math
 
 import numba as nb
 import numpy as np
+from pydantic import Field
+
+from ..registry import STRENGTH, Parameters, StrengthModel
+from ..types import PositiveFloat
+
+
+class VonMisesParameters(Parameters):
+    """The yield stress, a field of the material table."""
+
+    yield_stress: PositiveFloat = Field(description="von Mises yield stress sigma_y (Pa)")
 
 
 @nb.njit(inline="always", cache=True)
@@ -31,7 +42,7 @@ def double_contraction(S) -> float:
 
 @nb.njit(inline="always", cache=True)
 def von_mises(S) -> float:
-    """Equivalent stress ``sqrt(3/2 S:S)`` of a deviator (NOTES 4)."""
+    """Equivalent stress ``sqrt(3/2 S:S)`` of a deviator."""
     return math.sqrt(1.5 * double_contraction(S))
 
 
@@ -48,7 +59,25 @@ def radial_return(S, yield_stress: float) -> float:
     return f
 
 
+@nb.njit(inline="always", cache=True)
+def return_map(S, rho: float, shear_modulus: float, params, state) -> float:
+    """The registered form: radial return to ``sigma_y = params[0]``; returns the specific
+    plastic work ``S_trial:S_trial (1 - f^2) / (4 mu rho)`` (J/kg)."""
+    before = double_contraction(S)
+    f = radial_return(S, params[0])
+    if f < 1.0:
+        return before * (1.0 - f * f) / (4.0 * shear_modulus * rho)
+    return 0.0
+
+
 def von_mises_stress(deviatoric_stress: np.ndarray) -> np.ndarray:
     """Vectorised ``sqrt(3/2 S:S)`` for an array of 3x3 deviators, shape (..., 3, 3)."""
     S = np.asarray(deviatoric_stress)
     return np.sqrt(1.5 * np.einsum("...ab,...ab->...", S, S))
+
+
+VON_MISES = STRENGTH.register(StrengthModel(
+    name="elastic_plastic", return_map=return_map, parameters=VonMisesParameters, flat=True,
+    columns=("yield_stress",), coefficients=lambda p, constants: (p.yield_stress,),
+    source="Shaw & Reid (2009) eqs 17-18",
+    description="von Mises perfect plasticity (radial return)"))

@@ -1,4 +1,5 @@
-"""Acceleration correction (AC) of Shaw & Reid (paper section 4, eqs 31-37, NOTES 8).
+"""Acceleration correction (AC) of Shaw & Reid (paper section 4, eqs 31-37), registered as
+``scheme = "ac"``; docs/acceleration-correction.md.
 
 The artificial viscosity is evaluated with fixed parameters (1, 1)::
 
@@ -11,7 +12,7 @@ and a smoothed copy of it is subtracted from the acceleration (eqs 33-36)::
 where the weights use the cubic spline ``Wc_ij = W(r_ij, h_c)`` with ``h_c = h/2`` (eq 34,
 section 4.1), so that only nearest neighbours contribute.  Eq 34 as printed has no volume
 factor and is not dimensionally consistent; the consistent readings are the variants below
-(named after NOTES 8 a-c):
+(the readings a-c of docs/acceleration-correction.md):
 
 - ``volume_weighted`` (a): ``w_ij = V_j Wc_ij``, ``j`` over all particles within ``2 h_c``,
   ``i`` itself included.  A uniform ``u`` keeps ``(1 - sum_j w_ij) u``; at ``h = 1.2 dx`` the
@@ -35,16 +36,43 @@ its total-energy error and the correction's work, so the choice is visible.
 
 from __future__ import annotations
 
+import math
+from typing import Literal
+
 import numba as nb
 import numpy as np
+from pydantic import Field
 
-from ..kernels import cubic_spline
+from ...kernels import cubic_spline
+from ..registry import VISCOSITY, Parameters, ViscosityScheme
+from ..types import NonNegativeFloat, PositiveFloat
+from .monaghan import monaghan_viscosity
 
 VOLUME_WEIGHTED, SHEPARD, NEIGHBOURS_ONLY = 0, 1, 2
 VARIANTS = {"volume_weighted": VOLUME_WEIGHTED, "shepard": SHEPARD,
             "neighbours_only": NEIGHBOURS_ONLY}
 ENERGY_WORK, ENERGY_PAPER, ENERGY_NONE = 0, 1, 2
 ENERGY_CORRECTIONS = {"work": ENERGY_WORK, "paper": ENERGY_PAPER, "none": ENERGY_NONE}
+#: the reading of eq 34 used unless the case says otherwise
+DEFAULT_VARIANT = "neighbours_only"
+
+
+class CorrectionParameters(Parameters):
+    """The ``[viscosity]`` fields of the acceleration correction.  ``alpha1`` and ``alpha2``
+    are accepted (a case switched from AV to AC keeps its table) but not used: AC evaluates
+    the viscosity with (1, 1), eq 31."""
+
+    alpha1: NonNegativeFloat = Field(1.0, description="not used by AC (always 1)")
+    alpha2: NonNegativeFloat = Field(1.0, description="not used by AC (always 1)")
+    epsilon: PositiveFloat = Field(0.01, description="epsilon of eq 30")
+    correction: Literal["volume_weighted", "shepard", "neighbours_only"] = Field(
+        DEFAULT_VARIANT, description="AC reading of eq 34 (readings a, b, c of "
+        "docs/acceleration-correction.md)")
+    energy_correction: Literal["work", "paper", "none"] = Field(
+        "work", description="AC energy term: 'work' books the correction's work exactly, "
+        "'paper' is eq 37 with its typo mended, 'none' adds nothing")
+    correction_h_ratio: float = Field(
+        0.5, gt=0.0, le=1.0, description="h_c / h of the correction kernel (section 4.1: 1/2)")
 
 
 @nb.njit(inline="always", cache=True)
@@ -100,3 +128,74 @@ def surviving_fraction(variant: str, dim: int, h_over_dx: float = 1.2,
     if variant == "shepard":
         return 0.0
     raise ValueError(f"unknown correction variant {variant!r}; one of {sorted(VARIANTS)}")
+
+
+@nb.njit(inline="always", cache=True)
+def pair_viscosity(vr: float, r2: float, h_ij: float, c_ij: float, rho_ij: float,
+                   params) -> float:
+    """Eq 31: the viscosity that AC corrects is Monaghan's with (1, 1); ``params = (1, 1,
+    epsilon, unused)``."""
+    return monaghan_viscosity(vr, r2, h_ij, c_ij, rho_ij, params[0], params[1], params[2])
+
+
+@nb.njit(inline="always", cache=True)
+def correct(p, i, P, offsets, indices, layout, dim, params, dv_corr, de_corr, dv, de):
+    """The correction of the active particle ``i`` at sorted position ``p`` (eqs 33-37):
+    ``-u_corr_i`` and its energy term into ``dv_corr[i]``, ``de_corr[i]``, and added to the
+    totals ``dv[i]``, ``de[i]``.  Reads the packed records ``P`` (columns ``layout = (x, v,
+    h, volume, body, u)``: :func:`impactsph.physics.passes.record_columns`), whose ``u`` the
+    pair pass (evaluated with (1, 1)) has filled; neighbours of the same body within
+    ``2 h_c``, ``h_c = h_ratio h``.  ``params = (h_ratio, variant, energy mode, unused)``."""
+    X, V, H, VOL, BODY, U = layout
+    h_ratio = params[0]
+    variant = int(params[1])
+    energy_mode = int(params[2])
+    Pi_ = P[p]
+    u0 = u1 = u2 = 0.0
+    weight_sum = 0.0
+    paper_energy = 0.0
+    h_i = Pi_[H]
+    self_weight = correction_weight(Pi_[VOL], 0.0, h_ratio * h_i, dim)
+    for k in range(offsets[p], offsets[p + 1]):
+        Pj = P[indices[k]]
+        # distance first: most neighbours lie beyond 2 h_c, and position and h share the
+        # record's first cache line
+        h_c = h_ratio * 0.5 * (h_i + Pj[H])
+        r2 = 0.0
+        for a in range(dim):
+            d = Pi_[X + a] - Pj[X + a]
+            r2 += d * d
+        if r2 >= 4.0 * h_c * h_c or Pj[BODY] != Pi_[BODY]:
+            continue
+        w = correction_weight(Pj[VOL], math.sqrt(r2), h_c, dim)
+        weight_sum += w
+        u0 += w * Pj[U]
+        if dim > 1:
+            u1 += w * Pj[U + 1]
+        if dim > 2:
+            u2 += w * Pj[U + 2]
+        for a in range(dim):
+            paper_energy += 0.5 * w * (Pi_[V + a] - Pj[V + a]) * Pj[U + a]
+    weighted_u = (u0, u1, u2)
+    work = 0.0
+    for a in range(dim):
+        net = corrected_viscous_acceleration(Pi_[U + a], self_weight, weight_sum,
+                                             weighted_u[a], variant)
+        dv_corr[i, a] = net - Pi_[U + a]
+        work -= Pi_[V + a] * dv_corr[i, a]
+    de_corr[i] = correction_energy_rate(work, paper_energy, weight_sum, self_weight, variant,
+                                        energy_mode)
+    for a in range(dim):
+        dv[i, a] += dv_corr[i, a]
+    de[i] += de_corr[i]
+
+
+ACCELERATION_CORRECTION = VISCOSITY.register(ViscosityScheme(
+    name="ac", pair_viscosity=pair_viscosity, parameters=CorrectionParameters,
+    pair_parameters=lambda v: (1.0, 1.0, float(v.epsilon), 0.0),
+    correction=correct,
+    correction_parameters=lambda v: (float(v.correction_h_ratio),
+                                     float(VARIANTS[v.correction]),
+                                     float(ENERGY_CORRECTIONS[v.energy_correction]), 0.0),
+    source="Shaw & Reid (2009) eqs 31-37",
+    description="Shaw-Reid acceleration correction of Monaghan's viscosity (1, 1)"))

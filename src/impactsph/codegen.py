@@ -1,0 +1,221 @@
+"""Generated passes: the template :mod:`impactsph.physics.passes` bound to the registered
+models and a dimension.
+
+A pass applies every model where its equation belongs (the EOS in the particle pass, the
+viscosity in the pair loop, the return map in the integrator), and numba compiles it with
+those calls inlined and the dimension a constant.  To get that for any set of registered
+models (a user's included) *and* keep numba's disk cache (numba caches a function only if it
+captures no compiled function, and does not notice when a function it calls changes), each
+set of models is written out as a module of its own:
+
+1. the *binding*: ``DIM``, the material-table layout, and one dispatch function per model
+   kind (``eos_pressure(kind, ...)``: an if-chain over the registered models' compiled
+   functions, which are injected into the module under the names ``_eos_0``, ``_eos_1``, ...);
+2. the template's text, with its stub binding replaced by that one;
+3. written once to ``<cache>/passes_<hash>.py`` and imported from there (numba keeps its
+   machine code in ``__pycache__`` beside it).
+
+The hash covers the template, the binding and the source files of every model function bound
+in (and of the modules the template imports), so a changed model makes a new module instead of
+reusing stale machine code.  The cache is ``$IMPACTSPH_CACHE_DIR``, else
+``$XDG_CACHE_HOME/impactsph``, else ``~/.cache/impactsph``; a directory that cannot be written
+falls back to a temporary one (the code is then compiled in every process).
+
+``simulated=True`` builds the same module for numba's CUDA simulator: nothing is compiled for
+the CPU (``JIT`` does nothing and every compiled function bound in is replaced by its Python
+source), since the simulator's arrays cannot be passed to compiled functions.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import inspect
+import os
+import sys
+import tempfile
+from functools import cache
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+from . import atomic
+from .materials import TableLayout
+from .models import EOS, STRENGTH, VISCOSITY
+from .models import registry as _registry
+
+BEGIN = "# >>> binding"
+END = "# <<< binding"
+#: the package modules whose code the template inlines (their source is part of the hash)
+TEMPLATE_IMPORTS = ("kernels.py", "materials.py", "physics/contact.py", "physics/continuity.py",
+                    "physics/energy.py", "physics/momentum.py", "physics/records.py",
+                    "physics/stress_rate.py")
+PACKAGE = Path(__file__).parent
+
+
+def cache_directory() -> Path:
+    """Where the generated modules are written (see the module docstring)."""
+    root = os.environ.get("IMPACTSPH_CACHE_DIR")
+    if root is None:
+        xdg = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"),
+                                                                ".cache")
+        root = os.path.join(xdg, "impactsph")
+    path = Path(root) / "kernels"
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        probe = tempfile.NamedTemporaryFile(dir=path, prefix=".probe", delete=True)
+        probe.close()
+    except OSError:
+        path = Path(tempfile.mkdtemp(prefix="impactsph-kernels-"))
+    return path
+
+
+def _no_jit(*args: Any, **kwargs: Any) -> Any:
+    """``JIT`` under the CUDA simulator: leaves the function as it is."""
+    if len(args) == 1 and callable(args[0]) and not kwargs:
+        return args[0]
+    return lambda f: f
+
+
+def _python(f: Any) -> Any:
+    """The Python source function of a numba dispatcher (itself otherwise)."""
+    return getattr(f, "py_func", f)
+
+
+def _source_of(f: Any) -> str:
+    """The text that decides what ``f`` computes: its module's source file, or its code."""
+    f = _python(f)
+    try:
+        return Path(inspect.getsourcefile(f)).read_text()
+    except (TypeError, OSError):
+        code = f.__code__
+        return repr((code.co_code, code.co_consts, code.co_names))
+
+
+def _dispatch(name: str, args: str, prefix: str, models: list[tuple[int, Any]],
+              fallback: str) -> str:
+    """An inlined if-chain ``name(kind, args)`` calling ``{prefix}{k}(args)`` for the kind
+    codes ``k`` of ``models``, ``fallback`` for any other."""
+    lines = ['@JIT(inline="always", cache=True)', f"def {name}(kind, {args}):"]
+    for k, _ in models:
+        lines += [f"    if kind == {k}:", f"        return {prefix}{k}({args})"]
+    lines.append(f"    {fallback}")
+    return "\n".join(lines) + "\n"
+
+
+def binding(dim: int) -> tuple[str, dict[str, Any]]:
+    """The binding block for ``dim`` and the registered models: its source, and the compiled
+    functions to inject under their names."""
+    layout = TableLayout.registered()
+    inject: dict[str, Any] = {}
+    described = []
+    eos = list(enumerate(EOS))
+    for k, m in eos:
+        inject[f"_eos_{k}"] = m.pressure
+        described.append(f"#   eos {k}: {m.name} ({_qualified(m.pressure)})")
+    strength = [(k, m) for k, m in enumerate(STRENGTH) if m.return_map is not None]
+    for k, m in enumerate(STRENGTH):
+        if m.return_map is not None:
+            inject[f"_strength_{k}"] = m.return_map
+        described.append(f"#   strength {k}: {m.name} ({_qualified(m.return_map)})")
+    viscosity = list(enumerate(VISCOSITY))
+    corrections = [(k, m) for k, m in viscosity if m.correction is not None]
+    for k, m in viscosity:
+        inject[f"_viscosity_{k}"] = m.pair_viscosity
+        if m.correction is not None:
+            inject[f"_correction_{k}"] = m.correction
+        described.append(f"#   viscosity {k}: {m.name} ({_qualified(m.pair_viscosity)}, "
+                         f"{_qualified(m.correction)})")
+    last_eos = eos[-1][0]
+    source = "\n".join([
+        f"{BEGIN}: generated by impactsph.codegen for these models (the functions named",
+        "# _eos_K, _strength_K, _viscosity_K, _correction_K are injected into this module):",
+        *described,
+        f"DIM = {dim}",
+        "JIT = nb.njit",
+        f"EOS_PARAMS = {layout.eos_params}",
+        f"STRENGTH_PARAMS = {layout.strength_params}",
+        f"STATE_WIDTH = {layout.state_width}",
+        "",
+        "",
+        _dispatch("eos_pressure", "rho, e, rho0, bulk, params", "_eos_", eos[:-1],
+                  f"return _eos_{last_eos}(rho, e, rho0, bulk, params)"),
+        "",
+        _dispatch("strength_return", "S, rho, shear, params, state", "_strength_", strength,
+                  "return 0.0"),
+        "",
+        _dispatch("pair_viscosity", "vr, r2, h_ij, c_ij, rho_ij, params", "_viscosity_",
+                  viscosity[:-1], f"return _viscosity_{viscosity[-1][0]}(vr, r2, h_ij, c_ij, "
+                  f"rho_ij, params)"),
+        "",
+        _dispatch("viscosity_correction", "p, i, P, offsets, indices, columns, dim, params, "
+                  "dv_corr, de_corr, dv, de", "_correction_", corrections, "return None"),
+        END,
+    ])
+    return source, inject
+
+
+def _qualified(f: Any) -> str:
+    if f is None:
+        return "none"
+    f = _python(f)
+    return f"{f.__module__}.{f.__qualname__}"
+
+
+def _template_text(template: ModuleType) -> str:
+    return Path(inspect.getsourcefile(template)).read_text()
+
+
+def generate(template: ModuleType, dim: int) -> tuple[str, dict[str, Any]]:
+    """The text of the generated module and the functions to inject (see :func:`binding`)."""
+    text = _template_text(template)
+    start, end = text.index(BEGIN), text.index(END)
+    end = text.index("\n", end) + 1
+    block, inject = binding(dim)
+    return text[:start] + block + "\n" + text[end:], inject
+
+
+def _fingerprint(text: str, inject: dict[str, Any]) -> str:
+    digest = hashlib.sha256(text.encode())
+    for name in sorted(inject):
+        digest.update(name.encode())
+        digest.update(_source_of(inject[name]).encode())
+    for rel in TEMPLATE_IMPORTS:
+        digest.update((PACKAGE / rel).read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def load(template: ModuleType, dim: int, simulated: bool = False) -> ModuleType:
+    """The template bound to the registered models and ``dim``, imported (cached in this
+    process per registry version)."""
+    return _load(template.__name__, dim, simulated, _registry.version())
+
+
+@cache
+def _load(template_name: str, dim: int, simulated: bool, version: int) -> ModuleType:
+    template = sys.modules[template_name]
+    text, inject = generate(template, dim)
+    key = _fingerprint(text, inject)
+    stem = template_name.rsplit(".", 1)[-1]
+    path = cache_directory() / f"{stem}_{dim}d_{key}.py"
+    if not path.exists() or path.read_text() != text:
+        atomic.write_text(path, text)
+    name = f"impactsph_generated.{path.stem}{'_simulated' if simulated else ''}"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    if simulated:
+        inject = {k: _python(f) for k, f in inject.items()}
+    module.__dict__.update(inject)
+    sys.modules[name] = module
+    code = compile(text, str(path), "exec")
+    if simulated:
+        # run the text with JIT doing nothing, then swap every compiled function it imported
+        # for its Python source
+        code = compile(text.replace("JIT = nb.njit", "JIT = _no_jit"), str(path), "exec")
+        module.__dict__["_no_jit"] = _no_jit
+    exec(code, module.__dict__)
+    if simulated:
+        for key_name, value in list(module.__dict__.items()):
+            if hasattr(value, "py_func") and not key_name.startswith("__"):
+                module.__dict__[key_name] = value.py_func
+    return module

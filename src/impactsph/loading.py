@@ -1,0 +1,222 @@
+"""Case files: reading a TOML file or a built-in case, ``--set`` overrides, the case's
+``plugins``, and validation against the schema (:mod:`impactsph.config`) with one-line errors.
+
+Loading validates the whole case before any computation: an unknown key, a value of the wrong
+type or out of range raises :class:`~impactsph.errors.CaseError` whose message is one line
+naming the field, the value and what is allowed.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import re
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
+
+from .config import GEOMETRY_TYPES, Case, ParticleFile, schema
+from .errors import CaseError
+
+BUILTIN_CASES = ("bars", "taylor", "cantilever")
+
+
+def builtin_case_path(name: str) -> Path:
+    """Path of a case shipped with the package."""
+    return Path(str(resources.files("impactsph") / "cases" / f"{name}.toml"))
+
+
+def resolve_paths(data: dict[str, Any], directory: Path) -> dict[str, Any]:
+    """Make the relative ``path`` of every ``type = "file"`` geometry, and every plugin given
+    as a ``.py`` file, in a case dict relative to ``directory`` (in place; entries that are not
+    well formed are left for validation)."""
+    plugins = data.get("plugins") if isinstance(data, dict) else None
+    if isinstance(plugins, list):
+        data["plugins"] = [
+            os.path.abspath(os.path.join(directory, os.path.expanduser(p)))
+            if isinstance(p, str) and p.endswith(".py")
+            and not os.path.isabs(os.path.expanduser(p)) else p for p in plugins]
+    bodies = data.get("bodies") if isinstance(data, dict) else None
+    for body in bodies if isinstance(bodies, list) else []:
+        geometry = body.get("geometry") if isinstance(body, dict) else None
+        if not isinstance(geometry, dict) or geometry.get("type") != "file":
+            continue
+        path = geometry.get("path")
+        if isinstance(path, str) and path and not os.path.isabs(os.path.expanduser(path)):
+            geometry["path"] = os.path.abspath(os.path.join(directory, path))
+    return data
+
+
+def read_case_dict(source: str | Path) -> dict[str, Any]:
+    """Read a case file, or a built-in case by name, into a plain dict (not yet validated).
+    The relative paths of particle files are made relative to the case file's directory."""
+    path = Path(source)
+    if not path.suffix and str(source) in BUILTIN_CASES:
+        path = builtin_case_path(str(source))
+    elif not path.exists():
+        if path.suffix:
+            raise CaseError(f"case file {str(source)!r} does not exist")
+        raise CaseError(f"case {str(source)!r} is neither a file nor a built-in case; "
+                        f"built-in cases: {', '.join(BUILTIN_CASES)}")
+    try:
+        with open(path, "rb") as fh:
+            return resolve_paths(tomllib.load(fh), path.absolute().parent)
+    except tomllib.TOMLDecodeError as exc:
+        raise CaseError(f"{path}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise CaseError(f"{path}: not valid UTF-8: {exc}") from None
+    except OSError as exc:
+        raise CaseError(f"case file {str(path)!r} cannot be read: {exc.strerror or exc}"
+                        ) from None
+
+
+def parse_override(text: str) -> tuple[list[str], Any]:
+    """``'a.b.0.c=value'`` -> (['a', 'b', '0', 'c'], value); the value is read as TOML
+    (numbers, booleans, strings in quotes, arrays) and otherwise kept as a bare string."""
+    if "=" not in text:
+        raise CaseError(f"--set {text!r}: expected KEY=VALUE, e.g. viscosity.alpha1=0.3")
+    key, raw = text.split("=", 1)
+    key = key.strip()
+    if not key or any(not part for part in key.split(".")):
+        raise CaseError(f"--set {text!r}: the key must be a dotted path such as time.end")
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return key.split("."), value
+
+
+def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
+    """Apply ``--set`` overrides to a case dict (a copy is returned)."""
+    data = copy.deepcopy(data)
+    for text in overrides:
+        path, value = parse_override(text)
+        node: Any = data
+        for depth, part in enumerate(path[:-1]):
+            where = ".".join(path[: depth + 1])
+            if isinstance(node, list):
+                if not part.isdecimal() or int(part) >= len(node):
+                    raise CaseError(f"--set {text}: {where} is not an index of a list of "
+                                    f"{len(node)}")
+                node = node[int(part)]
+            elif isinstance(node, dict):
+                node = node.setdefault(part, {})
+            else:
+                raise CaseError(f"--set {text}: {where} is not a table")
+        last = path[-1]
+        if isinstance(node, list):
+            if not last.isdecimal() or int(last) >= len(node):
+                raise CaseError(f"--set {text}: index {last} is out of range")
+            node[int(last)] = value
+        elif isinstance(node, dict):
+            node[last] = value
+        else:
+            raise CaseError(f"--set {text}: {'.'.join(path[:-1])} is not a table")
+    return data
+
+
+_TYPE_TAGS = {"constrained-float", "constrained-int", "float", "int", "str", "bool", "list",
+              "dict", "nullable"}
+
+
+def _is_type_tag(part: object) -> bool:
+    """Pydantic's names of union members in an error location (not field names)."""
+    return isinstance(part, str) and (part in _TYPE_TAGS
+                                      or re.match(r"^[a-z-]+\[", part) is not None)
+
+
+def _location(loc: tuple[Any, ...]) -> str:
+    """The dotted field path of an error location, without pydantic's names of union members
+    (``constrained-float``, ...) and of the geometry's type (``bodies.0.geometry.disk.radius``
+    is ``bodies.0.geometry.radius``)."""
+    parts = [p for k, p in enumerate(loc) if not _is_type_tag(p)
+             and not (k > 0 and loc[k - 1] == "geometry" and p in GEOMETRY_TYPES)]
+    return ".".join(str(p) for p in parts)
+
+
+def _format_error(exc: ValidationError) -> str:
+    errors = exc.errors()
+    err = errors[0]
+    loc = _location(err["loc"])
+    msg = err["msg"]
+    if msg.startswith("Value error, "):
+        msg = msg[len("Value error, "):]
+    value = err.get("input")
+    if err["type"] == "geometry_type" and isinstance(value, dict):
+        loc, value = f"{loc}.type", value.get("type")
+    more = f" (and {len(errors) - 1} more errors)" if len(errors) > 1 else ""
+    if err["type"] == "extra_forbidden":
+        return f"{loc}: unknown key{more}"
+    if err["type"] == "missing":
+        return f"{loc}: required field is missing{more}"
+    if loc and not isinstance(value, dict):
+        return f"{loc} = {value!r}: {msg}{more}"
+    return f"{loc + ': ' if loc else ''}{msg}{more}"
+
+
+_LOADED_PLUGINS: dict[str, Any] = {}
+
+
+def load_plugins(plugins: Any) -> None:
+    """Import the case's ``plugins`` (dotted module names, or ``.py`` files), once each per
+    process; raise :class:`CaseError` naming the entry that cannot be imported."""
+    import importlib
+    import importlib.util
+    import sys
+
+    if not isinstance(plugins, list):
+        return  # not a list of names: the schema reports it
+    for k, plugin in enumerate(plugins):
+        if not isinstance(plugin, str) or not plugin or plugin in _LOADED_PLUGINS:
+            continue
+        try:
+            if plugin.endswith(".py"):
+                path = Path(os.path.expanduser(plugin))
+                if not path.is_file():
+                    raise CaseError(f"plugins.{k} = {plugin!r}: file does not exist")
+                name = f"impactsph_plugin_{len(_LOADED_PLUGINS)}_{path.stem}"
+                spec = importlib.util.spec_from_file_location(name, path)
+                module = importlib.util.module_from_spec(spec)
+                sys.modules[name] = module
+                spec.loader.exec_module(module)
+            else:
+                module = importlib.import_module(plugin)
+        except CaseError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - any failure of user code, said in one line
+            raise CaseError(f"plugins.{k} = {plugin!r}: cannot be imported "
+                            f"({type(exc).__name__}: {exc})".replace("\n", " ")) from None
+        _LOADED_PLUGINS[plugin] = module
+
+
+def validate_case(data: dict[str, Any]) -> Case:
+    """Validate a case dict against the :func:`schema` of the registered models (after
+    importing its ``plugins``); raise :class:`CaseError` with a one-line message."""
+    if isinstance(data, dict):
+        load_plugins(data.get("plugins"))
+    try:
+        return schema().Case.model_validate(data)
+    except ValidationError as exc:
+        raise CaseError(_format_error(exc)) from None
+
+
+def check_particle_files(case: Case) -> None:
+    """Read every particle file of the case's ``type = "file"`` geometries; raise
+    :class:`CaseError` naming the field for a file that is missing or malformed."""
+    from .geometry import read_particle_file
+
+    for k, body in enumerate(case.bodies):
+        if isinstance(body.geometry, ParticleFile):
+            read_particle_file(body.geometry.path, case.dimension,
+                               where=f"bodies.{k}.geometry.path")
+
+
+def load_case(source: str | Path, overrides: list[str] | None = None) -> Case:
+    """Load and validate a case file or built-in case, with optional ``--set`` overrides, and
+    check the particle files it reads."""
+    case = validate_case(apply_overrides(read_case_dict(source), overrides or []))
+    check_particle_files(case)
+    return case

@@ -1,0 +1,203 @@
+"""The registries of material and viscosity models: what a model declares, and where it is
+found by name.
+
+A model is one module that builds one of the dataclasses below and registers it with one line
+(``register(EquationOfState(...))``).  It declares
+
+- its **name**, the value that selects it in a case file (``eos = "mie_gruneisen"``,
+  ``model = "elastic_plastic"``, ``scheme = "ac"``);
+- its **parameters**, a :class:`Parameters` model (pydantic), which becomes its part of the
+  case schema: a sub-table named after the model (``[materials.iron.mie_gruneisen]``), or
+  fields of the enclosing table where the model says ``flat=True``;
+- its **table columns**, the names of the numbers it keeps per material in the kernels'
+  material table, and ``coefficients(...)``, which computes them from its parameters;
+- its **compiled functions** (``numba.njit``), which the generated passes call
+  (:mod:`impactsph.codegen`): an EOS's ``pressure``, a strength model's ``return_map``, a
+  viscosity scheme's ``pair_viscosity`` and optional ``correction`` (a per-particle pass after
+  the pair pass);
+- the **per-particle state** it needs (a strength model's ``state``: names of scalar fields
+  that the integrator carries and hands to its return map).
+
+The registries are read by the case schema (:mod:`impactsph.config`), the material table
+(:mod:`impactsph.materials`), the problem set-up, the generated passes and the outputs.  A model
+registered from user code, before the case is loaded, works in a case file like a built-in one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any, Generic, TypeVar
+
+from pydantic import BaseModel, ConfigDict
+
+
+class Parameters(BaseModel):
+    """Base of every table of a case file: unknown keys are refused and no string or boolean
+    is taken for a number (TOML has real types)."""
+
+    model_config = ConfigDict(extra="forbid", validate_default=True, strict=True)
+
+
+@dataclass(frozen=True)
+class ElasticConstants:
+    """A material's resolved elastic constants (SI), handed to ``coefficients``."""
+
+    density: float  #: reference density rho0 (kg/m^3)
+    youngs_modulus: float  #: E (Pa)
+    poisson_ratio: float  #: nu
+    bulk_modulus: float  #: K (Pa)
+    shear_modulus: float  #: mu (Pa)
+
+
+@dataclass(frozen=True)
+class EquationOfState:
+    """An equation of state ``P(rho, e)``.
+
+    ``pressure(rho, e, rho0, bulk_modulus, params) -> P``: compiled (``numba.njit``, best with
+    ``inline="always"``); ``params`` is the material's row of the table from this model's first
+    column on (``params[k]`` is ``columns[k]``).  ``coefficients(parameters, constants)``
+    returns the values of ``columns`` (a tuple of floats) from the validated parameters (None
+    when the model has none) and the material's :class:`ElasticConstants`."""
+
+    name: str
+    pressure: Any
+    description: str = ""
+    parameters: type[Parameters] | None = None
+    columns: tuple[str, ...] = ()
+    coefficients: Callable[[Any, ElasticConstants], tuple[float, ...]] | None = None
+    source: str = ""  #: where the equations come from (paper, equation numbers)
+
+
+@dataclass(frozen=True)
+class StrengthModel:
+    """A strength model: what becomes of the deviatoric stress after each integrator stage.
+
+    ``return_map(S, rho, shear_modulus, params, state) -> dissipated specific work (J/kg)``:
+    compiled; ``S`` is the particle's 3x3 deviatoric stress after the elastic (Jaumann)
+    update, changed in place; ``params`` the material's row of the table from this model's
+    first column; ``state`` the particle's values of this model's ``state`` fields (a view;
+    the integrator restores them at the start of each stage, as it does the stress), changed
+    in place.  ``None``: the stress is left as it is (elastic).
+
+    ``uniaxial_stress``: the 1D bar of the paper's Example 1 (``K = E``, no deviatoric stress,
+    bar wave speed); ``dimensions`` and ``equations_of_state`` (None: any) restrict where the
+    model may be used."""
+
+    name: str
+    return_map: Any = None
+    description: str = ""
+    parameters: type[Parameters] | None = None
+    flat: bool = False  #: parameters are fields of the material table, not a sub-table
+    columns: tuple[str, ...] = ()
+    coefficients: Callable[[Any, ElasticConstants], tuple[float, ...]] | None = None
+    state: tuple[str, ...] = ()
+    uniaxial_stress: bool = False
+    dimensions: tuple[int, ...] = (1, 2, 3)
+    equations_of_state: tuple[str, ...] | None = None
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class ViscosityScheme:
+    """A viscosity scheme: the pair term ``Pi_ij`` of the momentum and energy equations
+    (eqs 27-28), and optionally a per-particle correction applied after the pair pass.
+
+    ``pair_viscosity(vr, r2, h_ij, c_ij, rho_ij, params) -> Pi_ij`` (compiled): ``vr = v_ij .
+    r_ij``, ``r2 = |r_ij|^2``, pair means ``h_ij, c_ij, rho_ij``; ``params`` the tuple of four
+    floats that ``pair_parameters(viscosity)`` returns for the case's ``[viscosity]`` table.
+
+    ``correction`` (compiled, optional): ``correction(p, i, P, offsets, indices, layout,
+    dim, params, dv_corr, de_corr, dv, de)`` for the active particle ``i`` at sorted position
+    ``p``, reading the packed records ``P`` (``layout``: the tuple of their column indices,
+    see :func:`impactsph.physics.passes.record_columns`) and adding its terms to ``dv``,
+    ``de``; ``correction_parameters(viscosity)`` gives its four floats."""
+
+    name: str
+    pair_viscosity: Any
+    pair_parameters: Callable[[Any], tuple[float, float, float, float]]
+    description: str = ""
+    parameters: type[Parameters] | None = None  #: fields of the [viscosity] table
+    correction: Any = None
+    correction_parameters: Callable[[Any], tuple[float, float, float, float]] | None = None
+    source: str = ""
+
+
+M = TypeVar("M", EquationOfState, StrengthModel, ViscosityScheme)
+
+
+@dataclass
+class Registry(Generic[M]):
+    """Models of one kind, by name, in the order they were registered."""
+
+    kind: str  #: what a model of this registry is, for messages ("equation of state")
+    models: dict[str, M] = field(default_factory=dict)
+
+    def register(self, model: M, *, replace: bool = False) -> M:
+        """Add ``model``; a second model of the same name is refused unless ``replace``."""
+        if not model.name.isidentifier():
+            raise ValueError(f"{self.kind} name {model.name!r} must be a Python identifier")
+        if model.name in self.models and not replace:
+            raise ValueError(f"a {self.kind} named {model.name!r} is already registered "
+                             f"(pass replace=True to replace it)")
+        self.models[model.name] = model
+        _bump()
+        return model
+
+    def unregister(self, name: str) -> None:
+        """Remove a model (tests register toy models and remove them again)."""
+        if self.models.pop(name, None) is not None:
+            _bump()
+
+    def __getitem__(self, name: str) -> M:
+        try:
+            return self.models[name]
+        except KeyError:
+            raise KeyError(f"no {self.kind} named {name!r}; registered: "
+                           f"{', '.join(self.models)}") from None
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.models
+
+    def __iter__(self) -> Iterator[M]:
+        return iter(self.models.values())
+
+    def __len__(self) -> int:
+        return len(self.models)
+
+    def names(self) -> tuple[str, ...]:
+        """The registered names, in registration order."""
+        return tuple(self.models)
+
+    def index(self, name: str) -> int:
+        """Position of ``name`` in the registration order: its kind code in the kernels."""
+        return list(self.models).index(name)
+
+
+_version = 0
+
+
+def _bump() -> None:
+    global _version
+    _version += 1
+
+
+def version() -> int:
+    """A number that changes whenever any registry changes (the schema and the generated
+    passes are rebuilt when it does)."""
+    return _version
+
+
+EOS: Registry[EquationOfState] = Registry("equation of state")
+STRENGTH: Registry[StrengthModel] = Registry("strength model")
+VISCOSITY: Registry[ViscosityScheme] = Registry("viscosity scheme")
+
+
+def register(model: M, *, replace: bool = False) -> M:
+    """Register an equation of state, strength model or viscosity scheme (by its type)."""
+    registry = {EquationOfState: EOS, StrengthModel: STRENGTH,
+                ViscosityScheme: VISCOSITY}.get(type(model))
+    if registry is None:
+        raise TypeError(f"cannot register {model!r}: not an EquationOfState, StrengthModel or "
+                        f"ViscosityScheme")
+    return registry.register(model, replace=replace)

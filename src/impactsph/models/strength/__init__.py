@@ -1,0 +1,3 @@
+"""Strength models, one module each; importing this package registers them."""
+
+from . import elastic, von_mises  # noqa: F401

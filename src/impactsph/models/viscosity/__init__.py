@@ -1,0 +1,3 @@
+"""Viscosity schemes, one module each; importing this package registers them."""
+
+from . import correction, monaghan  # noqa: F401

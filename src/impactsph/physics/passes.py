@@ -1,0 +1,379 @@
+"""Every compiled pass whose body depends on the registered models: the one place where the
+SPH rate equations are applied, for the CPU and for the GPU alike.
+
+This file is a template.  :mod:`impactsph.codegen` copies it, with the *binding* block below
+replaced by the dimension ``DIM``, the material-table layout and the dispatch functions of the
+registered models (``eos_pressure``, ``strength_return``, ``pair_viscosity``,
+``viscosity_correction``: an if-chain over the models' compiled functions), into a module of
+its own for each dimension and set of models, and imports that.  So a model is called, and
+inlined, where its equation applies, and the dimension is a compile-time constant (the small
+loops over components unroll).  The copy is a file, so numba's disk cache keeps its machine
+code between runs.  (The package's own copy, with the stub binding, is never run.)
+
+Per particle ``i`` the passes evaluate the right-hand sides of the continuity (eq 22),
+momentum (eq 27), energy (eq 28) and Jaumann stress-rate (eq 14) equations:
+
+1. :func:`particle_record` (every row, ghosts included): pressure from the EOS, wave speed,
+   ``A = sigma/rho^2``, ``P/rho^2`` and ``V = m/rho`` into the particle's packed record
+   (:mod:`.records`), in the neighbour list's cell (Morton) order;
+2. :func:`particle_rates` (every active particle; gather, so threads never write the same
+   memory and the result does not depend on their number): the sums over its neighbours of
+   continuity, velocity gradient, stress and viscous accelerations, stress work and viscous
+   heating, contact terms; then its Jaumann stress rate;
+3. ``viscosity_correction`` (a scheme with a correction, e.g. AC): per particle again, after
+   every particle's viscous acceleration is known;
+4. :func:`advance_particle`: one integrator stage of one particle, and its strength model's
+   return map.
+
+The CPU passes (:func:`particle_pass`, :func:`pair_pass`, :func:`correction_pass`,
+:func:`advance`) run these bodies over parallel chunks; :func:`cuda_kernels` runs the same
+bodies, one CUDA thread per particle.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from impactsph.kernels import cubic_spline_gradient_factor
+from impactsph.materials import BULK, EOS_KIND, RHO0, SHEAR, STRENGTH_KIND, WAVE_MODULUS
+from impactsph.physics.contact import contact_acceleration_pair, contact_work_pair, in_contact
+from impactsph.physics.continuity import continuity_pair, velocity_gradient_pair
+from impactsph.physics.energy import viscous_heating_pair
+from impactsph.physics.momentum import viscous_acceleration_pair
+from impactsph.physics.records import record_columns, symmetric_index
+from impactsph.physics.stress_rate import jaumann_stress_rate
+
+# >>> binding: replaced by impactsph.codegen in each generated copy
+DIM = 3
+JIT = nb.njit
+EOS_PARAMS = STRENGTH_PARAMS = STATE_WIDTH = 6
+eos_pressure = strength_return = pair_viscosity = viscosity_correction = None
+# <<< binding
+
+#: LLVM may fuse multiply-adds and use reciprocals in the pair pass (deterministic on one
+#: machine; no reassociation, so sums keep their order).
+FASTMATH = {"contract", "arcp", "nsz"}
+
+_COLUMNS = record_columns(DIM)
+X, V, H, M, VOL, RHO, C, PC, BODY, A0, U = (_COLUMNS[k] for k in (
+    "x", "v", "h", "m", "volume", "rho", "c", "pc", "body", "A", "u"))
+RECORD_WIDTH = _COLUMNS["width"]
+#: columns of A's components: SYM[a][b] (a tuple of tuples: a compile-time constant)
+SYM = tuple(tuple(A0 + symmetric_index(a, b, DIM) for b in range(DIM)) for a in range(DIM))
+A00 = SYM[0][0]
+A01, A11 = (SYM[0][1], SYM[1][1]) if DIM > 1 else (0, 0)
+A02, A12, A22 = (SYM[0][2], SYM[1][2], SYM[2][2]) if DIM > 2 else (0, 0, 0)
+#: the record columns a correction reads: (x, v, h, volume, body, u)
+CORRECTION_COLUMNS = (X, V, H, VOL, BODY, U)
+
+
+@JIT(inline="always", cache=True)
+def material_pressure(table, k, rho, e):
+    """Pressure of material ``k`` (a row of the material table) at ``rho``, ``e``."""
+    row = table[k]
+    return eos_pressure(int(row[EOS_KIND]), rho, e, row[RHO0], row[BULK], row[EOS_PARAMS:])
+
+
+@JIT(inline="always", cache=True)
+def particle_record(p, i, x, v, m, rho, e, S, h, body, material, table, P):
+    """Pass 1 for particle ``i`` at sorted position ``p``: ``P``, ``c = sqrt(M/rho)``, and its
+    packed record (``V = m/rho``, ``P/rho^2``, ``A = (-P I + S)/rho^2``, ...) in row ``p``."""
+    k = material[i]
+    pr = material_pressure(table, k, rho[i], e[i])
+    c = math.sqrt(table[k, WAVE_MODULUS] / rho[i])
+    inv_rho2 = 1.0 / (rho[i] * rho[i])
+    for a in range(DIM):
+        P[p, X + a] = x[i, a]
+        P[p, V + a] = v[i, a]
+        for b in range(a, DIM):
+            P[p, SYM[a][b]] = S[i, a, b] * inv_rho2
+        P[p, SYM[a][a]] -= pr * inv_rho2
+    P[p, H] = h[i]
+    P[p, M] = m[i]
+    P[p, VOL] = m[i] / rho[i]
+    P[p, RHO] = rho[i]
+    P[p, C] = c
+    P[p, PC] = pr * inv_rho2
+    P[p, BODY] = body[i]
+
+
+@JIT(inline="always", cache=True)
+def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, material, table,
+                   drho, dv, de, de_visc, contact_force, pair_count, dS, L):
+    """Pass 2 for the active particle ``i`` at sorted position ``p``: the sums over its
+    neighbours (eqs 22, 27, 28) in scalar accumulators (kept in registers) and its stress rate
+    (eq 14, into ``dS[i]``, with ``L`` as scratch for the velocity gradient); its viscous
+    acceleration is also stored in its packed record, for a correction pass.
+    ``contact_force`` is written only if it has a row per particle (several bodies or walls).
+
+    The stress terms are regrouped, exactly in arithmetic: ``sum_j m_j A_i . grad W_ij =
+    A_i . (sum_j m_j grad W_ij)`` and ``sum_j m_j A_i : (v_ij (x) grad W_ij) = A_i : (sum_j
+    m_j v_ij (x) grad W_ij)``, so ``A_i`` is applied once per particle
+    (``tests/test_rates_reference.py`` checks the whole against the term functions summed pair
+    by pair)."""
+    shear = table[material[i], SHEAR]
+    Pi_ = P[p]
+    xi0 = Pi_[X]
+    vi0 = Pi_[V]
+    xi1 = Pi_[X + 1] if DIM > 1 else 0.0
+    vi1 = Pi_[V + 1] if DIM > 1 else 0.0
+    xi2 = Pi_[X + 2] if DIM > 2 else 0.0
+    vi2 = Pi_[V + 2] if DIM > 2 else 0.0
+    hi, ci, rhoi, pci, bi = Pi_[H], Pi_[C], Pi_[RHO], Pi_[PC], Pi_[BODY]
+    inv_hi = 1.0 / hi
+    # accumulators: continuity / rho_i; sum m_j grad W (same body); sum m_j A_j . grad W;
+    # contact and viscous accelerations; L; T = sum m_j v_ij (x) grad W; energies
+    cont = 0.0
+    G0 = G1 = G2 = 0.0
+    a0 = a1 = a2 = 0.0
+    k0 = k1 = k2 = 0.0
+    w0 = w1 = w2 = 0.0
+    f0 = f1 = f2 = 0.0  # viscous push across bodies (part of the contact force)
+    L00 = L01 = L02 = L10 = L11 = L12 = L20 = L21 = L22 = 0.0
+    T00 = T01 = T02 = T10 = T11 = T12 = T20 = T21 = T22 = 0.0
+    de_contact = 0.0
+    de_v = 0.0
+    count = 0
+    for k in range(offsets[p], offsets[p + 1]):
+        Pj = P[indices[k]]
+        d0 = xi0 - Pj[X]
+        r2 = d0 * d0
+        d1 = d2 = 0.0
+        if DIM > 1:
+            d1 = xi1 - Pj[X + 1]
+            r2 += d1 * d1
+        if DIM > 2:
+            d2 = xi2 - Pj[X + 2]
+            r2 += d2 * d2
+        h_j = Pj[H]
+        if h_j == hi:  # equal smoothing lengths (the common case): no division
+            h_ij = hi
+            inv_h = inv_hi
+        else:
+            h_ij = 0.5 * (hi + h_j)
+            inv_h = 1.0 / h_ij
+        q2 = r2 * inv_h * inv_h
+        if q2 >= 4.0 or r2 == 0.0:
+            continue
+        count += 1
+        fq = cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM)
+        g0 = fq * d0
+        g1 = fq * d1
+        g2 = fq * d2
+        u0 = vi0 - Pj[V]
+        u1 = vi1 - Pj[V + 1] if DIM > 1 else 0.0
+        u2 = vi2 - Pj[V + 2] if DIM > 2 else 0.0
+        vg = u0 * g0 + u1 * g1 + u2 * g2
+        vr = u0 * d0 + u1 * d1 + u2 * d2
+        m_j = Pj[M]
+        volume_j = Pj[VOL]
+        same_body = Pj[BODY] == bi
+        if same_body:
+            cont += continuity_pair(1.0, volume_j, vg)
+            G0 += m_j * g0
+            a0 += m_j * Pj[A00] * g0
+            L00 += velocity_gradient_pair(volume_j, u0, g0)
+            T00 += m_j * u0 * g0
+            if DIM > 1:
+                G1 += m_j * g1
+                a0 += m_j * Pj[A01] * g1
+                a1 += m_j * (Pj[A01] * g0 + Pj[A11] * g1)
+                L01 += velocity_gradient_pair(volume_j, u0, g1)
+                L10 += velocity_gradient_pair(volume_j, u1, g0)
+                L11 += velocity_gradient_pair(volume_j, u1, g1)
+                T01 += m_j * u0 * g1
+                T10 += m_j * u1 * g0
+                T11 += m_j * u1 * g1
+            if DIM > 2:
+                G2 += m_j * g2
+                a0 += m_j * Pj[A02] * g2
+                a1 += m_j * Pj[A12] * g2
+                a2 += m_j * (Pj[A02] * g0 + Pj[A12] * g1 + Pj[A22] * g2)
+                L02 += velocity_gradient_pair(volume_j, u0, g2)
+                L12 += velocity_gradient_pair(volume_j, u1, g2)
+                L20 += velocity_gradient_pair(volume_j, u2, g0)
+                L21 += velocity_gradient_pair(volume_j, u2, g1)
+                L22 += velocity_gradient_pair(volume_j, u2, g2)
+                T02 += m_j * u0 * g2
+                T12 += m_j * u1 * g2
+                T20 += m_j * u2 * g0
+                T21 += m_j * u2 * g1
+                T22 += m_j * u2 * g2
+        else:  # another body or a wall ghost: compression-only contact
+            s_ij = pci + Pj[PC]
+            if in_contact(s_ij, vg):
+                cont += continuity_pair(1.0, volume_j, vg)
+                push = contact_acceleration_pair(m_j, s_ij, 1.0)
+                k0 += push * g0
+                k1 += push * g1
+                k2 += push * g2
+                de_contact += contact_work_pair(m_j, pci, s_ij, vg)
+        pi_ij = pair_viscosity(visc_kind, vr, r2, h_ij, 0.5 * (ci + Pj[C]),
+                               0.5 * (rhoi + Pj[RHO]), visc_params)
+        visc = viscous_acceleration_pair(m_j, pi_ij, 1.0)  # 0 if receding
+        w0 += visc * g0
+        w1 += visc * g1
+        w2 += visc * g2
+        if not same_body:
+            f0 += visc * g0
+            f1 += visc * g1
+            f2 += visc * g2
+        de_v += viscous_heating_pair(m_j, pi_ij, vg)
+    # A_i applied to the regrouped sums
+    G = (G0, G1, G2)
+    acc = (a0, a1, a2)
+    kc = (k0, k1, k2)
+    wv = (w0, w1, w2)
+    fv = (f0, f1, f2)
+    Lt = ((L00, L01, L02), (L10, L11, L12), (L20, L21, L22))
+    Tt = ((T00, T01, T02), (T10, T11, T12), (T20, T21, T22))
+    m_i = Pi_[M]
+    de_s = de_contact
+    track_contact = contact_force.shape[0] > 0
+    for a in range(DIM):
+        s = acc[a] + kc[a]
+        for b in range(DIM):
+            A_ab = Pi_[SYM[a][b]]
+            s += A_ab * G[b]
+            de_s -= A_ab * Tt[a][b]
+            L[a, b] = Lt[a][b]
+        dv[i, a] = s + wv[a]
+        P[p, U + a] = wv[a]
+        if track_contact:
+            contact_force[i, a] = m_i * (kc[a] + fv[a])
+    drho[i] = rhoi * cont
+    de[i] = de_s + de_v
+    de_visc[i] = de_v
+    pair_count[i] = count
+    jaumann_stress_rate(L, S[i], shear, dS[i])
+
+
+@JIT(inline="always", cache=True)
+def advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, v_rate, dv, drho, de, dS,
+                     clamped, material, table, x, v, rho, e, S, plastic_work, state):
+    """One integrator stage of particle ``i``: ``y = y0 + dt ydot`` with ``xdot = v_rate``
+    (a clamped particle keeps ``v = 0``), the strength state restored to its value at the
+    start of the step, then the strength model's return map and the specific plastic work
+    it dissipates.  ``v_rate`` may be ``v`` itself: the position is advanced before the
+    velocity."""
+    for a in range(DIM):
+        x[i, a] = x0[i, a] + dt * v_rate[i, a]
+        v[i, a] = 0.0 if clamped[i] else v0[i, a] + dt * dv[i, a]
+    rho[i] = rho0[i] + dt * drho[i]
+    e[i] = e0[i] + dt * de[i]
+    for a in range(3):
+        for b in range(3):
+            S[i, a, b] = S0[i, a, b] + dt * dS[i, a, b]
+    for c in range(STATE_WIDTH):
+        state[i, c] = state0[i, c]
+    k = material[i]
+    row = table[k]
+    plastic_work[i] = pw0[i] + strength_return(int(row[STRENGTH_KIND]), S[i], rho[i],
+                                               row[SHEAR], row[STRENGTH_PARAMS:], state[i])
+
+
+# -- the CPU passes --------------------------------------------------------------------------
+
+
+@JIT(parallel=True, cache=True)
+def particle_pass(order, x, v, m, rho, e, S, h, body, material, table, P):
+    """Pass 1 over every row (ghosts included), in the list's order (``order[p]`` is the
+    particle at sorted position ``p``)."""
+    for p in nb.prange(order.shape[0]):
+        particle_record(p, order[p], x, v, m, rho, e, S, h, body, material, table, P)
+
+
+@JIT(parallel=True, cache=True, fastmath=FASTMATH)
+def pair_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, S, material, table,
+              drho, dv, de, de_visc, contact_force, pair_count, dS, chunk_size):
+    """Pass 2 over the active particles, in parallel chunks of sorted positions; ghosts
+    (``order[p] >= n_active``) only take part as neighbours."""
+    n = order.shape[0]
+    n_chunks = (n + chunk_size - 1) // chunk_size
+    for chunk in nb.prange(n_chunks):
+        L = np.empty((DIM, DIM))  # scratch: the velocity gradient of one particle
+        for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
+            i = order[p]
+            if i >= n_active:
+                for a in range(DIM):
+                    P[p, U + a] = 0.0
+                continue
+            particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, material,
+                           table, drho, dv, de, de_visc, contact_force, pair_count, dS, L)
+
+
+@JIT(parallel=True, cache=True)
+def correction_pass(n_active, order, P, offsets, indices, visc_kind, correction_params,
+                    dv_corr, de_corr, dv, de, chunk_size):
+    """Pass 3 (a scheme with a correction only) over the active particles."""
+    n = order.shape[0]
+    n_chunks = (n + chunk_size - 1) // chunk_size
+    for chunk in nb.prange(n_chunks):
+        for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
+            i = order[p]
+            if i < n_active:
+                viscosity_correction(visc_kind, p, i, P, offsets, indices, CORRECTION_COLUMNS,
+                                     DIM, correction_params, dv_corr, de_corr, dv, de)
+
+
+@JIT(parallel=True, cache=True)
+def advance(n_active, dt, x0, v0, rho0, e0, S0, pw0, state0, v_rate, dv, drho, de, dS, clamped,
+            material, table, x, v, rho, e, S, plastic_work, state):
+    """:func:`advance_particle` for every active particle."""
+    for i in nb.prange(n_active):
+        advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, v_rate, dv, drho, de, dS,
+                         clamped, material, table, x, v, rho, e, S, plastic_work, state)
+
+
+@JIT(parallel=True, cache=True)
+def pressures(rho, e, material, table, out):
+    """``out[i]``: the pressure of particle ``i`` from its material's EOS (Pa)."""
+    for i in nb.prange(rho.shape[0]):
+        out[i] = material_pressure(table, material[i], rho[i], e[i])
+    return out
+
+
+# -- the CUDA kernels ------------------------------------------------------------------------
+
+
+def cuda_kernels():
+    """The same bodies as CUDA kernels, one thread per sorted position ``p``:
+    ``(particle_kernel, pair_kernel, correction_kernel)``.  They launch and state no physics;
+    :class:`impactsph.gpu.GpuRates` moves the data."""
+    global cuda  # a module global, as numba's CUDA simulator expects to find it
+    from numba import cuda
+
+    @cuda.jit
+    def particle_kernel(n_rows, order, x, v, m, rho, e, S, h, body, material, table, P):
+        p = cuda.grid(1)
+        if p < n_rows:
+            particle_record(p, order[p], x, v, m, rho, e, S, h, body, material, table, P)
+
+    @cuda.jit
+    def pair_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind, visc_params, S,
+                    material, table, drho, dv, de, de_visc, contact_force, pair_count, dS):
+        p = cuda.grid(1)
+        if p >= n_rows:
+            return
+        i = order[p]
+        if i >= n_active:  # a ghost: only a neighbour
+            for a in range(DIM):
+                P[p, U + a] = 0.0
+            return
+        L = cuda.local.array((DIM, DIM), nb.float64)
+        particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, material, table,
+                       drho, dv, de, de_visc, contact_force, pair_count, dS, L)
+
+    @cuda.jit
+    def correction_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind,
+                          correction_params, dv_corr, de_corr, dv, de):
+        p = cuda.grid(1)
+        if p < n_rows and order[p] < n_active:
+            viscosity_correction(visc_kind, p, order[p], P, offsets, indices,
+                                 CORRECTION_COLUMNS, DIM, correction_params, dv_corr, de_corr,
+                                 dv, de)
+
+    return particle_kernel, pair_kernel, correction_kernel

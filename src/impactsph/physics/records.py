@@ -1,0 +1,28 @@
+"""The packed particle record: one row of floats per particle, in the neighbour list's cell
+(Morton) order, holding everything the pair loops read of a neighbour, so that each
+neighbour is two or three cache lines instead of a dozen arrays.  The CPU passes and the CUDA
+kernels (:mod:`impactsph.physics.passes`) read the same layout."""
+
+from __future__ import annotations
+
+
+def record_columns(dim: int) -> dict[str, int]:
+    """Columns of the packed record: position ``x``, velocity ``v``, ``h``, ``m``,
+    ``volume = m/rho``, ``rho``, ``c``, ``pc = P/rho^2``, ``body``, the symmetric
+    ``A = sigma/rho^2`` (its upper triangle, row by row: :func:`symmetric_index`) and the
+    viscous acceleration ``u`` that the pair pass writes for a correction pass; ``"width"`` is
+    the row length, padded to whole cache lines (2, 2 and 3 lines of 64 bytes in 1D, 2D,
+    3D)."""
+    n_sym = dim * (dim + 1) // 2
+    cols = {"x": 0, "v": dim, "h": 2 * dim, "m": 2 * dim + 1, "volume": 2 * dim + 2,
+            "rho": 2 * dim + 3, "c": 2 * dim + 4, "pc": 2 * dim + 5, "body": 2 * dim + 6,
+            "A": 2 * dim + 7, "u": 2 * dim + 7 + n_sym}
+    cols["width"] = (cols["u"] + dim + 7) // 8 * 8
+    return cols
+
+
+def symmetric_index(a: int, b: int, dim: int) -> int:
+    """Position of component ``(a, b)`` of a symmetric ``dim x dim`` tensor stored as its
+    upper triangle, row by row."""
+    a, b = min(a, b), max(a, b)
+    return a * dim - a * (a - 1) // 2 + (b - a)

@@ -1,0 +1,168 @@
+"""Example 3: the Parkes cantilever.
+
+The paper's section 5.3 (parameters in its Table 4, figures 14-17); the runs measured in
+``docs/validation.md`` (Example 3), the tip mass's initial speed in ``docs/case-files.md``
+(TipMass).
+
+Measures at the end of the run: the tip deflection, the mean displacement across the beam of
+the particles carrying the tip mass (m), and its ratio to the length L; the plastic work; and
+``max_neighbour_gap_over_h``, the largest distance between two particles that were neighbours
+at t = 0 (within the kernel support 2h), over h.  It is about 2.6 in an intact beam and grows
+where the particles separate: numerical fracture (the paper's Fig 16) shows as a large value.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .base import GeometryNeeds, ProblemKind
+
+if TYPE_CHECKING:
+    from ..config import Case
+
+
+def initial_neighbour_pairs(x0: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Ordered pairs (i, j) closer than 2h at t = 0."""
+    from ..neighbours import NeighbourList
+
+    nl = NeighbourList.build(x0, 2.0 * h)
+    i = np.repeat(np.arange(x0.shape[0]), np.diff(nl.offsets))
+    return i, nl.indices
+
+
+def max_neighbour_gap_over_h(x0: np.ndarray, x: np.ndarray, h: float) -> float:
+    """Largest current distance between initial neighbours, over h."""
+    i, j = initial_neighbour_pairs(x0, h)
+    return float(np.max(np.linalg.norm(x[i] - x[j], axis=1)) / h)
+
+
+def cantilever_metrics(sim: Any) -> dict[str, Any]:
+    """Example 3's measures (see the module docstring)."""
+    body = sim.case.bodies[0]
+    s = sim.state
+    out: dict[str, Any] = {}
+    if body.tip_mass is not None:
+        from ..geometry import inside
+
+        region = body.tip_mass.region
+        tip = inside(s.initial_position, region.origin, region.size)
+        transverse = int(np.argmax(np.abs(body.tip_mass.velocity)))
+        disp = s.position[tip, transverse] - s.initial_position[tip, transverse]
+        length = float(s.initial_position[tip, 0].max() + 0.5 * body.geometry.spacings()[0])
+        out["tip_deflection"] = float(abs(disp.mean()))
+        out["tip_deflection_ratio"] = out["tip_deflection"] / length
+        out["tip_initial_speed"] = sim.problem.info.get("tip_initial_speed")
+    out["max_neighbour_gap_over_h"] = max_neighbour_gap_over_h(
+        s.initial_position, s.position, float(s.smoothing_length.max()))
+    return out
+
+
+# --- figures ---------------------------------------------------------------------------------
+
+def cantilever_shapes_figure(shapes: list[dict[str, Any]], path: Path, title: str) -> Path:
+    """Deformed beams overlaid (paper Figs 15-17; dicts with ``label`` and ``x``)."""
+    from ..plotting import shapes_figure
+
+    return shapes_figure(shapes, path, title, separate=False)
+
+
+# --- the paper's figures and table -----------------------------------------------------------
+
+#: The paper's numerical experiment (Fig 16): alpha1 below the optimum, alpha2 = 0.
+LOW_ALPHA1 = (0.05, 0.075, 0.1)
+
+
+def cantilever_runs() -> dict[str, list[str]]:
+    """Label -> overrides of the runs of Figs 15-17."""
+    from ..paper import AV_SETS, DEFAULT_AC, ac, av
+
+    runs = dict(AV_SETS)
+    runs |= {f"AV ({a:g}, 0)": av(a, 0.0) for a in LOW_ALPHA1}
+    runs["AV (0.1, 0.1)"] = av(0.1, 0.1)
+    runs[f"AC {DEFAULT_AC}"] = ac(DEFAULT_AC)
+    return runs
+
+
+def cantilever_paper(base: dict[str, Any], out: Path, workers: int | None = None,
+                     scheduler: str | None = None) -> dict[str, Any]:
+    """The paper's figures of Example 3 (see :mod:`impactsph.paper`): ``fig15_shapes_av.png``
+    (AV1, AV2, AV3 at 15.8 ms), ``fig16_low_viscosity.png`` (alpha1 = 0.05, 0.075, 0.1 with
+    alpha2 = 0), ``fig17_shapes.png`` (AV (0.1, 0.1) against AC), ``kinetic_energy.png``, and
+    the table of the problem's measures for every run (:func:`impactsph.paper.measure_keys`)."""
+    from ..loading import validate_case
+    from ..paper import (
+        AV_SETS,
+        DEFAULT_AC,
+        final_shapes,
+        kinetic_energy_overlay,
+        load_labelled,
+        measure_keys,
+        measures_table,
+        run_labelled,
+        write_results,
+    )
+
+    case = validate_case(base)
+    runs = cantilever_runs()
+    by_label = run_labelled(base, runs, out, workers=workers, scheduler=scheduler)
+    loaded = load_labelled(out, by_label, ok_only=True)
+    av, ref, ac = list(AV_SETS), "AV (0.1, 0.1)", f"AC {DEFAULT_AC}"
+    paths = []
+    for name, names, title in (
+            ("fig15_shapes_av", av, "Cantilever at 15.8 ms: AV1, AV2, AV3"),
+            ("fig16_low_viscosity", [f"AV ({a:g}, 0)" for a in LOW_ALPHA1],
+             "Cantilever at 15.8 ms: alpha2 = 0"),
+            ("fig17_shapes", [ref, ac], "Cantilever at 15.8 ms: AV (0.1, 0.1) and AC")):
+        shapes = final_shapes(loaded, names)
+        if shapes:
+            paths.append(cantilever_shapes_figure(shapes, out / f"{name}.png", title))
+    paths.append(kinetic_energy_overlay(loaded, [*av, ref, ac], out / "kinetic_energy.png",
+                                        "Kinetic energy: cantilever", case.dimension))
+    keys = measure_keys(case)
+    return write_results(out, paths, measures_table(by_label, loaded, keys),
+                         ["run", "status", *keys])
+
+
+# --- the problem -----------------------------------------------------------------------------
+
+class CantileverProblem(ProblemKind):
+    """Example 3 (``analysis = "cantilever"``): the tip deflection and the beam's integrity."""
+
+    name = "cantilever"
+    title = "Example 3: the Parkes cantilever, tip deflection and numerical fracture"
+    # the measures use the lattice's spacings
+    geometry_needs = GeometryNeeds(bodies=1, types=("block", "disk", "cylinder"))
+
+    def metrics(self, sim: Any) -> dict[str, Any]:
+        """:func:`cantilever_metrics`."""
+        return cantilever_metrics(sim)
+
+    def summary_keys(self, case: Case) -> tuple[str, ...]:
+        """Tip deflection (and over the length), plastic work, largest neighbour gap."""
+        return ("tip_deflection", "tip_deflection_ratio", "plastic_work",
+                "max_neighbour_gap_over_h")
+
+    def table_keys(self, case: Case) -> tuple[str, ...]:
+        """As :meth:`summary_keys`."""
+        return self.summary_keys(case)
+
+    def figures(self, runs: list[dict[str, Any]], labels: list[str], out: Path
+                ) -> list[Path]:
+        """``deformed_shape.png``: the beams at the latest snapshot time they share, overlaid,
+        when they have snapshots."""
+        from ..figures import deformed_shapes
+
+        shapes, when = deformed_shapes(runs, labels)
+        if not shapes:
+            return []
+        name = shapes[0]["case"].name
+        return [cantilever_shapes_figure(shapes, Path(out) / "deformed_shape.png",
+                                         f"{name}: shape at {when}")]
+
+    def paper(self, base: dict[str, Any], out: Path, *, workers: int | None = None,
+              scheduler: str | None = None) -> dict[str, Any]:
+        """:func:`cantilever_paper`: Figs 15-17 and the table."""
+        return cantilever_paper(base, out, workers, scheduler)

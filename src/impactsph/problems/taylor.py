@@ -1,0 +1,281 @@
+"""Example 2: the Taylor bar on a rigid wall.
+
+The paper's section 5.2 (parameters in its Table 3, figures 10-13); the runs measured in
+``docs/validation.md`` (Example 2, and the Taylor bar in 3D).
+
+Measures at the end of the run: the final length over the initial one, ``L_f / L_0``, with
+the length taken as the span of the particles along the bar plus one spacing (so that it is
+``L_0`` at t = 0); the half-width of the footprint on the wall over ``B/2`` (the particles
+within one spacing of the wall, plus half a spacing); plastic work and kinetic energy kept.
+One-dimensional theories (Taylor; Wilkins & Guinan) put ``L_f / L_0`` at about 0.75-0.87 for
+this bar (the band of ``docs/validation.md``, Example 2).
+
+In 3D (a cylinder, ``examples/taylor3d.toml``) the footprint is a radius, measured the same
+way: the largest distance from the bar's axis among the particles within one spacing of the
+wall, plus half a spacing, over the same measure of the whole bar at t = 0
+(``footprint_radius_ratio``; 1 at t = 0, as the 2D ratio).  The axis is the line through the
+initial centroid along the cylinder's ``axis``.  The footprint is also split into eight 45-degree
+sectors about the axis, centred on the lateral coordinate axes and their diagonals;
+``footprint_radius_ratio_min_sector`` is the smallest of their radii, so it equals
+``footprint_radius_ratio`` for a round footprint and falls below it where the foot spreads
+unevenly.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..geometry import AXES
+from .base import GeometryNeeds, ProblemKind
+
+if TYPE_CHECKING:
+    from ..config import Case
+
+#: The band of one-dimensional theory for L_f / L_0 (Taylor; Wilkins & Guinan: see the module
+#: docstring).
+LENGTH_RATIO_BAND = (0.75, 0.87)
+
+
+def bar_measures(x0: np.ndarray, x: np.ndarray, axis: int, spacing: list[float],
+                 wall_level: float) -> dict[str, float]:
+    """Length ratio and footprint half-width ratio of a bar along ``axis`` standing on a wall
+    at ``wall_level`` (initial positions ``x0``, current ``x``)."""
+    along = spacing[axis]
+    L0 = x0[:, axis].max() - x0[:, axis].min() + along
+    Lf = x[:, axis].max() - x[:, axis].min() + along
+    lateral = [a for a in range(x.shape[1]) if a != axis]
+    centre = x0[:, lateral].mean(axis=0)
+    half0 = np.max(np.linalg.norm(x0[:, lateral] - centre, axis=1)) + 0.5 * spacing[lateral[0]]
+    foot = x[:, axis] < wall_level + along
+    half = np.max(np.linalg.norm(x[foot][:, lateral] - centre, axis=1)) + 0.5 * spacing[
+        lateral[0]]
+    return {"final_length_ratio": float(Lf / L0), "footprint_half_width_ratio": float(half / half0),
+            "final_length": float(Lf), "initial_length": float(L0)}
+
+
+#: Sectors of the footprint in 3D: 8 of 45 degrees, centred on the axes and the diagonals.
+N_SECTORS = 8
+
+
+def cylinder_measures(x0: np.ndarray, x: np.ndarray, axis: int, spacing: list[float],
+                      wall_level: float) -> dict[str, float]:
+    """Length ratio and footprint radius ratio of a 3D bar (a cylinder) along ``axis``
+    standing on a wall at ``wall_level`` (initial positions ``x0``, current ``x``): the 3D
+    counterpart of :func:`bar_measures`, the half-width replaced by the distance from the
+    axis (see the module docstring).  ``spacing``: per axis, as for :func:`bar_measures`."""
+    along = spacing[axis]
+    L0 = x0[:, axis].max() - x0[:, axis].min() + along
+    Lf = x[:, axis].max() - x[:, axis].min() + along
+    lateral = [a for a in range(3) if a != axis]
+    across = spacing[lateral[0]]
+    centre = x0[:, lateral].mean(axis=0)
+    R0 = float(np.max(np.linalg.norm(x0[:, lateral] - centre, axis=1))) + 0.5 * across
+    d = x[x[:, axis] < wall_level + along][:, lateral] - centre
+    r = np.hypot(d[:, 0], d[:, 1])
+    Rf = float(r.max()) + 0.5 * across
+    sector = np.rint(np.arctan2(d[:, 1], d[:, 0]) / (2 * np.pi / N_SECTORS)).astype(int)
+    sector %= N_SECTORS
+    by_sector = np.zeros(N_SECTORS)
+    np.maximum.at(by_sector, sector, r + 0.5 * across)
+    return {"final_length_ratio": float(Lf / L0), "footprint_radius_ratio": Rf / R0,
+            "footprint_radius_ratio_min_sector": float(by_sector.min()) / R0,
+            "footprint_radius": Rf, "initial_radius": R0,
+            "final_length": float(Lf), "initial_length": float(L0)}
+
+
+def bar_axis(case: Any) -> int:
+    """The axis the bar stands along: a cylinder's own axis, else the last one."""
+    geometry = case.bodies[0].geometry
+    return AXES.index(geometry.axis) if geometry.type == "cylinder" else case.dimension - 1
+
+
+def bar_wall(case: Any, axis: int) -> float:
+    """Where the (first) wall, the bar's, cuts ``axis``; 0 without walls."""
+    return case.boundaries[0].point[axis] if case.boundaries else 0.0
+
+
+def taylor_metrics(sim: Any) -> dict[str, Any]:
+    """Example 2's measures (see the module docstring)."""
+    body = sim.case.bodies[0]
+    axis = bar_axis(sim.case)
+    wall = bar_wall(sim.case, axis)
+    measures = cylinder_measures if sim.case.dimension == 3 else bar_measures
+    out = measures(sim.state.initial_position, sim.state.position, axis,
+                   body.geometry.spacings(), wall)
+    lo, hi = LENGTH_RATIO_BAND
+    out["length_ratio_in_1d_band"] = bool(lo <= out["final_length_ratio"] <= hi)
+    out["mass_total"] = float(sim.state.mass.sum())
+    return out
+
+
+# --- figures ---------------------------------------------------------------------------------
+
+def bar_views_figure(runs: list[dict[str, Any]], path: Path, title: str, *, axis: int,
+                     wall_level: float, spacing: float) -> Path:
+    """A 3D bar standing on a wall along ``axis`` (the Taylor bar as a cylinder), one row per
+    run: the mid-plane section (the particles within one ``spacing`` of the plane through the
+    axis and the first lateral axis), every particle's distance from the axis against its
+    height (an r-z projection), and the footprint seen from below (the particles within one
+    spacing of the wall) with the circles of radius ``R0`` and ``Rf`` (dashed, solid).
+    ``runs``: dicts with ``label``, ``x`` (n, 3), ``centre`` (the axis's two lateral
+    coordinates), ``R0`` and ``Rf`` (m)."""
+    from ..plotting import plt, save_figure
+
+    lateral = [a for a in range(3) if a != axis]
+    names = ["xyz"[a] for a in lateral] + ["xyz"[axis]]
+    n = len(runs)
+    fig, axes = plt.subplots(n, 3, figsize=(11, 4.6 * n), squeeze=False,
+                             gridspec_kw={"width_ratios": [1, 0.6, 1]})
+    t = np.linspace(0, 2 * np.pi, 361)
+    for k, (row, r) in enumerate(zip(axes, runs, strict=True)):
+        x = np.asarray(r["x"])
+        a = x[:, lateral[0]] - r["centre"][0]
+        b = x[:, lateral[1]] - r["centre"][1]
+        z = x[:, axis] - wall_level
+        mid = np.abs(b) < spacing
+        row[0].scatter(a[mid] * 1e3, z[mid] * 1e3, s=2, color=f"C{k}")
+        row[0].set_xlabel(f"{names[0]} (mm)")
+        row[0].set_ylabel(f"{names[2]} above the wall (mm)")
+        row[0].set_title(f"{r['label']}: section |{names[1]}| < dx", fontsize=9)
+        row[1].scatter(np.hypot(a, b) * 1e3, z * 1e3, s=0.5, color=f"C{k}", alpha=0.3)
+        row[1].set_xlabel("distance from the axis r (mm)")
+        row[1].set_title("r-z projection, every particle", fontsize=9)
+        foot = z < spacing
+        row[2].scatter(a[foot] * 1e3, b[foot] * 1e3, s=3, color=f"C{k}")
+        for radius, style, what in ((r["R0"], "k--", "R0"), (r["Rf"], "k-", "Rf")):
+            row[2].plot(radius * 1e3 * np.cos(t), radius * 1e3 * np.sin(t), style, lw=0.8,
+                        label=f"{what} = {radius * 1e3:.3g} mm")
+        row[2].set_xlabel(f"{names[0]} (mm)")
+        row[2].set_ylabel(f"{names[1]} (mm)")
+        row[2].set_title(f"footprint: {names[2]} < dx, Rf/R0 = {r['Rf'] / r['R0']:.3f}",
+                         fontsize=9)
+        row[2].legend(fontsize=8, loc="upper right")
+        for ax in row:
+            ax.set_aspect("equal")
+            ax.grid(alpha=0.3)
+        row[1].set_xlim(left=0)
+        row[1].sharey(row[0])
+    fig.suptitle(title)
+    return save_figure(fig, path)
+
+
+def taylor_shapes_figure(shapes: list[dict[str, Any]], path: Path, title: str) -> Path:
+    """Deformed bars (dicts with ``label``, ``x``, ``x0`` and ``case``, as
+    :func:`impactsph.figures.deformed_shapes` gives them), side by side: the particles in the
+    plane in 2D (:func:`impactsph.plotting.shapes_figure`, paper Figs 11, 13), and for a 3D
+    bar its section, r-z projection and footprint (:func:`bar_views_figure`), a row per run."""
+    from ..plotting import shapes_figure
+
+    first = shapes[0]["case"]
+    if first.dimension != 3:
+        return shapes_figure(shapes, path, title, separate=True)
+    views = []
+    for s in shapes:
+        case = s["case"]
+        axis = bar_axis(case)
+        x0 = np.asarray(s["x0"])
+        m = cylinder_measures(x0, np.asarray(s["x"]), axis, case.bodies[0].geometry.spacings(),
+                              bar_wall(case, axis))
+        views.append({"label": s["label"], "x": s["x"],
+                      "centre": x0[:, [a for a in range(3) if a != axis]].mean(axis=0),
+                      "R0": m["initial_radius"], "Rf": m["footprint_radius"]})
+    axis = bar_axis(first)
+    return bar_views_figure(views, path, title, axis=axis, wall_level=bar_wall(first, axis),
+                            spacing=first.bodies[0].geometry.spacings()[axis])
+
+
+# --- the paper's figures and table -----------------------------------------------------------
+
+def taylor_runs() -> dict[str, list[str]]:
+    """Label -> overrides of the runs of Figs 11-13."""
+    from ..paper import AV_SETS, DEFAULT_AC, ac, av
+
+    return {**AV_SETS, "AV (0.5, 0.5)": av(0.5, 0.5), f"AC {DEFAULT_AC}": ac(DEFAULT_AC)}
+
+
+def taylor_paper(base: dict[str, Any], out: Path, workers: int | None = None,
+                 scheduler: str | None = None) -> dict[str, Any]:
+    """The paper's figures of Example 2 (see :mod:`impactsph.paper`): ``fig11_shapes_av.png``
+    (AV1, AV2, AV3 at 50 us), ``fig12_kinetic_energy.png`` (AV1, AV2, AV3, AV (0.5, 0.5),
+    AC), ``fig13_shapes.png`` (AV (0.5, 0.5) against AC), and the table of the problem's
+    measures for every run (:func:`impactsph.paper.measure_keys`)."""
+    from ..loading import validate_case
+    from ..paper import (
+        AV_SETS,
+        DEFAULT_AC,
+        final_shapes,
+        kinetic_energy_overlay,
+        load_labelled,
+        measure_keys,
+        measures_table,
+        run_labelled,
+        write_results,
+    )
+
+    case = validate_case(base)
+    runs = taylor_runs()
+    by_label = run_labelled(base, runs, out, workers=workers, scheduler=scheduler)
+    loaded = load_labelled(out, by_label, ok_only=True)
+    av, ref, ac = list(AV_SETS), "AV (0.5, 0.5)", f"AC {DEFAULT_AC}"
+    paths = []
+    for name, names, title in (
+            ("fig11_shapes_av", av, "Taylor bar at 50 us: AV1, AV2, AV3"),
+            ("fig13_shapes", [ref, ac], "Taylor bar at 50 us: AV (0.5, 0.5) and AC")):
+        shapes = final_shapes(loaded, names)
+        if shapes:
+            paths.append(taylor_shapes_figure(shapes, out / f"{name}.png", title))
+    paths.append(kinetic_energy_overlay(loaded, [*av, ref, ac], out / "fig12_kinetic_energy.png",
+                                        "Kinetic energy: taylor", case.dimension))
+    keys = measure_keys(case)
+    return write_results(out, paths, measures_table(by_label, loaded, keys),
+                         ["run", "status", *keys])
+
+
+# --- the problem -----------------------------------------------------------------------------
+
+class TaylorProblem(ProblemKind):
+    """Example 2 (``analysis = "taylor"``): the Taylor bar's length and footprint."""
+
+    name = "taylor"
+    title = "Example 2: the Taylor bar on a rigid wall, final length and footprint"
+    # the measures use the lattice's spacings
+    geometry_needs = GeometryNeeds(bodies=1, types=("block", "disk", "cylinder"))
+
+    def metrics(self, sim: Any) -> dict[str, Any]:
+        """:func:`taylor_metrics`."""
+        return taylor_metrics(sim)
+
+    def _footprint(self, case: Case) -> str:
+        return "footprint_radius_ratio" if case.dimension == 3 else "footprint_half_width_ratio"
+
+    def summary_keys(self, case: Case) -> tuple[str, ...]:
+        """Length ratio (and whether it is in the 1D band), footprint ratio, plastic work."""
+        extra = ("footprint_radius_ratio_min_sector",) if case.dimension == 3 else ()
+        return ("final_length_ratio", "length_ratio_in_1d_band", self._footprint(case), *extra,
+                "plastic_work")
+
+    def table_keys(self, case: Case) -> tuple[str, ...]:
+        """Length ratio, footprint ratio (a half-width in 2D, a radius in 3D), plastic
+        work."""
+        return ("final_length_ratio", self._footprint(case), "plastic_work")
+
+    def figures(self, runs: list[dict[str, Any]], labels: list[str], out: Path
+                ) -> list[Path]:
+        """``deformed_shape.png``: the bars at the latest snapshot time they share
+        (:func:`taylor_shapes_figure`), when they have snapshots."""
+        from ..figures import deformed_shapes
+
+        shapes, when = deformed_shapes(runs, labels)
+        if not shapes:
+            return []
+        name = shapes[0]["case"].name
+        return [taylor_shapes_figure(shapes, Path(out) / "deformed_shape.png",
+                                     f"{name}: shape at {when}")]
+
+    def paper(self, base: dict[str, Any], out: Path, *, workers: int | None = None,
+              scheduler: str | None = None) -> dict[str, Any]:
+        """:func:`taylor_paper`: Figs 11-13 and the table."""
+        return taylor_paper(base, out, workers, scheduler)

@@ -1,0 +1,232 @@
+"""A model of one's own: an equation of state and a strength model defined here, in the test
+file (not in the package), registered, selected by name in a TOML case, run, and checked by
+hand.
+
+- ``scaled_linear`` (EOS): ``P = factor K (rho/rho0 - 1)``, its parameter in the sub-table
+  ``[materials.NAME.scaled_linear]``.
+- ``capped_deviator`` (strength): the deviator scaled back to ``sqrt(3/2 S:S) <= cap``, the
+  dissipated elastic energy booked as plastic work, and a per-particle state, the number of
+  steps in which the cap acted.
+
+With ``factor = 1`` and ``cap`` equal to a yield stress these are the built-in ``linear`` EOS
+and ``elastic_plastic`` model written again, so a run with them must equal the built-in run
+bit for bit; with ``factor = 2`` the pressure of every particle must be twice the linear one
+(a hand computation from the particle's density).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numba as nb
+import numpy as np
+import pytest
+from pydantic import Field
+
+from impactsph import Simulation, load_case, run_case
+from impactsph.config import CaseError
+from impactsph.models import (
+    EOS,
+    STRENGTH,
+    EquationOfState,
+    Parameters,
+    StrengthModel,
+    register,
+)
+from impactsph.models.types import PositiveFloat
+
+# -- the toy models ------------------------------------------------------------------------
+
+
+class ScaledLinearParameters(Parameters):
+    factor: PositiveFloat = Field(description="multiplies the linear EOS's pressure")
+
+
+@nb.njit(inline="always", cache=True)
+def scaled_linear_pressure(rho, e, rho0, bulk_modulus, params):
+    return params[0] * bulk_modulus * (rho / rho0 - 1.0)
+
+
+class CappedDeviatorParameters(Parameters):
+    cap: PositiveFloat = Field(description="largest von Mises stress (Pa)")
+
+
+@nb.njit(inline="always", cache=True)
+def capped_return(S, rho, shear_modulus, params, state):
+    ss = 0.0
+    for a in range(3):
+        for b in range(3):
+            ss += S[a, b] * S[a, b]
+    seq = math.sqrt(1.5 * ss)
+    if seq <= params[0]:
+        return 0.0
+    f = params[0] / seq
+    for a in range(3):
+        for b in range(3):
+            S[a, b] *= f
+    state[0] += 1.0
+    return ss * (1.0 - f * f) / (4.0 * shear_modulus * rho)
+
+
+def register_toy_models() -> None:
+    """Register both toy models (again, replacing any earlier registration)."""
+    register(EquationOfState(
+        name="scaled_linear", pressure=scaled_linear_pressure,
+        parameters=ScaledLinearParameters, columns=("factor",),
+        coefficients=lambda p, constants: (p.factor,)), replace=True)
+    register(StrengthModel(
+        name="capped_deviator", return_map=capped_return, parameters=CappedDeviatorParameters,
+        columns=("cap",), coefficients=lambda p, constants: (p.cap,), state=("capped_steps",)),
+        replace=True)
+
+
+@pytest.fixture
+def toy_models():
+    register_toy_models()
+    yield
+    EOS.unregister("scaled_linear")
+    STRENGTH.unregister("capped_deviator")
+
+
+# -- the cases -----------------------------------------------------------------------------
+
+BLOCK = """
+name = "block_on_wall"
+dimension = 2
+{plugins}
+[materials.iron]
+model = "{model}"
+density = 7850.0
+youngs_modulus = 208e9
+poisson_ratio = 0.3
+eos = "{eos}"
+{extra}
+
+[[bodies]]
+name = "block"
+material = "iron"
+velocity = [0.0, -200.0]
+[bodies.geometry]
+origin = [-0.002, 0.0]
+size = [0.004, 0.006]
+count = [8, 12]
+
+[[boundaries]]
+type = "wall"
+point = [0.0, 0.0]
+normal = [0.0, 1.0]
+
+[kernel]
+h_over_dx = 1.3
+
+[viscosity]
+scheme = "ac"
+
+[time]
+end = 4e-6
+
+[output]
+snapshot_times = [2e-6, 4e-6]
+figures = false
+"""
+
+TOY = dict(model="capped_deviator", eos="scaled_linear",
+           extra="[materials.iron.scaled_linear]\nfactor = {factor}\n"
+                 "[materials.iron.capped_deviator]\ncap = 600e6\n")
+BUILT_IN = dict(model="elastic_plastic", eos="linear", extra="yield_stress = 600e6\n")
+
+
+def write_case(folder: Path, name: str, plugins: str = "", factor: float = 1.0,
+               **models: str) -> Path:
+    models = {**models, "extra": models["extra"].format(factor=factor)}
+    path = folder / f"{name}.toml"
+    path.write_text(BLOCK.format(plugins=plugins, **models))
+    return path
+
+
+def run(path: Path) -> Simulation:
+    sim = Simulation(load_case(path))
+    sim.run()
+    return sim
+
+
+def test_toy_models_equal_the_built_in_ones_they_restate(toy_models, tmp_path):
+    toy = run(write_case(tmp_path, "toy", **TOY))
+    built_in = run(write_case(tmp_path, "built_in", **BUILT_IN))
+    assert toy.state.plastic_work.max() > 0  # the cap acted
+    for name in ("position", "velocity", "density", "specific_energy", "deviatoric_stress",
+                 "plastic_work"):
+        np.testing.assert_array_equal(getattr(toy.state, name), getattr(built_in.state, name),
+                                      err_msg=name)
+    a, b = toy.summary(), built_in.summary()
+    for key in ("n_steps", "kinetic_energy_final", "internal_energy_final", "plastic_work",
+                "total_energy_relative_error", "wall_constraint_events"):
+        assert a[key] == b[key], key
+
+
+def test_toy_models_by_hand(toy_models, tmp_path):
+    """Twice the linear pressure, the cap held, and the state counting the capped steps."""
+    sim = run(write_case(tmp_path, "toy2", factor=2.0, **TOY))
+    s = sim.state
+    rho0, E, nu = 7850.0, 208e9, 0.3
+    K = E / (3.0 * (1.0 - 2.0 * nu))
+    for snap in sim.record.snapshots:
+        by_hand = 2.0 * K * (snap.fields["density"] / rho0 - 1.0)
+        np.testing.assert_allclose(snap.fields["pressure"], by_hand, rtol=1e-14,
+                                   atol=1e-14 * np.abs(by_hand).max())
+        assert np.abs(by_hand).max() > 1e8  # a real compression, not zeros
+    S = s.deviatoric_stress
+    von_mises = np.sqrt(1.5 * np.einsum("iab,iab->i", S, S))
+    assert von_mises.max() <= 600e6 * (1 + 1e-12)
+    assert von_mises.max() > 0.99 * 600e6  # the cap is reached
+    capped = s.strength_state[:, 0]
+    assert capped.max() >= 1 and np.all(capped == np.round(capped))
+    # plastic work is kept from the final stage of each step only, as the count is
+    np.testing.assert_array_equal(capped > 0, s.plastic_work > 0)
+
+
+def test_toy_model_parameters_are_validated(toy_models, tmp_path):
+    bad = dict(TOY, extra="[materials.iron.scaled_linear]\nfactor = 1.0\n"
+                          "[materials.iron.capped_deviator]\ncap = -5.0\n")
+    with pytest.raises(CaseError, match=r"^materials\.iron\.capped_deviator\.cap = -5\.0: "):
+        load_case(write_case(tmp_path, "bad", **bad))
+    missing = dict(TOY, extra="[materials.iron.scaled_linear]\nfactor = 1.0\n")
+    with pytest.raises(CaseError, match=r"model = 'capped_deviator' needs a "
+                                        r"\[capped_deviator\] table"):
+        load_case(write_case(tmp_path, "missing", **missing))
+
+
+def test_unregistered_model_is_refused_with_the_registered_names(tmp_path):
+    with pytest.raises(CaseError, match=r"^materials\.iron\.model = 'capped_deviator': .*"
+                                        r"'elastic_plastic'"):
+        load_case(write_case(tmp_path, "unknown", **TOY))
+
+
+def test_plugin_registers_the_models_for_the_command_line(toy_models, tmp_path):
+    """``plugins = ["toy_plugin.py"]`` in the case file: ``impactsph run`` in a fresh process
+    imports it (relative to the case file) before it validates the case."""
+    plugin = tmp_path / "toy_plugin.py"
+    plugin.write_text(f"import sys\nsys.path.insert(0, {str(Path(__file__).parent)!r})\n"
+                      "import test_extension\ntest_extension.register_toy_models()\n")
+    path = write_case(tmp_path, "plugged", plugins='plugins = ["toy_plugin.py"]', **TOY)
+    out = tmp_path / "out"
+    res = subprocess.run([sys.executable, "-m", "impactsph", "run", str(path), "--out",
+                          str(out), "--quiet"], capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr[-3000:]
+    summary = json.loads((out / "summary.json").read_text())
+    # the same case run here, in this process, where the fixture registered the models
+    here = run_case(load_case(path), tmp_path / "here", figures=False)
+    assert summary["plastic_work"] == here["plastic_work"] > 0
+    case = json.loads((out / "case.json").read_text())["case"]
+    assert case["plugins"] == [str(plugin)]
+    assert case["materials"]["iron"]["capped_deviator"] == {"cap": 600e6}
+
+
+def test_missing_plugin_is_refused(tmp_path):
+    path = write_case(tmp_path, "noplugin", plugins='plugins = ["nowhere.py"]', **BUILT_IN)
+    with pytest.raises(CaseError, match=r"^plugins\.0 = '.*nowhere\.py': file does not exist"):
+        load_case(path)
