@@ -230,3 +230,22 @@ def test_missing_plugin_is_refused(tmp_path):
     path = write_case(tmp_path, "noplugin", plugins='plugins = ["nowhere.py"]', **BUILT_IN)
     with pytest.raises(CaseError, match=r"^plugins\.0 = '.*nowhere\.py': file does not exist"):
         load_case(path)
+
+
+class DefaultedParameters(Parameters):
+    factor: PositiveFloat = Field(1.0, description="with a default")
+
+
+def test_a_table_of_defaults_may_be_left_out(tmp_path):
+    """A model whose parameters all have defaults needs no sub-table: the defaults are filled
+    in, and recorded in the resolved case."""
+    register(EquationOfState(name="defaulted_linear", pressure=scaled_linear_pressure,
+                             parameters=DefaultedParameters, columns=("factor",),
+                             coefficients=lambda p, constants: (p.factor,)))
+    try:
+        case = load_case(write_case(tmp_path, "defaulted", model="elastic",
+                                    eos="defaulted_linear", extra=""))
+        assert case.materials["iron"].defaulted_linear.factor == 1.0
+        assert case.model_dump()["materials"]["iron"]["defaulted_linear"] == {"factor": 1.0}
+    finally:
+        EOS.unregister("defaulted_linear")

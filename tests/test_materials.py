@@ -79,7 +79,8 @@ def test_plane_strain_yield_includes_szz():
 
 
 def test_jaumann_pure_strain_rate_factor_two():
-    """Uniaxial strain rate in 2D plane strain: dS_xx = 2 mu (2/3) eps_dot (eq 14 with the factor 2 restored)."""
+    """Uniaxial strain rate in 2D plane strain: dS_xx = 2 mu (2/3) eps_dot (eq 14, its factor 2
+    restored)."""
     mu, rate = 80e9, 1e3
     L = np.array([[rate, 0.0], [0.0, 0.0]])
     dS = np.zeros((3, 3))

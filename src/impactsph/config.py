@@ -27,6 +27,11 @@ from .models.registry import Parameters as _Model
 from .models.types import FiniteFloat, NonNegativeFloat, PositiveFloat
 
 
+def _all_defaults(parameters: type[_Model]) -> bool:
+    """Whether every field of a model's parameters has a default."""
+    return not any(info.is_required() for info in parameters.model_fields.values())
+
+
 class Material(_Model):
     """A material: elastic constants, equation of state, strength model.
 
@@ -53,7 +58,10 @@ class Material(_Model):
     def _consistent(self) -> Material:
         eos, strength = EOS[self.eos], STRENGTH[self.model]
         if eos.parameters is not None and getattr(self, eos.name, None) is None:
-            raise ValueError(f"eos = {eos.name!r} needs a [{eos.name}] table")
+            if _all_defaults(eos.parameters):  # a table of defaults may be left out
+                setattr(self, eos.name, eos.parameters())
+            else:
+                raise ValueError(f"eos = {eos.name!r} needs a [{eos.name}] table")
         if strength.parameters is not None:
             if strength.flat:
                 missing = [f for f, info in strength.parameters.model_fields.items()
@@ -61,7 +69,10 @@ class Material(_Model):
                 if missing:
                     raise ValueError(f"model = {strength.name!r} needs {missing[0]}")
             elif getattr(self, strength.name, None) is None:
-                raise ValueError(f"model = {strength.name!r} needs a [{strength.name}] table")
+                if not _all_defaults(strength.parameters):
+                    raise ValueError(f"model = {strength.name!r} needs a [{strength.name}] "
+                                     f"table")
+                setattr(self, strength.name, strength.parameters())
         if strength.equations_of_state is not None and eos.name not in strength.equations_of_state:
             raise ValueError(f"model = {strength.name!r} takes eos = "
                              f"{' or '.join(map(repr, strength.equations_of_state))} only")
@@ -217,7 +228,8 @@ class Region(_Model):
 class TipMass(_Model):
     """An extra mass spread evenly over the body's particles inside a region; those particles
     start at the velocity that conserves the momentum of the mass arriving at ``velocity``:
-    ``V0 G / (G + M)``, M the particles' own mass (the Parkes cantilever, section 5.3 of the paper)."""
+    ``V0 G / (G + M)``, M the particles' own mass (the Parkes cantilever, the paper's
+    section 5.3)."""
 
     mass: PositiveFloat = Field(description="the extra mass G (kg)")
     depth: PositiveFloat | None = Field(

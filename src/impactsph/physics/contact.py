@@ -1,4 +1,5 @@
-"""Contact between bodies: compression only, frictionless (docs/modelling.md, "Contact between bodies").
+"""Contact between bodies: compression only, frictionless (docs/modelling.md, "Contact
+between bodies").
 
 Particles of different bodies interact through their pressures alone.  With
 ``s_ij = P_i/rho_i^2 + P_j/rho_j^2`` the pair is *in contact* while ``s_ij > 0`` (it pushes)

@@ -6,9 +6,9 @@ From the SPH velocity gradient ``L^ab = dv^a/dx^b`` (see :mod:`.rates`)::
     omega   = (L - L^T) / 2            spin (eq 16)
     dS/dt   = 2 mu (eps_dot - tr(eps_dot)/3 I) + omega.S - S.omega
 
-The factor 2 is missing from the printed eqs 13 and 25 (docs/modelling.md).  ``L`` has the dimension of
-the problem; ``S`` is always 3x3, and the components of ``L`` out of the plane are zero (plane
-strain in 2D), so ``dS_zz/dt = -2 mu tr(eps_dot)/3`` keeps ``S`` traceless.
+The factor 2 is missing from the printed eqs 13 and 25 (docs/modelling.md).  ``L`` has the
+dimension of the problem; ``S`` is always 3x3, and the components of ``L`` out of the plane
+are zero (plane strain in 2D), so ``dS_zz/dt = -2 mu tr(eps_dot)/3`` keeps ``S`` traceless.
 """
 
 from __future__ import annotations
