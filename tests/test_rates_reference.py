@@ -84,7 +84,7 @@ def reference_rates(sim: Simulation):
     n, dim = s.n, s.dim
     x, v, rho, m, h, body = (s.position, s.velocity, s.density, s.mass, s.smoothing_length,
                              s.body)
-    p = pressures(rho, s.specific_energy, s.material, table)
+    p = pressures(rho, s.specific_energy, s.material, table, dim)
     c = np.sqrt(table[s.material, WAVE_MODULUS] / rho)
     A = s.deviatoric_stress[:, :dim, :dim] / rho[:, None, None] ** 2
     A -= (p / rho**2)[:, None, None] * np.eye(dim)

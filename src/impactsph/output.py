@@ -29,12 +29,23 @@ from .atomic import write_bytes, write_text
 atomic_write_text = write_text
 
 
-def provenance() -> dict[str, str]:
-    """Version information recorded in every output."""
+def provenance() -> dict[str, Any]:
+    """Version information recorded in every output, and the registered models (by the module
+    that defines each: a model of one's own shows where it came from)."""
     import numba
 
+    from .models import EOS, STRENGTH, VISCOSITY
+
+    def where(model: Any) -> str:
+        f = getattr(model, "pressure", None) or getattr(model, "return_map", None) or getattr(
+            model, "pair_viscosity", None)
+        return getattr(f, "__module__", "") if f is not None else ""
+
     return {"impactsph": __version__, "numpy": np.__version__, "numba": numba.__version__,
-            "python": platform.python_version()}
+            "python": platform.python_version(),
+            "models": {kind: {m.name: where(m) or "impactsph" for m in registry}
+                       for kind, registry in (("eos", EOS), ("strength", STRENGTH),
+                                              ("viscosity", VISCOSITY))}}
 
 
 def _csv_text(rows: list[dict[str, Any]]) -> str:

@@ -173,3 +173,29 @@ def markdown_table(rows: list[dict[str, Any]], keys: list[str] | None = None,
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     lines += ["| " + " | ".join(fmt(r.get(k)) for k in keys) + " |" for r in rows]
     return "\n".join(lines) + "\n"
+
+
+def shapes_paper(base: dict[str, Any], out: Path, runs: dict[str, list[str]],
+                 figures: list[tuple[str, list[str], str]], shapes_figure: Any,
+                 kinetic_energy: tuple[str, list[str], str], *, workers: int | None = None,
+                 scheduler: str | None = None) -> dict[str, Any]:
+    """The paper's figures of a problem drawn as deformed shapes (Examples 2 and 3): run the
+    labelled ``runs``; draw each of ``figures`` (file name, labels, title) with
+    ``shapes_figure(shapes, path, title)`` and the kinetic energy (file name, labels, title);
+    write the table of the problem's measures for every run."""
+    from .loading import validate_case
+
+    case = validate_case(base)
+    by_label = run_labelled(base, runs, out, workers=workers, scheduler=scheduler)
+    loaded = load_labelled(out, by_label, ok_only=True)
+    paths = []
+    for name, names, title in figures:
+        shapes = final_shapes(loaded, names)
+        if shapes:
+            paths.append(shapes_figure(shapes, out / f"{name}.png", title))
+    name, names, title = kinetic_energy
+    paths.append(kinetic_energy_overlay(loaded, names, out / f"{name}.png", title,
+                                        case.dimension))
+    keys = measure_keys(case)
+    return write_results(out, paths, measures_table(by_label, loaded, keys),
+                         ["run", "status", *keys])

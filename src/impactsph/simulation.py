@@ -282,7 +282,8 @@ class Simulation:
 
 def compile_kernels(dim: int) -> None:
     """Compile (or load from numba's disk cache) every kernel a run of dimension ``dim``
-    needs, by running one step of a tiny case with AC and a wall.  Parallel processes
+    needs, by running one step of a tiny case with AC and a wall (the passes generated for the
+    registered models, :mod:`impactsph.codegen`, included).  Parallel processes
     starting on a cold cache at once can overwrite each other's cache files (numba's cache
     takes no lock between processes): calling this first, in one process, avoids that."""
     from .loading import validate_case
@@ -297,4 +298,6 @@ def compile_kernels(dim: int) -> None:
                         "normal": [0.0] * (dim - 1) + [1.0]}],
         "viscosity": {"scheme": "ac"}, "time": {"end": 1.0, "max_steps": 1},
         "output": {"figures": False}})
-    Simulation(case).run()
+    sim = Simulation(case)
+    sim.run()
+    sim.solver.pressure(sim.state)  # the snapshots' pressures

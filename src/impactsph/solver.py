@@ -172,4 +172,4 @@ class Solver:
     def pressure(self, state: ParticleState) -> np.ndarray:
         """Pressure (Pa) of each particle of ``state``, from the equations of state."""
         return pressures(state.density, state.specific_energy, state.material, self.table,
-                         np.empty(state.n))
+                         self.dim, np.empty(state.n))

@@ -109,10 +109,10 @@ class CpuRates:
 
 
 def pressures(rho: np.ndarray, e: np.ndarray, material: np.ndarray, table: np.ndarray,
-              out: np.ndarray | None = None) -> np.ndarray:
-    """The pressure of each particle from its material's EOS (Pa)."""
+              dim: int, out: np.ndarray | None = None) -> np.ndarray:
+    """The pressure of each particle from its material's EOS (Pa), by the passes of the run's
+    dimension ``dim`` (the EOS does not depend on it; the run has those compiled already)."""
     out = np.empty(rho.shape[0]) if out is None else out
-    dim = 1  # the EOS does not depend on the dimension: any bound module will do
     return compiled_passes(dim).pressures(rho, e, material, table, out)
 
 

@@ -92,39 +92,18 @@ def cantilever_paper(base: dict[str, Any], out: Path, workers: int | None = None
     (AV1, AV2, AV3 at 15.8 ms), ``fig16_low_viscosity.png`` (alpha1 = 0.05, 0.075, 0.1 with
     alpha2 = 0), ``fig17_shapes.png`` (AV (0.1, 0.1) against AC), ``kinetic_energy.png``, and
     the table of the problem's measures for every run (:func:`impactsph.paper.measure_keys`)."""
-    from ..loading import validate_case
-    from ..paper import (
-        AV_SETS,
-        DEFAULT_AC,
-        final_shapes,
-        kinetic_energy_overlay,
-        load_labelled,
-        measure_keys,
-        measures_table,
-        run_labelled,
-        write_results,
-    )
+    from ..paper import AV_SETS, DEFAULT_AC, shapes_paper
 
-    case = validate_case(base)
-    runs = cantilever_runs()
-    by_label = run_labelled(base, runs, out, workers=workers, scheduler=scheduler)
-    loaded = load_labelled(out, by_label, ok_only=True)
     av, ref, ac = list(AV_SETS), "AV (0.1, 0.1)", f"AC {DEFAULT_AC}"
-    paths = []
-    for name, names, title in (
-            ("fig15_shapes_av", av, "Cantilever at 15.8 ms: AV1, AV2, AV3"),
-            ("fig16_low_viscosity", [f"AV ({a:g}, 0)" for a in LOW_ALPHA1],
-             "Cantilever at 15.8 ms: alpha2 = 0"),
-            ("fig17_shapes", [ref, ac], "Cantilever at 15.8 ms: AV (0.1, 0.1) and AC")):
-        shapes = final_shapes(loaded, names)
-        if shapes:
-            paths.append(cantilever_shapes_figure(shapes, out / f"{name}.png", title))
-    paths.append(kinetic_energy_overlay(loaded, [*av, ref, ac], out / "kinetic_energy.png",
-                                        "Kinetic energy: cantilever", case.dimension))
-    keys = measure_keys(case)
-    return write_results(out, paths, measures_table(by_label, loaded, keys),
-                         ["run", "status", *keys])
-
+    return shapes_paper(
+        base, out, cantilever_runs(),
+        [("fig15_shapes_av", av, "Cantilever at 15.8 ms: AV1, AV2, AV3"),
+         ("fig16_low_viscosity", [f"AV ({a:g}, 0)" for a in LOW_ALPHA1],
+          "Cantilever at 15.8 ms: alpha2 = 0"),
+         ("fig17_shapes", [ref, ac], "Cantilever at 15.8 ms: AV (0.1, 0.1) and AC")],
+        cantilever_shapes_figure,
+        ("kinetic_energy", [*av, ref, ac], "Kinetic energy: cantilever"),
+        workers=workers, scheduler=scheduler)
 
 # --- the problem -----------------------------------------------------------------------------
 

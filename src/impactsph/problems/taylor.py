@@ -202,37 +202,16 @@ def taylor_paper(base: dict[str, Any], out: Path, workers: int | None = None,
     (AV1, AV2, AV3 at 50 us), ``fig12_kinetic_energy.png`` (AV1, AV2, AV3, AV (0.5, 0.5),
     AC), ``fig13_shapes.png`` (AV (0.5, 0.5) against AC), and the table of the problem's
     measures for every run (:func:`impactsph.paper.measure_keys`)."""
-    from ..loading import validate_case
-    from ..paper import (
-        AV_SETS,
-        DEFAULT_AC,
-        final_shapes,
-        kinetic_energy_overlay,
-        load_labelled,
-        measure_keys,
-        measures_table,
-        run_labelled,
-        write_results,
-    )
+    from ..paper import AV_SETS, DEFAULT_AC, shapes_paper
 
-    case = validate_case(base)
-    runs = taylor_runs()
-    by_label = run_labelled(base, runs, out, workers=workers, scheduler=scheduler)
-    loaded = load_labelled(out, by_label, ok_only=True)
     av, ref, ac = list(AV_SETS), "AV (0.5, 0.5)", f"AC {DEFAULT_AC}"
-    paths = []
-    for name, names, title in (
-            ("fig11_shapes_av", av, "Taylor bar at 50 us: AV1, AV2, AV3"),
-            ("fig13_shapes", [ref, ac], "Taylor bar at 50 us: AV (0.5, 0.5) and AC")):
-        shapes = final_shapes(loaded, names)
-        if shapes:
-            paths.append(taylor_shapes_figure(shapes, out / f"{name}.png", title))
-    paths.append(kinetic_energy_overlay(loaded, [*av, ref, ac], out / "fig12_kinetic_energy.png",
-                                        "Kinetic energy: taylor", case.dimension))
-    keys = measure_keys(case)
-    return write_results(out, paths, measures_table(by_label, loaded, keys),
-                         ["run", "status", *keys])
-
+    return shapes_paper(
+        base, out, taylor_runs(),
+        [("fig11_shapes_av", av, "Taylor bar at 50 us: AV1, AV2, AV3"),
+         ("fig13_shapes", [ref, ac], "Taylor bar at 50 us: AV (0.5, 0.5) and AC")],
+        taylor_shapes_figure,
+        ("fig12_kinetic_energy", [*av, ref, ac], "Kinetic energy: taylor"),
+        workers=workers, scheduler=scheduler)
 
 # --- the problem -----------------------------------------------------------------------------
 
