@@ -103,9 +103,10 @@ def _dispatch(name: str, args: str, prefix: str, models: list[tuple[int, Any]],
     return "\n".join(lines) + "\n"
 
 
-def binding(dim: int) -> tuple[str, dict[str, Any]]:
-    """The binding block for ``dim`` and the registered models: its source, and the compiled
-    functions to inject under their names."""
+def binding(dim: int, gradient_correction: bool = False) -> tuple[str, dict[str, Any]]:
+    """The binding block for ``dim``, the registered models and the compile-time options
+    (``gradient_correction``: the kernel gradient correction of the velocity gradient): its
+    source, and the compiled functions to inject under their names."""
     layout = TableLayout.registered()
     inject: dict[str, Any] = {}
     described = []
@@ -132,6 +133,7 @@ def binding(dim: int) -> tuple[str, dict[str, Any]]:
         "# _eos_K, _strength_K, _viscosity_K, _correction_K are injected into this module):",
         *described,
         f"DIM = {dim}",
+        f"GRADIENT_CORRECTION = {bool(gradient_correction)}",
         "JIT = nb.njit",
         f"EOS_PARAMS = {layout.eos_params}",
         f"STRENGTH_PARAMS = {layout.strength_params}",
@@ -166,12 +168,13 @@ def _template_text(template: ModuleType) -> str:
     return Path(inspect.getsourcefile(template)).read_text()
 
 
-def generate(template: ModuleType, dim: int) -> tuple[str, dict[str, Any]]:
+def generate(template: ModuleType, dim: int, gradient_correction: bool = False
+             ) -> tuple[str, dict[str, Any]]:
     """The text of the generated module and the functions to inject (see :func:`binding`)."""
     text = _template_text(template)
     start, end = text.index(BEGIN), text.index(END)
     end = text.index("\n", end) + 1
-    block, inject = binding(dim)
+    block, inject = binding(dim, gradient_correction)
     return text[:start] + block + "\n" + text[end:], inject
 
 
@@ -185,19 +188,23 @@ def _fingerprint(text: str, inject: dict[str, Any]) -> str:
     return digest.hexdigest()[:16]
 
 
-def load(template: ModuleType, dim: int, simulated: bool = False) -> ModuleType:
+def load(template: ModuleType, dim: int, simulated: bool = False,
+         gradient_correction: bool = False) -> ModuleType:
     """The template bound to the registered models and ``dim``, imported (cached in this
     process per registry version)."""
-    return _load(template.__name__, dim, simulated, _registry.version())
+    return _load(template.__name__, dim, simulated, bool(gradient_correction),
+                 _registry.version())
 
 
 @cache
-def _load(template_name: str, dim: int, simulated: bool, version: int) -> ModuleType:
+def _load(template_name: str, dim: int, simulated: bool, gradient_correction: bool,
+          version: int) -> ModuleType:
     template = sys.modules[template_name]
-    text, inject = generate(template, dim)
+    text, inject = generate(template, dim, gradient_correction)
     key = _fingerprint(text, inject)
     stem = template_name.rsplit(".", 1)[-1]
-    path = cache_directory() / f"{stem}_{dim}d_{key}.py"
+    variant = "_kgc" if gradient_correction else ""
+    path = cache_directory() / f"{stem}_{dim}d{variant}_{key}.py"
     if not path.exists() or path.read_text() != text:
         atomic.write_text(path, text)
     name = f"impactsph_generated.{path.stem}{'_simulated' if simulated else ''}"

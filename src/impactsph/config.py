@@ -269,6 +269,10 @@ class Kernel(_Model):
 
     type: Literal["cubic_spline"] = "cubic_spline"
     h_over_dx: PositiveFloat = Field(1.2, description="smoothing length over particle spacing")
+    gradient_correction: Literal["none", "velocity_gradient"] = Field(
+        "none", description="'velocity_gradient': the kernel gradient correction (Randles & "
+        "Libersky 1996) of the velocity gradient, exact for linear velocity fields at free "
+        "surfaces too (docs/stabilisation.md); 'none': the plain SPH gradient of eq 15")
 
 
 class Viscosity(_Model):

@@ -9,13 +9,14 @@ from .physics.rates import CpuRates
 log = logging.getLogger(__name__)
 
 
-def select_backend(device: str, dim: int):
-    """A rate backend for ``device`` (``"cpu"`` or ``"gpu"``).
+def select_backend(device: str, dim: int, gradient_correction: bool = False):
+    """A rate backend for ``device`` (``"cpu"`` or ``"gpu"``), its passes compiled with the
+    kernel gradient correction of the velocity gradient if ``gradient_correction``.
 
     ``"gpu"`` without a usable GPU (no CUDA driver, no device, or numba-cuda missing) logs a
     warning that says why and returns the CPU backend: a case written for a GPU still runs."""
     if device == "cpu":
-        return CpuRates(dim)
+        return CpuRates(dim, gradient_correction)
     if device != "gpu":
         raise ValueError(f"compute.device = {device!r}: allowed are 'cpu' and 'gpu'")
     from . import gpu
@@ -23,5 +24,5 @@ def select_backend(device: str, dim: int):
     reason = gpu.unavailable_reason()
     if reason is not None:
         log.warning("compute.device = 'gpu' but %s; running on the CPU", reason)
-        return CpuRates(dim)
-    return gpu.GpuRates(dim)
+        return CpuRates(dim, gradient_correction)
+    return gpu.GpuRates(dim, gradient_correction)

@@ -79,12 +79,12 @@ def unavailable_reason() -> str | None:
 
 
 @cache
-def gpu_kernels(dim: int, simulated: bool, version: int = 0):
+def gpu_kernels(dim: int, simulated: bool, version: int = 0, gradient_correction: bool = False):
     """The CUDA kernels for dimension ``dim`` and the registered models (``version``: the
     registries' version, so that a newly registered model gets new kernels):
     ``(particle_kernel, pair_kernel, correction_kernel)``.  ``simulated``: built for the CUDA
     simulator."""
-    return compiled_passes(dim, simulated=simulated).cuda_kernels()
+    return compiled_passes(dim, simulated, gradient_correction).cuda_kernels()
 
 
 #: The kernels' outputs for the active rows, copied into the ``RateBuffers`` of that name
@@ -101,7 +101,8 @@ class GpuRates:
 
     device = "gpu"
 
-    def __init__(self, dim: int, *, threads_per_block: int | None = None):
+    def __init__(self, dim: int, gradient_correction: bool = False, *,
+                 threads_per_block: int | None = None):
         if cuda is None:  # pragma: no cover - a numba without any CUDA target
             raise RuntimeError(f"numba.cuda cannot be imported ({_IMPORT_ERROR}; "
                                f"{INSTALL_HINT})")
@@ -111,7 +112,7 @@ class GpuRates:
             SIMULATOR_THREADS_PER_BLOCK if simulated else THREADS_PER_BLOCK)
         from .models import registry
 
-        self._kernels = gpu_kernels(dim, simulated, registry.version())
+        self._kernels = gpu_kernels(dim, simulated, registry.version(), gradient_correction)
         self._stream = cuda.stream()
         self._device: dict[str, object] = {}  # name -> device array, reused while it fits
         self._uploaded: dict[str, np.ndarray] = {}  # name -> host array last uploaded

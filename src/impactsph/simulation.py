@@ -68,7 +68,9 @@ class Simulation:
         self.solver = Solver(self.state, self.problem.table,
                              ViscositySettings.of(case.viscosity), walls=self.walls,
                              skin_fraction=case.time.neighbour_skin,
-                             backend=select_backend(case.compute.device, case.dimension))
+                             backend=select_backend(
+                                 case.compute.device, case.dimension,
+                                 case.kernel.gradient_correction == "velocity_gradient"))
         self.integrator = MidpointIntegrator(
             self.solver.rates, self.problem.table, self.state.n, self.state.dim,
             constraint=self.walls.enforce if len(self.walls) else None)

@@ -48,6 +48,7 @@ from impactsph.physics.stress_rate import jaumann_stress_rate
 
 # >>> binding: replaced by impactsph.codegen in each generated copy
 DIM = 3
+GRADIENT_CORRECTION = False
 JIT = nb.njit
 EOS_PARAMS = STRENGTH_PARAMS = STATE_WIDTH = 6
 eos_pressure = strength_return = pair_viscosity = viscosity_correction = None
@@ -66,6 +67,10 @@ SYM = tuple(tuple(A0 + symmetric_index(a, b, DIM) for b in range(DIM)) for a in 
 A00 = SYM[0][0]
 A01, A11 = (SYM[0][1], SYM[1][1]) if DIM > 1 else (0, 0)
 A02, A12, A22 = (SYM[0][2], SYM[1][2], SYM[2][2]) if DIM > 2 else (0, 0, 0)
+#: below this ``|det B|`` the kernel gradient correction leaves a particle's velocity gradient
+#: as it is (B is the identity for a complete support; a particle on an edge or corner keeps
+#: det B of order 1/2 to 1/8, and a disordered corner one of 1e-2)
+MIN_MOMENT_DETERMINANT = 1e-3
 #: the record columns a correction reads: (x, v, h, volume, body, u)
 CORRECTION_COLUMNS = (X, V, H, VOL, BODY, U)
 
@@ -98,6 +103,49 @@ def particle_record(p, i, x, v, m, rho, e, S, h, body, material, table, P):
     P[p, C] = c
     P[p, PC] = pr * inv_rho2
     P[p, BODY] = body[i]
+
+
+@JIT(inline="always", cache=True)
+def correct_velocity_gradient(L, B00, B01, B02, B10, B11, B12, B20, B21, B22):
+    """Kernel gradient correction of the velocity gradient (Randles & Libersky 1996; Bonet &
+    Lok 1999): with the moment matrix ``B = -sum_j V_j r_ij (x) grad W_ij`` (the identity for
+    a complete kernel support, not at a free surface), the SPH gradient of a linear field
+    ``v = A x`` is ``L = A B``, so ``L <- L B^-1`` recovers ``A`` exactly wherever ``B`` is
+    invertible.  Where ``|det B|`` is below ``MIN_MOMENT_DETERMINANT`` (a particle with too
+    few neighbours to span the space) ``L`` is left as it is."""
+    if DIM == 1:
+        det = B00
+    elif DIM == 2:
+        det = B00 * B11 - B01 * B10
+    else:
+        det = (B00 * (B11 * B22 - B12 * B21)
+               - B01 * (B10 * B22 - B12 * B20)
+               + B02 * (B10 * B21 - B11 * B20))
+    if abs(det) < MIN_MOMENT_DETERMINANT:
+        return
+    inv = 1.0 / det
+    if DIM == 1:
+        Bi = ((inv, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    elif DIM == 2:
+        Bi = ((B11 * inv, -B01 * inv, 0.0), (-B10 * inv, B00 * inv, 0.0),
+              (0.0, 0.0, 0.0))
+    else:
+        Bi = (((B11 * B22 - B12 * B21) * inv,
+               (B02 * B21 - B01 * B22) * inv,
+               (B01 * B12 - B02 * B11) * inv),
+              ((B12 * B20 - B10 * B22) * inv,
+               (B00 * B22 - B02 * B20) * inv,
+               (B02 * B10 - B00 * B12) * inv),
+              ((B10 * B21 - B11 * B20) * inv,
+               (B01 * B20 - B00 * B21) * inv,
+               (B00 * B11 - B01 * B10) * inv))
+    for a in range(DIM):
+        row = (L[a, 0], L[a, 1] if DIM > 1 else 0.0, L[a, 2] if DIM > 2 else 0.0)
+        for b in range(DIM):
+            s = 0.0
+            for c in range(DIM):
+                s += row[c] * Bi[c][b]
+            L[a, b] = s
 
 
 @JIT(inline="always", cache=True)
@@ -134,6 +182,9 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, materia
     f0 = f1 = f2 = 0.0  # viscous push across bodies (part of the contact force)
     L00 = L01 = L02 = L10 = L11 = L12 = L20 = L21 = L22 = 0.0
     T00 = T01 = T02 = T10 = T11 = T12 = T20 = T21 = T22 = 0.0
+    # the kernel gradient correction's moment matrix B = -sum_j V_j r_ij (x) grad W_ij
+    # (GRADIENT_CORRECTION only; see correct_velocity_gradient)
+    B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
     de_contact = 0.0
     de_v = 0.0
     count = 0
@@ -173,6 +224,18 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, materia
         same_body = Pj[BODY] == bi
         if same_body:
             cont += continuity_pair(1.0, volume_j, vg)
+            if GRADIENT_CORRECTION:
+                B00 -= volume_j * d0 * g0
+                if DIM > 1:
+                    B01 -= volume_j * d0 * g1
+                    B10 -= volume_j * d1 * g0
+                    B11 -= volume_j * d1 * g1
+                if DIM > 2:
+                    B02 -= volume_j * d0 * g2
+                    B12 -= volume_j * d1 * g2
+                    B20 -= volume_j * d2 * g0
+                    B21 -= volume_j * d2 * g1
+                    B22 -= volume_j * d2 * g2
             G0 += m_j * g0
             a0 += m_j * Pj[A00] * g0
             L00 += velocity_gradient_pair(volume_j, u0, g0)
@@ -244,6 +307,8 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, materia
         P[p, U + a] = wv[a]
         if track_contact:
             contact_force[i, a] = m_i * (kc[a] + fv[a])
+    if GRADIENT_CORRECTION:
+        correct_velocity_gradient(L, B00, B01, B02, B10, B11, B12, B20, B21, B22)
     drho[i] = rhoi * cont
     de[i] = de_s + de_v
     de_visc[i] = de_v

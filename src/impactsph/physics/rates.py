@@ -21,9 +21,10 @@ from . import passes as _template
 from .records import record_columns
 
 
-def compiled_passes(dim: int, simulated: bool = False) -> ModuleType:
-    """The generated passes module for ``dim`` and the registered models."""
-    return codegen.load(_template, dim, simulated)
+def compiled_passes(dim: int, simulated: bool = False,
+                    gradient_correction: bool = False) -> ModuleType:
+    """The generated passes module for ``dim``, the registered models and the options."""
+    return codegen.load(_template, dim, simulated, gradient_correction)
 
 
 def chunk_size(n: int) -> int:
@@ -76,9 +77,9 @@ class CpuRates:
 
     device = "cpu"
 
-    def __init__(self, dim: int):
+    def __init__(self, dim: int, gradient_correction: bool = False):
         self.dim = dim
-        self.passes = compiled_passes(dim)
+        self.passes = compiled_passes(dim, gradient_correction=gradient_correction)
         self._packed: np.ndarray | None = None  # the packed particle records (.records)
         self._chunk: tuple[int, int] | None = None  # (rows, particles per work item)
 
