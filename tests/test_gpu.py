@@ -45,10 +45,17 @@ CASES = {
                             "boundaries.0.point=[0.0, 0.0, 0.0]",
                             "boundaries.0.normal=[0.0, 0.0, 1.0]",
                             "viscosity.correction=shepard", "viscosity.energy_correction=paper"]),
+    # the plane-strain Taylor bar with both stabilisations: the gradient correction (a
+    # compile-time variant of the passes) and the hourglass control (its own kernel)
+    "taylor-2d-stabilised": ("taylor", ["bodies.0.geometry.count=[6, 10]",
+                                        "stabilisation.gradient_correction=velocity_gradient",
+                                        "stabilisation.hourglass=1.0"]),
 }
 #: Cases evaluated into buffers without rows for the contact force and AC, as the solver makes
 #: for runs without them (the bars have no AC; their contact force is then not recorded).
 LEAN = {"bars-1d"}
+#: Cases with the hourglass control: its state is one more array uploaded every evaluation.
+HOURGLASS = {"taylor-2d-stabilised"}
 #: Whole runs of 100 steps: the bars, and a 4 x 6 Taylor bar (its neighbour list and ghosts
 #: are rebuilt several times, so the uploads after a rebuild are exercised).
 RUNS = {
@@ -59,7 +66,8 @@ STEPS = 100
 
 
 # -- shared by the parent and the worker ------------------------------------------------------
-def _prefilled_buffers(n: int, dim: int, seed: int, lean: bool = False):
+def _prefilled_buffers(n: int, dim: int, seed: int, lean: bool = False,
+                       hourglass: bool = False):
     """Rate buffers filled with noise: rows a backend leaves alone must stay as they were.
     ``lean``: the buffers the solver makes for a run without contact or AC (no rows for the
     contact force and the correction), where ``RateBuffers`` has such."""
@@ -68,6 +76,8 @@ def _prefilled_buffers(n: int, dim: int, seed: int, lean: bool = False):
     from impactsph.physics.rates import RateBuffers
 
     options = {"contact": False, "corrected": False} if lean else {}
+    if hourglass:
+        options["hourglass"] = True
     b = RateBuffers(n, dim, **{k: v for k, v in options.items()
                                if k in inspect.signature(RateBuffers).parameters})
     rng = np.random.default_rng(seed)
@@ -101,7 +111,7 @@ def _load_call(path: Path, previous: dict | None) -> dict:
 
 def _evaluate(backend, call: dict, b) -> None:
     backend.evaluate(call["n_active"], tuple(call[k] for k in FIELDS), call["table"],
-                     call["neighbours"], call["viscosity"], b)
+                     call["neighbours"], call["viscosity"], b, *call.get("extra", ()))
 
 
 def _gpu_run(name: str, overrides: list[str], steps: int):
@@ -134,8 +144,9 @@ def _worker(task: str, folder: Path) -> int:
         for case_dir in sorted(p for p in folder.iterdir() if p.is_dir()):
             t0 = time.perf_counter()
             meta = json.loads((case_dir / "meta.json").read_text())
-            backend = GpuRates(meta["dim"])
-            b = _prefilled_buffers(meta["n_rows"], meta["dim"], meta["seed"], meta["lean"])
+            backend = GpuRates(meta["dim"], meta.get("gradient_correction", False))
+            b = _prefilled_buffers(meta["n_rows"], meta["dim"], meta["seed"], meta["lean"],
+                                   meta.get("hourglass", False))
             previous = None
             uploads = []
             for k in range(meta["calls"]):
@@ -201,11 +212,13 @@ class _Recorder:
         self.inner = inner
         self.call = None
 
-    def evaluate(self, n_active, arrays, table, neighbours, viscosity, b):
+    def evaluate(self, n_active, arrays, table, neighbours, viscosity, b, *extra):
         self.call = {**{k: np.array(a) for k, a in zip(FIELDS, arrays, strict=True)},
                      "table": np.array(table), "neighbours": copy.deepcopy(neighbours),
-                     "n_active": n_active, "viscosity": viscosity}
-        self.inner.evaluate(n_active, arrays, table, neighbours, viscosity, b)
+                     "n_active": n_active, "viscosity": viscosity,
+                     "extra": tuple(np.array(a) if isinstance(a, np.ndarray) else a
+                                    for a in extra)}
+        self.inner.evaluate(n_active, arrays, table, neighbours, viscosity, b, *extra)
 
 
 def _perturb(state, rng) -> None:
@@ -221,6 +234,8 @@ def _perturb(state, rng) -> None:
         if dim == 2:  # plane strain: no xz, yz shear
             s[:, 2, :2] = s[:, :2, 2] = 0.0
         state.deviatoric_stress[:] = s
+    if state.hourglass_acceleration.shape[1]:  # the hourglass control's state
+        state.hourglass_acceleration[:] = rng.normal(0.0, 1e3, state.hourglass_acceleration.shape)
 
 
 def _thinned(offsets: np.ndarray, indices: np.ndarray):
@@ -242,7 +257,8 @@ def _rate_calls(name: str, overrides: list[str], seed: int) -> list[dict]:
     sim = Simulation(load_case(name, overrides))
     solver, state = sim.solver, sim.state
     rng = np.random.default_rng(seed)
-    recorder = _Recorder(CpuRates(state.dim))
+    kgc = sim.case.stabilisation.gradient_correction == "velocity_gradient"
+    recorder = _Recorder(CpuRates(state.dim, kgc))
     solver.backend = recorder
     _perturb(state, rng)
     solver.rates(state)
@@ -257,6 +273,8 @@ def _rate_calls(name: str, overrides: list[str], seed: int) -> list[dict]:
     nl = third["neighbours"]
     nl.offsets, nl.indices = _thinned(nl.offsets, nl.indices)
     third["m"] = second["m"] * (1.0 + 0.1 * rng.random(second["m"].shape))
+    for call in (first, second, third):
+        call["gradient_correction"] = kgc
     return [first, second, third]
 
 
@@ -287,11 +305,13 @@ def rate_comparison(request, tmp_path_factory):
         dim = calls[0]["x"].shape[1]
         n_rows = calls[0]["rho"].shape[0]
         assert all(c["rho"].shape[0] == n_rows for c in calls)
+        kgc = calls[0]["gradient_correction"]
         (case_dir / "meta.json").write_text(json.dumps(
             {"dim": dim, "n_rows": n_rows, "seed": seed, "calls": len(calls),
-             "lean": case in LEAN}))
-        cpu = CpuRates(dim)
-        b = _prefilled_buffers(n_rows, dim, seed, case in LEAN)
+             "lean": case in LEAN, "gradient_correction": kgc,
+             "hourglass": bool(calls[0]["extra"])}))
+        cpu = CpuRates(dim, kgc)
+        b = _prefilled_buffers(n_rows, dim, seed, case in LEAN, bool(calls[0]["extra"]))
         references[case] = []
         previous = None
         for k, call in enumerate(calls):
@@ -326,12 +346,13 @@ def test_rates_match_cpu(rate_comparison, case):
 
 
 def test_only_changed_inputs_are_uploaded(rate_comparison):
-    """After the first evaluation the state (x, v, rho, e, S) is copied every time; the
-    neighbour list and the masses only when new arrays come (here: offsets, indices, m, and
-    the list's order where it has one)."""
+    """After the first evaluation the state (x, v, rho, e, S, and the hourglass acceleration
+    where the control is on) is copied every time; the neighbour list and the masses only when
+    new arrays come (here: offsets, indices, m, and the list's order where it has one)."""
     _, _, report, _ = rate_comparison
     for case, uploads in report["uploads"].items():
-        assert uploads[1:] == [5, 8 + report["ordered"][case]], (case, uploads)
+        state = 5 + (case in HOURGLASS)
+        assert uploads[1:] == [state, state + 3 + report["ordered"][case]], (case, uploads)
 
 
 @pytest.fixture(scope="module", params=MODES)

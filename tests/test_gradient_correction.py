@@ -1,4 +1,4 @@
-"""The kernel gradient correction of the velocity gradient (``kernel.gradient_correction =
+"""The kernel gradient correction of the velocity gradient (``stabilisation.gradient_correction =
 "velocity_gradient"``): the patch test.  A linear velocity field ``v = A x`` must give the exact
 velocity gradient ``A`` at every particle, the free surface, edges and corners included; with
 the plain SPH gradient it is exact only in the interior (the kernel's support is cut at the
@@ -28,7 +28,8 @@ def block(dim: int, correction: str, jitter: float = 0.0) -> Simulation:
         "bodies": [{"name": "b", "material": "m", "velocity": [0.0] * dim,
                     "geometry": {"origin": [0.0] * dim, "size": [side * 1e-3] * dim,
                                  "spacing": 1e-3}}],
-        "kernel": {"h_over_dx": 1.3, "gradient_correction": correction},
+        "kernel": {"h_over_dx": 1.3},
+        "stabilisation": {"gradient_correction": correction},
         "viscosity": {"alpha1": 0.0, "alpha2": 0.0},
         "time": {"end": 1e-6}, "output": {"figures": False}})
     sim = Simulation(case)

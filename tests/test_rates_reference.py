@@ -153,7 +153,7 @@ def reference_rates(sim: Simulation):
 @pytest.mark.parametrize("scheme", ["av", "ac"])
 def test_pair_loop_equals_term_by_term_reference(dim, scheme):
     sim = two_blocks(dim, scheme)
-    got = [np.array(a[: sim.state.n]) for a in sim.solver.rates(sim.state)]
+    got = [np.array(a[: sim.state.n]) for a in sim.solver.rates(sim.state)[:4]]
     want = reference_rates(sim)
     assert sim.solver.buffers.contact_force.shape[0] > 0  # two bodies: contact is on
     for name, g, w in zip(("dv", "drho", "de", "dS"), got, want, strict=True):

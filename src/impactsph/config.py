@@ -269,10 +269,21 @@ class Kernel(_Model):
 
     type: Literal["cubic_spline"] = "cubic_spline"
     h_over_dx: PositiveFloat = Field(1.2, description="smoothing length over particle spacing")
+
+
+
+class Stabilisation(_Model):
+    """Remedies for the discretisation's own errors (docs/stabilisation.md); each is off by
+    default, so the paper's scheme is reproduced exactly."""
+
     gradient_correction: Literal["none", "velocity_gradient"] = Field(
         "none", description="'velocity_gradient': the kernel gradient correction (Randles & "
         "Libersky 1996) of the velocity gradient, exact for linear velocity fields at free "
-        "surfaces too (docs/stabilisation.md); 'none': the plain SPH gradient of eq 15")
+        "surfaces too; 'none': the plain SPH gradient of eq 15")
+    hourglass: NonNegativeFloat = Field(
+        0.0, description="coefficient zeta of the hourglass control: an elastic restoring "
+        "acceleration zeta mu / rho times the (non-nested) Laplacian of the relative motion "
+        "that the velocity gradient does not explain; 0 switches it off")
 
 
 class Viscosity(_Model):
@@ -360,6 +371,7 @@ class Case(_Model):
     bodies: list[Body] = Field(min_length=1)
     boundaries: list[Wall] = Field(default_factory=list)
     kernel: Kernel = Field(default_factory=Kernel)
+    stabilisation: Stabilisation = Field(default_factory=Stabilisation)
     viscosity: Viscosity = Field(default_factory=Viscosity)
     time: Time
     output: Output = Field(default_factory=Output)

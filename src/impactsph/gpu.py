@@ -150,12 +150,13 @@ class GpuRates:
 
     # -- the backend interface ---------------------------------------------------------------
     def evaluate(self, n_active: int, arrays: tuple, table: np.ndarray, neighbours,
-                 viscosity, b) -> None:
+                 viscosity, b, hourglass: float = 0.0,
+                 hourglass_acceleration: np.ndarray | None = None) -> None:
         """As :meth:`impactsph.physics.rates.CpuRates.evaluate`: the rates of the first
         ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h, material, body)`` into the
         host buffers ``b``; rows the CPU backend leaves alone are left alone."""
         x, v, rho, e, S, m, h, material, body = arrays
-        particle_kernel, pair_kernel, correction_kernel = self._kernels
+        particle_kernel, pair_kernel, correction_kernel, hourglass_kernel = self._kernels
         n_rows, dim = rho.shape[0], self.dim
         stream, tpb = self._stream, self.threads_per_block
         up = self._upload
@@ -177,6 +178,9 @@ class GpuRates:
         out = {name: buf("out_" + name, shapes.get(name, (n_rows, dim)),
                          count_type if name == "pair_count" else np.float64)
                for name in (*_ACTIVE_OUT, *_CORRECTION_OUT)}
+        with_hourglass = hourglass > 0.0
+        gradients = buf("gradients", (n_rows if with_hourglass else 0, dim, dim), np.float64)
+        out["dhg"] = buf("out_dhg", (n_rows if with_hourglass else 0, dim), np.float64)
         if b.contact_force.shape[0] == 0:  # no contact in this run: the kernel writes none
             out["contact_force"] = buf("out_no_contact", (0, dim), np.float64)
         corrected = viscosity.correction is not None
@@ -188,14 +192,21 @@ class GpuRates:
                 pair_kernel[blocks, tpb, stream](
                     n_rows, n_active, dorder, packed, doff, dind, int(viscosity.kind),
                     viscosity.pair, dS_, dmat, dtable, out["drho"], out["dv"], out["de"],
-                    out["de_visc"], out["contact_force"], out["pair_count"], out["dS"])
+                    out["de_visc"], out["contact_force"], out["pair_count"], out["dS"],
+                    gradients)
                 if corrected:
                     correction_kernel[blocks, tpb, stream](
                         n_rows, n_active, dorder, packed, doff, dind, int(viscosity.kind),
                         viscosity.correction, out["dv_corr"], out["de_corr"], out["dv"],
                         out["de"])
+                if with_hourglass:
+                    dhg_state = up("hourglass_acceleration", hourglass_acceleration)
+                    hourglass_kernel[blocks, tpb, stream](
+                        n_rows, n_active, dorder, packed, gradients, doff, dind, dmat, dtable,
+                        float(hourglass), dhg_state, out["dv"], out["de"], out["dhg"])
         # results into the host buffers
-        for names in (_ACTIVE_OUT, _CORRECTION_OUT if corrected else ()):
+        for names in (_ACTIVE_OUT, _CORRECTION_OUT if corrected else (),
+                      ("dhg",) if with_hourglass else ()):
             for name in names:
                 if hasattr(b, name):
                     self._download("out_" + name, getattr(b, name), n_active)

@@ -107,7 +107,7 @@ def stable_time_step(state: ParticleState, table: np.ndarray, courant: float,
 
 class MidpointIntegrator:
     """Table 1's predictor-corrector.  ``rates(state)`` must return
-    ``(dv, drho, de, dS)`` for the active particles; see :class:`~impactsph.solver.Solver`."""
+    ``(dv, drho, de, dS, dhg)`` for the active particles; see :class:`~impactsph.solver.Solver`."""
 
     def __init__(self, rates, table: np.ndarray, n_active: int, dim: int, constraint=None):
         self.rates = rates
@@ -127,7 +127,7 @@ class MidpointIntegrator:
 
     #: the fields the integrator advances (the rest of the state is constant within a step)
     INTEGRATED = ("position", "velocity", "density", "specific_energy", "deviatoric_stress",
-                  "plastic_work", "strength_state")
+                  "plastic_work", "strength_state", "hourglass_acceleration")
 
     def _save_start(self, state: ParticleState) -> SimpleNamespace:
         """The integrated fields at the start of the step, in buffers reused every step."""
@@ -140,13 +140,14 @@ class MidpointIntegrator:
 
     def _stage(self, state: ParticleState, dt: float, start: SimpleNamespace, v_rate, rates,
                final: bool):
-        dv, drho, de, dS = rates
+        dv, drho, de, dS, dhg = rates
         self._advance(self.n_active, dt, start.position, start.velocity, start.density,
                       start.specific_energy, start.deviatoric_stress, start.plastic_work,
-                      start.strength_state, v_rate, dv, drho, de, dS, state.clamped,
-                      state.material, self.table, state.position, state.velocity,
-                      state.density, state.specific_energy, state.deviatoric_stress,
-                      state.plastic_work, state.strength_state)
+                      start.strength_state, start.hourglass_acceleration, v_rate, dv, drho, de,
+                      dS, dhg, state.clamped, state.material, self.table, state.position,
+                      state.velocity, state.density, state.specific_energy,
+                      state.deviatoric_stress, state.plastic_work, state.strength_state,
+                      state.hourglass_acceleration)
         if self.constraint is not None:
             count, impulse = self.constraint(state.position, state.velocity, state.mass)
             if final:  # the predictor's state is discarded; only the step's own counts

@@ -70,7 +70,11 @@ class Simulation:
                              skin_fraction=case.time.neighbour_skin,
                              backend=select_backend(
                                  case.compute.device, case.dimension,
-                                 case.kernel.gradient_correction == "velocity_gradient"))
+                                 case.stabilisation.gradient_correction == "velocity_gradient"),
+                             hourglass=case.stabilisation.hourglass)
+        if case.stabilisation.hourglass > 0.0 and self.state.hourglass_acceleration.shape[1] \
+                != self.state.dim:
+            self.state.hourglass_acceleration = np.zeros((self.state.n, self.state.dim))
         self.integrator = MidpointIntegrator(
             self.solver.rates, self.problem.table, self.state.n, self.state.dim,
             constraint=self.walls.enforce if len(self.walls) else None)

@@ -63,8 +63,10 @@ class Solver:
     """
 
     def __init__(self, state: ParticleState, table: np.ndarray, viscosity: ViscositySettings,
-                 walls: Walls | None = None, skin_fraction: float = 0.1, backend=None):
+                 walls: Walls | None = None, skin_fraction: float = 0.1, backend=None,
+                 hourglass: float = 0.0):
         self.table = table
+        self.hourglass = float(hourglass)
         self.viscosity = viscosity
         self.walls = walls if walls is not None and len(walls) else None
         self.n_active = state.n
@@ -122,7 +124,8 @@ class Solver:
         if self.neighbours is None or self.buffers.drho.shape[0] != n_ext:
             self.buffers = RateBuffers(n_ext, self.dim,
                                        contact=self.walls is not None or self.n_bodies > 1,
-                                       corrected=self.corrected)
+                                       corrected=self.corrected,
+                                       hourglass=self.hourglass > 0.0)
         return positions
 
     def _fill(self, state: ParticleState) -> None:
@@ -147,15 +150,21 @@ class Solver:
                 e["body"])
 
     def rates(self, state: ParticleState):
-        """Rates at ``state`` (Table 1's subroutine RATES); rows beyond ``state.n`` are
+        """Rates at ``state`` (Table 1's subroutine RATES): ``(dv, drho, de, dS, dhg)``, the
+        last with no rows unless the hourglass control is on; rows beyond ``state.n`` are
         ghosts."""
         b = self.buffers
         support = SUPPORT_RADIUS * float(state.smoothing_length.max())
         if self.neighbours.stale(state.position, support):
             self._build(state)
             b = self.buffers
-        self.backend.evaluate(self.n_active, self._arrays(state), self.table, self.neighbours,
-                              self.viscosity, b)
+        if self.hourglass > 0.0:
+            self.backend.evaluate(self.n_active, self._arrays(state), self.table,
+                                  self.neighbours, self.viscosity, b, self.hourglass,
+                                  state.hourglass_acceleration)
+        else:
+            self.backend.evaluate(self.n_active, self._arrays(state), self.table,
+                                  self.neighbours, self.viscosity, b)
         n = self.n_active
         totals = rate_totals(n, state.mass, state.velocity, b.de_visc, b.dv_corr, b.de_corr,
                              b.contact_force, b.pair_count, self.corrected)
@@ -167,7 +176,7 @@ class Solver:
             self.wall_force = totals[4: 4 + self.dim].copy()
         self.pair_evaluations += int(totals[3])
         self.rate_evaluations += 1
-        return b.dv, b.drho, b.de, b.dS
+        return b.dv, b.drho, b.de, b.dS, b.dhg
 
     def pressure(self, state: ParticleState) -> np.ndarray:
         """Pressure (Pa) of each particle of ``state``, from the equations of state."""

@@ -32,6 +32,9 @@ class ParticleState:
     #: (n, k) the per-particle state of the strength models (as each declares it: see
     #: :class:`impactsph.models.StrengthModel`); k is the widest registered model's
     strength_state: np.ndarray = field(default=None)
+    #: (n, dim) m/s^2, the hourglass control's acceleration (docs/stabilisation.md); (n, 0)
+    #: when the control is off
+    hourglass_acceleration: np.ndarray = field(default=None)
     time: float = 0.0
     step: int = 0
 
@@ -42,6 +45,8 @@ class ParticleState:
             self.initial_position = self.position.copy()
         if self.strength_state is None:
             self.strength_state = np.zeros((self.n, 0))
+        if self.hourglass_acceleration is None:
+            self.hourglass_acceleration = np.zeros((self.n, 0))
 
     @property
     def n(self) -> int:

@@ -150,12 +150,13 @@ def correct_velocity_gradient(L, B00, B01, B02, B10, B11, B12, B20, B21, B22):
 
 @JIT(inline="always", cache=True)
 def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, material, table,
-                   drho, dv, de, de_visc, contact_force, pair_count, dS, L):
+                   drho, dv, de, de_visc, contact_force, pair_count, dS, L, L_sorted):
     """Pass 2 for the active particle ``i`` at sorted position ``p``: the sums over its
     neighbours (eqs 22, 27, 28) in scalar accumulators (kept in registers) and its stress rate
     (eq 14, into ``dS[i]``, with ``L`` as scratch for the velocity gradient); its viscous
     acceleration is also stored in its packed record, for a correction pass.
-    ``contact_force`` is written only if it has a row per particle (several bodies or walls).
+    ``contact_force`` is written only if it has a row per particle (several bodies or walls),
+    ``L_sorted[p]`` (the velocity gradient, for the hourglass control) only if it has rows.
 
     The stress terms are regrouped, exactly in arithmetic: ``sum_j m_j A_i . grad W_ij =
     A_i . (sum_j m_j grad W_ij)`` and ``sum_j m_j A_i : (v_ij (x) grad W_ij) = A_i : (sum_j
@@ -309,6 +310,10 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, materia
             contact_force[i, a] = m_i * (kc[a] + fv[a])
     if GRADIENT_CORRECTION:
         correct_velocity_gradient(L, B00, B01, B02, B10, B11, B12, B20, B21, B22)
+    if L_sorted.shape[0] > 0:
+        for a in range(DIM):
+            for b in range(DIM):
+                L_sorted[p, a, b] = L[a, b]
     drho[i] = rhoi * cont
     de[i] = de_s + de_v
     de_visc[i] = de_v
@@ -317,8 +322,8 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, materia
 
 
 @JIT(inline="always", cache=True)
-def advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, v_rate, dv, drho, de, dS,
-                     clamped, material, table, x, v, rho, e, S, plastic_work, state):
+def advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, drho, de, dS,
+                     dhg, clamped, material, table, x, v, rho, e, S, plastic_work, state, hg):
     """One integrator stage of particle ``i``: ``y = y0 + dt ydot`` with ``xdot = v_rate``
     (a clamped particle keeps ``v = 0``), the strength state restored to its value at the
     start of the step, then the strength model's return map and the specific plastic work
@@ -334,10 +339,90 @@ def advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, v_rate, dv, drho,
             S[i, a, b] = S0[i, a, b] + dt * dS[i, a, b]
     for c in range(STATE_WIDTH):
         state[i, c] = state0[i, c]
+    for a in range(hg.shape[1]):  # the hourglass acceleration (no columns when it is off)
+        hg[i, a] = hg0[i, a] + dt * dhg[i, a]
     k = material[i]
     row = table[k]
     plastic_work[i] = pw0[i] + strength_return(int(row[STRENGTH_KIND]), S[i], rho[i],
                                                row[SHEAR], row[STRENGTH_PARAMS:], state[i])
+
+
+@JIT(inline="always", cache=True)
+def unexplained_velocity(a, p, q, P, L_sorted, d0, d1, d2):
+    """Component ``a`` of ``v_pq - (L_p + L_q) r_pq / 2`` for the records at sorted positions
+    ``p``, ``q`` (``r_pq = (d0, d1, d2)``)."""
+    e = P[p, V + a] - P[q, V + a] - 0.5 * (L_sorted[p, a, 0] + L_sorted[q, a, 0]) * d0
+    if DIM > 1:
+        e -= 0.5 * (L_sorted[p, a, 1] + L_sorted[q, a, 1]) * d1
+    if DIM > 2:
+        e -= 0.5 * (L_sorted[p, a, 2] + L_sorted[q, a, 2]) * d2
+    return e
+
+
+@JIT(inline="always", cache=True)
+def hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zeta, hg, dv, de,
+                       dhg):
+    """Hourglass control of the active particle ``i`` at sorted position ``p``
+    (docs/stabilisation.md).  The relative velocity of each neighbour ``j`` of the same body
+    that the velocity gradients do not explain, ``e_ij = v_ij - (L_i + L_j) r_ij / 2`` (zero
+    for a linear field, large for the zig-zag modes that the collocated gradient cannot see),
+    enters the non-nested (Brookshaw) Laplacian, and the particle's hourglass acceleration
+    ``hg_i`` (a state, integrated in time like the stress) grows at
+
+        d hg_i/dt = zeta mu_i / rho_i  2 sum_j V_j e_ij (r_ij . grad W_ij) / (r_ij^2 + 0.01 h^2)
+
+    an elastic restoring acceleration of shear stiffness ``zeta mu`` against the unexplained
+    relative displacement, with a viscous part of time scale ``tau_ij = h_ij / c_shear``
+    (``c_shear^2 = mu / rho_ij``), ``zeta mu / rho_i`` times the same Laplacian of
+    ``tau_ij e_ij``, which damps the control's own grid-scale oscillation (the midpoint rule
+    amplifies an undamped one).  Both are added to ``dv[i]`` and their power taken from the internal
+    energy, so that the total energy is kept; the pair terms are antisymmetric within a body
+    of one material, so momentum is kept too."""
+    Pi_ = P[p]
+    hi = Pi_[H]
+    bi = Pi_[BODY]
+    shear = table[material[i], SHEAR]
+    a0 = a1 = a2 = 0.0  # the Laplacian of e
+    b0 = b1 = b2 = 0.0  # the Laplacian of tau e
+    for k in range(offsets[p], offsets[p + 1]):
+        q = indices[k]
+        Pj = P[q]
+        if Pj[BODY] != bi:
+            continue
+        d0 = Pi_[X] - Pj[X]
+        d1 = Pi_[X + 1] - Pj[X + 1] if DIM > 1 else 0.0
+        d2 = Pi_[X + 2] - Pj[X + 2] if DIM > 2 else 0.0
+        r2 = d0 * d0 + d1 * d1 + d2 * d2
+        h_ij = 0.5 * (hi + Pj[H])
+        inv_h = 1.0 / h_ij
+        q2 = r2 * inv_h * inv_h
+        if q2 >= 4.0 or r2 == 0.0:
+            continue
+        fq = cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM)  # grad W = fq r_ij
+        coef = 2.0 * Pj[VOL] * fq * r2 / (r2 + 0.01 * h_ij * h_ij)
+        # the viscous part's time scale tau_ij = h_ij / c_shear, c_shear^2 = mu / rho_ij
+        tau = h_ij * math.sqrt(0.5 * (Pi_[RHO] + Pj[RHO]) / shear)
+        e0 = unexplained_velocity(0, p, q, P, L_sorted, d0, d1, d2)
+        a0 += coef * e0
+        b0 += coef * tau * e0
+        if DIM > 1:
+            e1 = unexplained_velocity(1, p, q, P, L_sorted, d0, d1, d2)
+            a1 += coef * e1
+            b1 += coef * tau * e1
+        if DIM > 2:
+            e2 = unexplained_velocity(2, p, q, P, L_sorted, d0, d1, d2)
+            a2 += coef * e2
+            b2 += coef * tau * e2
+    rate = zeta * shear / Pi_[RHO]
+    acc = (a0, a1, a2)
+    damped = (b0, b1, b2)
+    work = 0.0
+    for a in range(DIM):
+        dhg[i, a] = rate * acc[a]
+        push = hg[i, a] + rate * damped[a]
+        dv[i, a] += push
+        work += Pi_[V + a] * push
+    de[i] -= work
 
 
 # -- the CPU passes --------------------------------------------------------------------------
@@ -353,7 +438,7 @@ def particle_pass(order, x, v, m, rho, e, S, h, body, material, table, P):
 
 @JIT(parallel=True, cache=True, fastmath=FASTMATH)
 def pair_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, S, material, table,
-              drho, dv, de, de_visc, contact_force, pair_count, dS, chunk_size):
+              drho, dv, de, de_visc, contact_force, pair_count, dS, L_sorted, chunk_size):
     """Pass 2 over the active particles, in parallel chunks of sorted positions; ghosts
     (``order[p] >= n_active``) only take part as neighbours."""
     n = order.shape[0]
@@ -367,7 +452,8 @@ def pair_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, S, m
                     P[p, U + a] = 0.0
                 continue
             particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, material,
-                           table, drho, dv, de, de_visc, contact_force, pair_count, dS, L)
+                           table, drho, dv, de, de_visc, contact_force, pair_count, dS, L,
+                           L_sorted)
 
 
 @JIT(parallel=True, cache=True)
@@ -385,12 +471,28 @@ def correction_pass(n_active, order, P, offsets, indices, visc_kind, correction_
 
 
 @JIT(parallel=True, cache=True)
-def advance(n_active, dt, x0, v0, rho0, e0, S0, pw0, state0, v_rate, dv, drho, de, dS, clamped,
-            material, table, x, v, rho, e, S, plastic_work, state):
+def hourglass_pass(n_active, order, P, L_sorted, offsets, indices, material, table, zeta, hg,
+                   dv, de, dhg, chunk_size):
+    """The hourglass control over the active particles (after the pair pass, whose velocity
+    gradients it reads)."""
+    n = order.shape[0]
+    n_chunks = (n + chunk_size - 1) // chunk_size
+    for chunk in nb.prange(n_chunks):
+        for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
+            i = order[p]
+            if i < n_active:
+                hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zeta,
+                                   hg, dv, de, dhg)
+
+
+@JIT(parallel=True, cache=True)
+def advance(n_active, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, drho, de, dS,
+            dhg, clamped, material, table, x, v, rho, e, S, plastic_work, state, hg):
     """:func:`advance_particle` for every active particle."""
     for i in nb.prange(n_active):
-        advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, v_rate, dv, drho, de, dS,
-                         clamped, material, table, x, v, rho, e, S, plastic_work, state)
+        advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, drho, de,
+                         dS, dhg, clamped, material, table, x, v, rho, e, S, plastic_work,
+                         state, hg)
 
 
 @JIT(parallel=True, cache=True)
@@ -406,8 +508,8 @@ def pressures(rho, e, material, table, out):
 
 def cuda_kernels():
     """The same bodies as CUDA kernels, one thread per sorted position ``p``:
-    ``(particle_kernel, pair_kernel, correction_kernel)``.  They launch and state no physics;
-    :class:`impactsph.gpu.GpuRates` moves the data."""
+    ``(particle_kernel, pair_kernel, correction_kernel, hourglass_kernel)``.  They launch and
+    state no physics; :class:`impactsph.gpu.GpuRates` moves the data."""
     global cuda  # a module global, as numba's CUDA simulator expects to find it
     from numba import cuda
 
@@ -419,7 +521,8 @@ def cuda_kernels():
 
     @cuda.jit
     def pair_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind, visc_params, S,
-                    material, table, drho, dv, de, de_visc, contact_force, pair_count, dS):
+                    material, table, drho, dv, de, de_visc, contact_force, pair_count, dS,
+                    L_sorted):
         p = cuda.grid(1)
         if p >= n_rows:
             return
@@ -430,7 +533,7 @@ def cuda_kernels():
             return
         L = cuda.local.array((DIM, DIM), nb.float64)
         particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, material, table,
-                       drho, dv, de, de_visc, contact_force, pair_count, dS, L)
+                       drho, dv, de, de_visc, contact_force, pair_count, dS, L, L_sorted)
 
     @cuda.jit
     def correction_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind,
@@ -441,4 +544,12 @@ def cuda_kernels():
                                  CORRECTION_COLUMNS, DIM, correction_params, dv_corr, de_corr,
                                  dv, de)
 
-    return particle_kernel, pair_kernel, correction_kernel
+    @cuda.jit
+    def hourglass_kernel(n_rows, n_active, order, P, L_sorted, offsets, indices, material,
+                         table, zeta, hg, dv, de, dhg):
+        p = cuda.grid(1)
+        if p < n_rows and order[p] < n_active:
+            hourglass_particle(p, order[p], P, L_sorted, offsets, indices, material, table,
+                               zeta, hg, dv, de, dhg)
+
+    return particle_kernel, pair_kernel, correction_kernel, hourglass_kernel

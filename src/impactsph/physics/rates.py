@@ -60,7 +60,8 @@ class RateBuffers:
     a row per particle only where there is contact (several bodies, or walls), and the
     correction terms only with a correcting scheme: otherwise they have no rows."""
 
-    def __init__(self, n: int, dim: int, contact: bool = True, corrected: bool = True):
+    def __init__(self, n: int, dim: int, contact: bool = True, corrected: bool = True,
+                 hourglass: bool = False):
         self.drho = np.zeros(n)
         self.dv = np.zeros((n, dim))
         self.de = np.zeros(n)
@@ -70,6 +71,7 @@ class RateBuffers:
         self.pair_count = np.zeros(n, dtype=np.int32)
         self.dv_corr = np.zeros((n if corrected else 0, dim))
         self.de_corr = np.zeros(n if corrected else 0)
+        self.dhg = np.zeros((n if hourglass else 0, dim))  # the hourglass acceleration's rate
 
 
 class CpuRates:
@@ -82,14 +84,17 @@ class CpuRates:
         self.passes = compiled_passes(dim, gradient_correction=gradient_correction)
         self._packed: np.ndarray | None = None  # the packed particle records (.records)
         self._chunk: tuple[int, int] | None = None  # (rows, particles per work item)
+        self._gradients: np.ndarray | None = None  # velocity gradients, for the hourglass pass
 
     def evaluate(self, n_active: int, arrays: tuple, table: np.ndarray, neighbours,
-                 viscosity: ViscositySettings, b: RateBuffers) -> None:
+                 viscosity: ViscositySettings, b: RateBuffers, hourglass: float = 0.0,
+                 hourglass_acceleration: np.ndarray | None = None) -> None:
         """Rates of the first ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h,
         material, body)`` (all rows, ghosts included, take part in the sums) into ``b``:
         ``drho``, the total accelerations ``dv`` and specific-energy rates ``de``, the
         viscous heating ``de_visc``, ``contact_force, pair_count, dS`` and, for a scheme with
-        a correction, ``dv_corr, de_corr``."""
+        a correction, ``dv_corr, de_corr``; with ``hourglass`` (the coefficient zeta) > 0,
+        ``dhg`` from the particles' ``hourglass_acceleration`` (added to ``dv``)."""
         x, v, rho, e, S, m, h, material, body = arrays
         k = self.passes
         nl = neighbours
@@ -100,13 +105,24 @@ class CpuRates:
         if self._chunk is None or self._chunk[0] != n:  # get_num_threads takes a lock
             self._chunk = (n, chunk_size(n))
         chunk = self._chunk[1]
+        if hourglass > 0.0 and (b.dhg.shape[0] < n_active or hourglass_acceleration is None
+                                or hourglass_acceleration.shape != (n_active, self.dim)):
+            raise ValueError("the hourglass control needs RateBuffers(..., hourglass=True) and "
+                             "an (n_active, dim) hourglass_acceleration")
+        rows = n if hourglass > 0.0 else 0
+        if self._gradients is None or self._gradients.shape[0] != rows:
+            self._gradients = np.empty((rows, self.dim, self.dim))
         k.pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, viscosity.kind,
                     viscosity.pair, S, material, table, b.drho, b.dv, b.de, b.de_visc,
-                    b.contact_force, b.pair_count, b.dS, chunk)
+                    b.contact_force, b.pair_count, b.dS, self._gradients, chunk)
         if viscosity.correction is not None:
             k.correction_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
                               viscosity.kind, viscosity.correction, b.dv_corr, b.de_corr,
                               b.dv, b.de, chunk)
+        if hourglass > 0.0:
+            k.hourglass_pass(n_active, nl.order, self._packed, self._gradients, nl.offsets,
+                             nl.indices, material, table, hourglass, hourglass_acceleration,
+                             b.dv, b.de, b.dhg, chunk)
 
 
 def pressures(rho: np.ndarray, e: np.ndarray, material: np.ndarray, table: np.ndarray,
