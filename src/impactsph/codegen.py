@@ -103,9 +103,10 @@ def _dispatch(name: str, args: str, prefix: str, models: list[tuple[int, Any]],
     return "\n".join(lines) + "\n"
 
 
-def binding(dim: int, gradient_correction: bool = False) -> tuple[str, dict[str, Any]]:
+def binding(dim: int, gradient_correction: str = "none") -> tuple[str, dict[str, Any]]:
     """The binding block for ``dim``, the registered models and the compile-time options
-    (``gradient_correction``: the kernel gradient correction of the velocity gradient): its
+    (``gradient_correction``: ``"none"``, ``"velocity_gradient"`` or
+    ``"velocity_gradient_and_forces"``, docs/stabilisation.md): its
     source, and the compiled functions to inject under their names."""
     layout = TableLayout.registered()
     inject: dict[str, Any] = {}
@@ -133,7 +134,8 @@ def binding(dim: int, gradient_correction: bool = False) -> tuple[str, dict[str,
         "# _eos_K, _strength_K, _viscosity_K, _correction_K are injected into this module):",
         *described,
         f"DIM = {dim}",
-        f"GRADIENT_CORRECTION = {bool(gradient_correction)}",
+        f"GRADIENT_CORRECTION = {gradient_correction == 'velocity_gradient'}",
+        f"FORCE_CORRECTION = {gradient_correction == 'velocity_gradient_and_forces'}",
         "JIT = nb.njit",
         f"EOS_PARAMS = {layout.eos_params}",
         f"STRENGTH_PARAMS = {layout.strength_params}",
@@ -168,7 +170,7 @@ def _template_text(template: ModuleType) -> str:
     return Path(inspect.getsourcefile(template)).read_text()
 
 
-def generate(template: ModuleType, dim: int, gradient_correction: bool = False
+def generate(template: ModuleType, dim: int, gradient_correction: str = "none"
              ) -> tuple[str, dict[str, Any]]:
     """The text of the generated module and the functions to inject (see :func:`binding`)."""
     text = _template_text(template)
@@ -189,21 +191,22 @@ def _fingerprint(text: str, inject: dict[str, Any]) -> str:
 
 
 def load(template: ModuleType, dim: int, simulated: bool = False,
-         gradient_correction: bool = False) -> ModuleType:
+         gradient_correction: str = "none") -> ModuleType:
     """The template bound to the registered models and ``dim``, imported (cached in this
     process per registry version)."""
-    return _load(template.__name__, dim, simulated, bool(gradient_correction),
+    return _load(template.__name__, dim, simulated, str(gradient_correction),
                  _registry.version())
 
 
 @cache
-def _load(template_name: str, dim: int, simulated: bool, gradient_correction: bool,
+def _load(template_name: str, dim: int, simulated: bool, gradient_correction: str,
           version: int) -> ModuleType:
     template = sys.modules[template_name]
     text, inject = generate(template, dim, gradient_correction)
     key = _fingerprint(text, inject)
     stem = template_name.rsplit(".", 1)[-1]
-    variant = "_kgc" if gradient_correction else ""
+    variant = {"none": "", "velocity_gradient": "_kgc",
+               "velocity_gradient_and_forces": "_kgcf"}[gradient_correction]
     path = cache_directory() / f"{stem}_{dim}d{variant}_{key}.py"
     if not path.exists() or path.read_text() != text:
         atomic.write_text(path, text)

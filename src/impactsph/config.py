@@ -276,10 +276,13 @@ class Stabilisation(_Model):
     """Remedies for the discretisation's own errors (docs/stabilisation.md); each is off by
     default, so the paper's scheme is reproduced exactly."""
 
-    gradient_correction: Literal["none", "velocity_gradient"] = Field(
+    gradient_correction: Literal["none", "velocity_gradient", "velocity_gradient_and_forces"
+                                 ] = Field(
         "none", description="'velocity_gradient': the kernel gradient correction (Randles & "
         "Libersky 1996) of the velocity gradient, exact for linear velocity fields at free "
-        "surfaces too; 'none': the plain SPH gradient of eq 15")
+        "surfaces too; 'velocity_gradient_and_forces': also the stress forces, in the "
+        "symmetric form of Bonet & Lok (1999) that keeps momentum and energy; 'none': the "
+        "plain SPH gradient of eq 15")
     hourglass: NonNegativeFloat = Field(
         0.0, description="coefficient zeta of the hourglass control: an elastic restoring "
         "acceleration zeta mu / rho times the (non-nested) Laplacian of the relative motion "

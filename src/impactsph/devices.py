@@ -9,9 +9,9 @@ from .physics.rates import CpuRates
 log = logging.getLogger(__name__)
 
 
-def select_backend(device: str, dim: int, gradient_correction: bool = False):
-    """A rate backend for ``device`` (``"cpu"`` or ``"gpu"``), its passes compiled with the
-    kernel gradient correction of the velocity gradient if ``gradient_correction``.
+def select_backend(device: str, dim: int, gradient_correction: str = "none"):
+    """A rate backend for ``device`` (``"cpu"`` or ``"gpu"``), its passes compiled for the
+    ``gradient_correction`` mode (``[stabilisation]``, docs/stabilisation.md).
 
     ``"gpu"`` without a usable GPU (no CUDA driver, no device, or numba-cuda missing) logs a
     warning that says why and returns the CPU backend: a case written for a GPU still runs."""

@@ -31,7 +31,6 @@ from functools import cache
 import numpy as np
 
 from .physics.rates import compiled_passes
-from .physics.records import record_columns
 
 try:  # numba-cuda (the `gpu` extra) when installed, else numba's deprecated built-in target
     from numba import cuda
@@ -79,12 +78,13 @@ def unavailable_reason() -> str | None:
 
 
 @cache
-def gpu_kernels(dim: int, simulated: bool, version: int = 0, gradient_correction: bool = False):
+def gpu_kernels(dim: int, simulated: bool, version: int = 0, gradient_correction: str = "none"):
     """The CUDA kernels for dimension ``dim`` and the registered models (``version``: the
     registries' version, so that a newly registered model gets new kernels):
     ``(particle_kernel, pair_kernel, correction_kernel)``.  ``simulated``: built for the CUDA
     simulator."""
-    return compiled_passes(dim, simulated, gradient_correction).cuda_kernels()
+    passes = compiled_passes(dim, simulated, gradient_correction)
+    return (*passes.cuda_kernels(), passes.FORCE_CORRECTION, passes.RECORD_WIDTH)
 
 
 #: The kernels' outputs for the active rows, copied into the ``RateBuffers`` of that name
@@ -101,7 +101,7 @@ class GpuRates:
 
     device = "gpu"
 
-    def __init__(self, dim: int, gradient_correction: bool = False, *,
+    def __init__(self, dim: int, gradient_correction: str = "none", *,
                  threads_per_block: int | None = None):
         if cuda is None:  # pragma: no cover - a numba without any CUDA target
             raise RuntimeError(f"numba.cuda cannot be imported ({_IMPORT_ERROR}; "
@@ -156,7 +156,8 @@ class GpuRates:
         ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h, material, body)`` into the
         host buffers ``b``; rows the CPU backend leaves alone are left alone."""
         x, v, rho, e, S, m, h, material, body = arrays
-        particle_kernel, pair_kernel, correction_kernel, hourglass_kernel = self._kernels
+        (particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
+         force_correction, record_width) = self._kernels
         n_rows, dim = rho.shape[0], self.dim
         stream, tpb = self._stream, self.threads_per_block
         up = self._upload
@@ -171,7 +172,7 @@ class GpuRates:
         dind = up("indices", neighbours.indices, True)
         # the packed records and the outputs, allocated once per size
         buf = self._buffer
-        packed = buf("packed", (n_rows, record_columns(dim)["width"]), np.float64)
+        packed = buf("packed", (n_rows, record_width), np.float64)
         shapes = {"drho": (n_rows,), "de": (n_rows,), "de_visc": (n_rows,),
                   "de_corr": (n_rows,), "pair_count": (n_rows,), "dS": (n_rows, 3, 3)}
         count_type = getattr(b.pair_count, "dtype", np.int64)
@@ -188,6 +189,8 @@ class GpuRates:
             blocks = (n_rows + tpb - 1) // tpb
             particle_kernel[blocks, tpb, stream](
                 n_rows, dorder, dx, dv, dm, drho_, de, dS_, dh, dbody, dmat, dtable, packed)
+            if force_correction:
+                moment_kernel[blocks, tpb, stream](n_rows, packed, doff, dind)
             if n_active:
                 pair_kernel[blocks, tpb, stream](
                     n_rows, n_active, dorder, packed, doff, dind, int(viscosity.kind),

@@ -70,7 +70,7 @@ class Simulation:
                              skin_fraction=case.time.neighbour_skin,
                              backend=select_backend(
                                  case.compute.device, case.dimension,
-                                 case.stabilisation.gradient_correction == "velocity_gradient"),
+                                 case.stabilisation.gradient_correction),
                              hourglass=case.stabilisation.hourglass)
         if case.stabilisation.hourglass > 0.0 and self.state.hourglass_acceleration.shape[1] \
                 != self.state.dim:

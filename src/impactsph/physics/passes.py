@@ -49,6 +49,7 @@ from impactsph.physics.stress_rate import jaumann_stress_rate
 # >>> binding: replaced by impactsph.codegen in each generated copy
 DIM = 3
 GRADIENT_CORRECTION = False
+FORCE_CORRECTION = False
 JIT = nb.njit
 EOS_PARAMS = STRENGTH_PARAMS = STATE_WIDTH = 6
 eos_pressure = strength_return = pair_viscosity = viscosity_correction = None
@@ -58,10 +59,12 @@ eos_pressure = strength_return = pair_viscosity = viscosity_correction = None
 #: machine; no reassociation, so sums keep their order).
 FASTMATH = {"contract", "arcp", "nsz"}
 
-_COLUMNS = record_columns(DIM)
+_COLUMNS = record_columns(DIM, correction_matrix=FORCE_CORRECTION)
 X, V, H, M, VOL, RHO, C, PC, BODY, A0, U = (_COLUMNS[k] for k in (
     "x", "v", "h", "m", "volume", "rho", "c", "pc", "body", "A", "u"))
 RECORD_WIDTH = _COLUMNS["width"]
+#: first column of the correction matrix C (FORCE_CORRECTION only; row by row)
+CM0 = _COLUMNS.get("C", 0)
 #: columns of A's components: SYM[a][b] (a tuple of tuples: a compile-time constant)
 SYM = tuple(tuple(A0 + symmetric_index(a, b, DIM) for b in range(DIM)) for a in range(DIM))
 A00 = SYM[0][0]
@@ -106,6 +109,31 @@ def particle_record(p, i, x, v, m, rho, e, S, h, body, material, table, P):
 
 
 @JIT(inline="always", cache=True)
+def moment_inverse(B00, B01, B02, B10, B11, B12, B20, B21, B22):
+    """``(invertible, B^-1 row by row)`` of the moment matrix (its ``DIM x DIM`` part);
+    not invertible where ``|det B| < MIN_MOMENT_DETERMINANT``."""
+    if DIM == 1:
+        det = B00
+    elif DIM == 2:
+        det = B00 * B11 - B01 * B10
+    else:
+        det = (B00 * (B11 * B22 - B12 * B21) - B01 * (B10 * B22 - B12 * B20)
+               + B02 * (B10 * B21 - B11 * B20))
+    if abs(det) < MIN_MOMENT_DETERMINANT:
+        return False, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
+    inv = 1.0 / det
+    if DIM == 1:
+        return True, inv, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    if DIM == 2:
+        return True, B11 * inv, -B01 * inv, 0.0, -B10 * inv, B00 * inv, 0.0, 0.0, 0.0, 0.0
+    return (True, (B11 * B22 - B12 * B21) * inv, (B02 * B21 - B01 * B22) * inv,
+            (B01 * B12 - B02 * B11) * inv, (B12 * B20 - B10 * B22) * inv,
+            (B00 * B22 - B02 * B20) * inv, (B02 * B10 - B00 * B12) * inv,
+            (B10 * B21 - B11 * B20) * inv, (B01 * B20 - B00 * B21) * inv,
+            (B00 * B11 - B01 * B10) * inv)
+
+
+@JIT(inline="always", cache=True)
 def correct_velocity_gradient(L, B00, B01, B02, B10, B11, B12, B20, B21, B22):
     """Kernel gradient correction of the velocity gradient (Randles & Libersky 1996; Bonet &
     Lok 1999): with the moment matrix ``B = -sum_j V_j r_ij (x) grad W_ij`` (the identity for
@@ -113,32 +141,11 @@ def correct_velocity_gradient(L, B00, B01, B02, B10, B11, B12, B20, B21, B22):
     ``v = A x`` is ``L = A B``, so ``L <- L B^-1`` recovers ``A`` exactly wherever ``B`` is
     invertible.  Where ``|det B|`` is below ``MIN_MOMENT_DETERMINANT`` (a particle with too
     few neighbours to span the space) ``L`` is left as it is."""
-    if DIM == 1:
-        det = B00
-    elif DIM == 2:
-        det = B00 * B11 - B01 * B10
-    else:
-        det = (B00 * (B11 * B22 - B12 * B21)
-               - B01 * (B10 * B22 - B12 * B20)
-               + B02 * (B10 * B21 - B11 * B20))
-    if abs(det) < MIN_MOMENT_DETERMINANT:
+    ok, I00, I01, I02, I10, I11, I12, I20, I21, I22 = moment_inverse(
+        B00, B01, B02, B10, B11, B12, B20, B21, B22)
+    if not ok:
         return
-    inv = 1.0 / det
-    if DIM == 1:
-        Bi = ((inv, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
-    elif DIM == 2:
-        Bi = ((B11 * inv, -B01 * inv, 0.0), (-B10 * inv, B00 * inv, 0.0),
-              (0.0, 0.0, 0.0))
-    else:
-        Bi = (((B11 * B22 - B12 * B21) * inv,
-               (B02 * B21 - B01 * B22) * inv,
-               (B01 * B12 - B02 * B11) * inv),
-              ((B12 * B20 - B10 * B22) * inv,
-               (B00 * B22 - B02 * B20) * inv,
-               (B02 * B10 - B00 * B12) * inv),
-              ((B10 * B21 - B11 * B20) * inv,
-               (B01 * B20 - B00 * B21) * inv,
-               (B00 * B11 - B01 * B10) * inv))
+    Bi = ((I00, I01, I02), (I10, I11, I12), (I20, I21, I22))
     for a in range(DIM):
         row = (L[a, 0], L[a, 1] if DIM > 1 else 0.0, L[a, 2] if DIM > 2 else 0.0)
         for b in range(DIM):
@@ -146,6 +153,63 @@ def correct_velocity_gradient(L, B00, B01, B02, B10, B11, B12, B20, B21, B22):
             for c in range(DIM):
                 s += row[c] * Bi[c][b]
             L[a, b] = s
+
+
+@JIT(inline="always", cache=True)
+def apply_correction(record, b, w0, w1, w2):
+    """Component ``b`` of ``C w`` for the correction matrix ``C`` in a packed record (row by
+    row from column ``CM0``): a row vector ``w`` times ``C^T`` gives the same."""
+    if b >= DIM:
+        return 0.0
+    s = record[CM0 + b * DIM] * w0
+    if DIM > 1:
+        s += record[CM0 + b * DIM + 1] * w1
+    if DIM > 2:
+        s += record[CM0 + b * DIM + 2] * w2
+    return s
+
+
+@JIT(inline="always", cache=True)
+def moment_correction(p, P, offsets, indices):
+    """The correction matrix of the particle at sorted position ``p`` into its record:
+    ``C = B^-T`` with the moment matrix ``B = -sum_j V_j r_ij (x) grad W_ij`` over the
+    neighbours of the same body (see :func:`correct_velocity_gradient`), so that ``C grad
+    W_ij`` is the corrected kernel gradient; the identity where ``|det B|`` is below
+    ``MIN_MOMENT_DETERMINANT``."""
+    Pi_ = P[p]
+    hi = Pi_[H]
+    bi = Pi_[BODY]
+    B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
+    for k in range(offsets[p], offsets[p + 1]):
+        Pj = P[indices[k]]
+        if Pj[BODY] != bi:
+            continue
+        d0 = Pi_[X] - Pj[X]
+        d1 = Pi_[X + 1] - Pj[X + 1] if DIM > 1 else 0.0
+        d2 = Pi_[X + 2] - Pj[X + 2] if DIM > 2 else 0.0
+        r2 = d0 * d0 + d1 * d1 + d2 * d2
+        inv_h = 1.0 / (0.5 * (hi + Pj[H]))
+        q2 = r2 * inv_h * inv_h
+        if q2 >= 4.0 or r2 == 0.0:
+            continue
+        w = -Pj[VOL] * cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM)
+        B00 += w * d0 * d0
+        if DIM > 1:
+            B01 += w * d0 * d1
+            B10 += w * d1 * d0
+            B11 += w * d1 * d1
+        if DIM > 2:
+            B02 += w * d0 * d2
+            B12 += w * d1 * d2
+            B20 += w * d2 * d0
+            B21 += w * d2 * d1
+            B22 += w * d2 * d2
+    _, I00, I01, I02, I10, I11, I12, I20, I21, I22 = moment_inverse(
+        B00, B01, B02, B10, B11, B12, B20, B21, B22)
+    Bi = ((I00, I01, I02), (I10, I11, I12), (I20, I21, I22))
+    for a in range(DIM):  # C = B^-T, row by row
+        for b in range(DIM):
+            P[p, CM0 + a * DIM + b] = Bi[b][a]
 
 
 @JIT(inline="always", cache=True)
@@ -237,14 +301,30 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, materia
                     B20 -= volume_j * d2 * g0
                     B21 -= volume_j * d2 * g1
                     B22 -= volume_j * d2 * g2
+            # the kernel gradient that the neighbour's stress A_j meets: C_j grad W_ij with the
+            # correction of the forces, grad W_ij otherwise
+            if FORCE_CORRECTION:
+                t0 = Pj[CM0] * g0
+                t1 = 0.0
+                t2 = 0.0
+                if DIM > 1:
+                    t0 += Pj[CM0 + 1] * g1
+                    t1 = Pj[CM0 + DIM] * g0 + Pj[CM0 + DIM + 1] * g1
+                if DIM > 2:
+                    t0 += Pj[CM0 + 2] * g2
+                    t1 += Pj[CM0 + DIM + 2] * g2
+                    t2 = (Pj[CM0 + 2 * DIM] * g0 + Pj[CM0 + 2 * DIM + 1] * g1
+                          + Pj[CM0 + 2 * DIM + 2] * g2)
+            else:
+                t0, t1, t2 = g0, g1, g2
             G0 += m_j * g0
-            a0 += m_j * Pj[A00] * g0
+            a0 += m_j * Pj[A00] * t0
             L00 += velocity_gradient_pair(volume_j, u0, g0)
             T00 += m_j * u0 * g0
             if DIM > 1:
                 G1 += m_j * g1
-                a0 += m_j * Pj[A01] * g1
-                a1 += m_j * (Pj[A01] * g0 + Pj[A11] * g1)
+                a0 += m_j * Pj[A01] * t1
+                a1 += m_j * (Pj[A01] * t0 + Pj[A11] * t1)
                 L01 += velocity_gradient_pair(volume_j, u0, g1)
                 L10 += velocity_gradient_pair(volume_j, u1, g0)
                 L11 += velocity_gradient_pair(volume_j, u1, g1)
@@ -253,9 +333,9 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, materia
                 T11 += m_j * u1 * g1
             if DIM > 2:
                 G2 += m_j * g2
-                a0 += m_j * Pj[A02] * g2
-                a1 += m_j * Pj[A12] * g2
-                a2 += m_j * (Pj[A02] * g0 + Pj[A12] * g1 + Pj[A22] * g2)
+                a0 += m_j * Pj[A02] * t2
+                a1 += m_j * Pj[A12] * t2
+                a2 += m_j * (Pj[A02] * t0 + Pj[A12] * t1 + Pj[A22] * t2)
                 L02 += velocity_gradient_pair(volume_j, u0, g2)
                 L12 += velocity_gradient_pair(volume_j, u1, g2)
                 L20 += velocity_gradient_pair(volume_j, u2, g0)
@@ -287,6 +367,27 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, materia
             f2 += visc * g2
         de_v += viscous_heating_pair(m_j, pi_ij, vg)
     # A_i applied to the regrouped sums
+    if FORCE_CORRECTION:  # the particle's own C_i: G <- C_i G, T <- T C_i^T, L <- L C_i^T
+        G0, G1, G2 = (apply_correction(Pi_, 0, G0, G1, G2), apply_correction(Pi_, 1, G0, G1, G2),
+                      apply_correction(Pi_, 2, G0, G1, G2))
+        T00, T01, T02 = (apply_correction(Pi_, 0, T00, T01, T02),
+                         apply_correction(Pi_, 1, T00, T01, T02),
+                         apply_correction(Pi_, 2, T00, T01, T02))
+        T10, T11, T12 = (apply_correction(Pi_, 0, T10, T11, T12),
+                         apply_correction(Pi_, 1, T10, T11, T12),
+                         apply_correction(Pi_, 2, T10, T11, T12))
+        T20, T21, T22 = (apply_correction(Pi_, 0, T20, T21, T22),
+                         apply_correction(Pi_, 1, T20, T21, T22),
+                         apply_correction(Pi_, 2, T20, T21, T22))
+        L00, L01, L02 = (apply_correction(Pi_, 0, L00, L01, L02),
+                         apply_correction(Pi_, 1, L00, L01, L02),
+                         apply_correction(Pi_, 2, L00, L01, L02))
+        L10, L11, L12 = (apply_correction(Pi_, 0, L10, L11, L12),
+                         apply_correction(Pi_, 1, L10, L11, L12),
+                         apply_correction(Pi_, 2, L10, L11, L12))
+        L20, L21, L22 = (apply_correction(Pi_, 0, L20, L21, L22),
+                         apply_correction(Pi_, 1, L20, L21, L22),
+                         apply_correction(Pi_, 2, L20, L21, L22))
     G = (G0, G1, G2)
     acc = (a0, a1, a2)
     kc = (k0, k1, k2)
@@ -436,6 +537,16 @@ def particle_pass(order, x, v, m, rho, e, S, h, body, material, table, P):
         particle_record(p, order[p], x, v, m, rho, e, S, h, body, material, table, P)
 
 
+@JIT(parallel=True, cache=True)
+def moment_pass(order, P, offsets, indices, chunk_size):
+    """The correction matrices of every row (FORCE_CORRECTION only), after the records."""
+    n = order.shape[0]
+    n_chunks = (n + chunk_size - 1) // chunk_size
+    for chunk in nb.prange(n_chunks):
+        for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
+            moment_correction(p, P, offsets, indices)
+
+
 @JIT(parallel=True, cache=True, fastmath=FASTMATH)
 def pair_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, S, material, table,
               drho, dv, de, de_visc, contact_force, pair_count, dS, L_sorted, chunk_size):
@@ -508,7 +619,8 @@ def pressures(rho, e, material, table, out):
 
 def cuda_kernels():
     """The same bodies as CUDA kernels, one thread per sorted position ``p``:
-    ``(particle_kernel, pair_kernel, correction_kernel, hourglass_kernel)``.  They launch and
+    ``(particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel)``.
+    They launch and
     state no physics; :class:`impactsph.gpu.GpuRates` moves the data."""
     global cuda  # a module global, as numba's CUDA simulator expects to find it
     from numba import cuda
@@ -545,6 +657,12 @@ def cuda_kernels():
                                  dv, de)
 
     @cuda.jit
+    def moment_kernel(n_rows, P, offsets, indices):
+        p = cuda.grid(1)
+        if p < n_rows:
+            moment_correction(p, P, offsets, indices)
+
+    @cuda.jit
     def hourglass_kernel(n_rows, n_active, order, P, L_sorted, offsets, indices, material,
                          table, zeta, hg, dv, de, dhg):
         p = cuda.grid(1)
@@ -552,4 +670,4 @@ def cuda_kernels():
             hourglass_particle(p, order[p], P, L_sorted, offsets, indices, material, table,
                                zeta, hg, dv, de, dhg)
 
-    return particle_kernel, pair_kernel, correction_kernel, hourglass_kernel
+    return particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel

@@ -22,7 +22,7 @@ from .records import record_columns
 
 
 def compiled_passes(dim: int, simulated: bool = False,
-                    gradient_correction: bool = False) -> ModuleType:
+                    gradient_correction: str = "none") -> ModuleType:
     """The generated passes module for ``dim``, the registered models and the options."""
     return codegen.load(_template, dim, simulated, gradient_correction)
 
@@ -79,7 +79,7 @@ class CpuRates:
 
     device = "cpu"
 
-    def __init__(self, dim: int, gradient_correction: bool = False):
+    def __init__(self, dim: int, gradient_correction: str = "none"):
         self.dim = dim
         self.passes = compiled_passes(dim, gradient_correction=gradient_correction)
         self._packed: np.ndarray | None = None  # the packed particle records (.records)
@@ -100,7 +100,7 @@ class CpuRates:
         nl = neighbours
         n = x.shape[0]
         if self._packed is None or self._packed.shape[0] != n:
-            self._packed = np.empty((n, record_columns(self.dim)["width"]))
+            self._packed = np.empty((n, k.RECORD_WIDTH))
         k.particle_pass(nl.order, x, v, m, rho, e, S, h, body, material, table, self._packed)
         if self._chunk is None or self._chunk[0] != n:  # get_num_threads takes a lock
             self._chunk = (n, chunk_size(n))
@@ -112,6 +112,8 @@ class CpuRates:
         rows = n if hourglass > 0.0 else 0
         if self._gradients is None or self._gradients.shape[0] != rows:
             self._gradients = np.empty((rows, self.dim, self.dim))
+        if k.FORCE_CORRECTION:
+            k.moment_pass(nl.order, self._packed, nl.offsets, nl.indices, chunk)
         k.pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, viscosity.kind,
                     viscosity.pair, S, material, table, b.drho, b.dv, b.de, b.de_visc,
                     b.contact_force, b.pair_count, b.dS, self._gradients, chunk)

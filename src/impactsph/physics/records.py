@@ -6,7 +6,7 @@ kernels (:mod:`impactsph.physics.passes`) read the same layout."""
 from __future__ import annotations
 
 
-def record_columns(dim: int) -> dict[str, int]:
+def record_columns(dim: int, correction_matrix: bool = False) -> dict[str, int]:
     """Columns of the packed record: position ``x``, velocity ``v``, ``h``, ``m``,
     ``volume = m/rho``, ``rho``, ``c``, ``pc = P/rho^2``, ``body``, the symmetric
     ``A = sigma/rho^2`` (its upper triangle, row by row: :func:`symmetric_index`) and the
@@ -17,7 +17,11 @@ def record_columns(dim: int) -> dict[str, int]:
     cols = {"x": 0, "v": dim, "h": 2 * dim, "m": 2 * dim + 1, "volume": 2 * dim + 2,
             "rho": 2 * dim + 3, "c": 2 * dim + 4, "pc": 2 * dim + 5, "body": 2 * dim + 6,
             "A": 2 * dim + 7, "u": 2 * dim + 7 + n_sym}
-    cols["width"] = (cols["u"] + dim + 7) // 8 * 8
+    end = cols["u"] + dim
+    if correction_matrix:
+        cols["C"] = end
+        end += dim * dim
+    cols["width"] = (end + 7) // 8 * 8
     return cols
 
 
