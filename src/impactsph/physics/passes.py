@@ -170,6 +170,14 @@ def apply_correction(record, b, w0, w1, w2):
 
 
 @JIT(inline="always", cache=True)
+def corrected(record, w0, w1, w2):
+    """``C w`` (a column vector), or a row vector ``w`` times ``C^T``: the three components
+    of :func:`apply_correction`."""
+    return (apply_correction(record, 0, w0, w1, w2), apply_correction(record, 1, w0, w1, w2),
+            apply_correction(record, 2, w0, w1, w2))
+
+
+@JIT(inline="always", cache=True)
 def moment_correction(p, P, offsets, indices):
     """The correction matrix of the particle at sorted position ``p`` into its record:
     ``C = B^-T`` with the moment matrix ``B = -sum_j V_j r_ij (x) grad W_ij`` over the
@@ -368,26 +376,13 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, materia
         de_v += viscous_heating_pair(m_j, pi_ij, vg)
     # A_i applied to the regrouped sums
     if FORCE_CORRECTION:  # the particle's own C_i: G <- C_i G, T <- T C_i^T, L <- L C_i^T
-        G0, G1, G2 = (apply_correction(Pi_, 0, G0, G1, G2), apply_correction(Pi_, 1, G0, G1, G2),
-                      apply_correction(Pi_, 2, G0, G1, G2))
-        T00, T01, T02 = (apply_correction(Pi_, 0, T00, T01, T02),
-                         apply_correction(Pi_, 1, T00, T01, T02),
-                         apply_correction(Pi_, 2, T00, T01, T02))
-        T10, T11, T12 = (apply_correction(Pi_, 0, T10, T11, T12),
-                         apply_correction(Pi_, 1, T10, T11, T12),
-                         apply_correction(Pi_, 2, T10, T11, T12))
-        T20, T21, T22 = (apply_correction(Pi_, 0, T20, T21, T22),
-                         apply_correction(Pi_, 1, T20, T21, T22),
-                         apply_correction(Pi_, 2, T20, T21, T22))
-        L00, L01, L02 = (apply_correction(Pi_, 0, L00, L01, L02),
-                         apply_correction(Pi_, 1, L00, L01, L02),
-                         apply_correction(Pi_, 2, L00, L01, L02))
-        L10, L11, L12 = (apply_correction(Pi_, 0, L10, L11, L12),
-                         apply_correction(Pi_, 1, L10, L11, L12),
-                         apply_correction(Pi_, 2, L10, L11, L12))
-        L20, L21, L22 = (apply_correction(Pi_, 0, L20, L21, L22),
-                         apply_correction(Pi_, 1, L20, L21, L22),
-                         apply_correction(Pi_, 2, L20, L21, L22))
+        G0, G1, G2 = corrected(Pi_, G0, G1, G2)
+        T00, T01, T02 = corrected(Pi_, T00, T01, T02)
+        T10, T11, T12 = corrected(Pi_, T10, T11, T12)
+        T20, T21, T22 = corrected(Pi_, T20, T21, T22)
+        L00, L01, L02 = corrected(Pi_, L00, L01, L02)
+        L10, L11, L12 = corrected(Pi_, L10, L11, L12)
+        L20, L21, L22 = corrected(Pi_, L20, L21, L22)
     G = (G0, G1, G2)
     acc = (a0, a1, a2)
     kc = (k0, k1, k2)
