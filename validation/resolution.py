@@ -1,12 +1,16 @@
-"""Resolution study for the paper's 2D examples: the same case at twice the particles per
-direction, AC and the paper's AV reference, with the measured quantities and how much they
-move.  Writes ``runs/validation/resolution.json`` and prints a Markdown table.
+"""Resolution study for the paper's 2D examples: the same case at two (or more) particle
+counts per direction, for several schemes, with the measured quantities and how much they
+move.  Writes ``runs/validation/resolution-<case>/resolution.json`` and prints a Markdown
+table.
 
     .venv/bin/python validation/resolution.py taylor [--workers 2]
+    .venv/bin/python validation/resolution.py taylor --schemes AC "AC stabilised" --factors 1 2 4
     .venv/bin/python validation/resolution.py cantilever
 
-The cantilever at twice the resolution runs about 8 times as long as at the paper's (4080
-particles, twice the steps).
+Schemes: the paper's AC and AV references, and "AC stabilised": AC with the kernel gradient
+correction of the velocity gradient and forces, the normal-stress contact and the walls'
+penalty layer (docs/stabilisation.md).  The cantilever at twice the resolution runs about 8
+times as long as at the paper's (4080 particles, twice the steps).
 """
 
 from __future__ import annotations
@@ -26,13 +30,18 @@ KEYS = {
                    "max_neighbour_gap_over_h", "kinetic_energy_ratio_final",
                    "total_energy_relative_error"],
 }
+#: the stabilisation options of "AC stabilised" (docs/stabilisation.md)
+STABILISED = ['stabilisation.gradient_correction="velocity_gradient_and_forces"',
+              'contact.traction="normal_stress"', "contact.wall_layer=0.25"]
 SCHEMES = {
     "taylor": {"AC": ['viscosity.scheme="ac"'],
                "AV (0.5, 0.5)": ['viscosity.scheme="av"', "viscosity.alpha1=0.5",
-                                 "viscosity.alpha2=0.5"]},
+                                 "viscosity.alpha2=0.5"],
+               "AC stabilised": ['viscosity.scheme="ac"', *STABILISED]},
     "cantilever": {"AC": ['viscosity.scheme="ac"'],
                    "AV (0.1, 0.1)": ['viscosity.scheme="av"', "viscosity.alpha1=0.1",
-                                     "viscosity.alpha2=0.1"]},
+                                     "viscosity.alpha2=0.1"],
+                   "AC stabilised": ['viscosity.scheme="ac"', *STABILISED]},
 }
 
 
@@ -40,14 +49,23 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("case", choices=sorted(KEYS))
     parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("--schemes", nargs="+", default=None,
+                        help="schemes to run (default: AC and the AV reference)")
+    parser.add_argument("--factors", nargs="+", type=int, default=[1, 2],
+                        help="particle-count multipliers per direction (default: 1 2)")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     out = args.out or Path("runs/validation") / f"resolution-{args.case}"
     base = read_case_dict(args.case)
     count = base["bodies"][0]["geometry"]["count"]
     labels, overrides = [], []
-    for scheme, ov in SCHEMES[args.case].items():
-        for factor in (1, 2):
+    schemes = args.schemes or [k for k in SCHEMES[args.case] if k != "AC stabilised"]
+    for scheme in schemes:
+        if scheme not in SCHEMES[args.case]:
+            parser.error(f"--schemes: {scheme!r} is not one of {sorted(SCHEMES[args.case])}")
+    for scheme in schemes:
+        ov = SCHEMES[args.case][scheme]
+        for factor in args.factors:
             refined = [c * factor for c in count]
             labels.append((scheme, factor))
             overrides.append([*ov, f"bodies.0.geometry.count={json.dumps(refined)}",
@@ -59,21 +77,24 @@ def main() -> None:
         result.append({"scheme": scheme, "resolution": f"x{factor}",
                        "n_particles": summary.get("n_particles"),
                        "wall_seconds": summary.get("wall_seconds"),
+                       "wall_constraint_events": summary.get("wall_constraint_events"),
                        "status": row.get("status"),
                        **{k: summary.get(k) for k in KEYS[args.case]}})
     (out / "resolution.json").write_text(json.dumps(result, indent=2, default=float))
-    cols = ["scheme", "resolution", "n_particles", "wall_seconds", *KEYS[args.case]]
+    cols = ["scheme", "resolution", "n_particles", "wall_seconds", "wall_constraint_events",
+            *KEYS[args.case]]
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
     for r in result:
         print("| " + " | ".join(f"{r[c]:.4g}" if isinstance(r[c], float) else str(r[c])
                                 for c in cols) + " |")
-    for scheme in SCHEMES[args.case]:
-        a, b = (r for r in result if r["scheme"] == scheme)
-        moves = {k: (b[k] - a[k]) / a[k] for k in KEYS[args.case]
-                 if isinstance(a.get(k), float) and isinstance(b.get(k), float) and a[k]}
-        print(f"{scheme}: relative change x1 -> x2: " +
-              ", ".join(f"{k} {v:+.1%}" for k, v in moves.items()))
+    for scheme in schemes:
+        rows_of = [r for r in result if r["scheme"] == scheme]
+        for a, b in zip(rows_of, rows_of[1:]):
+            moves = {k: (b[k] - a[k]) / a[k] for k in KEYS[args.case]
+                     if isinstance(a.get(k), float) and isinstance(b.get(k), float) and a[k]}
+            print(f"{scheme}: relative change {a['resolution']} -> {b['resolution']}: " +
+                  ", ".join(f"{k} {v:+.1%}" for k, v in moves.items()))
 
 
 if __name__ == "__main__":

@@ -43,6 +43,7 @@ from . import atomic
 from .materials import TableLayout
 from .models import EOS, STRENGTH, VISCOSITY
 from .models import registry as _registry
+from .physics.options import PassOptions
 
 BEGIN = "# >>> binding"
 END = "# <<< binding"
@@ -103,11 +104,12 @@ def _dispatch(name: str, args: str, prefix: str, models: list[tuple[int, Any]],
     return "\n".join(lines) + "\n"
 
 
-def binding(dim: int, gradient_correction: str = "none") -> tuple[str, dict[str, Any]]:
-    """The binding block for ``dim``, the registered models and the compile-time options
-    (``gradient_correction``: ``"none"``, ``"velocity_gradient"`` or
-    ``"velocity_gradient_and_forces"``, docs/stabilisation.md): its
-    source, and the compiled functions to inject under their names."""
+def binding(dim: int, options: PassOptions | str | None = None) -> tuple[str, dict[str, Any]]:
+    """The binding block for ``dim``, the registered models and the compile-time
+    :class:`~impactsph.physics.options.PassOptions` (or a gradient-correction mode by name;
+    docs/stabilisation.md): its source, and the compiled functions to inject under their
+    names."""
+    options = PassOptions.coerce(options)
     layout = TableLayout.registered()
     inject: dict[str, Any] = {}
     described = []
@@ -134,8 +136,7 @@ def binding(dim: int, gradient_correction: str = "none") -> tuple[str, dict[str,
         "# _eos_K, _strength_K, _viscosity_K, _correction_K are injected into this module):",
         *described,
         f"DIM = {dim}",
-        f"GRADIENT_CORRECTION = {gradient_correction == 'velocity_gradient'}",
-        f"FORCE_CORRECTION = {gradient_correction == 'velocity_gradient_and_forces'}",
+        *options.constants(),
         "JIT = nb.njit",
         f"EOS_PARAMS = {layout.eos_params}",
         f"STRENGTH_PARAMS = {layout.strength_params}",
@@ -170,13 +171,13 @@ def _template_text(template: ModuleType) -> str:
     return Path(inspect.getsourcefile(template)).read_text()
 
 
-def generate(template: ModuleType, dim: int, gradient_correction: str = "none"
+def generate(template: ModuleType, dim: int, options: PassOptions | str | None = None
              ) -> tuple[str, dict[str, Any]]:
     """The text of the generated module and the functions to inject (see :func:`binding`)."""
     text = _template_text(template)
     start, end = text.index(BEGIN), text.index(END)
     end = text.index("\n", end) + 1
-    block, inject = binding(dim, gradient_correction)
+    block, inject = binding(dim, options)
     return text[:start] + block + "\n" + text[end:], inject
 
 
@@ -191,23 +192,21 @@ def _fingerprint(text: str, inject: dict[str, Any]) -> str:
 
 
 def load(template: ModuleType, dim: int, simulated: bool = False,
-         gradient_correction: str = "none") -> ModuleType:
-    """The template bound to the registered models and ``dim``, imported (cached in this
-    process per registry version)."""
-    return _load(template.__name__, dim, simulated, str(gradient_correction),
+         options: PassOptions | str | None = None) -> ModuleType:
+    """The template bound to the registered models, ``dim`` and the compile-time ``options``,
+    imported (cached in this process per registry version)."""
+    return _load(template.__name__, dim, simulated, PassOptions.coerce(options),
                  _registry.version())
 
 
 @cache
-def _load(template_name: str, dim: int, simulated: bool, gradient_correction: str,
+def _load(template_name: str, dim: int, simulated: bool, options: PassOptions,
           version: int) -> ModuleType:
     template = sys.modules[template_name]
-    text, inject = generate(template, dim, gradient_correction)
+    text, inject = generate(template, dim, options)
     key = _fingerprint(text, inject)
     stem = template_name.rsplit(".", 1)[-1]
-    variant = {"none": "", "velocity_gradient": "_kgc",
-               "velocity_gradient_and_forces": "_kgcf"}[gradient_correction]
-    path = cache_directory() / f"{stem}_{dim}d{variant}_{key}.py"
+    path = cache_directory() / f"{stem}_{dim}d{options.tag}_{key}.py"
     if not path.exists() or path.read_text() != text:
         atomic.write_text(path, text)
     name = f"impactsph_generated.{path.stem}{'_simulated' if simulated else ''}"

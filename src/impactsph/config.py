@@ -287,6 +287,32 @@ class Stabilisation(_Model):
         0.0, description="coefficient zeta of the hourglass control: an elastic restoring "
         "acceleration zeta mu / rho times the (non-nested) Laplacian of the relative motion "
         "that the velocity gradient does not explain; 0 switches it off")
+    artificial_stress: NonNegativeFloat = Field(
+        0.0, description="coefficient epsilon of the artificial stress against the tensile "
+        "instability (Monaghan 2000; Gray, Monaghan & Swift 2001): a repulsion -epsilon "
+        "sigma'/rho^2 along each principal direction in tension, weighted by (W(r)/W(dx))^n; "
+        "0.3 is their value for solids, 0 switches it off")
+    artificial_stress_exponent: float = Field(
+        4.0, gt=0.0, description="exponent n of the artificial stress's weight "
+        "(W(r)/W(dx))^n (Gray et al. 2001 use 4)")
+
+
+class Contact(_Model):
+    """What particles of different bodies, and particles and their wall ghosts, exchange
+    (docs/modelling.md, "Contact between bodies"; docs/stabilisation.md)."""
+
+    traction: Literal["pressure", "normal_stress"] = Field(
+        "pressure", description="'pressure': the pair pushes with P_i/rho_i^2 + P_j/rho_j^2 "
+        "(the paper's contact); 'normal_stress': with the compressive normal stress along the "
+        "line of centres, deviatoric part included, so that a wall holds a body whose stress "
+        "normal to it exceeds its pressure")
+    wall_layer: float = Field(
+        0.0, ge=0.0, lt=0.5, description="thickness, in particle spacings, of the rigid walls' "
+        "penalty layer: a spring as stiff as the material (bulk modulus) and a dashpot that "
+        "push a particle closer than this to a wall back off it, their work booked in its "
+        "internal energy (impactsph.boundaries.layer_push); it holds a layer that thins as it "
+        "spreads along the wall, which the ghosts alone let through; 0.25 is the tested value, "
+        "0 switches it off")
 
 
 class Viscosity(_Model):
@@ -375,6 +401,7 @@ class Case(_Model):
     boundaries: list[Wall] = Field(default_factory=list)
     kernel: Kernel = Field(default_factory=Kernel)
     stabilisation: Stabilisation = Field(default_factory=Stabilisation)
+    contact: Contact = Field(default_factory=Contact)
     viscosity: Viscosity = Field(default_factory=Viscosity)
     time: Time
     output: Output = Field(default_factory=Output)

@@ -4,19 +4,21 @@ from __future__ import annotations
 
 import logging
 
+from .physics.options import PassOptions
 from .physics.rates import CpuRates
 
 log = logging.getLogger(__name__)
 
 
-def select_backend(device: str, dim: int, gradient_correction: str = "none"):
-    """A rate backend for ``device`` (``"cpu"`` or ``"gpu"``), its passes compiled for the
-    ``gradient_correction`` mode (``[stabilisation]``, docs/stabilisation.md).
+def select_backend(device: str, dim: int, options: PassOptions | str | None = None):
+    """A rate backend for ``device`` (``"cpu"`` or ``"gpu"``), its passes compiled with the
+    compile-time ``options`` (:class:`~impactsph.physics.options.PassOptions`: the
+    ``[stabilisation]`` and ``[contact]`` tables, docs/stabilisation.md).
 
     ``"gpu"`` without a usable GPU (no CUDA driver, no device, or numba-cuda missing) logs a
     warning that says why and returns the CPU backend: a case written for a GPU still runs."""
     if device == "cpu":
-        return CpuRates(dim, gradient_correction)
+        return CpuRates(dim, options)
     if device != "gpu":
         raise ValueError(f"compute.device = {device!r}: allowed are 'cpu' and 'gpu'")
     from . import gpu
@@ -24,5 +26,5 @@ def select_backend(device: str, dim: int, gradient_correction: str = "none"):
     reason = gpu.unavailable_reason()
     if reason is not None:
         log.warning("compute.device = 'gpu' but %s; running on the CPU", reason)
-        return CpuRates(dim, gradient_correction)
-    return gpu.GpuRates(dim, gradient_correction)
+        return CpuRates(dim, options)
+    return gpu.GpuRates(dim, options)

@@ -30,6 +30,7 @@ from functools import cache
 
 import numpy as np
 
+from .physics.options import PassOptions
 from .physics.rates import compiled_passes
 
 try:  # numba-cuda (the `gpu` extra) when installed, else numba's deprecated built-in target
@@ -78,12 +79,13 @@ def unavailable_reason() -> str | None:
 
 
 @cache
-def gpu_kernels(dim: int, simulated: bool, version: int = 0, gradient_correction: str = "none"):
+def gpu_kernels(dim: int, simulated: bool, version: int = 0,
+                options: PassOptions | str | None = None):
     """The CUDA kernels for dimension ``dim`` and the registered models (``version``: the
     registries' version, so that a newly registered model gets new kernels):
     ``(particle_kernel, pair_kernel, correction_kernel)``.  ``simulated``: built for the CUDA
     simulator."""
-    passes = compiled_passes(dim, simulated, gradient_correction)
+    passes = compiled_passes(dim, simulated, PassOptions.coerce(options))
     return (*passes.cuda_kernels(), passes.FORCE_CORRECTION, passes.RECORD_WIDTH)
 
 
@@ -101,7 +103,7 @@ class GpuRates:
 
     device = "gpu"
 
-    def __init__(self, dim: int, gradient_correction: str = "none", *,
+    def __init__(self, dim: int, options: PassOptions | str | None = None, *,
                  threads_per_block: int | None = None):
         if cuda is None:  # pragma: no cover - a numba without any CUDA target
             raise RuntimeError(f"numba.cuda cannot be imported ({_IMPORT_ERROR}; "
@@ -112,7 +114,8 @@ class GpuRates:
             SIMULATOR_THREADS_PER_BLOCK if simulated else THREADS_PER_BLOCK)
         from .models import registry
 
-        self._kernels = gpu_kernels(dim, simulated, registry.version(), gradient_correction)
+        self.options = PassOptions.coerce(options)
+        self._kernels = gpu_kernels(dim, simulated, registry.version(), self.options)
         self._stream = cuda.stream()
         self._device: dict[str, object] = {}  # name -> device array, reused while it fits
         self._uploaded: dict[str, np.ndarray] = {}  # name -> host array last uploaded

@@ -13,6 +13,7 @@ from .config import Case
 from .devices import select_backend
 from .errors import SimulationError
 from .integrate import MidpointIntegrator
+from .physics.options import PassOptions
 from .physics.rates import ViscositySettings
 from .problem import Problem, build_problem
 from .solver import Solver
@@ -70,8 +71,9 @@ class Simulation:
                              skin_fraction=case.time.neighbour_skin,
                              backend=select_backend(
                                  case.compute.device, case.dimension,
-                                 case.stabilisation.gradient_correction),
-                             hourglass=case.stabilisation.hourglass)
+                                 PassOptions.of_case(case)),
+                             hourglass=case.stabilisation.hourglass,
+                             wall_layer=case.contact.wall_layer)
         if case.stabilisation.hourglass > 0.0 and self.state.hourglass_acceleration.shape[1] \
                 != self.state.dim:
             self.state.hourglass_acceleration = np.zeros((self.state.n, self.state.dim))
@@ -286,15 +288,20 @@ class Simulation:
         }
 
 
-def compile_kernels(dim: int) -> None:
+def compile_kernels(dim: int, like: Case | None = None) -> None:
     """Compile (or load from numba's disk cache) every kernel a run of dimension ``dim``
     needs, by running one step of a tiny case with AC and a wall (the passes generated for the
-    registered models, :mod:`impactsph.codegen`, included).  Parallel processes
+    registered models, :mod:`impactsph.codegen`, included), with the ``[stabilisation]`` and
+    ``[contact]`` options of the case ``like`` if given.  Parallel processes
     starting on a cold cache at once can overwrite each other's cache files (numba's cache
     takes no lock between processes): calling this first, in one process, avoids that."""
     from .loading import validate_case
 
-    case = validate_case({
+    options = {} if like is None else {
+        "stabilisation": like.stabilisation.model_dump(),
+        "contact": like.contact.model_dump(),
+        "kernel": like.kernel.model_dump()}
+    case = validate_case({**options,
         "name": f"compile_{dim}d", "dimension": dim,
         "materials": {"m": {"model": "elastic", "density": 1000.0, "youngs_modulus": 1e9}},
         "bodies": [{"name": "b", "material": "m", "velocity": [0.0] * (dim - 1) + [-1.0],

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from .boundaries import Walls, fill_ghosts
+from .boundaries import Walls, fill_ghosts, layer_push
 from .kernels import SUPPORT_RADIUS
 from .neighbours import NeighbourList
 from .physics.rates import CpuRates, RateBuffers, ViscositySettings, pressures
@@ -59,13 +59,16 @@ class Solver:
     neighbour list carries a skin of ``skin_fraction`` times the kernel support and is
     rebuilt (with a new set of ghosts) when a particle has moved by half the skin.
     ``backend`` runs the rate passes: :class:`~impactsph.physics.rates.CpuRates` (default)
-    or :class:`impactsph.gpu.GpuRates`.
+    or :class:`impactsph.gpu.GpuRates`.  ``hourglass``: the hourglass control's zeta;
+    ``wall_layer``: the thickness (in particle spacings) of the walls' penalty layer
+    (:func:`impactsph.boundaries.layer_push`), 0 for none.
     """
 
     def __init__(self, state: ParticleState, table: np.ndarray, viscosity: ViscositySettings,
                  walls: Walls | None = None, skin_fraction: float = 0.1, backend=None,
-                 hourglass: float = 0.0):
+                 hourglass: float = 0.0, wall_layer: float = 0.0):
         self.table = table
+        self.wall_layer = float(wall_layer)
         self.hourglass = float(hourglass)
         self.viscosity = viscosity
         self.walls = walls if walls is not None and len(walls) else None
@@ -174,6 +177,11 @@ class Solver:
         self.powers = (float(totals[0]), float(totals[1]), float(totals[2]))
         if self.walls is not None:  # the ghosts' push on the real particles (N, or N/m)
             self.wall_force = totals[4: 4 + self.dim].copy()
+            if self.wall_layer > 0.0:
+                w = self.walls
+                self.wall_force += layer_push(n, state.position, state.velocity, state.mass,
+                                              state.material, self.table, w.points, w.normals,
+                                              self.wall_layer, b.dv, b.de)
         self.pair_evaluations += int(totals[3])
         self.rate_evaluations += 1
         return b.dv, b.drho, b.de, b.dS, b.dhg

@@ -116,12 +116,18 @@ def run_many(base: dict[str, Any], run_overrides: list[list[str]], out: Path, *,
     for name in ("distributed", "distributed.nanny", "distributed.scheduler",
                  "distributed.worker", "distributed.core", "distributed.http.proxy"):
         logging.getLogger(name).setLevel(logging.WARNING)
-    for ov in run_overrides:  # validate every run before starting any
-        validate_case(apply_overrides(base, ov))
+    cases = [validate_case(apply_overrides(base, ov))  # validate every run before any starts
+             for ov in run_overrides]
     if not scheduler:  # fill numba's disk cache once, before the workers start together
         from .simulation import compile_kernels
 
-        compile_kernels(validate_case(base).dimension)
+        seen = set()
+        for case in cases:  # once per set of compile-time options
+            key = (case.dimension, case.stabilisation.model_dump_json(),
+                   case.contact.model_dump_json(), case.kernel.model_dump_json())
+            if key not in seen:
+                seen.add(key)
+                compile_kernels(case.dimension, case)
     rows: dict[int, dict[str, Any]] = {}
     cluster = None
     if scheduler:

@@ -50,6 +50,10 @@ from impactsph.physics.stress_rate import jaumann_stress_rate
 DIM = 3
 GRADIENT_CORRECTION = False
 FORCE_CORRECTION = False
+NORMAL_STRESS_CONTACT = False
+ARTIFICIAL_STRESS = 0.0
+ARTIFICIAL_STRESS_EXPONENT = 4.0
+REFERENCE_Q = 1.0
 JIT = nb.njit
 EOS_PARAMS = STRENGTH_PARAMS = STATE_WIDTH = 6
 eos_pressure = strength_return = pair_viscosity = viscosity_correction = None
@@ -70,10 +74,14 @@ SYM = tuple(tuple(A0 + symmetric_index(a, b, DIM) for b in range(DIM)) for a in 
 A00 = SYM[0][0]
 A01, A11 = (SYM[0][1], SYM[1][1]) if DIM > 1 else (0, 0)
 A02, A12, A22 = (SYM[0][2], SYM[1][2], SYM[2][2]) if DIM > 2 else (0, 0, 0)
-#: below this ``|det B|`` the kernel gradient correction leaves a particle's velocity gradient
-#: as it is (B is the identity for a complete support; a particle on an edge or corner keeps
-#: det B of order 1/2 to 1/8, and a disordered corner one of 1e-2)
-MIN_MOMENT_DETERMINANT = 1e-3
+#: the kernel gradient correction is whole above ``det B = MOMENT_FULL`` and off below
+#: ``MOMENT_NONE``, blended in between (:func:`moment_inverse`): the geometric mean of B's
+#: eigenvalues, ``det B^(1/DIM)``, at 0.15 and 0.05.  B is the identity for a complete
+#: support; at h = 1.3 dx that mean is 0.51 at the end of a 1D lattice, 0.37 and 0.27 at a
+#: 2D and 3D lattice corner, 0.30 and 0.19 at a corner jittered by 0.2 dx; a particle thrown
+#: out of the body with a neighbour or two has far less.
+MOMENT_FULL = 0.15 ** DIM
+MOMENT_NONE = 0.05 ** DIM
 #: the record columns a correction reads: (x, v, h, volume, body, u)
 CORRECTION_COLUMNS = (X, V, H, VOL, BODY, U)
 
@@ -110,8 +118,14 @@ def particle_record(p, i, x, v, m, rho, e, S, h, body, material, table, P):
 
 @JIT(inline="always", cache=True)
 def moment_inverse(B00, B01, B02, B10, B11, B12, B20, B21, B22):
-    """``(invertible, B^-1 row by row)`` of the moment matrix (its ``DIM x DIM`` part);
-    not invertible where ``|det B| < MIN_MOMENT_DETERMINANT``."""
+    """``(corrected, M)``: the matrix that corrects with the moment matrix ``B`` (its
+    ``DIM x DIM`` part), row by row: ``B^-1`` where ``det B >= MOMENT_FULL``, the identity
+    where ``det B <= MOMENT_NONE`` (``corrected`` False), and in between the blend
+    ``w B^-1 + (1 - w) I`` with the smooth step ``w = 3 t^2 - 2 t^3`` of
+    ``t = (det B - MOMENT_NONE) / (MOMENT_FULL - MOMENT_NONE)``.  A nearly singular ``B``
+    (a particle thrown out of the body with a neighbour or two) would make the correction,
+    and the forces, arbitrarily large; the blend also keeps the correction continuous as a
+    particle's neighbourhood thins, which the time integration needs."""
     if DIM == 1:
         det = B00
     elif DIM == 2:
@@ -119,18 +133,26 @@ def moment_inverse(B00, B01, B02, B10, B11, B12, B20, B21, B22):
     else:
         det = (B00 * (B11 * B22 - B12 * B21) - B01 * (B10 * B22 - B12 * B20)
                + B02 * (B10 * B21 - B11 * B20))
-    if abs(det) < MIN_MOMENT_DETERMINANT:
+    if det <= MOMENT_NONE:
         return False, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
     inv = 1.0 / det
     if DIM == 1:
-        return True, inv, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    if DIM == 2:
-        return True, B11 * inv, -B01 * inv, 0.0, -B10 * inv, B00 * inv, 0.0, 0.0, 0.0, 0.0
-    return (True, (B11 * B22 - B12 * B21) * inv, (B02 * B21 - B01 * B22) * inv,
-            (B01 * B12 - B02 * B11) * inv, (B12 * B20 - B10 * B22) * inv,
-            (B00 * B22 - B02 * B20) * inv, (B02 * B10 - B00 * B12) * inv,
-            (B10 * B21 - B11 * B20) * inv, (B01 * B20 - B00 * B21) * inv,
-            (B00 * B11 - B01 * B10) * inv)
+        M = (inv, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    elif DIM == 2:
+        M = (B11 * inv, -B01 * inv, 0.0, -B10 * inv, B00 * inv, 0.0, 0.0, 0.0, 0.0)
+    else:
+        M = ((B11 * B22 - B12 * B21) * inv, (B02 * B21 - B01 * B22) * inv,
+             (B01 * B12 - B02 * B11) * inv, (B12 * B20 - B10 * B22) * inv,
+             (B00 * B22 - B02 * B20) * inv, (B02 * B10 - B00 * B12) * inv,
+             (B10 * B21 - B11 * B20) * inv, (B01 * B20 - B00 * B21) * inv,
+             (B00 * B11 - B01 * B10) * inv)
+    if det >= MOMENT_FULL:
+        return (True, M[0], M[1], M[2], M[3], M[4], M[5], M[6], M[7], M[8])
+    t = (det - MOMENT_NONE) / (MOMENT_FULL - MOMENT_NONE)
+    w = t * t * (3.0 - 2.0 * t)
+    u = 1.0 - w
+    return (True, w * M[0] + u, w * M[1], w * M[2], w * M[3], w * M[4] + u, w * M[5],
+            w * M[6], w * M[7], w * M[8] + u)
 
 
 @JIT(inline="always", cache=True)
@@ -139,8 +161,8 @@ def correct_velocity_gradient(L, B00, B01, B02, B10, B11, B12, B20, B21, B22):
     Lok 1999): with the moment matrix ``B = -sum_j V_j r_ij (x) grad W_ij`` (the identity for
     a complete kernel support, not at a free surface), the SPH gradient of a linear field
     ``v = A x`` is ``L = A B``, so ``L <- L B^-1`` recovers ``A`` exactly wherever ``B`` is
-    invertible.  Where ``|det B|`` is below ``MIN_MOMENT_DETERMINANT`` (a particle with too
-    few neighbours to span the space) ``L`` is left as it is."""
+    invertible.  Where ``det B`` is small (a particle with too few neighbours to span the
+    space) the correction is blended out (:func:`moment_inverse`)."""
     ok, I00, I01, I02, I10, I11, I12, I20, I21, I22 = moment_inverse(
         B00, B01, B02, B10, B11, B12, B20, B21, B22)
     if not ok:
@@ -182,8 +204,8 @@ def moment_correction(p, P, offsets, indices):
     """The correction matrix of the particle at sorted position ``p`` into its record:
     ``C = B^-T`` with the moment matrix ``B = -sum_j V_j r_ij (x) grad W_ij`` over the
     neighbours of the same body (see :func:`correct_velocity_gradient`), so that ``C grad
-    W_ij`` is the corrected kernel gradient; the identity where ``|det B|`` is below
-    ``MIN_MOMENT_DETERMINANT``."""
+    W_ij`` is the corrected kernel gradient; blended to the identity where ``det B`` is small
+    (:func:`moment_inverse`)."""
     Pi_ = P[p]
     hi = Pi_[H]
     bi = Pi_[BODY]
@@ -218,6 +240,17 @@ def moment_correction(p, P, offsets, indices):
     for a in range(DIM):  # C = B^-T, row by row
         for b in range(DIM):
             P[p, CM0 + a * DIM + b] = Bi[b][a]
+
+
+@JIT(inline="always", cache=True)
+def stress_along(record, d0, d1, d2):
+    """``d . A . d`` for the symmetric ``A = sigma/rho^2`` of a packed record."""
+    s = record[A00] * d0 * d0
+    if DIM > 1:
+        s += record[A11] * d1 * d1 + 2.0 * record[A01] * d0 * d1
+    if DIM > 2:
+        s += record[A22] * d2 * d2 + 2.0 * (record[A02] * d0 * d2 + record[A12] * d1 * d2)
+    return s
 
 
 @JIT(inline="always", cache=True)
@@ -355,14 +388,20 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, materia
                 T21 += m_j * u2 * g1
                 T22 += m_j * u2 * g2
         else:  # another body or a wall ghost: compression-only contact
-            s_ij = pci + Pj[PC]
+            if NORMAL_STRESS_CONTACT:  # the compressive normal stresses along r_ij (/rho^2)
+                sn_i = -stress_along(Pi_, d0, d1, d2) / r2
+                sn_j = -stress_along(Pj, d0, d1, d2) / r2
+            else:
+                sn_i = pci
+                sn_j = Pj[PC]
+            s_ij = sn_i + sn_j
             if in_contact(s_ij, vg):
                 cont += continuity_pair(1.0, volume_j, vg)
                 push = contact_acceleration_pair(m_j, s_ij, 1.0)
                 k0 += push * g0
                 k1 += push * g1
                 k2 += push * g2
-                de_contact += contact_work_pair(m_j, pci, s_ij, vg)
+                de_contact += contact_work_pair(m_j, sn_i, s_ij, vg)
         pi_ij = pair_viscosity(visc_kind, vr, r2, h_ij, 0.5 * (ci + Pj[C]),
                                0.5 * (rhoi + Pj[RHO]), visc_params)
         visc = viscous_acceleration_pair(m_j, pi_ij, 1.0)  # 0 if receding

@@ -18,13 +18,16 @@ import numpy as np
 from .. import codegen
 from ..models import VISCOSITY
 from . import passes as _template
+from .options import PassOptions
 from .records import record_columns
 
 
 def compiled_passes(dim: int, simulated: bool = False,
-                    gradient_correction: str = "none") -> ModuleType:
-    """The generated passes module for ``dim``, the registered models and the options."""
-    return codegen.load(_template, dim, simulated, gradient_correction)
+                    options: PassOptions | str | None = None) -> ModuleType:
+    """The generated passes module for ``dim``, the registered models and the compile-time
+    ``options`` (:class:`~impactsph.physics.options.PassOptions`, or a gradient-correction
+    mode by name)."""
+    return codegen.load(_template, dim, simulated, options)
 
 
 def chunk_size(n: int) -> int:
@@ -79,9 +82,10 @@ class CpuRates:
 
     device = "cpu"
 
-    def __init__(self, dim: int, gradient_correction: str = "none"):
+    def __init__(self, dim: int, options: PassOptions | str | None = None):
         self.dim = dim
-        self.passes = compiled_passes(dim, gradient_correction=gradient_correction)
+        self.options = PassOptions.coerce(options)
+        self.passes = compiled_passes(dim, options=self.options)
         self._packed: np.ndarray | None = None  # the packed particle records (.records)
         self._chunk: tuple[int, int] | None = None  # (rows, particles per work item)
         self._gradients: np.ndarray | None = None  # velocity gradients, for the hourglass pass

@@ -1,0 +1,91 @@
+"""Compile-time options of the generated passes (:mod:`impactsph.codegen`).
+
+Each option changes what the pair loop computes, so each set of options is a module of its own
+(its constants bound in, numba compiling only the branches it uses): a run that does not ask
+for an option pays nothing for it.  The options come from a case's ``[stabilisation]`` and
+``[contact]`` tables (docs/stabilisation.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+#: ``gradient_correction`` modes and the file-name tag of their generated modules
+GRADIENT_CORRECTIONS = {"none": "", "velocity_gradient": "_kgc",
+                        "velocity_gradient_and_forces": "_kgcf"}
+#: ``contact_traction`` modes and their tags
+CONTACT_TRACTIONS = {"pressure": "", "normal_stress": "_ns"}
+
+
+@dataclass(frozen=True)
+class PassOptions:
+    """The compile-time options of one generated passes module.
+
+    - ``gradient_correction``: ``"none"``, ``"velocity_gradient"`` or
+      ``"velocity_gradient_and_forces"`` (kernel gradient correction);
+    - ``contact_traction``: what pushes two particles of different bodies (or a particle and
+      its wall ghost) apart: ``"pressure"`` (``P_i/rho_i^2 + P_j/rho_j^2``, the paper's
+      contact) or ``"normal_stress"`` (the compressive normal stress along the line of
+      centres, deviatoric part included);
+    - ``artificial_stress``: Monaghan's (2000) coefficient epsilon, 0 for none;
+      ``artificial_stress_exponent`` n and ``reference_q`` = dx / h, the kernel argument at
+      which ``f_ij = W(r_ij) / W(dx)`` is 1.
+    """
+
+    gradient_correction: str = "none"
+    contact_traction: str = "pressure"
+    artificial_stress: float = 0.0
+    artificial_stress_exponent: float = 4.0
+    reference_q: float = 1.0 / 1.3
+
+    def __post_init__(self) -> None:
+        if self.gradient_correction not in GRADIENT_CORRECTIONS:
+            raise ValueError(f"gradient_correction = {self.gradient_correction!r}: allowed are "
+                             f"{', '.join(map(repr, GRADIENT_CORRECTIONS))}")
+        if self.contact_traction not in CONTACT_TRACTIONS:
+            raise ValueError(f"contact_traction = {self.contact_traction!r}: allowed are "
+                             f"{', '.join(map(repr, CONTACT_TRACTIONS))}")
+
+    @classmethod
+    def coerce(cls, options: PassOptions | str | None) -> PassOptions:
+        """``options`` itself, the defaults for None, or those with a gradient-correction
+        mode given by name."""
+        if options is None:
+            return cls()
+        if isinstance(options, str):
+            return cls(gradient_correction=options)
+        return options
+
+    @classmethod
+    def of_case(cls, case: Any) -> PassOptions:
+        """The options a validated case asks for."""
+        stab = case.stabilisation
+        return cls(gradient_correction=stab.gradient_correction,
+                   contact_traction=case.contact.traction,
+                   artificial_stress=float(stab.artificial_stress),
+                   artificial_stress_exponent=float(stab.artificial_stress_exponent),
+                   reference_q=1.0 / float(case.kernel.h_over_dx))
+
+    @property
+    def tag(self) -> str:
+        """A short tag for the generated module's file name."""
+        tag = GRADIENT_CORRECTIONS[self.gradient_correction]
+        tag += CONTACT_TRACTIONS[self.contact_traction]
+        if self.artificial_stress > 0.0:
+            tag += "_as"
+        return tag
+
+    def constants(self) -> list[str]:
+        """The binding's lines for these options (the artificial stress's parameters only
+        where it is on, so that a run without it shares one module whatever its h/dx)."""
+        on = self.artificial_stress > 0.0
+        return [
+            f"GRADIENT_CORRECTION = {self.gradient_correction == 'velocity_gradient'}",
+            f"FORCE_CORRECTION = {self.gradient_correction == 'velocity_gradient_and_forces'}",
+            f"NORMAL_STRESS_CONTACT = {self.contact_traction == 'normal_stress'}",
+            f"ARTIFICIAL_STRESS = {float(self.artificial_stress)!r}",
+            f"ARTIFICIAL_STRESS_EXPONENT = "
+            f"{float(self.artificial_stress_exponent) if on else 4.0!r}",
+            f"REFERENCE_Q = {float(self.reference_q) if on else 1.0!r}",
+        ]
