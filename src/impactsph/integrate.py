@@ -20,19 +20,27 @@ from types import SimpleNamespace
 import numba as nb
 import numpy as np
 
-from .materials import WAVE_MODULUS
+from .materials import SHEAR, WAVE_MODULUS
 from .physics.rates import compiled_passes
 from .state import ParticleState
 
 #: Particles per work item of the survey's partial sums.
 CHUNK = 1024
+#: The hourglass control (docs/stabilisation.md) stiffens and damps the grid-scale modes, so
+#: with it the CFL step uses ``c + HOURGLASS_SPEED zeta c_shear`` for ``c``.  Measured on the
+#: elastic Taylor bar (plane strain, zeta = 2, the gradient correction of the forces, AC): the
+#: energy error stays at 1e-4 up to Courant 0.25 and grows to 10% at 0.3, and the beam is
+#: stable at 0.3 with zeta = 1; 0.25 puts zeta = 2 at an effective Courant number of 0.23.
+HOURGLASS_SPEED = 0.25
 
 
 @cache
 def _survey_kernel(dim: int):
     @nb.njit(parallel=True, cache=True)
-    def survey(n_active, x, v, rho, e, S, m, h, material, table, courant):
-        """One pass over the state: the CFL step (eq 26), kinetic and internal energy,
+    def survey(n_active, x, v, rho, e, S, m, h, material, table, courant, hourglass):
+        """One pass over the state: the CFL step (eq 26, with the hourglass control's
+        signal speed added where ``hourglass`` (zeta) > 0: :data:`HOURGLASS_SPEED`), kinetic
+        and internal energy,
         momentum, and the first bad value.  Returns ``(dt, sums, bad)``: ``sums = (KE, IE,
         p_x, p_y, p_z)``; ``bad = field * n + i`` for the first particle ``i`` of the first
         field (0 position, 1 velocity, 2 density, 3 specific energy, 4 deviatoric stress:
@@ -65,6 +73,9 @@ def _survey_kernel(dim: int):
                             first = code
                         break
                 c = math.sqrt(table[material[i], WAVE_MODULUS] / rho[i])
+                if hourglass > 0.0:
+                    c += HOURGLASS_SPEED * hourglass * math.sqrt(table[material[i], SHEAR]
+                                                                / rho[i])
                 local_dt = min(local_dt, h[i] / (c + math.sqrt(speed2)))
                 ke += 0.5 * m[i] * speed2
                 ie += m[i] * e[i]
@@ -95,13 +106,13 @@ def _survey_kernel(dim: int):
 
 
 def stable_time_step(state: ParticleState, table: np.ndarray, courant: float,
-                     n_active: int | None = None) -> float:
-    """CFL step of eq 26."""
+                     n_active: int | None = None, hourglass: float = 0.0) -> float:
+    """CFL step of eq 26 (with the hourglass control's coefficient ``hourglass``, if on)."""
     survey = _survey_kernel(state.dim)
     n = state.n if n_active is None else n_active
     dt, _, _ = survey(n, state.position, state.velocity, state.density, state.specific_energy,
                       state.deviatoric_stress, state.mass, state.smoothing_length,
-                      state.material, table, courant)
+                      state.material, table, courant, float(hourglass))
     return float(dt)
 
 

@@ -49,11 +49,26 @@ def bar_measures(x0: np.ndarray, x: np.ndarray, axis: int, spacing: list[float],
     lateral = [a for a in range(x.shape[1]) if a != axis]
     centre = x0[:, lateral].mean(axis=0)
     half0 = np.max(np.linalg.norm(x0[:, lateral] - centre, axis=1)) + 0.5 * spacing[lateral[0]]
-    foot = x[:, axis] < wall_level + along
+    foot = x[:, axis] < foot_level(x, axis, along, wall_level)
     half = np.max(np.linalg.norm(x[foot][:, lateral] - centre, axis=1)) + 0.5 * spacing[
         lateral[0]]
     return {"final_length_ratio": float(Lf / L0), "footprint_half_width_ratio": float(half / half0),
-            "final_length": float(Lf), "initial_length": float(L0)}
+            "final_length": float(Lf), "initial_length": float(L0),
+            "lift_off": lift_off(x, axis, along, wall_level)}
+
+
+def foot_level(x: np.ndarray, axis: int, along: float, wall_level: float) -> float:
+    """The level below which particles are the bar's foot: one spacing above the wall, or,
+    for a bar that has rebounded off it (no particle within one spacing of the wall), half a
+    spacing above its lowest particle."""
+    lowest = float(x[:, axis].min())
+    return wall_level + along if lowest < wall_level + along else lowest + 0.5 * along
+
+
+def lift_off(x: np.ndarray, axis: int, along: float, wall_level: float) -> float:
+    """How far the bar's lowest particle is above half a spacing over the wall (m): 0 or
+    less while the bar stands on it, positive once it has rebounded."""
+    return float(x[:, axis].min() - wall_level - 0.5 * along)
 
 
 #: Sectors of the footprint in 3D: 8 of 45 degrees, centred on the axes and the diagonals.
@@ -73,7 +88,7 @@ def cylinder_measures(x0: np.ndarray, x: np.ndarray, axis: int, spacing: list[fl
     across = spacing[lateral[0]]
     centre = x0[:, lateral].mean(axis=0)
     R0 = float(np.max(np.linalg.norm(x0[:, lateral] - centre, axis=1))) + 0.5 * across
-    d = x[x[:, axis] < wall_level + along][:, lateral] - centre
+    d = x[x[:, axis] < foot_level(x, axis, along, wall_level)][:, lateral] - centre
     r = np.hypot(d[:, 0], d[:, 1])
     Rf = float(r.max()) + 0.5 * across
     sector = np.rint(np.arctan2(d[:, 1], d[:, 0]) / (2 * np.pi / N_SECTORS)).astype(int)
@@ -83,7 +98,8 @@ def cylinder_measures(x0: np.ndarray, x: np.ndarray, axis: int, spacing: list[fl
     return {"final_length_ratio": float(Lf / L0), "footprint_radius_ratio": Rf / R0,
             "footprint_radius_ratio_min_sector": float(by_sector.min()) / R0,
             "footprint_radius": Rf, "initial_radius": R0,
-            "final_length": float(Lf), "initial_length": float(L0)}
+            "final_length": float(Lf), "initial_length": float(L0),
+            "lift_off": lift_off(x, axis, along, wall_level)}
 
 
 def bar_axis(case: Any) -> int:
