@@ -272,21 +272,33 @@ class Kernel(_Model):
 
 
 
-class Stabilisation(_Model):
-    """Remedies for the discretisation's own errors (docs/stabilisation.md); each is off by
-    default, so the paper's scheme is reproduced exactly."""
+#: the hourglass coefficient zeta that ``"auto"`` gives a case whose materials do not yield
+#: (measured on the clamped beam: docs/stabilisation.md)
+AUTO_HOURGLASS = 2.0
 
-    gradient_correction: Literal["none", "velocity_gradient", "velocity_gradient_and_forces"
-                                 ] = Field(
-        "none", description="'velocity_gradient': the kernel gradient correction (Randles & "
+
+class Stabilisation(_Model):
+    """Remedies for the discretisation's own errors (docs/stabilisation.md).  ``"auto"`` (the
+    default of ``gradient_correction`` and ``hourglass``) resolves, when the case is
+    validated, to the measured choice: the kernel gradient correction of the velocity gradient
+    and forces with the hourglass control at zeta = 2 when no material of the case yields (an
+    elastic beam converges only with them), neither when one does (they raise the Taylor bar's
+    plastic work by 25% at the paper's resolution, and the elastic hourglass spring makes a
+    plastic bar rebound).  The paper's examples set ``"none"`` and 0: its scheme exactly."""
+
+    gradient_correction: Literal["auto", "none", "velocity_gradient",
+                                 "velocity_gradient_and_forces"] = Field(
+        "auto", description="'velocity_gradient': the kernel gradient correction (Randles & "
         "Libersky 1996) of the velocity gradient, exact for linear velocity fields at free "
         "surfaces too; 'velocity_gradient_and_forces': also the stress forces, in the "
         "symmetric form of Bonet & Lok (1999) that keeps momentum and energy; 'none': the "
-        "plain SPH gradient of eq 15")
-    hourglass: NonNegativeFloat = Field(
-        0.0, description="coefficient zeta of the hourglass control: an elastic restoring "
+        "plain SPH gradient of eq 15 (the paper's); 'auto': 'velocity_gradient_and_forces' "
+        "if no material yields, else 'none'")
+    hourglass: NonNegativeFloat | Literal["auto"] = Field(
+        "auto", description="coefficient zeta of the hourglass control: an elastic restoring "
         "acceleration zeta mu / rho times the (non-nested) Laplacian of the relative motion "
-        "that the velocity gradient does not explain; 0 switches it off")
+        "that the velocity gradient does not explain; 0 switches it off; 'auto': 2 if no "
+        "material yields, else 0")
     artificial_stress: NonNegativeFloat = Field(
         0.0, description="coefficient epsilon of the artificial stress against the tensile "
         "instability (Monaghan 2000; Gray, Monaghan & Swift 2001): a repulsion -epsilon "
@@ -302,17 +314,16 @@ class Contact(_Model):
     (docs/modelling.md, "Contact between bodies"; docs/stabilisation.md)."""
 
     traction: Literal["pressure", "normal_stress"] = Field(
-        "pressure", description="'pressure': the pair pushes with P_i/rho_i^2 + P_j/rho_j^2 "
-        "(the paper's contact); 'normal_stress': with the compressive normal stress along the "
-        "line of centres, deviatoric part included, so that a wall holds a body whose stress "
-        "normal to it exceeds its pressure")
+        "normal_stress", description="'pressure': the pair pushes with P_i/rho_i^2 + "
+        "P_j/rho_j^2 (the paper's contact); 'normal_stress': with the compressive normal stress "
+        "along the line of centres, deviatoric part included, so that a wall holds a body "
+        "whose stress normal to it exceeds its pressure")
     wall_layer: float = Field(
-        0.0, ge=0.0, lt=0.5, description="thickness, in particle spacings, of the rigid walls' "
+        0.25, ge=0.0, lt=0.5, description="thickness, in particle spacings, of the rigid walls' "
         "penalty layer: a spring as stiff as the material (bulk modulus) and a dashpot that "
         "push a particle closer than this to a wall back off it, their work booked in its "
         "internal energy (impactsph.boundaries.layer_push); it holds a layer that thins as it "
-        "spreads along the wall, which the ghosts alone let through; 0.25 is the tested value, "
-        "0 switches it off")
+        "spreads along the wall, which the ghosts alone let through; 0 switches it off")
 
 
 class Viscosity(_Model):
@@ -493,7 +504,18 @@ class Case(_Model):
                 raise ValueError(f"output.probes.{k}.body = {probe.body!r} is not a body name")
             if len(probe.position) != d:
                 raise ValueError(f"output.probes.{k}.position needs {d} components")
+        self._resolve_stabilisation()
         return self
+
+    def _resolve_stabilisation(self) -> None:
+        """Replace the ``"auto"`` of ``[stabilisation]`` by the measured choice (see
+        :class:`Stabilisation`), so that the case recorded with a run says what ran."""
+        stab = self.stabilisation
+        elastic = all(STRENGTH[m.model].return_map is None for m in self.materials.values())
+        if stab.gradient_correction == "auto":
+            stab.gradient_correction = "velocity_gradient_and_forces" if elastic else "none"
+        if stab.hourglass == "auto":
+            stab.hourglass = AUTO_HOURGLASS if elastic else 0.0
 
 
 def _optional(info: Any) -> tuple[Any, Any]:

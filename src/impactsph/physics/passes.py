@@ -512,11 +512,16 @@ def hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zet
     ``tau_ij e_ij``, which damps the control's own grid-scale oscillation (the midpoint rule
     amplifies an undamped one).  Both are added to ``dv[i]`` and their power taken from the internal
     energy, so that the total energy is kept; the pair terms are antisymmetric within a body
-    of one material, so momentum is kept too."""
+    of one material, so momentum is kept too.  A material without shear stiffness gets no
+    control (``dhg`` and the push stay zero)."""
     Pi_ = P[p]
     hi = Pi_[H]
     bi = Pi_[BODY]
     shear = table[material[i], SHEAR]
+    if shear <= 0.0:  # a material without shear stiffness (the 1D bar, a fluid): no control
+        for a in range(DIM):
+            dhg[i, a] = 0.0
+        return
     a0 = a1 = a2 = 0.0  # the Laplacian of e
     b0 = b1 = b2 = 0.0  # the Laplacian of tau e
     for k in range(offsets[p], offsets[p + 1]):
