@@ -337,7 +337,8 @@ class Stabilisation(_Model):
         0.0, description="coefficient epsilon of the artificial stress against the tensile "
         "instability (Monaghan 2000; Gray, Monaghan & Swift 2001): a repulsion -epsilon "
         "sigma'/rho^2 along each principal direction in tension, weighted by (W(r)/W(dx))^n; "
-        "0.3 is their value for solids, 0 switches it off")
+        "0.3 is their value for solids; it also softens the material in tension (a tensile "
+        "wave 10% slower in 1D at 0.3: docs/stabilisation.md); 0 switches it off")
     artificial_stress_exponent: float = Field(
         4.0, gt=0.0, description="exponent n of the artificial stress's weight "
         "(W(r)/W(dx))^n (Gray et al. 2001 use 4)")
