@@ -248,7 +248,7 @@ def rods():
 def test_rod_stays_whole(rods):
     """No initial neighbours farther apart than 2.5 h, no two particles closer than 0.3 dx.
     (Without the artificial stress the 1D rod at dx = 0.25 mm breaks: 3.9 h, 0.24 dx;
-    the 2D rod at 0.5 mm clumps to 0.33 dx: ``validation/artificial_stress.py rod``.)"""
+    the 2D rod at 0.5 mm clumps to 0.32 dx: ``validation/artificial_stress.py rod``.)"""
     for key, run in rods.items():
         assert run["failure"] is None, key
         assert run["max_separation_over_h"] < 2.5, key
@@ -291,11 +291,11 @@ def rings():
 
 
 def test_rubber_rings_rebound_whole(rings):
-    """Gray et al.'s rings at 5 particles through the wall, 16 ms (contact from about 0.3 to
-    12 ms): they meet, rebound (the centres of mass move apart at the end: measured
+    """Gray et al.'s rings at 5 particles through the wall, 16 ms (they push on each other for
+    the first 12 to 13 ms): they meet, rebound (the centres of mass move apart at the end: measured
     restitution 0.75), and stay whole (initial neighbours within 2.5 h, no two particles
     within 0.3 dx); momentum to round-off, total energy to 1e-3.  (Without the artificial
-    stress they clump and tear: 8.3 h, 0.07 dx; docs/stabilisation.md.)"""
+    stress they tear and clump: 5.2 h, 0.010 dx; docs/stabilisation.md.)"""
     assert rings["failure"] is None
     assert rings["slowest_approach"] < 0.5  # they met and slowed each other
     assert rings["velocity_left"] < 0.0 < rings["velocity_right"]
