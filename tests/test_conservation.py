@@ -20,6 +20,10 @@ OPTIONS = {
                                            "velocity_gradient_and_forces", "hourglass": 2.0}},
     "normal_stress": {"contact": {"traction": "normal_stress"}},
     "normal_stress+wall_layer": {"contact": {"traction": "normal_stress", "wall_layer": 0.25}},
+    "artificial_stress": {"stabilisation": {"artificial_stress": 0.3}},
+    "forces+artificial_stress": {"stabilisation": {"gradient_correction":
+                                                   "velocity_gradient_and_forces",
+                                                   "artificial_stress": 0.3}},
 }
 
 

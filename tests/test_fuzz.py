@@ -253,7 +253,7 @@ NAMES = {
     ("viscosity", "energy_correction"): {"work", "paper", "none"},
     ("time", "wave_speed"): {"bar", "p_wave"},
     ("analysis",): {"none", "bars", "taylor", "cantilever"},
-    ("bodies", 0, "geometry", "type"): {"block", "disk", "cylinder", "file"},
+    ("bodies", 0, "geometry", "type"): {"block", "disk", "ring", "cylinder", "file"},
     ("output", "reference_viscosity", "scheme"): {"av", "ac"},
 }
 name_values = st.one_of(

@@ -1,4 +1,4 @@
-"""Geometries of bodies: blocks, disks, cylinders and particles read from CSV or NPZ files;
+"""Geometries of bodies: blocks, disks, rings, cylinders and particles read from CSV or NPZ files;
 several bodies of several materials in one case; bad particle files refused before any work."""
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from impactsph.geometry import (
     cylinder_particles,
     disk_particles,
     read_particle_file,
+    ring_particles,
 )
 from impactsph.loading import load_case, validate_case
 from impactsph.problem import build_problem
@@ -82,6 +83,43 @@ def test_disk_volume_converges():
     errors = [abs(disk_particles([0.0, 0.0], 1.0, 1.0 / k).volume.sum() - math.pi) / math.pi
               for k in (10, 40, 160)]
     assert errors[-1] < 0.002 and errors[-1] < errors[0]
+
+
+@pytest.mark.parametrize(("inner", "outer"), [(30, 40), (7.3, 12.6), (0.0, 10.0)])
+def test_ring_count_volume_and_points_inside(inner, outer):
+    """The ring is the disk lattice between the two circles: its count is the outer disk's
+    less the points strictly inside the inner circle, its volume pi (r_o^2 - r_i^2) within
+    the staircase error, and inner radius 0 gives the disk."""
+    dx, centre = 0.001, np.array([0.02, -0.01])
+    p = ring_particles(centre.tolist(), inner * dx, outer * dx, dx)
+    d = np.linalg.norm(p.position - centre, axis=1)
+    assert d.min() >= inner * dx * (1 - 1e-12) and d.max() <= outer * dx * (1 + 1e-12)
+    disk = disk_particles(centre.tolist(), outer * dx, dx)
+    inside = np.linalg.norm(disk.position - centre, axis=1) < inner * dx * (1 - 1e-12)
+    assert p.n == disk.n - inside.sum()
+    assert p.n == pytest.approx(math.pi * (outer**2 - inner**2), rel=0.03)
+    assert np.allclose(p.volume, dx**2) and p.spacing == dx
+    assert np.allclose(p.position.mean(axis=0), centre, atol=1e-12)
+    if inner == 30:  # the rubber ring of Gray et al. (2001) at 10 particles through its width:
+        assert p.n == 2196  # pi (40^2 - 30^2) = 2199.1
+
+
+def test_ring_cases_are_checked(tmp_path):
+    ring = 'type = "ring"\ncentre = [0.0, 0.0]\ninner_radius = 0.03\nouter_radius = 0.04\n'
+    case = load_case(write_case(tmp_path, body("r", "steel", ring + "spacing = 0.001")))
+    state = build_problem(case).state
+    assert state.n == ring_particles([0.0, 0.0], 0.03, 0.04, 0.001).n
+    assert np.allclose(state.mass, 7800.0 * 0.001**2)
+    for bad, message in [
+            ('type = "ring"\ncentre = [0.0, 0.0]\ninner_radius = 0.04\nouter_radius = 0.03\n'
+             'spacing = 0.001', "inner_radius = 0.04 must be less than outer_radius = 0.03"),
+            ('type = "ring"\ncentre = [0.0, 0.0]\ninner_radius = 0.03025\n'
+             'outer_radius = 0.0303\nspacing = 0.001', "holds no particle at spacing = 0.001")]:
+        with pytest.raises(CaseError, match=message):
+            load_case(write_case(tmp_path, body("r", "steel", bad)))
+    with pytest.raises(CaseError, match="type = 'ring' is for dimension = 2 only"):
+        load_case(write_case(tmp_path, body("r", "steel", ring.replace("0.0]", "0.0, 0.0]")
+                                            + "spacing = 0.001", dim=3), dimension=3))
 
 
 @pytest.mark.parametrize("axis", ["x", "y", "z"])
@@ -321,7 +359,8 @@ def _with_geometry(geometry: dict, dimension: int = 2, analysis: str = "none") -
       "axis": "w", "spacing": 0.1}, 3, "bodies.0.geometry.axis = 'w': Input should be 'x', "
                                        "'y' or 'z'"),
     ({"type": "sphere", "radius": 1.0}, 2, "bodies.0.geometry.type = 'sphere': Input should "
-                                           "be 'block', 'disk', 'cylinder' or 'file'"),
+                                           "be 'block', 'disk', 'ring', 'cylinder' or "
+                                           "'file'"),
     ({"type": "file", "path": "", "spacing": 0.1}, 2, "bodies.0.geometry.path = ''"),
     ({"type": "file", "path": "p.csv", "spacing": 0.0}, 2,
      "bodies.0.geometry.spacing = 0.0: Input should be greater than 0"),

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import atexit
 import copy
+import dataclasses
 import importlib.util
 import json
 import logging
@@ -54,6 +55,19 @@ CASES = {
                                         "stabilisation.gradient_correction="
                                         "velocity_gradient_and_forces",
                                         "stabilisation.hourglass=1.0"]),
+    # the artificial stress (a compile-time variant with more record columns): the plane-strain
+    # bar, R by the principal angle, and the 3D block, R by the Jacobi sweeps; the perturbed
+    # states have principal stresses of both signs
+    "taylor-2d-artificial-stress": ("taylor", ["bodies.0.geometry.count=[6, 10]",
+                                               "stabilisation.artificial_stress=0.3"]),
+    "block-3d-artificial-stress": ("taylor", ["dimension=3", "analysis=none",
+                                              "bodies.0.velocity=[0.0, 0.0, -200.0]",
+                                              "bodies.0.geometry.origin=[-0.0015, -0.0015, 0.0]",
+                                              "bodies.0.geometry.size=[0.003, 0.003, 0.003]",
+                                              "bodies.0.geometry.count=[4, 4, 4]",
+                                              "boundaries.0.point=[0.0, 0.0, 0.0]",
+                                              "boundaries.0.normal=[0.0, 0.0, 1.0]",
+                                              "stabilisation.artificial_stress=0.3"]),
 }
 #: Cases evaluated into buffers without rows for the contact force and AC, as the solver makes
 #: for runs without them (the bars have no AC; their contact force is then not recorded).
@@ -138,6 +152,7 @@ def _worker(task: str, folder: Path) -> int:
         print(f"numba.cuda cannot be imported here: {exc}")
         return SKIP_CODE
     from impactsph.gpu import GpuRates, simulator_enabled, unavailable_reason
+    from impactsph.physics.options import PassOptions
 
     reason = unavailable_reason()
     if not simulator_enabled() and reason is not None:
@@ -148,7 +163,7 @@ def _worker(task: str, folder: Path) -> int:
         for case_dir in sorted(p for p in folder.iterdir() if p.is_dir()):
             t0 = time.perf_counter()
             meta = json.loads((case_dir / "meta.json").read_text())
-            backend = GpuRates(meta["dim"], meta.get("gradient_correction", "none"))
+            backend = GpuRates(meta["dim"], PassOptions(**meta["options"]))
             b = _prefilled_buffers(meta["n_rows"], meta["dim"], meta["seed"], meta["lean"],
                                    meta.get("hourglass", False))
             previous = None
@@ -264,14 +279,15 @@ def _rate_calls(name: str, overrides: list[str], seed: int) -> list[dict]:
     neighbour list and constant fields; the second state with another neighbour list and
     other masses (so stale device copies would show)."""
     from impactsph.loading import load_case
+    from impactsph.physics.options import PassOptions
     from impactsph.physics.rates import CpuRates
     from impactsph.simulation import Simulation
 
     sim = Simulation(load_case(name, overrides))
     solver, state = sim.solver, sim.state
     rng = np.random.default_rng(seed)
-    kgc = sim.case.stabilisation.gradient_correction
-    recorder = _Recorder(CpuRates(state.dim, kgc))
+    options = PassOptions.of_case(sim.case)
+    recorder = _Recorder(CpuRates(state.dim, options))
     solver.backend = recorder
     _perturb(state, rng)
     solver.rates(state)
@@ -287,7 +303,7 @@ def _rate_calls(name: str, overrides: list[str], seed: int) -> list[dict]:
     nl.offsets, nl.indices = _thinned(nl.offsets, nl.indices)
     third["m"] = second["m"] * (1.0 + 0.1 * rng.random(second["m"].shape))
     for call in (first, second, third):
-        call["gradient_correction"] = kgc
+        call["options"] = dataclasses.asdict(options)
     return [first, second, third]
 
 
@@ -305,6 +321,7 @@ def _relative_errors(cpu, gpu) -> dict[str, float]:
 @pytest.fixture(scope="module", params=MODES)
 def rate_comparison(request, tmp_path_factory):
     """``{case: [per call: {buffer: relative error}]}`` and the worker's report."""
+    from impactsph.physics.options import PassOptions
     from impactsph.physics.rates import CpuRates
 
     mode = request.param
@@ -318,12 +335,12 @@ def rate_comparison(request, tmp_path_factory):
         dim = calls[0]["x"].shape[1]
         n_rows = calls[0]["rho"].shape[0]
         assert all(c["rho"].shape[0] == n_rows for c in calls)
-        kgc = calls[0]["gradient_correction"]
+        options = calls[0]["options"]
         (case_dir / "meta.json").write_text(json.dumps(
             {"dim": dim, "n_rows": n_rows, "seed": seed, "calls": len(calls),
-             "lean": case in LEAN, "gradient_correction": kgc,
+             "lean": case in LEAN, "options": options,
              "hourglass": bool(calls[0]["extra"])}))
-        cpu = CpuRates(dim, kgc)
+        cpu = CpuRates(dim, PassOptions(**options))
         b = _prefilled_buffers(n_rows, dim, seed, case in LEAN, bool(calls[0]["extra"]))
         references[case] = []
         previous = None
@@ -480,20 +497,24 @@ def _kernel_argument_types(dim: int) -> dict:
 
 @pytest.mark.skipif(importlib.util.find_spec("numba_cuda") is None,
                     reason="numba-cuda (the gpu extra) is not installed")
+@pytest.mark.parametrize("artificial_stress", [0.0, 0.3])
 @pytest.mark.parametrize("dim", [1, 2, 3])
-def test_kernels_compile_for_a_gpu(dim):
+def test_kernels_compile_for_a_gpu(dim, artificial_stress):
     """With numba-cuda, every kernel compiles to PTX for an H100 (sm_90), no GPU needed:
-    the term functions called from the kernels are accepted as device functions."""
+    the term functions called from the kernels are accepted as device functions (with the
+    artificial stress too: its principal-stress decompositions are scalars only)."""
     import inspect
 
     from numba import cuda
 
     from impactsph.gpu import gpu_kernels, simulator_enabled
+    from impactsph.physics.options import PassOptions
 
     if simulator_enabled():
         pytest.skip("the CUDA simulator is on")
     types = _kernel_argument_types(dim)
-    for kernel in gpu_kernels(dim, False, -1)[:5]:
+    options = PassOptions(artificial_stress=artificial_stress)
+    for kernel in gpu_kernels(dim, False, -1, options)[:5]:
         names = inspect.signature(kernel.py_func).parameters
         ptx, _ = cuda.compile_ptx(kernel.py_func, tuple(types[k] for k in names), cc=(9, 0))
         assert ".target sm_90" in ptx

@@ -9,6 +9,7 @@ the classes below.  Reading files, ``--set`` overrides and one-line errors are
 
 from __future__ import annotations
 
+import math
 import os
 from typing import Annotated, Any, Literal
 
@@ -152,6 +153,50 @@ class Disk(_Model):
         return self
 
 
+def _annulus_holds_a_particle(inner: float, outer: float, spacing: float) -> bool:
+    """Whether the closed annulus ``inner <= r <= outer`` holds a point of the lattice of
+    :func:`geometry.disk_particles` (the points ``((i + 1/2) dx, (j + 1/2) dx)``): row by
+    row, the point of smallest ``|x|`` at or beyond the inner circle."""
+    ro, ri = outer / spacing, inner / spacing
+    for j in range(int(math.ceil(ro))):  # the rows y = j + 1/2 >= 0 (symmetric about 0)
+        y2 = (j + 0.5) ** 2
+        if y2 > ro * ro:
+            break
+        xi = math.sqrt(max(ri * ri - y2, 0.0))
+        x = max(0.5, math.ceil(xi - 0.5) + 0.5)
+        if x * x + y2 <= ro * ro:
+            return True
+    return False
+
+
+class Ring(_Model):
+    """An annulus of particles (2D): the points of the :class:`Disk` lattice (spacing
+    ``spacing``, a cell corner at ``centre``) whose distance from ``centre`` is at least
+    ``inner_radius`` and at most ``outer_radius``.  The colliding rubber rings of Monaghan
+    (2000) and Gray, Monaghan & Swift (2001) are two of them."""
+
+    type: Literal["ring"] = "ring"
+    centre: list[FiniteFloat] = Field(description="centre of the ring (m)")
+    inner_radius: NonNegativeFloat = Field(description="inner radius (m); 0 gives a disk")
+    outer_radius: PositiveFloat = Field(description="outer radius (m)")
+    spacing: PositiveFloat = Field(description="particle spacing dx (m)")
+
+    def spacings(self) -> list[float]:
+        """Particle spacing along each axis (m)."""
+        return [float(self.spacing)] * 2
+
+    @model_validator(mode="after")
+    def _not_empty(self) -> Ring:
+        if self.inner_radius >= self.outer_radius:
+            raise ValueError(f"inner_radius = {self.inner_radius!r} must be less than "
+                             f"outer_radius = {self.outer_radius!r}")
+        if not _annulus_holds_a_particle(self.inner_radius, self.outer_radius, self.spacing):
+            raise ValueError(f"the ring between {self.inner_radius!r} and "
+                             f"{self.outer_radius!r} holds no particle at spacing = "
+                             f"{self.spacing!r}")
+        return self
+
+
 class Cylinder(_Model):
     """A circular cylinder of particles (3D): layers of the :class:`Disk` lattice across
     ``axis``, ``round(length / spacing)`` of them (at least 1) at ``(k + 1/2) dx`` from the
@@ -197,7 +242,7 @@ class ParticleFile(_Model):
         return os.path.abspath(os.path.expanduser(value))
 
 
-GEOMETRY_TYPES = ("block", "disk", "cylinder", "file")
+GEOMETRY_TYPES = ("block", "disk", "ring", "cylinder", "file")
 
 
 def _geometry_type(value: Any) -> str | None:
@@ -210,7 +255,7 @@ def _geometry_type(value: Any) -> str | None:
 
 
 Geometry = Annotated[
-    Annotated[Block, Tag("block")] | Annotated[Disk, Tag("disk")]
+    Annotated[Block, Tag("block")] | Annotated[Disk, Tag("disk")] | Annotated[Ring, Tag("ring")]
     | Annotated[Cylinder, Tag("cylinder")] | Annotated[ParticleFile, Tag("file")],
     Discriminator(_geometry_type, custom_error_type="geometry_type",
                   custom_error_message="Input should be " + ", ".join(
@@ -244,7 +289,8 @@ class Body(_Model):
 
     name: str = Field(min_length=1)
     material: str = Field(description="key of a [materials.NAME] table")
-    geometry: Geometry = Field(description="the particles: a block, disk, cylinder or file")
+    geometry: Geometry = Field(description="the particles: a block, disk, ring, cylinder or "
+                               "file")
     velocity: list[FiniteFloat] = Field(description="initial velocity (m/s)")
     clamped: Region | None = Field(
         None, description="particles inside are held at zero velocity; they take part in "
@@ -303,7 +349,8 @@ class Stabilisation(_Model):
         0.0, description="coefficient epsilon of the artificial stress against the tensile "
         "instability (Monaghan 2000; Gray, Monaghan & Swift 2001): a repulsion -epsilon "
         "sigma'/rho^2 along each principal direction in tension, weighted by (W(r)/W(dx))^n; "
-        "0.3 is their value for solids, 0 switches it off")
+        "0.3 is their value for solids; it also softens the material in tension (a tensile "
+        "wave 10% slower in 1D at 0.3: docs/stabilisation.md); 0 switches it off")
     artificial_stress_exponent: float = Field(
         4.0, gt=0.0, description="exponent n of the artificial stress's weight "
         "(W(r)/W(dx))^n (Gray et al. 2001 use 4)")
@@ -448,8 +495,8 @@ class Case(_Model):
                         raise ValueError(f"{where}.geometry.{field} has "
                                          f"{len(getattr(g, field))} components; "
                                          f"dimension = {d} needs {d}")
-            elif isinstance(g, Disk | Cylinder):
-                needs = 2 if isinstance(g, Disk) else 3
+            elif isinstance(g, Disk | Ring | Cylinder):
+                needs = 3 if isinstance(g, Cylinder) else 2
                 if d != needs:
                     raise ValueError(f"{where}.geometry: type = {g.type!r} is for dimension = "
                                      f"{needs} only")

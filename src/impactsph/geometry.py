@@ -57,15 +57,18 @@ def block_particles(origin: list[float], size: list[float], spacing: list[float]
     return Particles(x, np.full(x.shape[0], cell), cell ** (1.0 / len(origin)))
 
 
-def _disk_offsets(radius: float, spacing: float) -> np.ndarray:
+def _disk_offsets(radius: float, spacing: float, inner: float = 0.0) -> np.ndarray:
     """Offsets (n, 2) from a disk's centre of the cell centres ``((i + 1/2) dx, (j + 1/2) dx)``
-    of a square lattice, with a cell corner at the centre, that lie within ``radius`` (closed);
-    x fastest."""
+    of a square lattice, with a cell corner at the centre, that lie within ``radius`` (closed)
+    and, for an annulus, at least ``inner`` from the centre; x fastest."""
     half = int(math.ceil(radius / spacing))
     k = np.arange(-half, half) + 0.5  # in units of dx, symmetric about 0
     a, b = np.meshgrid(k, k, indexing="ij")
     a, b = a.ravel(order="F"), b.ravel(order="F")
-    keep = a * a + b * b <= (radius / spacing) ** 2
+    r2 = a * a + b * b
+    keep = r2 <= (radius / spacing) ** 2
+    if inner > 0.0:
+        keep &= r2 >= (inner / spacing) ** 2
     return np.stack([a[keep], b[keep]], axis=1) * spacing
 
 
@@ -76,6 +79,17 @@ def disk_particles(centre: list[float], radius: float, spacing: float) -> Partic
     ``dx^2`` (per unit depth), so the total is ``pi r^2`` up to the lattice's staircase error,
     which falls as ``dx / r`` (under 1 % for ``r >= 10 dx``)."""
     x = np.asarray(centre, dtype=np.float64) + _disk_offsets(radius, spacing)
+    return Particles(x, np.full(x.shape[0], spacing**2), float(spacing))
+
+
+def ring_particles(centre: list[float], inner_radius: float, outer_radius: float,
+                   spacing: float) -> Particles:
+    """An annulus (2D): the lattice of :func:`disk_particles` kept where the distance from
+    ``centre`` is between ``inner_radius`` and ``outer_radius`` (both closed).  Each particle
+    has the volume ``dx^2`` (per unit depth); the total is ``pi (r_o^2 - r_i^2)`` up to the
+    lattice's staircase error at both circles."""
+    x = np.asarray(centre, dtype=np.float64) + _disk_offsets(outer_radius, spacing,
+                                                             inner_radius)
     return Particles(x, np.full(x.shape[0], spacing**2), float(spacing))
 
 
@@ -111,12 +125,15 @@ def file_particles(path: str | Path, dim: int, spacing: float,
 
 def body_particles(geometry: Any, dim: int, where: str = "geometry") -> Particles:
     """The particles of a validated ``[bodies.geometry]`` table (a :class:`~impactsph.config.Block`,
-    ``Disk``, ``Cylinder`` or ``ParticleFile``); ``where`` names it in error messages."""
+    ``Disk``, ``Ring``, ``Cylinder`` or ``ParticleFile``); ``where`` names it in error messages."""
     kind = geometry.type
     if kind == "block":
         return block_particles(geometry.origin, geometry.size, geometry.spacings())
     if kind == "disk":
         return disk_particles(geometry.centre, geometry.radius, geometry.spacing)
+    if kind == "ring":
+        return ring_particles(geometry.centre, geometry.inner_radius, geometry.outer_radius,
+                              geometry.spacing)
     if kind == "cylinder":
         return cylinder_particles(geometry.centre, geometry.radius, geometry.length,
                                   geometry.axis, geometry.spacing)

@@ -47,6 +47,19 @@ def normalisation_inverse(inv_h: float, dim: int) -> float:
 
 
 @nb.njit(inline="always", cache=True)
+def cubic_spline_shape(q: float) -> float:
+    """The shape of eq 20 without its constant: ``W(q, h) / alpha_D`` for ``q = r/h``
+    (1 at ``q = 0``, 0 from ``q = 2`` on).  Ratios of kernel values at one ``h``, such as the
+    artificial stress's weight ``W(r_ij) / W(dx)``, need only this."""
+    if q >= 2.0:
+        return 0.0
+    if q <= 1.0:
+        return 1.0 - 1.5 * q * q + 0.75 * q * q * q
+    t = 2.0 - q
+    return 0.25 * t * t * t
+
+
+@nb.njit(inline="always", cache=True)
 def cubic_spline(r: float, h: float, dim: int) -> float:
     """Kernel value ``W(r, h)`` (eq 20)."""
     q = r / h

@@ -37,7 +37,7 @@ import math
 import numba as nb
 import numpy as np
 
-from impactsph.kernels import cubic_spline_gradient_factor
+from impactsph.kernels import cubic_spline_gradient_factor, cubic_spline_shape
 from impactsph.materials import BULK, EOS_KIND, RHO0, SHEAR, STRENGTH_KIND, WAVE_MODULUS
 from impactsph.physics.contact import contact_acceleration_pair, contact_work_pair, in_contact
 from impactsph.physics.continuity import continuity_pair, velocity_gradient_pair
@@ -63,7 +63,8 @@ eos_pressure = strength_return = pair_viscosity = viscosity_correction = None
 #: machine; no reassociation, so sums keep their order).
 FASTMATH = {"contract", "arcp", "nsz"}
 
-_COLUMNS = record_columns(DIM, correction_matrix=FORCE_CORRECTION)
+_COLUMNS = record_columns(DIM, correction_matrix=FORCE_CORRECTION,
+                          artificial_stress=ARTIFICIAL_STRESS > 0.0)
 X, V, H, M, VOL, RHO, C, PC, BODY, A0, U = (_COLUMNS[k] for k in (
     "x", "v", "h", "m", "volume", "rho", "c", "pc", "body", "A", "u"))
 RECORD_WIDTH = _COLUMNS["width"]
@@ -74,6 +75,20 @@ SYM = tuple(tuple(A0 + symmetric_index(a, b, DIM) for b in range(DIM)) for a in 
 A00 = SYM[0][0]
 A01, A11 = (SYM[0][1], SYM[1][1]) if DIM > 1 else (0, 0)
 A02, A12, A22 = (SYM[0][2], SYM[1][2], SYM[2][2]) if DIM > 2 else (0, 0, 0)
+#: columns of the artificial stress R's components (ARTIFICIAL_STRESS > 0 only), as A's
+RS0 = _COLUMNS.get("R", 0)
+R00 = RS0
+R01, R11 = (RS0 + symmetric_index(0, 1, DIM), RS0 + symmetric_index(1, 1, DIM)) \
+    if DIM > 1 else (0, 0)
+R02, R12, R22 = (RS0 + symmetric_index(0, 2, DIM), RS0 + symmetric_index(1, 2, DIM),
+                 RS0 + symmetric_index(2, 2, DIM)) if DIM > 2 else (0, 0, 0)
+#: ``1 / W(dx)`` in units of the kernel's shape (:func:`artificial_stress_weight`)
+AS_REFERENCE = 1.0 / getattr(cubic_spline_shape, "py_func", cubic_spline_shape)(REFERENCE_Q)
+#: cyclic Jacobi sweeps of the 3D principal-stress decomposition (:func:`tension_part_3d`):
+#: the off-diagonal part falls quadratically; measured on 3000 random symmetric matrices
+#: (entries over eight decades), the tensile part is off by 8e-2, 1e-5 and 3e-15 of the
+#: largest entry after 2, 3 and 4 sweeps; six leave a margin
+JACOBI_SWEEPS = 6
 #: the kernel gradient correction is whole above ``det B = MOMENT_FULL`` and off below
 #: ``MOMENT_NONE``, blended in between (:func:`moment_inverse`): the geometric mean of B's
 #: eigenvalues, ``det B^(1/DIM)``, at 0.15 and 0.05.  B is the identity for a complete
@@ -94,9 +109,156 @@ def material_pressure(table, k, rho, e):
 
 
 @JIT(inline="always", cache=True)
+def tension_part_2d(a00, a01, a11):
+    """The tensile part of the symmetric 2x2 tensor ``a`` (Pa, or Pa/(kg/m^3)^2 for
+    ``A = sigma/rho^2``): its positive eigenvalues on their eigenvectors,
+    ``sum_k max(lambda_k, 0) e_k (x) e_k``, as ``(t00, t01, t11)``.
+
+    Gray, Monaghan & Swift (2001) eqs 2.9-2.11: the principal axes are at the angle theta
+    with ``tan 2 theta = 2 a01 / (a00 - a11)``, the principal components are
+    ``a'_xx, a'_yy = (a00 + a11)/2 +- sqrt(((a00 - a11)/2)^2 + a01^2)``, and the tensor goes
+    back by ``t00 = t'_xx cos^2 theta + t'_yy sin^2 theta``, ``t11 = t'_xx sin^2 theta +
+    t'_yy cos^2 theta``, ``t01 = (t'_xx - t'_yy) sin theta cos theta``.  Written with the
+    double angle (``cos^2 theta = (1 + cos 2 theta)/2``, ...) it needs no trigonometric
+    function; ``theta = 0`` for an isotropic tensor."""
+    half = 0.5 * (a00 - a11)
+    radius = math.sqrt(half * half + a01 * a01)
+    mean = 0.5 * (a00 + a11)
+    if radius > 0.0:
+        c2 = half / radius  # cos 2 theta
+        s2 = a01 / radius  # sin 2 theta
+    else:
+        c2 = 1.0
+        s2 = 0.0
+    t1 = max(mean + radius, 0.0)  # along (cos theta, sin theta)
+    t2 = max(mean - radius, 0.0)  # along (-sin theta, cos theta)
+    cc = 0.5 * (1.0 + c2)
+    ss = 0.5 * (1.0 - c2)
+    return t1 * cc + t2 * ss, 0.5 * (t1 - t2) * s2, t1 * ss + t2 * cc
+
+
+@JIT(inline="always", cache=True)
+def jacobi_rotation(app, aqq, apq):
+    """``(t, c, s)`` of the plane rotation that zeroes ``a_pq`` of a symmetric matrix
+    (Jacobi's method, as in Press et al., Numerical Recipes, section 11.1): with
+    ``theta = (a_qq - a_pp) / (2 a_pq)``, ``t = sgn(theta) / (|theta| + sqrt(theta^2 + 1))``
+    (the smaller angle), ``c = 1 / sqrt(t^2 + 1)``, ``s = t c``; the identity for
+    ``a_pq = 0``."""
+    if apq == 0.0:
+        return 0.0, 1.0, 0.0
+    theta = (aqq - app) / (2.0 * apq)
+    if abs(theta) > 1e150:  # theta^2 would overflow: t = 1 / (2 theta) to round-off
+        t = 0.5 / theta
+    else:
+        t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
+        if theta < 0.0:
+            t = -t
+    c = 1.0 / math.sqrt(t * t + 1.0)
+    return t, c, t * c
+
+
+@JIT(inline="always", cache=True)
+def tension_part_3d(a00, a01, a02, a11, a12, a22):
+    """The tensile part ``sum_k max(lambda_k, 0) e_k (x) e_k`` of the symmetric 3x3 tensor
+    ``a``, as its upper triangle ``(t00, t01, t02, t11, t12, t22)``.  The eigen-decomposition
+    is ``JACOBI_SWEEPS`` cyclic Jacobi sweeps over the pairs (0, 1), (0, 2), (1, 2)
+    (:func:`jacobi_rotation`; ``a' = J^T a J``, the eigenvectors the columns of the product
+    ``V`` of the rotations), all in scalars, so that it compiles for the CUDA kernels too."""
+    v00 = v11 = v22 = 1.0
+    v01 = v02 = v10 = v12 = v20 = v21 = 0.0
+    for _ in range(JACOBI_SWEEPS):
+        # (p, q) = (0, 1), r = 2
+        t, c, s = jacobi_rotation(a00, a11, a01)
+        a00 -= t * a01
+        a11 += t * a01
+        a01 = 0.0
+        a02, a12 = c * a02 - s * a12, c * a12 + s * a02
+        v00, v01 = c * v00 - s * v01, s * v00 + c * v01
+        v10, v11 = c * v10 - s * v11, s * v10 + c * v11
+        v20, v21 = c * v20 - s * v21, s * v20 + c * v21
+        # (p, q) = (0, 2), r = 1
+        t, c, s = jacobi_rotation(a00, a22, a02)
+        a00 -= t * a02
+        a22 += t * a02
+        a02 = 0.0
+        a01, a12 = c * a01 - s * a12, c * a12 + s * a01
+        v00, v02 = c * v00 - s * v02, s * v00 + c * v02
+        v10, v12 = c * v10 - s * v12, s * v10 + c * v12
+        v20, v22 = c * v20 - s * v22, s * v20 + c * v22
+        # (p, q) = (1, 2), r = 0
+        t, c, s = jacobi_rotation(a11, a22, a12)
+        a11 -= t * a12
+        a22 += t * a12
+        a12 = 0.0
+        a01, a02 = c * a01 - s * a02, c * a02 + s * a01
+        v01, v02 = c * v01 - s * v02, s * v01 + c * v02
+        v11, v12 = c * v11 - s * v12, s * v11 + c * v12
+        v21, v22 = c * v21 - s * v22, s * v21 + c * v22
+    p0 = max(a00, 0.0)
+    p1 = max(a11, 0.0)
+    p2 = max(a22, 0.0)
+    return (p0 * v00 * v00 + p1 * v01 * v01 + p2 * v02 * v02,
+            p0 * v00 * v10 + p1 * v01 * v11 + p2 * v02 * v12,
+            p0 * v00 * v20 + p1 * v01 * v21 + p2 * v02 * v22,
+            p0 * v10 * v10 + p1 * v11 * v11 + p2 * v12 * v12,
+            p0 * v10 * v20 + p1 * v11 * v21 + p2 * v12 * v22,
+            p0 * v20 * v20 + p1 * v21 * v21 + p2 * v22 * v22)
+
+
+@JIT(inline="always", cache=True)
+def artificial_stress_record(P, p):
+    """The artificial stress ``R_i`` of the record in row ``p`` into its ``R`` columns
+    (ARTIFICIAL_STRESS > 0 only; Monaghan 2000, Gray, Monaghan & Swift 2001, section 2):
+
+        (AS-1)  R'_aa = -epsilon sigma'_aa / rho_i^2  if sigma'_aa > 0 (tension), else 0
+
+    in the principal axes of the stress ``sigma_i = -P_i I + S_i`` (Pa), rotated back to the
+    axes of the problem; ``R`` (m^5/(kg s^2), like ``A = sigma/rho^2``) is ``-epsilon`` times
+    the tensile part of ``A_i`` (:func:`tension_part_2d`, :func:`tension_part_3d`).  In 1D
+    ``R = -epsilon max(sigma_xx, 0) / rho^2``; in 2D (plane strain) the in-plane 2x2 part of
+    the stress, the only one the in-plane forces see."""
+    eps = ARTIFICIAL_STRESS
+    if DIM == 1:
+        P[p, R00] = -eps * max(P[p, A00], 0.0)
+    elif DIM == 2:
+        t00, t01, t11 = tension_part_2d(P[p, A00], P[p, A01], P[p, A11])
+        P[p, R00] = -eps * t00
+        P[p, R01] = -eps * t01
+        P[p, R11] = -eps * t11
+    else:
+        t00, t01, t02, t11, t12, t22 = tension_part_3d(P[p, A00], P[p, A01], P[p, A02],
+                                                       P[p, A11], P[p, A12], P[p, A22])
+        P[p, R00] = -eps * t00
+        P[p, R01] = -eps * t01
+        P[p, R02] = -eps * t02
+        P[p, R11] = -eps * t11
+        P[p, R12] = -eps * t12
+        P[p, R22] = -eps * t22
+
+
+@JIT(inline="always", cache=True)
+def artificial_stress_weight(q):
+    """``f_ij^n`` (Monaghan 2000; Gray et al. 2001 section 2):
+
+        (AS-2)  f_ij = W(r_ij, h_ij) / W(dx, h_ij)
+
+    at ``q = r_ij / h_ij``; the reference distance is the initial spacing,
+    ``dx / h = REFERENCE_Q`` (``1 / kernel.h_over_dx``), so ``f = 1`` at a nearest neighbour
+    of the lattice and falls to 0 at ``2 h``.  The kernel's constant cancels: only its shape
+    (:func:`impactsph.kernels.cubic_spline_shape`) is needed.  The exponent
+    ``n = ARTIFICIAL_STRESS_EXPONENT`` (4: two products)."""
+    f = cubic_spline_shape(q) * AS_REFERENCE
+    if ARTIFICIAL_STRESS_EXPONENT == 4.0:
+        f2 = f * f
+        return f2 * f2
+    return f ** ARTIFICIAL_STRESS_EXPONENT
+
+
+@JIT(inline="always", cache=True)
 def particle_record(p, i, x, v, m, rho, e, S, h, body, material, table, P):
     """Pass 1 for particle ``i`` at sorted position ``p``: ``P``, ``c = sqrt(M/rho)``, and its
-    packed record (``V = m/rho``, ``P/rho^2``, ``A = (-P I + S)/rho^2``, ...) in row ``p``."""
+    packed record (``V = m/rho``, ``P/rho^2``, ``A = (-P I + S)/rho^2``, ...) in row ``p``;
+    with the artificial stress, ``R`` (:func:`artificial_stress_record`)."""
     k = material[i]
     pr = material_pressure(table, k, rho[i], e[i])
     c = math.sqrt(table[k, WAVE_MODULUS] / rho[i])
@@ -114,6 +276,8 @@ def particle_record(p, i, x, v, m, rho, e, S, h, body, material, table, P):
     P[p, C] = c
     P[p, PC] = pr * inv_rho2
     P[p, BODY] = body[i]
+    if ARTIFICIAL_STRESS > 0.0:
+        artificial_stress_record(P, p)
 
 
 @JIT(inline="always", cache=True)
@@ -267,7 +431,21 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, materia
     A_i . (sum_j m_j grad W_ij)`` and ``sum_j m_j A_i : (v_ij (x) grad W_ij) = A_i : (sum_j
     m_j v_ij (x) grad W_ij)``, so ``A_i`` is applied once per particle
     (``tests/test_rates_reference.py`` checks the whole against the term functions summed pair
-    by pair)."""
+    by pair).
+
+    With the artificial stress (``ARTIFICIAL_STRESS`` = epsilon > 0; Monaghan 2000, Gray,
+    Monaghan & Swift 2001, section 2) each pair of the same body also adds
+
+        (AS-3)  dv_i/dt += m_j f_ij^n (R_i + R_j) . grad W_ij                     (m/s^2)
+        (AS-4)  de_i/dt -= 1/2 m_j f_ij^n v_ij . (R_i + R_j) . grad W_ij          (W/kg)
+
+    with ``R`` of :func:`artificial_stress_record` (eq AS-1, negative in tension, so the pair
+    repels) and ``f_ij^n`` of :func:`artificial_stress_weight` (eq AS-2): the same form as the
+    stress term ``m_j (A_i + A_j) . grad W_ij``.  The pair force is antisymmetric, so momentum
+    is kept exactly, and AS-4 is its power shared equally by the pair, so the semi-discrete
+    equations keep the total energy.  With the kernel gradient correction of the forces it
+    stays on the uncorrected ``grad W_ij``: a repulsion between neighbours, which needs no
+    consistency, and its antisymmetry and energy balance need no correction matrix."""
     shear = table[material[i], SHEAR]
     Pi_ = P[p]
     xi0 = Pi_[X]
@@ -291,6 +469,20 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, materia
     # the kernel gradient correction's moment matrix B = -sum_j V_j r_ij (x) grad W_ij
     # (GRADIENT_CORRECTION only; see correct_velocity_gradient)
     B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
+    # the artificial stress (ARTIFICIAL_STRESS > 0 only): the particle's own R_i, the sums
+    # sum m_j f_ij^n (R_i + R_j) . grad W_ij and sum m_j f_ij^n v_ij . (R_i + R_j) . grad W_ij
+    ri00 = ri01 = ri02 = ri11 = ri12 = ri22 = 0.0
+    if ARTIFICIAL_STRESS > 0.0:
+        ri00 = Pi_[R00]
+        if DIM > 1:
+            ri01 = Pi_[R01]
+            ri11 = Pi_[R11]
+        if DIM > 2:
+            ri02 = Pi_[R02]
+            ri12 = Pi_[R12]
+            ri22 = Pi_[R22]
+    x0 = x1 = x2 = 0.0
+    xe = 0.0
     de_contact = 0.0
     de_v = 0.0
     count = 0
@@ -358,6 +550,24 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, materia
                           + Pj[CM0 + 2 * DIM + 2] * g2)
             else:
                 t0, t1, t2 = g0, g1, g2
+            if ARTIFICIAL_STRESS > 0.0:  # on the uncorrected grad W_ij (docs/stabilisation.md)
+                mf = m_j * artificial_stress_weight(math.sqrt(q2))
+                s0 = (ri00 + Pj[R00]) * g0
+                s1 = s2 = 0.0
+                if DIM > 1:
+                    r01 = ri01 + Pj[R01]
+                    s0 += r01 * g1
+                    s1 = r01 * g0 + (ri11 + Pj[R11]) * g1
+                if DIM > 2:
+                    r02 = ri02 + Pj[R02]
+                    r12 = ri12 + Pj[R12]
+                    s0 += r02 * g2
+                    s1 += r12 * g2
+                    s2 = r02 * g0 + r12 * g1 + (ri22 + Pj[R22]) * g2
+                x0 += mf * s0
+                x1 += mf * s1
+                x2 += mf * s2
+                xe += mf * (u0 * s0 + u1 * s1 + u2 * s2)
             G0 += m_j * g0
             a0 += m_j * Pj[A00] * t0
             L00 += velocity_gradient_pair(volume_j, u0, g0)
@@ -429,8 +639,11 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, materia
     fv = (f0, f1, f2)
     Lt = ((L00, L01, L02), (L10, L11, L12), (L20, L21, L22))
     Tt = ((T00, T01, T02), (T10, T11, T12), (T20, T21, T22))
+    xs = (x0, x1, x2)
     m_i = Pi_[M]
     de_s = de_contact
+    if ARTIFICIAL_STRESS > 0.0:
+        de_s -= 0.5 * xe
     track_contact = contact_force.shape[0] > 0
     for a in range(DIM):
         s = acc[a] + kc[a]
@@ -439,6 +652,8 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, materia
             s += A_ab * G[b]
             de_s -= A_ab * Tt[a][b]
             L[a, b] = Lt[a][b]
+        if ARTIFICIAL_STRESS > 0.0:
+            s += xs[a]
         dv[i, a] = s + wv[a]
         P[p, U + a] = wv[a]
         if track_contact:

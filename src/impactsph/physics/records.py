@@ -6,13 +6,16 @@ kernels (:mod:`impactsph.physics.passes`) read the same layout."""
 from __future__ import annotations
 
 
-def record_columns(dim: int, correction_matrix: bool = False) -> dict[str, int]:
+def record_columns(dim: int, correction_matrix: bool = False,
+                   artificial_stress: bool = False) -> dict[str, int]:
     """Columns of the packed record: position ``x``, velocity ``v``, ``h``, ``m``,
     ``volume = m/rho``, ``rho``, ``c``, ``pc = P/rho^2``, ``body``, the symmetric
     ``A = sigma/rho^2`` (its upper triangle, row by row: :func:`symmetric_index`) and the
-    viscous acceleration ``u`` that the pair pass writes for a correction pass; ``"width"`` is
-    the row length, padded to whole cache lines (2, 2 and 3 lines of 64 bytes in 1D, 2D,
-    3D)."""
+    viscous acceleration ``u`` that the pair pass writes for a correction pass; with
+    ``correction_matrix`` the kernel gradient correction's ``C`` (``dim x dim``, row by row),
+    with ``artificial_stress`` the symmetric artificial stress ``R`` (m^5/(kg s^2), as ``A``;
+    its upper triangle like ``A``'s).  ``"width"`` is the row length, padded to whole cache
+    lines (2, 2 and 3 lines of 64 bytes in 1D, 2D, 3D without the optional columns)."""
     n_sym = dim * (dim + 1) // 2
     cols = {"x": 0, "v": dim, "h": 2 * dim, "m": 2 * dim + 1, "volume": 2 * dim + 2,
             "rho": 2 * dim + 3, "c": 2 * dim + 4, "pc": 2 * dim + 5, "body": 2 * dim + 6,
@@ -21,6 +24,9 @@ def record_columns(dim: int, correction_matrix: bool = False) -> dict[str, int]:
     if correction_matrix:
         cols["C"] = end
         end += dim * dim
+    if artificial_stress:
+        cols["R"] = end
+        end += n_sym
     cols["width"] = (end + 7) // 8 * 8
     return cols
 
