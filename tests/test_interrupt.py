@@ -23,9 +23,10 @@ from typer.testing import CliRunner
 from impactsph.checkpoint import load_checkpoint, verify_checkpoint, write_checkpoint
 from impactsph.cli import app
 from impactsph.errors import CaseError, OutputError
+from impactsph.interrupt import stop_on_signals
 from impactsph.loading import load_case
 from impactsph.rundir import LOCK, RunLock, check_run_dir
-from impactsph.runner import run_case, stop_on_signals
+from impactsph.runner import run_case
 from impactsph.simulation import Simulation
 
 runner = CliRunner()
@@ -168,6 +169,10 @@ def test_sigterm_stops_the_same_way(tmp_path):
 
 def test_signals_ask_for_a_stop_and_a_second_one_stops_at_once():
     with stop_on_signals() as stop:
+        with pytest.raises(KeyboardInterrupt):  # while setting up: nothing to save yet
+            signal.raise_signal(signal.SIGINT)
+        assert not stop.requested
+        stop.arm()  # the run is set up
         signal.raise_signal(signal.SIGINT)
         assert stop.requested and stop.signal == signal.SIGINT
         with pytest.raises(KeyboardInterrupt):  # the run has not taken the request up yet
@@ -189,6 +194,31 @@ def test_a_stop_asked_in_a_library_run_raises_run_interrupted(tmp_path):
     assert not info.value.finished
     assert json.loads((tmp_path / "summary.json").read_text())["status"] == "interrupted"
     assert load_checkpoint(tmp_path / "checkpoint.h5").state.step == 20
+
+
+def test_a_stop_after_the_run_finished_keeps_its_complete_outputs(tmp_path):
+    """Stopped during the reference run that the figures need: the run itself is complete."""
+    from impactsph.errors import RunInterrupted
+
+    calls = []
+
+    def stop() -> bool:
+        calls.append(1)
+        # asked before the first step, after each step, and before the figures; then the
+        # same in the reference run: the 11th call past the run's steps is its 8th step
+        return len(calls) > steps + 10
+
+    case = load_case("bars", ["time.end=1e-6", "viscosity.scheme=ac"])
+    steps = Simulation(case).run().history[-1]["step"]
+    with pytest.raises(RunInterrupted) as info:
+        run_case(case, tmp_path, stop=stop)
+    assert info.value.finished and info.value.checkpoint is None
+    assert info.value.step == steps
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "finished" and "figures" not in summary
+    assert not list(tmp_path.glob("*.png")) and not (tmp_path / "checkpoint.h5").exists()
+    reference = json.loads((tmp_path / "reference" / "summary.json").read_text())
+    assert reference["status"] == "interrupted" and reference["n_steps"] == 8
 
 
 # -- outputs as the run goes -------------------------------------------------------------------
@@ -423,6 +453,10 @@ def test_a_stale_lock_is_taken_over_and_a_live_one_refuses(tmp_path):
         check_run_dir(other)
     with pytest.raises(OutputError, match="in use by another run"):
         RunLock(other).acquire()
+    # another machine's lock cannot be checked from here: refused, with what to do
+    (other / LOCK).write_text(json.dumps({"pid": 1, "host": "elsewhere.example"}))
+    with pytest.raises(OutputError, match=r"process 1 on elsewhere.example.*if no run is "):
+        check_run_dir(other)
     # this process's own lock, held: a second run here at once is refused too
     with RunLock(out), pytest.raises(OutputError, match="in use"):
         RunLock(out).acquire()

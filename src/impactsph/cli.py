@@ -14,6 +14,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 from .config import CaseError
 from .errors import RunInterrupted
+from .interrupt import StopRequest
 from .loading import BUILTIN_CASES, load_case
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
@@ -60,14 +61,28 @@ def run(
 
     Ctrl-C or SIGTERM stops the run after its current step with a checkpoint, and prints
     the command that continues it (exit code 130)."""
+    from .interrupt import stop_on_signals
+
+    with stop_on_signals() as stop:
+        try:
+            _run(case, set_ or [], out, quiet, restart, overwrite, device, stop)
+        except KeyboardInterrupt:  # before the run was set up: nothing to continue from
+            _say("interrupted while setting up the run, before its first step; nothing to "
+                 "continue from")
+            raise typer.Exit(INTERRUPTED) from None
+
+
+def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Path | None,
+         overwrite: bool, device: str | None, stop: StopRequest) -> None:
+    """``impactsph run`` with the signals handled by ``stop``."""
     from .errors import OutputError
-    from .runner import run_case, stop_on_signals
+    from .runner import run_case
     from .simulation import SimulationError
 
     logging.basicConfig(level=logging.WARNING if quiet else logging.INFO,
                         format="%(levelname)s %(name)s: %(message)s")
     try:
-        c = load_case(case, (set_ or []) + ([f"compute.device={device}"] if device else []))
+        c = load_case(case, sets + ([f"compute.device={device}"] if device else []))
     except CaseError as exc:
         _fail(str(exc))
     out = out or Path("runs") / c.name
@@ -75,7 +90,7 @@ def run(
                         TextColumn("t = {task.fields[t]:.3e} s  step {task.fields[step]}  "
                                    "dt = {task.fields[dt]:.2e} s"),
                         TimeRemainingColumn(), console=err, disable=quiet, transient=True)
-    with progress, stop_on_signals() as stop:
+    with progress:
         task = progress.add_task(c.name, total=c.time.end, t=0.0, step=0, dt=0.0)
 
         def update(sim) -> None:
@@ -95,10 +110,12 @@ def run(
             _fail(str(exc))
         except RunInterrupted as exc:
             progress.stop()
-            _interrupted(exc, case, out, set_ or [], device)
-        except KeyboardInterrupt:  # a second Ctrl-C while a step was still going
+            _interrupted(exc, case, out, sets, device)
+        except KeyboardInterrupt:
             progress.stop()
-            _stopped_at_once(out)
+            if not stop.armed:
+                raise
+            _stopped_at_once(out)  # a second Ctrl-C while a step was still going
         except OutputError as exc:
             progress.stop()
             _fail(str(exc))

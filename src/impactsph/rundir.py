@@ -208,6 +208,8 @@ def _in_use(out: Path, holder: dict[str, Any]) -> str:
     who = f"process {holder.get('pid', '?')}"
     if holder.get("host") not in (None, socket.gethostname()):
         who += f" on {holder['host']}"
+        return (f"--out {out} is in use by another run ({who}, {out / LOCK}); if no run is "
+                f"going on there, remove {out / LOCK}")
     return (f"--out {out} is in use by another run ({who}, {out / LOCK}); wait for it to end "
             "or choose another --out")
 

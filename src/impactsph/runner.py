@@ -5,24 +5,22 @@ Nothing is lost on interruption: ``history.csv`` and ``probes.csv`` grow as the 
 at each checkpoint and at the end with the run's ``status``, checkpoints are written every
 ``output.checkpoint_interval`` of simulated time or, without one, every
 :data:`CHECKPOINT_WALL_SECONDS` of wall time, and a run asked to stop (``stop``, e.g. by
-:func:`stop_on_signals` on Ctrl-C or SIGTERM) stops after a whole step with a checkpoint to
-continue from (:class:`~impactsph.errors.RunInterrupted`).
+:func:`~impactsph.interrupt.stop_on_signals` on Ctrl-C or SIGTERM) stops after a whole step
+with a checkpoint to continue from (:class:`~impactsph.errors.RunInterrupted`).
 """
 
 from __future__ import annotations
 
-import contextlib
 import logging
-import signal
-import threading
 import time as _time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from .config import Case
 from .errors import RunInterrupted
 from .figures import draw_figures
+from .interrupt import StopRequest
 from .output import (
     HistoryStream,
     load_run,
@@ -42,56 +40,6 @@ log = logging.getLogger("impactsph")
 #: checkpoint: none for a run that takes less, and the last one removed when the run
 #: finishes (its outputs are then complete)
 CHECKPOINT_WALL_SECONDS = 300.0
-
-
-class StopRequest:
-    """A request to stop a run after its current step: ``run_case(..., stop=request)``.
-
-    ``request()`` says whether a stop was asked for (:meth:`set`), and, once it has said so,
-    marks the request as taken up by the run (:attr:`taken`), which is then writing its last
-    outputs."""
-
-    def __init__(self) -> None:
-        self.requested = False
-        self.taken = False
-        self.signal: int | None = None
-
-    def set(self, signum: int | None = None) -> None:
-        """Ask the run to stop after its current step."""
-        self.requested = True
-        self.signal = signum
-
-    def __call__(self) -> bool:
-        if self.requested:
-            self.taken = True
-        return self.requested
-
-
-@contextlib.contextmanager
-def stop_on_signals(signals: tuple[int, ...] = (signal.SIGINT, signal.SIGTERM)
-                    ) -> Iterator[StopRequest]:
-    """While in the block, SIGINT (Ctrl-C) and SIGTERM ask for a stop (:class:`StopRequest`)
-    instead of ending the process.  A second signal before the run has taken the request up
-    (a step that takes long) raises :class:`KeyboardInterrupt`: stop at once; one after it
-    (while the last outputs are written) is ignored.  Outside the main thread, where Python
-    cannot handle signals, the request is returned but never set by a signal."""
-    request = StopRequest()
-    if threading.current_thread() is not threading.main_thread():
-        yield request
-        return
-
-    def handler(signum: int, frame: object) -> None:
-        if not request.requested:
-            request.set(signum)
-        elif not request.taken:
-            raise KeyboardInterrupt
-
-    previous = {s: signal.signal(s, handler) for s in signals}
-    try:
-        yield request
-    finally:
-        for s, h in previous.items():
-            signal.signal(s, h)
 
 
 class _Stop(Exception):  # noqa: N818 (not an error)
@@ -199,6 +147,8 @@ def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], No
             sim = load_checkpoint(restart, case, verify=False)
         else:
             sim = Simulation(case)
+        if isinstance(stop, StopRequest):
+            stop.arm()  # set up: a signal now asks for a stop after a step
         if if_exists == "overwrite":
             clear_outputs(out)
         return _run(sim, case, out, callback=callback, figures=figures, stop=stop,
