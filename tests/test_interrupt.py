@@ -453,6 +453,16 @@ def test_a_stale_lock_is_taken_over_and_a_live_one_refuses(tmp_path):
         check_run_dir(other)
     with pytest.raises(OutputError, match="in use by another run"):
         RunLock(other).acquire()
+    # a run killed but not yet reaped by its parent (a zombie, e.g. a Dask worker) is gone
+    killed = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        killed.kill()
+        time.sleep(0.2)
+        (other / LOCK).write_text(json.dumps({"pid": killed.pid}))
+        with RunLock(other):
+            assert json.loads((other / LOCK).read_text())["pid"] == os.getpid()
+    finally:
+        killed.wait()
     # another machine's lock cannot be checked from here: refused, with what to do
     (other / LOCK).write_text(json.dumps({"pid": 1, "host": "elsewhere.example"}))
     with pytest.raises(OutputError, match=r"process 1 on elsewhere.example.*if no run is "):

@@ -137,15 +137,22 @@ def remove_if_empty(out: Path | str) -> None:
 # -- the lock ----------------------------------------------------------------------------------
 
 
-def _start_time(pid: int) -> str | None:
-    """The start time of process ``pid`` (Linux: clock ticks since boot, field 22 of
-    /proc/PID/stat), to tell a process from a later one that reuses its id; None elsewhere."""
+def _proc_stat(pid: int) -> tuple[str, str] | None:
+    """The state and start time of process ``pid`` (Linux: fields 3 and 22 of
+    /proc/PID/stat; the start time in clock ticks since boot tells a process from a later one
+    that reuses its id); None where there is no /proc or no such process."""
     try:
         with open(f"/proc/{pid}/stat") as fh:
             stat = fh.read()
-        return stat[stat.rindex(")") + 2:].split()[19]
+        fields = stat[stat.rindex(")") + 2:].split()
+        return fields[0], fields[19]
     except (OSError, ValueError, IndexError):
         return None
+
+
+def _start_time(pid: int) -> str | None:
+    stat = _proc_stat(pid)
+    return stat[1] if stat else None
 
 
 def _key(path: Path) -> Path:
@@ -189,9 +196,13 @@ def _alive(holder: dict[str, Any], path: Path) -> bool:
         pass  # alive, another user's
     except OSError:
         return True
-    started = holder.get("started")
-    now = _start_time(pid)
-    return started is None or now is None or started == now
+    stat = _proc_stat(pid)
+    if stat is None:
+        return True  # no /proc: alive as far as can be told
+    state, started = stat
+    if state in ("Z", "X"):
+        return False  # ended; a zombie its parent has not yet reaped
+    return holder.get("started") in (None, started)
 
 
 def lock_holder(out: Path | str) -> dict[str, Any] | None:
