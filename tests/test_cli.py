@@ -33,7 +33,9 @@ def test_run_bars_writes_outputs(tmp_path):
                 "mid_velocity_l1_error"):
         assert key in summary, key
     assert summary["n_particles"] == 202
+    assert summary["status"] == "finished"
     assert summary["provenance"]["impactsph"]
+    assert sorted(p.name for p in out.iterdir() if p.name.startswith(".")) == []  # no lock
     resolved = json.loads((out / "case.json").read_text())
     assert resolved["case"]["viscosity"]["alpha1"] == 0.3
     assert resolved["case"]["time"]["courant"] == 0.3  # defaults are written out
@@ -113,6 +115,9 @@ def test_unstable_run_stops_with_where_and_when(tmp_path):
     assert "step" in res.output and "particle" in res.output and "t = " in res.output
     rows = (tmp_path / "u" / "history.csv").read_text().splitlines()
     assert len(rows) > 100  # the history up to the failure is kept
+    summary = json.loads((tmp_path / "u" / "summary.json").read_text())
+    assert summary["status"] == "unstable" and summary["failure"]
+    assert summary["n_steps"] == len(rows) - 2  # the rows of t = 0 and of every step
 
 
 def test_nan_is_reported_with_step_time_and_particle(tmp_path):

@@ -48,6 +48,30 @@ def test_sweep_runs_in_parallel_and_names_the_smallest_stable_alpha(tmp_path):
     assert all(r["reused"] for r in rows)
 
 
+def test_a_sweep_run_is_reused_only_when_it_ended(tmp_path):
+    """A run's summary is written from its start on (status running, interrupted): only a
+    finished (or unstable) run is reused."""
+    import numba
+
+    from impactsph.loading import read_case_dict
+    from impactsph.sweep import run_one
+
+    threads = numba.get_num_threads()
+    base, overrides, out = read_case_dict("bars"), ["time.end=1e-6"], str(tmp_path / "r")
+    try:
+        assert run_one(base, overrides, out)["reused"] is False
+        assert run_one(base, overrides, out)["reused"] is True
+        path = tmp_path / "r" / "summary.json"
+        for status in ("running", "interrupted"):
+            summary = json.loads(path.read_text())
+            path.write_text(json.dumps({**summary, "status": status}))
+            row = run_one(base, overrides, out)
+            assert row["reused"] is False and row["status"] == "ok"
+            assert json.loads(path.read_text())["status"] == "finished"
+    finally:
+        numba.set_num_threads(threads)
+
+
 def test_sweep_rejects_a_bad_grid_before_running(tmp_path):
     res = runner.invoke(app, ["sweep", "bars", "--grid", "viscosity.alpha1=-1,0.3",
                               "--out", str(tmp_path / "bad")])

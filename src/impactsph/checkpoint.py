@@ -6,11 +6,19 @@ bitwise the same state as an uninterrupted one), the energy and momentum accumul
 record so far (history, probes, snapshots) and the resolved case.  It is written to a
 temporary file in the same directory and renamed, so a run killed while writing leaves the
 previous checkpoint whole.
+
+The root attribute ``sha256`` is the SHA-256 of everything else in the file (every
+dataset's name, type, shape and bytes, every attribute, in name order: :func:`digest`).
+:func:`verify_checkpoint` recomputes it, and a checkpoint that does not match (a corrupted
+byte, a truncated copy, an edited file) is refused with one line naming the file before any
+work; a checkpoint of an older version, written before the checksum, is read unverified.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
+import logging
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +34,39 @@ from .simulation import Simulation, Snapshot
 from .state import ParticleState
 
 FORMAT = "impactsph-checkpoint-1"
+#: the root attribute that holds the checksum (:func:`digest`)
+CHECKSUM = "sha256"
+
+log = logging.getLogger("impactsph")
+
+
+def _attribute_bytes(value: Any) -> bytes:
+    if isinstance(value, str):
+        return b"s" + value.encode()
+    if isinstance(value, bytes):
+        return b"b" + value
+    arr = np.asarray(value)
+    return arr.dtype.str.encode() + repr(arr.shape).encode() + arr.tobytes()
+
+
+def digest(f: h5py.File) -> str:
+    """The SHA-256 (hex) of an open checkpoint: every group's and dataset's name, every
+    attribute but :data:`CHECKSUM`, every dataset's type, shape and bytes, in name order."""
+    names: list[str] = []
+    f.visit(names.append)
+    h = hashlib.sha256()
+    for name in ["", *sorted(names)]:
+        obj = f[name] if name else f
+        h.update(b"\0name\0" + name.encode())
+        for key in sorted(obj.attrs):
+            if name == "" and key == CHECKSUM:
+                continue
+            h.update(b"\0attr\0" + key.encode() + b"\0" + _attribute_bytes(obj.attrs[key]))
+        if isinstance(obj, h5py.Dataset):
+            data = np.ascontiguousarray(obj[()])
+            h.update(b"\0data\0" + data.dtype.str.encode() + repr(data.shape).encode())
+            h.update(data.tobytes())
+    return h.hexdigest()
 
 
 def write_checkpoint(sim: Simulation, path: Path | str) -> Path:
@@ -71,7 +112,55 @@ def write_checkpoint(sim: Simulation, path: Path | str) -> Path:
             for name, arr in snap.fields.items():
                 sg.create_dataset(name, data=arr)
         rec.attrs["n_snapshots"] = len(sim.record.snapshots)
+        f.attrs[CHECKSUM] = digest(f)
     return path
+
+
+def verify_checkpoint(path: Path | str, case: Any = None) -> None:
+    """Refuse (:class:`CaseError`, one line naming the file) a checkpoint that is missing,
+    unreadable, truncated, corrupted (its checksum does not match), not impactsph's, or, with
+    ``case``, of another case (it may differ only in ``time.end`` and ``output``).  Reads the
+    whole file; nothing is built."""
+    path = Path(path)
+    if not path.is_file():
+        raise CaseError(f"--restart {path}: " + ("is not a file" if path.exists()
+                                                 else "does not exist"))
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise CaseError(f"--restart {path}: cannot be read as a checkpoint (truncated, or not "
+                        f"an HDF5 file: {exc})") from None
+    with f:
+        if f.attrs.get("format") != FORMAT:
+            raise CaseError(f"--restart {path}: not an impactsph checkpoint")
+        stored = f.attrs.get(CHECKSUM)
+        try:
+            actual = digest(f)
+        except Exception as exc:  # noqa: BLE001 (h5py reports damage in many ways)
+            raise CaseError(f"--restart {path}: corrupted: cannot be read ({exc}); it cannot "
+                            "be used") from None
+        if stored is None:
+            log.warning("%s: a checkpoint without a checksum (written by an older version); "
+                        "read unverified", path)
+        elif stored != actual:
+            raise CaseError(f"--restart {path}: corrupted: its contents do not match the "
+                            f"checksum it was written with (SHA-256 {actual[:12]}..., stored "
+                            f"{str(stored)[:12]}...); it cannot be used")
+        if case is not None:
+            try:
+                stored_case = validate_case(json.loads(f.attrs["case"]))
+            except (KeyError, ValueError) as exc:
+                raise CaseError(f"--restart {path}: its case cannot be read ({exc})") from None
+            _check_same_case(path, case, stored_case)
+
+
+def _check_same_case(path: Path, case: Any, stored: Any) -> None:
+    a = case.model_dump(mode="json", exclude={"time": {"end"}, "output": True})
+    b = stored.model_dump(mode="json", exclude={"time": {"end"}, "output": True})
+    if a != b:
+        differ = sorted(k for k in a if a[k] != b.get(k))
+        raise CaseError(f"--restart {path}: the case differs from the checkpoint's in "
+                        f"{', '.join(differ)} (only time.end and output may change)")
 
 
 def accumulators(sim: Simulation) -> dict[str, Any]:
@@ -91,10 +180,14 @@ def accumulators(sim: Simulation) -> dict[str, Any]:
     }
 
 
-def load_checkpoint(path: Path | str, case: Any = None) -> Simulation:
+def load_checkpoint(path: Path | str, case: Any = None, *, verify: bool = True
+                    ) -> Simulation:
     """A :class:`Simulation` continued from a checkpoint.  ``case`` (validated) may differ
-    from the stored one only in ``time.end`` and ``output``."""
+    from the stored one only in ``time.end`` and ``output``.  The file is first checked by
+    :func:`verify_checkpoint` (``verify=False``: the caller has just done so)."""
     path = Path(path)
+    if verify:
+        verify_checkpoint(path, case)
     try:
         f = h5py.File(path, "r")
     except OSError as exc:
@@ -106,12 +199,7 @@ def load_checkpoint(path: Path | str, case: Any = None) -> Simulation:
         if case is None:
             case = stored
         else:
-            a = case.model_dump(mode="json", exclude={"time": {"end"}, "output": True})
-            b = stored.model_dump(mode="json", exclude={"time": {"end"}, "output": True})
-            if a != b:
-                differ = sorted(k for k in a if a[k] != b.get(k))
-                raise CaseError(f"--restart {path}: the case differs from the checkpoint's in "
-                                f"{', '.join(differ)} (only time.end and output may change)")
+            _check_same_case(path, case, stored)
         arrays = {name: f["state"][name][()] for name in f["state"]}
         state = ParticleState(**arrays, time=float(f.attrs["time"]),
                               step=int(f.attrs["step"]))

@@ -13,6 +13,8 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 from .config import CaseError
+from .errors import RunInterrupted
+from .interrupt import StopRequest
 from .loading import BUILTIN_CASES, load_case
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
@@ -42,24 +44,45 @@ def run(
                                              f"{', '.join(BUILTIN_CASES)}")],
     set_: Annotated[list[str] | None, typer.Option(
         "--set", help="override a field by its dotted path, e.g. viscosity.alpha1=0.3")] = None,
-    out: Annotated[Path | None, typer.Option(help="output directory (default runs/NAME)")
-                   ] = None,
+    out: Annotated[Path | None, typer.Option(
+        help="output directory (default runs/NAME); it must be empty or new, unless "
+             "--overwrite or --restart")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
     restart: Annotated[Path | None, typer.Option(
-        help="continue from this checkpoint (written with output.checkpoint_interval)")
-                       ] = None,
+        help="continue from this checkpoint (DIR/checkpoint.h5, written periodically and "
+             "when a run is interrupted); --out may then hold the run already")] = None,
+    overwrite: Annotated[bool, typer.Option(
+        "--overwrite", help="remove the outputs of a previous run in --out first")] = False,
     device: Annotated[str | None, typer.Option(
         help="cpu or gpu: where the rate passes run (same as --set compute.device=...); "
              "gpu falls back to the CPU, with a warning, where no GPU is present")] = None,
 ) -> None:
-    """Run a case: write history, snapshots, summary and figures into the output directory."""
+    """Run a case: write history, snapshots, summary and figures into the output directory.
+
+    Ctrl-C or SIGTERM stops the run after its current step with a checkpoint, and prints
+    the command that continues it (exit code 130)."""
+    from .interrupt import stop_on_signals
+
+    with stop_on_signals() as stop:
+        try:
+            _run(case, set_ or [], out, quiet, restart, overwrite, device, stop)
+        except KeyboardInterrupt:  # before the run was set up: nothing to continue from
+            _say("interrupted while setting up the run, before its first step; nothing to "
+                 "continue from")
+            raise typer.Exit(INTERRUPTED) from None
+
+
+def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Path | None,
+         overwrite: bool, device: str | None, stop: StopRequest) -> None:
+    """``impactsph run`` with the signals handled by ``stop``."""
+    from .errors import OutputError
     from .runner import run_case
     from .simulation import SimulationError
 
     logging.basicConfig(level=logging.WARNING if quiet else logging.INFO,
                         format="%(levelname)s %(name)s: %(message)s")
     try:
-        c = load_case(case, (set_ or []) + ([f"compute.device={device}"] if device else []))
+        c = load_case(case, sets + ([f"compute.device={device}"] if device else []))
     except CaseError as exc:
         _fail(str(exc))
     out = out or Path("runs") / c.name
@@ -77,13 +100,30 @@ def run(
                                 step=sim.state.step, dt=row["dt"])
 
         try:
-            summary = run_case(c, out, callback=update, restart=restart)
+            summary = run_case(c, out, callback=update, restart=restart, stop=stop,
+                               if_exists="overwrite" if overwrite else "refuse")
         except SimulationError as exc:
             progress.stop()
             _fail(f"run stopped: {exc}; outputs so far are in {out}", code=3)
         except CaseError as exc:  # found while setting up, e.g. an empty tip-mass region
             progress.stop()
             _fail(str(exc))
+        except RunInterrupted as exc:
+            progress.stop()
+            _interrupted(exc, case, out, sets, device)
+        except KeyboardInterrupt:
+            progress.stop()
+            if not stop.armed:
+                raise
+            _stopped_at_once(out)  # a second Ctrl-C while a step was still going
+        except OutputError as exc:
+            progress.stop()
+            _fail(str(exc))
+        except OSError as exc:  # any other failure to write an output
+            from .atomic import output_error
+
+            progress.stop()
+            _fail(str(output_error(exc, exc.filename or out)))
     from .problems.registry import get_problem
 
     keys = (*SUMMARY_KEYS, *get_problem(c.analysis).summary_keys(c))
@@ -92,6 +132,44 @@ def run(
     typer.echo(f"summary: {out / 'summary.json'}")
     for fig in summary.get("figures", []):
         typer.echo(f"figure: {fig}")
+
+
+#: exit code of a run stopped by Ctrl-C or SIGTERM (128 + SIGINT, as shells report Ctrl-C)
+INTERRUPTED = 130
+
+
+def _say(message: str) -> None:
+    """One line on stderr, printed as written."""
+    message = "".join(ch if ch.isprintable() else ascii(ch)[1:-1] for ch in message)
+    err.print(message, markup=False, highlight=False, emoji=False, soft_wrap=True)
+
+
+def _interrupted(exc: RunInterrupted, case: str, out: Path, sets: list[str],
+                 device: str | None) -> None:
+    """The one line of a run stopped on request, with the command that continues it."""
+    import shlex
+
+    if exc.finished:
+        _say(f"{exc}; the outputs of the run are complete in {out} "
+             f"(impactsph plot {shlex.quote(str(out))} draws the figures)")
+        raise typer.Exit(INTERRUPTED)
+    command = ["impactsph", "run", case, "--out", str(out), "--restart", exc.checkpoint]
+    for s in sets:
+        command += ["--set", s]
+    if device:
+        command += ["--device", device]
+    _say(f"interrupted at t = {exc.time:.6e} s, step {exc.step}: checkpoint, history and "
+         f"summary written; continue with: {shlex.join(command)}")
+    raise typer.Exit(INTERRUPTED)
+
+
+def _stopped_at_once(out: Path) -> None:
+    checkpoint = out / "checkpoint.h5"
+    _say(f"interrupted again: stopped at once, mid-step, without a checkpoint of this step; "
+         f"the history so far is in {out / 'history.csv'}"
+         + (f", and {checkpoint} (an earlier checkpoint) can be continued from with --restart"
+            if checkpoint.is_file() else ""))
+    raise typer.Exit(INTERRUPTED)
 
 
 @app.command()

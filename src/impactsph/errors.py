@@ -14,3 +14,26 @@ class SimulationError(RuntimeError):
     def __init__(self, message: str, step: int, time: float, particle: int | None):
         super().__init__(message)
         self.step, self.time, self.particle = step, time, particle
+
+
+class OutputError(OSError):
+    """An output directory or file that cannot be used or written (a file where a directory
+    is wanted, no permission, a full disk, a directory that holds another run or is in use);
+    the message is one line for the user and names the path.  Made as ``OutputError(errno,
+    message)``; ``str()`` is the message alone."""
+
+    def __str__(self) -> str:
+        return str(self.strerror) if self.strerror is not None else super().__str__()
+
+
+class RunInterrupted(Exception):  # noqa: N818 (a stop on request, not an error)
+    """A run stopped on request (Ctrl-C, SIGTERM) after a whole step, its outputs written.
+
+    ``time`` and ``step``: where it stopped; ``checkpoint``: the checkpoint written there
+    (None when the run itself had already finished, e.g. when stopped while drawing its
+    figures); ``finished``: whether the simulated run was complete."""
+
+    def __init__(self, message: str, *, time: float, step: int, checkpoint: str | None,
+                 finished: bool = False):
+        super().__init__(message)
+        self.time, self.step, self.checkpoint, self.finished = time, step, checkpoint, finished

@@ -7,15 +7,24 @@ A run directory holds:
 - ``history.csv``: one row per recorded step (time, energies, momentum, contact forces);
 - ``probes.csv``: the velocity of each probe particle at every step;
 - ``snapshots.npz``: the particle fields at each snapshot time;
-- ``summary.json``: run-wide numbers and the problem's metrics;
+- ``summary.json``: run-wide numbers and the problem's metrics, and the run's ``status``;
+- ``checkpoint.h5``: where the run can continue from (:mod:`.checkpoint`), when it has one;
 - ``*.png``: the problem's figures.
+
+``history.csv`` and ``probes.csv`` grow as the run goes (:class:`HistoryStream`: appended
+and flushed as rows are recorded), and are written whole, atomically, at the end; the other
+files are only ever replaced whole (:mod:`.atomic`).  ``summary.json`` is written when the run
+starts, at each checkpoint (``status`` ``running``) and at the end (``finished``,
+``interrupted`` or ``unstable``); see :data:`STATUSES`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
+import os
 import platform
 from pathlib import Path
 from typing import Any
@@ -23,7 +32,13 @@ from typing import Any
 import numpy as np
 
 from ._version import __version__
-from .atomic import write_bytes, write_text
+from .atomic import output_error, write_bytes, write_text
+
+#: ``summary.json``'s ``status``: ``running`` (written when the run starts and at each
+#: checkpoint: ``t_end`` and ``n_steps`` are the time and step reached), ``interrupted``
+#: (stopped on request after a whole step; continue from ``checkpoint``), ``unstable``
+#: (stopped by an instability; ``failure`` says where), ``finished``
+STATUSES = ("running", "interrupted", "unstable", "finished")
 
 #: :func:`.atomic.write_text`, under the name paper.py and sweep.py import from here
 atomic_write_text = write_text
@@ -48,11 +63,14 @@ def provenance() -> dict[str, Any]:
                                               ("viscosity", VISCOSITY))}}
 
 
-def _csv_text(rows: list[dict[str, Any]]) -> str:
+def _csv_text(rows: list[dict[str, Any]], header: bool = True) -> str:
+    """``rows`` as CSV, floats written exactly (``repr``); with ``header``, preceded by the
+    line of the first row's keys."""
     buf = io.StringIO()
     if rows:
         writer = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
-        writer.writeheader()
+        if header:
+            writer.writeheader()
         for r in rows:
             writer.writerow({k: repr(v) if isinstance(v, float) else v for k, v in r.items()})
     return buf.getvalue()
@@ -64,21 +82,106 @@ def write_case(out: Path, case: Any) -> None:
         {"provenance": provenance(), "case": case.model_dump(mode="json")}, indent=2))
 
 
-def write_history(out: Path, sim: Any) -> None:
-    """``history.csv`` and ``probes.csv`` as far as the run has got."""
-    write_text(out / "history.csv", _csv_text(sim.record.history))
+def _probe_rows(sim: Any, start: int = 0) -> list[dict[str, Any]]:
+    """The rows of ``probes.csv`` from the ``start``-th sample on."""
     dims = "xyz"[: sim.state.dim]
     rows = []
     probes = sim.record.probes
     if probes:
         names = list(probes)
-        for k in range(len(probes[names[0]])):
+        for k in range(start, len(probes[names[0]])):
             row: dict[str, Any] = {"time": probes[names[0]][k][0]}
             for name in names:
                 for a, d in enumerate(dims):
                     row[f"{name}_v{d}"] = float(probes[name][k][1][a])
             rows.append(row)
-    write_text(out / "probes.csv", _csv_text(rows))
+    return rows
+
+
+def _probe_samples(sim: Any) -> int:
+    probes = sim.record.probes
+    return len(next(iter(probes.values()))) if probes else 0
+
+
+def write_history(out: Path, sim: Any) -> None:
+    """``history.csv`` and ``probes.csv`` as far as the run has got, each written whole."""
+    write_text(out / "history.csv", _csv_text(sim.record.history))
+    write_text(out / "probes.csv", _csv_text(_probe_rows(sim)))
+
+
+class HistoryStream:
+    """``history.csv`` and ``probes.csv`` written while a run goes: created with the rows
+    recorded so far (a restarted run's, from its checkpoint), then appended and flushed to the
+    operating system by :meth:`update` whenever the run has recorded more, so a run that is
+    killed leaves every row up to its last step; :meth:`close` flushes them to disk (fsync).
+    The text is :func:`write_history`'s, byte for byte.
+
+    Rows are not fsynced one by one: those the operating system had not yet stored are lost
+    in a power cut (the checkpoints, fsynced, are not)."""
+
+    _NAMES = ("history.csv", "probes.csv")
+
+    def __init__(self, out: Path, sim: Any) -> None:
+        self.out = Path(out)
+        write_history(self.out, sim)
+        self._done = {"history.csv": len(sim.record.history),
+                      "probes.csv": _probe_samples(sim)}
+        self._files: dict[str, Any] = {}
+        self._buffers = {name: io.StringIO() for name in self._NAMES}
+        self._writers: dict[str, csv.DictWriter] = {}
+        for name in self._NAMES:
+            try:
+                self._files[name] = open(self.out / name, "ab")  # noqa: SIM115 (see close)
+            except OSError as exc:
+                self.close()
+                raise output_error(exc, self.out / name) from exc
+
+    def _append(self, name: str, rows: list[dict[str, Any]]) -> None:
+        buf = self._buffers[name]
+        writer = self._writers.get(name)
+        if writer is None:
+            writer = self._writers[name] = csv.DictWriter(buf, fieldnames=list(rows[0]),
+                                                          lineterminator="\n")
+            if self._done[name] == 0:
+                writer.writeheader()
+        for r in rows:
+            writer.writerow({k: repr(v) if isinstance(v, float) else v for k, v in r.items()})
+        try:
+            fh = self._files[name]
+            fh.write(buf.getvalue().encode())
+            fh.flush()
+        except OSError as exc:
+            raise output_error(exc, self.out / name) from exc
+        buf.seek(0)
+        buf.truncate()
+
+    def update(self, sim: Any) -> None:
+        """Append the rows recorded since the last call."""
+        history = sim.record.history
+        done = self._done["history.csv"]
+        if len(history) > done:
+            self._append("history.csv", history[done:])
+            self._done["history.csv"] = len(history)
+        samples = _probe_samples(sim)
+        done = self._done["probes.csv"]
+        if samples > done:
+            self._append("probes.csv", _probe_rows(sim, done))
+            self._done["probes.csv"] = samples
+
+    def close(self, sync: bool = True) -> None:
+        """Close the files (with ``sync``, after storing them on disk); the text appended
+        so far stays.  Calling it again does nothing."""
+        files, self._files = self._files, {}
+        for name, fh in files.items():
+            try:
+                if sync:
+                    fh.flush()
+                    os.fsync(fh.fileno())
+                fh.close()
+            except OSError as exc:
+                with contextlib.suppress(OSError):
+                    fh.close()
+                raise output_error(exc, self.out / name) from exc
 
 
 def write_snapshots(out: Path, sim: Any) -> None:

@@ -1,28 +1,60 @@
-"""Run a case end to end: simulate, write every output, analyse, draw the figures."""
+"""Run a case end to end: simulate, write every output, analyse, draw the figures.
+
+Nothing is lost on interruption: ``history.csv`` and ``probes.csv`` grow as the run goes
+(:class:`~impactsph.output.HistoryStream`), ``summary.json`` is written when the run starts,
+at each checkpoint and at the end with the run's ``status``, checkpoints are written every
+``output.checkpoint_interval`` of simulated time or, without one, every
+:data:`CHECKPOINT_WALL_SECONDS` of wall time, and a run asked to stop (``stop``, e.g. by
+:func:`~impactsph.interrupt.stop_on_signals` on Ctrl-C or SIGTERM) stops after a whole step
+with a checkpoint to continue from (:class:`~impactsph.errors.RunInterrupted`).
+"""
 
 from __future__ import annotations
 
 import logging
+import time as _time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from .config import Case
+from .errors import RunInterrupted
 from .figures import draw_figures
-from .output import load_run, write_case, write_history, write_snapshots, write_summary
+from .interrupt import StopRequest
+from .output import (
+    HistoryStream,
+    load_run,
+    write_case,
+    write_snapshots,
+    write_summary,
+)
 from .plotting import label_of
 from .problems.registry import analyse
+from .rundir import IfExists, RunLock, check_run_dir, clear_outputs, make_run_dir, remove_if_empty
 from .simulation import Simulation, SimulationError
 
 log = logging.getLogger("impactsph")
+
+#: without ``output.checkpoint_interval``, a checkpoint is written after the first step that
+#: ends this many seconds of wall time after the stepping began or after the previous
+#: checkpoint: none for a run that takes less, and the last one removed when the run
+#: finishes (its outputs are then complete)
+CHECKPOINT_WALL_SECONDS = 300.0
+
+
+class _Stop(Exception):  # noqa: N818 (not an error)
+    """Raised after a step to leave the run loop on a stop request."""
 
 
 class PeriodicOutputs:
     """ParaView snapshots and checkpoints every so much simulated time (``output``'s
     ``vtk_interval`` and ``checkpoint_interval``), written after the first step at or past
-    each multiple of the interval."""
+    each multiple of the interval; without ``checkpoint_interval``, checkpoints every
+    ``wall_seconds`` of wall time (None: none).  With each checkpoint, ``snapshots.npz`` and a
+    ``summary.json`` with ``status`` ``running``."""
 
-    def __init__(self, sim: Simulation, out: Path):
+    def __init__(self, sim: Simulation, out: Path,
+                 wall_seconds: float | None = CHECKPOINT_WALL_SECONDS):
         o = sim.case.output
         self.out = out
         self.vtk = None
@@ -39,6 +71,8 @@ class PeriodicOutputs:
         if o.checkpoint_interval is not None:
             self.next_checkpoint = (int(t / o.checkpoint_interval + 1e-9) + 1
                                     ) * o.checkpoint_interval
+        self.wall_seconds = wall_seconds if o.checkpoint_interval is None else None
+        self.last_checkpoint = _time.perf_counter()
 
     def __call__(self, sim: Simulation) -> None:
         o, t = sim.case.output, sim.state.time
@@ -47,12 +81,24 @@ class PeriodicOutputs:
             while self.next_vtk <= t * (1 + 1e-12):
                 self.next_vtk += o.vtk_interval
         if o.checkpoint_interval is not None and t >= self.next_checkpoint * (1 - 1e-12):
-            from .checkpoint import write_checkpoint
-
-            write_checkpoint(sim, self.out / "checkpoint.h5")
-            log.info("checkpoint at t = %g s (step %d)", t, sim.state.step)
+            self.checkpoint(sim)
             while self.next_checkpoint <= t * (1 + 1e-12):
                 self.next_checkpoint += o.checkpoint_interval
+        elif (self.wall_seconds is not None
+              and _time.perf_counter() - self.last_checkpoint >= self.wall_seconds):
+            self.checkpoint(sim)
+
+    def checkpoint(self, sim: Simulation, status: str = "running") -> Path:
+        """Write ``checkpoint.h5``, then ``snapshots.npz`` and a summary with ``status``."""
+        from .checkpoint import write_checkpoint
+
+        path = write_checkpoint(sim, self.out / "checkpoint.h5")
+        write_snapshots(self.out, sim)
+        write_summary(self.out, {"status": status, **sim.summary(), "checkpoint": str(path)})
+        self.last_checkpoint = _time.perf_counter()
+        if status == "running":
+            log.info("checkpoint at t = %g s (step %d)", sim.state.time, sim.state.step)
+        return path
 
     def finish(self, sim: Simulation) -> None:
         """The last ParaView snapshot, at the end time (unless just written)."""
@@ -62,42 +108,119 @@ class PeriodicOutputs:
 
 
 def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], None] | None = None,
-             figures: bool | None = None, restart: Path | str | None = None) -> dict[str, Any]:
+             figures: bool | None = None, restart: Path | str | None = None,
+             if_exists: IfExists = "keep", stop: Callable[[], bool] | None = None,
+             checkpoint_wall_seconds: float | None = CHECKPOINT_WALL_SECONDS
+             ) -> dict[str, Any]:
     """Run ``case`` and write its outputs into ``out``; with ``restart``, continue from that
-    checkpoint instead of starting at t = 0.  Returns the summary.  On an instability the
-    history written so far is kept, and :class:`SimulationError` is raised."""
-    out = Path(out)
-    # a case that cannot be set up (CaseError) leaves no directory
-    if restart is not None:
-        from .checkpoint import load_checkpoint
+    checkpoint instead of starting at t = 0.  Returns the summary.
 
-        sim = load_checkpoint(restart, case)
-    else:
-        sim = Simulation(case)
-    out.mkdir(parents=True, exist_ok=True)
+    ``out`` belongs to this run while it goes (``out/.lock``; :mod:`.rundir`): a directory in
+    use by another run is refused, and so, by ``if_exists``, one that already holds
+    something: ``"keep"`` (the default, for library callers and sweeps) writes over what is
+    there, ``"refuse"`` (``impactsph run``) refuses it unless ``restart`` is given,
+    ``"overwrite"`` removes the previous run's outputs first.  These refusals, a checkpoint
+    that cannot be used and a case that cannot be set up come before any work and leave no
+    directory behind (:class:`~impactsph.errors.OutputError`,
+    :class:`~impactsph.errors.CaseError`).
+
+    ``stop()`` is asked after every step; when it says True the run stops there, writes
+    ``checkpoint.h5``, its history and a summary with ``status`` ``interrupted``, and raises
+    :class:`~impactsph.errors.RunInterrupted`.  ``checkpoint_wall_seconds``: without
+    ``output.checkpoint_interval``, write a checkpoint every this much wall time (None:
+    never).  On an instability the history written so far is kept, and
+    :class:`SimulationError` is raised."""
+    out = Path(out)
+    check_run_dir(out, "keep" if restart is not None and if_exists == "refuse" else if_exists)
+    if restart is not None:
+        from .checkpoint import verify_checkpoint
+
+        verify_checkpoint(restart, case)
+    created = make_run_dir(out)
+    lock = RunLock(out)
+    try:
+        lock.acquire()
+        # a case that cannot be set up (CaseError) leaves no directory
+        if restart is not None:
+            from .checkpoint import load_checkpoint
+
+            sim = load_checkpoint(restart, case, verify=False)
+        else:
+            sim = Simulation(case)
+        if isinstance(stop, StopRequest):
+            stop.arm()  # set up: a signal now asks for a stop after a step
+        if if_exists == "overwrite":
+            clear_outputs(out)
+        return _run(sim, case, out, callback=callback, figures=figures, stop=stop,
+                    checkpoint_wall_seconds=checkpoint_wall_seconds)
+    finally:
+        lock.release()
+        if created:
+            remove_if_empty(out)
+
+
+def _run(sim: Simulation, case: Case, out: Path, *,
+         callback: Callable[[Simulation], None] | None, figures: bool | None,
+         stop: Callable[[], bool] | None, checkpoint_wall_seconds: float | None
+         ) -> dict[str, Any]:
+    """:func:`run_case` once the directory is this run's and the simulation is set up."""
     write_case(out, case)
-    periodic = PeriodicOutputs(sim, out)
+    stream = HistoryStream(out, sim)
+    write_summary(out, {"status": "running", **sim.summary()})
+    periodic = PeriodicOutputs(sim, out, checkpoint_wall_seconds)
 
     def after_step(s: Simulation) -> None:
+        stream.update(s)
         periodic(s)
         if callback is not None:
             callback(s)
+        if stop is not None and stop():
+            raise _Stop
 
     log.info("%s: %d particles, %dD, to t = %g s", case.name, sim.state.n, sim.state.dim,
              case.time.end)
     try:
+        if stop is not None and stop():  # asked while the run was being set up
+            raise _Stop
         sim.run(callback=after_step)
+    except _Stop:
+        stream.update(sim)
+        stream.close()
+        path = periodic.checkpoint(sim, "interrupted")
+        t, step = sim.state.time, sim.state.step
+        raise RunInterrupted(f"interrupted at t = {t:.6e} s, step {step}; checkpoint {path}",
+                             time=t, step=step, checkpoint=str(path)) from None
     except SimulationError:
-        write_history(out, sim)
+        stream.update(sim)
+        stream.close()
         write_snapshots(out, sim)
-        write_summary(out, sim.summary())
+        write_summary(out, {"status": "unstable", **sim.summary()})
         raise
+    except KeyboardInterrupt:  # stopped at once, mid-step: no checkpoint of this state
+        stream.close()
+        write_summary(out, {"status": "interrupted", **sim.summary()})
+        raise
+    except BaseException:
+        stream.close(sync=False)
+        raise
+    stream.update(sim)
+    stream.close()
     periodic.finish(sim)
-    write_history(out, sim)
     write_snapshots(out, sim)
-    summary = {**sim.summary(), **analyse(case.analysis, sim)}
+    summary = {"status": "finished", **sim.summary(), **analyse(case.analysis, sim)}
     write_summary(out, summary)  # before the figures, which read it back (load_run)
+    if case.output.checkpoint_interval is None:  # complete: no automatic checkpoint kept
+        (out / "checkpoint.h5").unlink(missing_ok=True)
     if case.output.figures if figures is None else figures:
+
+        def stopped() -> RunInterrupted:
+            return RunInterrupted(
+                f"interrupted after the run finished (t = {sim.state.time:.6e} s, step "
+                f"{sim.state.step}); the figures were not drawn", time=sim.state.time,
+                step=sim.state.step, checkpoint=None, finished=True)
+
+        if stop is not None and stop():
+            raise stopped()
         runs = [load_run(out)]
         ref = case.output.reference_viscosity
         if ref is not None and ref != case.viscosity:
@@ -106,7 +229,11 @@ def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], No
                 "output": case.output.model_copy(update={"figures": False,
                                                          "reference_viscosity": None})})
             log.info("reference run with %s", label_of(ref_case))
-            run_case(ref_case, out / "reference", figures=False)
+            try:
+                run_case(ref_case, out / "reference", figures=False, stop=stop,
+                         checkpoint_wall_seconds=checkpoint_wall_seconds)
+            except RunInterrupted:
+                raise stopped() from None
             runs.append(load_run(out / "reference"))
         summary["figures"] = [str(p) for p in draw_figures(runs, out)]
         write_summary(out, summary)  # again, with the list of figures

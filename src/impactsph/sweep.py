@@ -91,7 +91,10 @@ def run_one(case_data: dict[str, Any], overrides: list[str], out: str) -> dict[s
     summary_path = Path(out) / "summary.json"
     if summary_path.exists():
         done = json.loads(summary_path.read_text())
-        if done.get("case") == case.model_dump(mode="json"):
+        # a run's summary is written from its start on: reuse only a run that ended (a
+        # summary without a status is an older version's, written at the end)
+        if (done.get("case") == case.model_dump(mode="json")
+                and done.get("status", "finished") in ("finished", "unstable")):
             return {"status": "ok" if not done.get("failure") else "unstable",
                     **{k: done.get(k) for k in keys}, "reused": True}
     try:
