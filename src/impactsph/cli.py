@@ -53,6 +53,7 @@ def run(
              "gpu falls back to the CPU, with a warning, where no GPU is present")] = None,
 ) -> None:
     """Run a case: write history, snapshots, summary and figures into the output directory."""
+    from .preflight import after_run, before_run
     from .runner import run_case
     from .simulation import SimulationError
 
@@ -60,6 +61,7 @@ def run(
                         format="%(levelname)s %(name)s: %(message)s")
     try:
         c = load_case(case, (set_ or []) + ([f"compute.device={device}"] if device else []))
+        before_run(c, quiet=quiet)  # estimates and warnings; CaseError on a refusal
     except CaseError as exc:
         _fail(str(exc))
     out = out or Path("runs") / c.name
@@ -92,17 +94,23 @@ def run(
     typer.echo(f"summary: {out / 'summary.json'}")
     for fig in summary.get("figures", []):
         typer.echo(f"figure: {fig}")
+    after_run(c, summary)  # e.g. the kinetic energy left at the end time
 
 
 @app.command()
 def check(case: Annotated[str, typer.Argument(help="case file or built-in name")],
           set_: Annotated[list[str] | None, typer.Option("--set")] = None) -> None:
-    """Validate a case without running it."""
+    """Validate a case without running it: particle counts, estimates of memory and run
+    time, and warnings about the set-up (impactsph.preflight)."""
+    from .preflight import check_case
+
     try:
         c = load_case(case, set_ or [])
+        report = check_case(c)  # CaseError on a refusal
     except CaseError as exc:
         _fail(str(exc))
     typer.echo(f"{c.name}: valid ({c.dimension}D, {len(c.bodies)} bodies)")
+    typer.echo("\n".join(report.lines()))
 
 
 @app.command()
