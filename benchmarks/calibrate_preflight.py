@@ -8,7 +8,9 @@ history, summary, and figures where the item says so) on a case of a given size,
 warm-up run that loads the compiled kernels.  The peak resident set (``ru_maxrss``) of the
 process is compared with the preflight estimate; ``base`` is the resident set after the
 warm-up (the process's own part, :data:`~impactsph.preflight.BASE_MEMORY`) and ``growth`` the
-rise of the peak above it, against the estimate less the base.
+rise of the peak above it, against the estimate less the base.  ``steps s`` is the wall time
+of the run's steps (``wall_seconds``) and ``est s`` the preflight's estimate of it, with the
+pair rate it assumes (stored by earlier runs, or the default).
 """
 
 from __future__ import annotations
@@ -76,6 +78,8 @@ def child(spec: dict) -> dict:
             "growth": peak - base, "estimate": est.memory,
             "estimate_growth": est.memory - _base(), "wall_seconds": wall,
             "pair_rate": summary["pair_evaluations_per_second"],
+            "run_seconds": summary["wall_seconds"], "estimate_seconds": est.seconds,
+            "assumed_pair_rate": est.pair_rate,
             "pairs_per_particle": est.pairs_per_particle}
 
 
@@ -117,7 +121,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     results = []
     print(f"{'item':<36} {'N':>9} {'steps':>7} {'base MB':>8} {'peak MB':>8} "
-          f"{'est MB':>8} {'growth':>8} {'est gr.':>8} {'est/peak':>8} {'pairs/s':>9}")
+          f"{'est MB':>8} {'growth':>8} {'est gr.':>8} {'est/peak':>8} {'pairs/s':>9} "
+          f"{'steps s':>8} {'est s':>8}")
     for spec in items(args.quick):
         proc = subprocess.run([sys.executable, __file__, "--child", json.dumps(spec)],
                               capture_output=True, text=True, check=False)
@@ -129,7 +134,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{r['label']:<36} {r['n']:>9} {r['steps']:>7} {r['base'] / 1e6:>8.0f} "
               f"{r['peak'] / 1e6:>8.0f} {r['estimate'] / 1e6:>8.0f} "
               f"{r['growth'] / 1e6:>8.0f} {r['estimate_growth'] / 1e6:>8.0f} "
-              f"{r['estimate'] / r['peak']:>8.2f} {r['pair_rate']:>9.3g}", flush=True)
+              f"{r['estimate'] / r['peak']:>8.2f} {r['pair_rate']:>9.3g} "
+              f"{r['run_seconds']:>8.3g} {r['estimate_seconds']:>8.3g}", flush=True)
     if args.json:
         args.json.write_text(json.dumps(results, indent=1))
     return 0

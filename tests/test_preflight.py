@@ -294,7 +294,13 @@ def test_pair_rate_is_kept_for_later_estimates(tmp_path, monkeypatch):
     assert "measured on this machine by a run of 'big'" in source
     pf.record_pair_rate({**summary, "pair_evaluations": 1e5, "wall_seconds": 1.0}, "small")
     assert pf.pair_rate("cpu", 2)[0] == rate  # too few pairs to be a rate
+    # through after_run: not from a restarted run (pairs since t = 0, wall time since the
+    # restart)
+    case, summary3 = validate_case(block_case(name="rates")), {**summary, "dimension": 3}
+    pf.after_run(case, summary3, restarted=True, echo=lambda line: None)
     assert pf.pair_rate("cpu", 3)[0] == pf.DEFAULT_PAIR_RATE
+    pf.after_run(case, summary3, echo=lambda line: None)
+    assert pf.pair_rate("cpu", 3)[0] == rate
 
 
 def test_memory_formula_covers_the_traced_arrays():

@@ -94,7 +94,7 @@ def run(
     typer.echo(f"summary: {out / 'summary.json'}")
     for fig in summary.get("figures", []):
         typer.echo(f"figure: {fig}")
-    after_run(c, summary)  # e.g. the kinetic energy left at the end time
+    after_run(c, summary, restarted=restart is not None)  # e.g. kinetic energy left
 
 
 @app.command()

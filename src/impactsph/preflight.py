@@ -78,10 +78,11 @@ MEMORY_SAFETY = 1.25
 #: Bytes per value of a history row: held in memory (a dict of floats), written as CSV at the
 #: end and read back for the figures.
 HISTORY_VALUE_BYTES = 180
-#: Pair evaluations per second assumed where no run on this machine has measured one: the
-#: slowest rate measured here, the 1D bars on one numba thread with other jobs running
-#: (see docs/case-files.md).
-DEFAULT_PAIR_RATE = 5e6
+#: Pair evaluations per second assumed where no run on this machine has measured one: about
+#: the slowest rate measured on this project's machine for 2D and 3D runs of 1e4 to 4e5
+#: particles, on one numba thread with other jobs running (1.15e7 to 1.3e7 with AC and a
+#: wall; benchmarks/calibrate_preflight.py; docs/case-files.md).
+DEFAULT_PAIR_RATE = 1e7
 #: Fixed cost of a step (s): the Python of the step loop, the survey, the history row;
 #: measured 100-150 us a step for 50-200 particles in 1D (the bars, calibrate_preflight.py).
 STEP_SECONDS = 1e-4
@@ -823,14 +824,15 @@ def keeps_kinetic_energy(case: Case) -> bool:
     return not dissipative or (len(case.bodies) == 1 and not case.boundaries)
 
 
-def after_run(case: Case, summary: dict[str, Any],
+def after_run(case: Case, summary: dict[str, Any], restarted: bool = False,
               echo: Callable[[str], None] = _stderr) -> list[str]:
     """Warnings about a finished run, one line each to ``echo`` (stderr) and returned, and
-    the pair rate it measured kept for later estimates (:func:`record_pair_rate`).  Warns
-    when more than :data:`KINETIC_ENERGY_REMAINING` of the initial kinetic energy remains at
-    the end time in a problem that is expected to dissipate it
-    (:func:`keeps_kinetic_energy`)."""
-    if case.name not in _COMPILING:
+    the pair rate it measured kept for later estimates (:func:`record_pair_rate`; not for a
+    run that compiled the kernels or was ``restarted`` from a checkpoint, whose summary counts
+    the pairs since t = 0 over the wall time since the restart).  Warns when more than
+    :data:`KINETIC_ENERGY_REMAINING` of the initial kinetic energy remains at the end time in
+    a problem that is expected to dissipate it (:func:`keeps_kinetic_energy`)."""
+    if case.name not in _COMPILING and not restarted:
         record_pair_rate(summary, case.name)
     lines = []
     ratio = summary.get("kinetic_energy_ratio_final")
