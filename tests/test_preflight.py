@@ -246,6 +246,12 @@ def test_kinetic_energy_left_at_the_end():
     assert pf.after_run(plastic, {**summary, "t_end": 5e-6}) == []
     # elastic bodies rebound and ring: they keep their kinetic energy
     assert pf.after_run(validate_case(block_case()), summary) == []
+    # a plastic body in free flight keeps it too; a clamped one does not
+    free = plastic_block_on_a_wall(1e-5)
+    del free["boundaries"]
+    assert pf.after_run(validate_case(free), summary) == []
+    free["bodies"][0]["clamped"] = {"origin": [0.0, 0.0], "size": [0.001, 0.001]}
+    assert len(pf.after_run(validate_case(free), summary, echo=lambda line: None)) == 1
 
 
 def test_run_prints_the_estimate_and_the_kinetic_energy_warning(tmp_path):

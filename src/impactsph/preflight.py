@@ -817,11 +817,13 @@ def compile_notice(case: Case) -> str | None:
 
 def keeps_kinetic_energy(case: Case) -> bool:
     """Whether the case is expected to keep its kinetic energy: no material yields (elastic
-    bodies rebound and vibrate), or nothing can be struck (one body and no wall)."""
+    bodies rebound and vibrate), or nothing stops the body (one body, no wall, no clamp)."""
     from .models import STRENGTH
 
     dissipative = any(STRENGTH[m.model].return_map is not None for m in case.materials.values())
-    return not dissipative or (len(case.bodies) == 1 and not case.boundaries)
+    held = bool(case.boundaries) or len(case.bodies) > 1 or any(
+        b.clamped is not None for b in case.bodies)
+    return not (dissipative and held)
 
 
 def after_run(case: Case, summary: dict[str, Any], restarted: bool = False,
