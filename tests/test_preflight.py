@@ -160,6 +160,16 @@ def test_isolated_particle_in_a_particle_file(tmp_path):
            "(first: particle 100 at [0.05, 0.05])" in line
 
 
+def test_particle_file_written_in_mm(tmp_path):
+    case = particle_file(tmp_path, lattice() * 2e3)  # 0 to 18 "m", a spacing of 2 "m"
+    case["bodies"][0]["geometry"]["spacing"] = 2.0
+    lines = {f.field: f.line() for f in findings(case)}
+    assert set(lines) == {"bodies.0.geometry.path", "bodies.0.geometry.spacing"}, lines
+    assert "the particles span 18 m, more than 1 m for an impact specimen; were the " \
+           "coordinates written in mm? (then 0.018 m)" in lines["bodies.0.geometry.path"]
+    assert "did you mean mm = 0.002 m?" in lines["bodies.0.geometry.spacing"]
+
+
 def test_no_neighbours_at_a_small_h_over_dx():
     line = only(block_case(kernel={"h_over_dx": 0.1}), "warning", "kernel.h_over_dx")
     assert "kernel.h_over_dx = 0.1: too few neighbours" in line

@@ -554,15 +554,6 @@ def magnitude_checks(case: Case) -> list[Finding]:
             lengths.append(("radius", g.radius, g.radius, g.radius))
             if isinstance(g, Cylinder):
                 lengths.append(("length", g.length, g.length, g.length))
-        else:
-            from .geometry import read_particle_file
-
-            x = read_particle_file(g.path, case.dimension)[0]
-            extent = float(np.max(x.max(axis=0) - x.min(axis=0)))
-            if extent > hi:
-                warn(f"{where}.path", g.path, f"the particles span {_g(extent)} m, more than "
-                     f"{_g(hi)} m for an impact specimen; were the coordinates written in "
-                     f"mm? (then {_g(extent * 1e-3)} m)")
         for key, value, smallest, largest in lengths:
             if largest > hi:
                 warn(f"{where}.{key}", value, f"{_g(largest)} m is large for an impact "
@@ -627,22 +618,32 @@ def particle_checks(case: Case, problem: Any) -> tuple[list[Finding], np.ndarray
         out.append(Finding("warning", f"bodies.{b}.geometry", (
             f"bodies.{b}.geometry: body {names[b]!r} has one particle: a body needs many "
             f"particles across it for its stress to be resolved")))
+    # particle files: coordinates written in mm
+    for b, body in enumerate(case.bodies):
+        if isinstance(body.geometry, ParticleFile):
+            x = s.position[s.body == b]
+            extent = float(np.max(x.max(axis=0) - x.min(axis=0)))
+            if extent > LENGTH_RANGE[1]:
+                where = f"bodies.{b}.geometry.path"
+                out.append(Finding("warning", where, (
+                    f"{where} = {body.geometry.path!r}: the particles span {_g(extent)} m, more "
+                    f"than {_g(LENGTH_RANGE[1])} m for an impact specimen; were the "
+                    f"coordinates written in mm? (then {_g(extent * 1e-3)} m)")))
     # walls: particles behind a plane at t = 0
     walls = walls_of(case.boundaries, dim)
     ghosts = 0
-    if len(walls):
-        d = walls.distances(s.position)
-        reach = SUPPORT_RADIUS * float(h.max()) * (1.0 + case.time.neighbour_skin)
-        ghosts = int(np.count_nonzero((d >= 0.0) & (d < reach)))
-        for w in range(len(walls)):
-            behind = d[:, w] < 0.0
-            for b in np.flatnonzero(np.bincount(s.body[behind], minlength=len(names))):
-                sel = behind & (s.body == b)
-                out.append(Finding("error", f"boundaries.{w}", (
-                    f"boundaries.{w}: {int(sel.sum()):,} of the {int(per_body[b]):,} particles "
-                    f"of body {names[b]!r} (bodies.{b}) start behind the wall (down to "
-                    f"{_g(float(-d[sel, w].min()))} m; the normal {case.boundaries[w].normal} "
-                    f"points into the material): the run would stop at its first step")))
+    reach = SUPPORT_RADIUS * float(h.max()) * (1.0 + case.time.neighbour_skin)
+    for w in range(len(walls)):
+        d = (s.position - walls.points[w]) @ walls.normals[w]
+        ghosts += int(np.count_nonzero((d >= 0.0) & (d < reach)))
+        behind = d < 0.0
+        for b in np.flatnonzero(np.bincount(s.body[behind], minlength=len(names))):
+            sel = behind & (s.body == b)
+            out.append(Finding("error", f"boundaries.{w}", (
+                f"boundaries.{w}: {int(sel.sum()):,} of the {int(per_body[b]):,} particles of "
+                f"body {names[b]!r} (bodies.{b}) start behind the wall (down to "
+                f"{_g(float(-d[sel].min()))} m; the normal {case.boundaries[w].normal} points "
+                f"into the material): the run would stop at its first step")))
     # pairs: a neighbour list of radius 2 h_max (at least the overlap distance)
     radius = max(SUPPORT_RADIUS * float(h.max()), OVERLAP_SPACINGS * float(dx.max()))
     counts = np.zeros(n, dtype=np.int64)
