@@ -555,10 +555,12 @@ def test_set_with_a_non_ascii_digit_index_is_refused():
 
 
 def test_case_refused_while_setting_up_leaves_no_directory(tmp_path):
-    # valid for the schema, but the tip-mass region holds no particle: found by build_problem
+    # valid for the schema, but the tip-mass region holds no particle: found by build_problem,
+    # which the preflight checks of check and run call
     tip = {"mass": 0.001, "velocity": [10.0], "region": {"origin": [5.0], "size": [0.001]}}
     path = _variant(tmp_path, lambda c: c["bodies"][0].update(tip_mass=tip))
-    assert "valid" in runner.invoke(app, ["check", str(path)]).output
-    out = tmp_path / "out"
-    line = assert_refused(["run", str(path), "--quiet", "--out", str(out)], out)
+    load_case(path)  # valid for the schema
+    line = assert_refused(["check", str(path)])
     assert line == "error: bodies.0.tip_mass.region holds no particle of body 'left'"
+    out = tmp_path / "out"
+    assert assert_refused(["run", str(path), "--quiet", "--out", str(out)], out) == line

@@ -76,6 +76,7 @@ def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Pat
          overwrite: bool, device: str | None, stop: StopRequest) -> None:
     """``impactsph run`` with the signals handled by ``stop``."""
     from .errors import OutputError
+    from .preflight import after_run, before_run
     from .runner import run_case
     from .simulation import SimulationError
 
@@ -83,6 +84,7 @@ def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Pat
                         format="%(levelname)s %(name)s: %(message)s")
     try:
         c = load_case(case, sets + ([f"compute.device={device}"] if device else []))
+        before_run(c, quiet=quiet)  # estimates and warnings; CaseError on a refusal
     except CaseError as exc:
         _fail(str(exc))
     out = out or Path("runs") / c.name
@@ -132,6 +134,7 @@ def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Pat
     typer.echo(f"summary: {out / 'summary.json'}")
     for fig in summary.get("figures", []):
         typer.echo(f"figure: {fig}")
+    after_run(c, summary, restarted=restart is not None)  # e.g. kinetic energy left
 
 
 #: exit code of a run stopped by Ctrl-C or SIGTERM (128 + SIGINT, as shells report Ctrl-C)
@@ -175,12 +178,17 @@ def _stopped_at_once(out: Path) -> None:
 @app.command()
 def check(case: Annotated[str, typer.Argument(help="case file or built-in name")],
           set_: Annotated[list[str] | None, typer.Option("--set")] = None) -> None:
-    """Validate a case without running it."""
+    """Validate a case without running it: particle counts, estimates of memory and run
+    time, and warnings about the set-up (impactsph.preflight)."""
+    from .preflight import check_case
+
     try:
         c = load_case(case, set_ or [])
+        report = check_case(c)  # CaseError on a refusal
     except CaseError as exc:
         _fail(str(exc))
     typer.echo(f"{c.name}: valid ({c.dimension}D, {len(c.bodies)} bodies)")
+    typer.echo("\n".join(report.lines()))
 
 
 @app.command()

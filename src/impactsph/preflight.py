@@ -1,0 +1,850 @@
+"""Checks before a run, and one after it: set-ups that are refused or warned about before any
+computation (docs/case-files.md, "Preflight checks").
+
+:func:`preflight` runs on a validated case (``impactsph check``, and ``impactsph run`` before
+it starts) and returns a :class:`Report`:
+
+- the **particle count** of each body, counted without placing the particles (so that a case
+  of 4e8 particles is refused in a millisecond);
+- an **estimate of the memory** a run needs (:func:`memory_estimate`: the arrays the solver
+  allocates per particle and per neighbour pair, the snapshots, the history rows, and the
+  process's own base, calibrated against the measured peak of real runs) and of its **run
+  time** (the steps from the CFL condition, eq 26, times the pair evaluations per step, over a
+  pair rate measured on this machine by earlier runs, or :data:`DEFAULT_PAIR_RATE`);
+- **errors** (the case is refused, exit code 2): a memory estimate above the memory this
+  machine has available; particles behind a wall at t = 0 (the run would stop at its first
+  step with "particle crossed a wall");
+- **warnings** (the run goes on): bodies that overlap, duplicate particle positions, too few
+  neighbours for the kernel, isolated particles, a body of one particle, and magnitudes that
+  are implausible in SI units (a likely unit slip, with the value it probably meant).
+
+Every check is vectorised: the particle checks use the cell-linked neighbour list of
+:mod:`impactsph.neighbours` and numpy over the pairs, in chunks, with no loop over particles.
+
+:func:`after_run` is called at the end of ``impactsph run``: it warns when a large share of the
+initial kinetic energy remains in a problem that is expected to dissipate it, and keeps the
+pair rate the run measured for later estimates.  :func:`compile_notice` says when the SPH
+kernels are about to be compiled for the first time.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import math
+import os
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .config import Block, Case, Cylinder, Disk, ParticleFile
+from .errors import CaseError
+from .kernels import SUPPORT_RADIUS
+
+# -- thresholds (documented in docs/case-files.md, "Preflight checks") ----------------------
+
+#: Neighbours within the kernel support 2h of the best-surrounded particle of a full lattice
+#: at h = dx, by dimension: fewer than this and the cubic spline has too few particles to
+#: interpolate (h_over_dx below about 1).
+MIN_NEIGHBOURS = {1: 2, 2: 8, 3: 26}
+#: Particles of two bodies closer than this many spacings overlap.
+OVERLAP_SPACINGS = 0.5
+#: Particles closer than this many spacings are duplicates (the pair loop skips r = 0).
+DUPLICATE_SPACINGS = 1e-6
+#: Plausible SI ranges: (low, high) for each kind of quantity.
+LENGTH_RANGE = (1e-5, 1.0)  # m: a geometry dimension of an impact specimen
+DENSITY_RANGE = (30.0, 3e4)  # kg/m^3: below, the value reads as g/cm^3 (foams aside)
+MODULUS_RANGE = (1e5, 2e12)  # Pa: Young's and shear moduli
+YIELD_STRESS_MIN = 1e5  # Pa
+SPEED_MAX = 2e4  # m/s
+END_TIME_MAX = 1.0  # s of simulated time
+STEPS_MAX = 1e7
+#: Share of the initial kinetic energy that may remain at the end of a dissipative impact.
+KINETIC_ENERGY_REMAINING = 0.02
+
+# -- calibration (benchmarks/calibrate_preflight.py; docs/case-files.md) --------------------
+
+#: Resident memory of an ``impactsph run`` process before its particles: Python, numpy,
+#: numba and the loaded kernels, matplotlib (bytes): measured 208-213 MB with the kernels
+#: cached, 364 MB at the peak of a first run that compiles them.
+BASE_MEMORY = 400e6
+#: Factor on the arrays counted by :func:`memory_estimate` to reach the measured peak
+#: (allocator slack, temporaries of the neighbour build and of the outputs).
+MEMORY_SAFETY = 1.25
+#: Bytes per value of a history row: held in memory (a dict of floats), written as CSV at the
+#: end and read back for the figures.
+HISTORY_VALUE_BYTES = 180
+#: Pair evaluations per second assumed where no run on this machine has measured one: about
+#: the slowest rate measured on this project's machine for 2D and 3D runs of 1e4 to 4e5
+#: particles, on one numba thread with other jobs running (1.15e7 to 1.3e7 with AC and a
+#: wall; benchmarks/calibrate_preflight.py; docs/case-files.md).
+DEFAULT_PAIR_RATE = 1e7
+#: Fixed cost of a step (s): the Python of the step loop, the survey, the history row;
+#: measured 100-150 us a step for 50-200 particles in 1D (the bars, calibrate_preflight.py).
+STEP_SECONDS = 1e-4
+#: Runs with fewer pair evaluations than this do not update the stored pair rate (their
+#: time is mostly fixed costs).
+MIN_PAIRS_TO_RECORD = 1e6
+PAIR_RATE_FILE = "pair_rates.json"
+#: Names of the cases whose run in this process compiles the kernels (:func:`before_run`):
+#: part of their steps' wall time is compilation, so :func:`after_run` keeps no pair rate.
+_COMPILING: set[str] = set()
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One warning or error: ``field`` is the dotted path of the case field it is about,
+    ``message`` the one line printed (it starts with the field)."""
+
+    level: str  #: "warning" or "error"
+    field: str
+    message: str
+
+    def line(self) -> str:
+        """The line printed for it."""
+        return f"{self.level}: {self.message}"
+
+
+@dataclass
+class Estimate:
+    """What a run of the case will take (all estimates)."""
+
+    particles: dict[str, int]  #: per body name
+    neighbours: float  #: stored neighbour-list entries per particle (support + skin)
+    pairs_per_particle: float  #: pair evaluations per particle per rate evaluation
+    ghosts: int  #: wall ghosts at t = 0 (0 before the particles are placed)
+    memory: float  #: bytes, peak of the process
+    available: int | None  #: bytes this machine has available, None if unknown
+    dt: float  #: s, the initial step of eq 26
+    steps: int
+    pair_rate: float  #: pair evaluations per second assumed
+    pair_rate_source: str
+    seconds: float  #: wall time of the steps (compilation excluded)
+    runs: int = 1  #: 2 with a reference run (output.reference_viscosity)
+
+    @property
+    def total(self) -> int:
+        """All particles."""
+        return sum(self.particles.values())
+
+    def lines(self) -> list[str]:
+        """The lines printed for it."""
+        parts = ", ".join(f"{name} {n:,}" for name, n in self.particles.items())
+        avail = (f" of {_bytes(self.available)} available" if self.available is not None
+                 else "")
+        return [
+            f"particles: {parts}; total {self.total:,}"
+            + (f" (+ {self.ghosts:,} wall ghosts)" if self.ghosts else ""),
+            f"estimated memory: {_bytes(self.memory)}{avail}",
+            f"estimated run time: {_duration(self.seconds)} ("
+            + ("two runs, the case's and its reference_viscosity's, each " if self.runs > 1
+               else "")
+            + f"{self.steps:,} steps of "
+            f"dt = {self.dt:.3g} s by eq 26, {self.pairs_per_particle:.3g} pairs per particle, "
+            f"{self.pair_rate:.3g} pairs/s {self.pair_rate_source}; an estimate, compilation "
+            f"excluded)",
+        ]
+
+
+@dataclass
+class Report:
+    """The estimate and the findings of :func:`preflight`."""
+
+    estimate: Estimate
+    findings: list[Finding] = field(default_factory=list)
+
+    @property
+    def errors(self) -> list[Finding]:
+        return [f for f in self.findings if f.level == "error"]
+
+    @property
+    def warnings(self) -> list[Finding]:
+        return [f for f in self.findings if f.level == "warning"]
+
+    def lines(self) -> list[str]:
+        """Estimate lines, then one line per finding."""
+        return [*self.estimate.lines(), *(f.line() for f in self.findings)]
+
+
+# -- formatting ------------------------------------------------------------------------------
+
+def _bytes(n: float) -> str:
+    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if n >= size:
+            return f"{n / size:.3g} {unit}"
+    return f"{n / 1e3:.3g} kB"
+
+
+def _duration(s: float) -> str:
+    if not math.isfinite(s):
+        return "unknown"
+    if s < 60:
+        return f"{s:.2g} s"
+    if s < 3600:
+        return f"{s / 60:.2g} min"
+    if s < 86400:
+        return f"{s / 3600:.2g} h"
+    return f"{s / 86400:.3g} days"
+
+
+def _plural(n: int, noun: str) -> str:
+    return f"{n:,} {noun}{'' if n == 1 else 's'}"
+
+
+def _g(x: float) -> str:
+    return f"{x:.4g}"
+
+
+# -- particle counts, without placing the particles ----------------------------------------
+
+def _disk_count(radius: float, spacing: float) -> int:
+    """Particles of :func:`impactsph.geometry.disk_particles` (the same lattice and test),
+    counted in chunks of rows."""
+    half = int(math.ceil(radius / spacing))
+    k = np.arange(-half, half) + 0.5
+    k2 = k * k
+    rho2 = (radius / spacing) ** 2
+    total = 0
+    for start in range(0, k2.size, 1024):
+        total += int(np.count_nonzero(k2[start:start + 1024, None] + k2[None, :] <= rho2))
+    return total
+
+
+def body_spacing(geometry: Any) -> float:
+    """The spacing dx the smoothing length is scaled from (a block's geometric mean)."""
+    if isinstance(geometry, Block):
+        return float(np.prod(geometry.spacings())) ** (1.0 / len(geometry.size))
+    return float(geometry.spacing)
+
+
+def count_particles(case: Case) -> list[int]:
+    """Particles of each body, as :func:`impactsph.problem.build_problem` places them, counted
+    without placing them (a particle file is read)."""
+    counts = []
+    for body in case.bodies:
+        g = body.geometry
+        if isinstance(g, Block):
+            if g.count is not None:
+                n = math.prod(g.count)
+            else:
+                sizes = np.asarray(g.size, dtype=np.float64)
+                spacing = np.broadcast_to(np.asarray(g.spacings(), dtype=np.float64),
+                                          sizes.shape)
+                n = math.prod(int(c) for c in np.maximum(1, np.rint(sizes / spacing)))
+        elif isinstance(g, Cylinder):
+            n = _disk_count(g.radius, g.spacing) * max(1, round(g.length / g.spacing))
+        elif isinstance(g, Disk):
+            n = _disk_count(g.radius, g.spacing)
+        else:
+            from .geometry import read_particle_file
+
+            n = read_particle_file(g.path, case.dimension)[0].shape[0]
+        counts.append(int(n))
+    return counts
+
+
+def _size_field(case: Case, b: int) -> str:
+    """The field that sets the number of particles of body ``b``."""
+    g = case.bodies[b].geometry
+    if isinstance(g, Block):
+        return f"bodies.{b}.geometry.{'count' if g.count is not None else 'spacing'}"
+    if isinstance(g, ParticleFile):
+        return f"bodies.{b}.geometry.path"
+    return f"bodies.{b}.geometry.spacing"
+
+
+def _field_value(case: Case, path: str) -> Any:
+    node: Any = case
+    for part in path.split("."):
+        node = node[int(part)] if part.isdecimal() else getattr(node, part)
+    return node
+
+
+# -- memory and time -------------------------------------------------------------------------
+
+def lattice_neighbours(radius_over_dx: float, dim: int) -> float:
+    """Neighbours (self excluded) within ``radius_over_dx`` spacings of a particle inside a
+    lattice: the volume of the ball in cells, less one."""
+    r = radius_over_dx
+    volume = {1: 2.0 * r, 2: math.pi * r * r, 3: 4.0 / 3.0 * math.pi * r ** 3}[dim]
+    return max(0.0, volume - 1.0)
+
+
+def state_bytes(dim: int, strength_width: int, hourglass: bool = False) -> int:
+    """Bytes per particle of :class:`impactsph.state.ParticleState` (and of a snapshot)."""
+    return (24 * dim + 121 + 8 * strength_width + (8 * dim if hourglass else 0))
+
+
+def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
+                    corrected: bool = False, walls: bool = False, contact: bool = False,
+                    hourglass: bool = False,
+                    force_correction: bool = False, strength_width: int = 1,
+                    snapshots: int = 0, history_values: int = 0) -> float:
+    """Peak bytes of a run of ``n`` particles (``ghosts`` more in the sums) with ``neighbours``
+    stored neighbour-list entries per particle:
+
+    - per particle: the state (:func:`state_bytes`), the integrator's copy of its integrated
+      fields, and ``snapshots`` copies of the state (plus the pressure) kept for
+      ``snapshots.npz``;
+    - per particle and ghost: the rate buffers (``RateBuffers``), the packed particle records
+      (16 to 32 doubles), the extended arrays of the wall ghosts (with ``walls``), the neighbour
+      list's offsets, order and reference positions, and the builder's temporaries (cell keys,
+      Morton codes, sort order, sorted positions);
+    - per stored neighbour pair: 4 bytes (int32 index);
+    - ``history_values`` numbers of the history and the probes (:data:`HISTORY_VALUE_BYTES`
+      each, :func:`history_values`);
+
+    times :data:`MEMORY_SAFETY`, plus :data:`BASE_MEMORY` for the process itself."""
+    d = dim
+    state = state_bytes(d, strength_width, hourglass)
+    integrator = 16 * d + 96 + 8 * strength_width + (8 * d if hourglass else 0)
+    snapshot = state + 8
+    per_particle = state + integrator + snapshots * snapshot
+    buffers = 100 + 8 * d + (8 * d if contact else 0) + (8 * d + 8 if corrected else 0) \
+        + (8 * d + 8 * d * d if hourglass else 0)
+    width = {1: 16, 2: 16, 3: 24}[d] + (8 if force_correction and d > 1 else 0)
+    records = 8 * width
+    ghost_arrays = (16 * d + 112) if walls else 0
+    neighbour_list = 12 + 4 * d + 32 + 8 * d  # offsets, order, reference; build temporaries
+    per_row = buffers + records + ghost_arrays + neighbour_list + 4 * neighbours
+    total = n * per_particle + (n + ghosts) * per_row + history_values * HISTORY_VALUE_BYTES
+    return BASE_MEMORY + MEMORY_SAFETY * total
+
+
+def available_memory() -> int | None:
+    """Bytes of memory this process can still use: ``MemAvailable`` of ``/proc/meminfo`` (free
+    memory plus what the kernel can reclaim), else ``os.sysconf``'s free pages; capped by the
+    cgroup (container) limit less its usage where there is one.  None where unknown."""
+    available = None
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    available = int(line.split()[1]) * 1024
+                    break
+    except (OSError, ValueError, IndexError):
+        pass
+    if available is None:
+        try:
+            available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        except (ValueError, OSError, AttributeError):
+            return None
+    try:
+        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+        if limit != "max":
+            used = int(Path("/sys/fs/cgroup/memory.current").read_text())
+            available = min(available, max(0, int(limit) - used))
+    except (OSError, ValueError):
+        pass
+    return available
+
+
+def _pair_rate_key(device: str, dim: int) -> str:
+    import numba
+
+    return f"{device}-{dim}d-{numba.config.NUMBA_NUM_THREADS}threads"
+
+
+def _pair_rate_path() -> Path:
+    from .codegen import cache_directory
+
+    return cache_directory() / PAIR_RATE_FILE
+
+
+def pair_rate(device: str, dim: int) -> tuple[float, str]:
+    """Pair evaluations per second for runs of dimension ``dim`` on ``device`` with this many
+    numba threads: the rate the last run of that kind measured on this machine (stored by
+    :func:`record_pair_rate`), else :data:`DEFAULT_PAIR_RATE`; and where it comes from."""
+    try:
+        stored = json.loads(_pair_rate_path().read_text())[_pair_rate_key(device, dim)]
+        rate = float(stored["rate"])
+        if rate > 0 and math.isfinite(rate):
+            return rate, (f"(measured on this machine by a run of {stored['case']!r}, "
+                          f"{stored['date']})")
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    return DEFAULT_PAIR_RATE, "(a conservative default: no run on this machine has measured one)"
+
+
+def record_pair_rate(summary: dict[str, Any], name: str) -> None:
+    """Keep the pair rate a finished run measured (its summary's ``pair_evaluations`` over
+    its ``wall_seconds`` less :data:`STEP_SECONDS` a step) for later estimates, if it
+    evaluated at least :data:`MIN_PAIRS_TO_RECORD` pairs.  Never fails a run."""
+    pairs = summary.get("pair_evaluations") or 0
+    wall = summary.get("wall_seconds") or 0.0
+    if pairs < MIN_PAIRS_TO_RECORD or not wall > 0:
+        return
+    # the pairs' own rate: the fixed cost of the steps (STEP_SECONDS) taken out, at most half
+    rate = pairs / max(wall - (summary.get("n_steps") or 0) * STEP_SECONDS, 0.5 * wall)
+    from . import atomic
+
+    try:
+        path = _pair_rate_path()
+        try:
+            data = json.loads(path.read_text())
+            if not isinstance(data, dict):
+                data = {}
+        except (OSError, ValueError):
+            data = {}
+        data[_pair_rate_key(str(summary.get("device", "cpu")),
+                            int(summary.get("dimension", 0)))] = {
+            "rate": float(rate), "case": name, "n_particles": summary.get("n_particles"),
+            "date": datetime.date.today().isoformat()}
+        atomic.write_text(path, json.dumps(data, indent=1, sort_keys=True))
+    except OSError:
+        pass
+
+
+def history_values(case: Case, steps: int) -> int:
+    """Numbers a run of ``steps`` steps keeps in its history (a row every
+    ``output.history_every`` steps: time, step, dt, 6 energies, the momentum, the external
+    impulse with walls or clamps, the contact forces with walls or several bodies) and its
+    probes (every step: the time and each probe's velocity)."""
+    d, bodies = case.dimension, len(case.bodies)
+    supported = bool(case.boundaries) or any(b.clamped is not None for b in case.bodies)
+    contact = bodies * d if bodies > 1 else (d if case.boundaries else 0)
+    columns = 9 + d + (d if supported else 0) + contact
+    rows = steps // case.output.history_every + 1
+    probes = (1 + d * len(case.output.probes)) if case.output.probes else 0
+    return rows * columns + (steps + 1) * probes
+
+
+def initial_time_step(case: Case) -> float:
+    """The CFL step of eq 26 at t = 0, ``courant * min h / (c + |v|)`` over the bodies (a tip
+    mass's velocity counted at its arrival speed, an upper bound)."""
+    from .materials import resolve_material
+
+    dt = math.inf
+    for body in case.bodies:
+        mat = resolve_material(body.material, case.materials[body.material])
+        c = math.sqrt(mat.wave_modulus(case.time.wave_speed) / mat.density)
+        speed = float(np.linalg.norm(body.velocity))
+        if body.tip_mass is not None:
+            speed = max(speed, float(np.linalg.norm(body.tip_mass.velocity)))
+        h = case.kernel.h_over_dx * body_spacing(body.geometry)
+        dt = min(dt, case.time.courant * h / (c + speed))
+    return dt
+
+
+def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None = None,
+             ghosts: int = 0) -> Estimate:
+    """Memory and run time of the case with ``counts`` particles per body; the pair
+    evaluations per particle measured at t = 0 (:func:`particle_checks`) if given, else those
+    of a full lattice."""
+    from .materials import TableLayout
+    from .models import VISCOSITY
+    from .physics.options import PassOptions
+
+    dim = case.dimension
+    n = sum(counts)
+    weights = np.asarray(counts, dtype=np.float64) / max(n, 1)
+    spacings = np.array([body_spacing(b.geometry) for b in case.bodies])
+    support = SUPPORT_RADIUS * case.kernel.h_over_dx  # in units of a body's own spacing
+    # the list's radius is that of the largest h, plus the skin
+    radius = support * float(spacings.max()) * (1.0 + case.time.neighbour_skin)
+    neighbours = float(weights @ [lattice_neighbours(radius / dx, dim) for dx in spacings])
+    if pairs_per_particle is None:
+        pairs_per_particle = lattice_neighbours(support, dim)
+    dt = initial_time_step(case)
+    steps = max(1, math.ceil(case.time.end / dt * (1 - 1e-12)))
+    if case.time.max_steps is not None:
+        steps = min(steps, case.time.max_steps)
+    corrected = VISCOSITY[case.viscosity.scheme].correction is not None
+    memory = memory_estimate(
+        n, dim, neighbours, ghosts=ghosts, corrected=corrected, walls=bool(case.boundaries),
+        contact=bool(case.boundaries) or len(case.bodies) > 1,
+        hourglass=case.stabilisation.hourglass > 0.0,
+        force_correction=PassOptions.of_case(case).gradient_correction
+        == "velocity_gradient_and_forces",
+        strength_width=TableLayout.registered().state_width,
+        snapshots=len(case.output.snapshot_times),
+        history_values=history_values(case, steps))
+    ref = case.output.reference_viscosity
+    runs = 2 if case.output.figures and ref is not None and ref != case.viscosity else 1
+    # the reference run's arrays are allocated while the run's are still held
+    memory = BASE_MEMORY + runs * (memory - BASE_MEMORY)
+    rate, source = pair_rate(case.compute.device, dim)
+    # two rate evaluations per step, and the fixed cost of a step
+    seconds = runs * steps * (2.0 * n * pairs_per_particle / rate + STEP_SECONDS)
+    return Estimate(particles={b.name: k for b, k in zip(case.bodies, counts, strict=True)},
+                    neighbours=neighbours, pairs_per_particle=pairs_per_particle,
+                    ghosts=ghosts, memory=memory, available=available_memory(), dt=dt,
+                    steps=steps, pair_rate=rate, pair_rate_source=source, seconds=seconds,
+                    runs=runs)
+
+
+def memory_check(case: Case, est: Estimate) -> Finding | None:
+    """The error for a memory estimate above the available memory (None if it fits, or if
+    ``IMPACTSPH_SKIP_MEMORY_CHECK`` is set to a non-empty value other than 0), naming the
+    field that sets the largest body's particle count, or ``time.end`` when the history is
+    the larger part."""
+    if est.available is None or est.memory <= est.available:
+        return None
+    if os.environ.get("IMPACTSPH_SKIP_MEMORY_CHECK", "") not in ("", "0"):
+        return None
+    history = est.runs * MEMORY_SAFETY * history_values(case, est.steps) * HISTORY_VALUE_BYTES
+    if history > 0.5 * (est.memory - BASE_MEMORY):
+        where = "time.end"
+        cause = (f"{est.steps:,} steps, whose history takes {_bytes(history)}; a larger "
+                 f"output.history_every keeps less")
+    else:
+        b = int(np.argmax(list(est.particles.values())))
+        where = _size_field(case, b)
+        cause = f"{est.total:,} particles"
+    value = _field_value(case, where)
+    return Finding("error", where, (
+        f"{where} = {value!r}: the run needs about {_bytes(est.memory)} of memory (an "
+        f"estimate: {cause}); this machine has {_bytes(est.available)} available"))
+
+
+# -- checks of the case's numbers --------------------------------------------------------------
+
+def _scaled_hint(value: float, low: float, high: float,
+                 units: tuple[tuple[str, float], ...]) -> str:
+    """``'; did you mean 792 MPa = 7.92e+08?'`` for the first unit that brings ``value`` into
+    ``[low, high]``, or ``''``."""
+    for unit, factor in units:
+        if low <= value * factor <= high:
+            return f"; did you mean {_g(value)} {unit} = {value * factor:.3g}?"
+    return ""
+
+
+def magnitude_checks(case: Case) -> list[Finding]:
+    """Warnings for values that are implausible in SI units (a likely unit slip)."""
+    out: list[Finding] = []
+
+    def warn(where: str, value: Any, text: str) -> None:
+        out.append(Finding("warning", where, f"{where} = {value!r}: {text}"))
+
+    for name, mat in case.materials.items():
+        where = f"materials.{name}"
+        lo, hi = DENSITY_RANGE
+        if not lo <= mat.density <= hi:
+            hint = _scaled_hint(mat.density, lo, hi, (("g/cm^3", 1e3),)) \
+                if mat.density < lo else ""
+            warn(f"{where}.density", mat.density,
+                 f"implausible density for a solid, foams aside (SI: {_g(lo)} to {_g(hi)} "
+                 f"kg/m^3){hint}")
+        for key, label in (("youngs_modulus", "Young's modulus"),
+                           ("shear_modulus", "shear modulus")):
+            value = getattr(mat, key)
+            lo, hi = MODULUS_RANGE
+            if value is not None and not lo <= value <= hi:
+                hint = _scaled_hint(value, lo, hi, (("GPa", 1e9), ("MPa", 1e6))) \
+                    if value < lo else ""
+                warn(f"{where}.{key}", value, f"implausible {label} (SI: {_g(lo)} to "
+                                              f"{_g(hi)} Pa){hint}")
+        sigma = getattr(mat, "yield_stress", None)
+        if isinstance(sigma, int | float) and sigma < YIELD_STRESS_MIN:
+            hint = _scaled_hint(sigma, YIELD_STRESS_MIN, MODULUS_RANGE[1],
+                                (("MPa", 1e6), ("GPa", 1e9)))
+            warn(f"{where}.yield_stress", sigma,
+                 f"implausibly low yield stress (SI, Pa: under {_g(YIELD_STRESS_MIN)}){hint}")
+    lo, hi = LENGTH_RANGE
+    for b, body in enumerate(case.bodies):
+        g, where = body.geometry, f"bodies.{b}.geometry"
+        lengths: list[tuple[str, Any, float, float]] = []  # field, value, smallest, largest
+        if isinstance(g, Block):
+            lengths.append(("size", g.size, min(g.size), max(g.size)))
+        elif isinstance(g, Disk | Cylinder):
+            lengths.append(("radius", g.radius, g.radius, g.radius))
+            if isinstance(g, Cylinder):
+                lengths.append(("length", g.length, g.length, g.length))
+        for key, value, smallest, largest in lengths:
+            if largest > hi:
+                warn(f"{where}.{key}", value, f"{_g(largest)} m is large for an impact "
+                     f"specimen (over {_g(hi)} m); did you mean mm = {largest * 1e-3:.3g} m?")
+            elif smallest < lo:
+                warn(f"{where}.{key}", value, f"{_g(smallest)} m is implausibly small (under "
+                     f"{_g(lo)} m; SI lengths are in m)")
+        if isinstance(g, Block):  # a spacing from count is size / count: size is checked
+            spacing = max(g.spacings()) if g.spacing is not None else None
+        else:
+            spacing = g.spacing
+        if spacing is not None and spacing > hi:
+            warn(f"{where}.spacing", g.spacing, f"a spacing of {_g(spacing)} m is large "
+                 f"(over {_g(hi)} m); did you mean mm = {spacing * 1e-3:.3g} m?")
+        for key, velocity in (("velocity", body.velocity),
+                              ("tip_mass.velocity", body.tip_mass and body.tip_mass.velocity)):
+            if velocity and float(np.linalg.norm(velocity)) > SPEED_MAX:
+                warn(f"bodies.{b}.{key}", velocity,
+                     f"a speed of {_g(float(np.linalg.norm(velocity)))} m/s is beyond "
+                     f"hypervelocity impact ({_g(SPEED_MAX)} m/s); velocities are in m/s")
+    if case.time.end > END_TIME_MAX:
+        warn("time.end", case.time.end, f"more than {_g(END_TIME_MAX)} s of simulated time for "
+             f"an impact (micro- to milliseconds); did you mean {_g(case.time.end)} ms = "
+             f"{case.time.end * 1e-3:.3g} or {_g(case.time.end)} us = "
+             f"{case.time.end * 1e-6:.3g}?")
+    return out
+
+
+def _steps_check(case: Case, est: Estimate) -> list[Finding]:
+    unbounded = math.ceil(case.time.end / est.dt)
+    if unbounded > STEPS_MAX and (case.time.max_steps is None
+                                  or case.time.max_steps > STEPS_MAX):
+        return [Finding("warning", "time.end", (
+            f"time.end = {case.time.end!r}: about {unbounded:.3g} steps of dt = "
+            f"{est.dt:.3g} s (eq 26), more than {STEPS_MAX:.0e}; is the end time right?"))]
+    return []
+
+
+# -- checks of the particles at t = 0 -----------------------------------------------------------
+
+def _where(x: np.ndarray) -> str:
+    return "[" + ", ".join(f"{v:.4g}" for v in x) + "]"
+
+
+def particle_checks(case: Case, problem: Any) -> tuple[list[Finding], np.ndarray, int]:
+    """Errors and warnings about the particles of a built problem at t = 0, the pair
+    evaluations of each particle (neighbours within the kernel support, as the pair loop
+    counts them), and the number of wall ghosts."""
+    from .boundaries import walls_of
+    from .neighbours import NeighbourList
+
+    s = problem.state
+    n, dim = s.n, s.dim
+    out: list[Finding] = []
+    names = problem.body_names
+    spacing_of_body = np.array([body_spacing(b.geometry) for b in case.bodies])
+    dx = spacing_of_body[s.body]
+    h = s.smoothing_length
+    # one particle bodies
+    per_body = np.bincount(s.body, minlength=len(names))
+    for b in np.flatnonzero(per_body == 1):
+        out.append(Finding("warning", f"bodies.{b}.geometry", (
+            f"bodies.{b}.geometry: body {names[b]!r} has one particle: a body needs many "
+            f"particles across it for its stress to be resolved")))
+    # particle files: coordinates written in mm
+    for b, body in enumerate(case.bodies):
+        if isinstance(body.geometry, ParticleFile):
+            x = s.position[s.body == b]
+            extent = float(np.max(x.max(axis=0) - x.min(axis=0)))
+            if extent > LENGTH_RANGE[1]:
+                where = f"bodies.{b}.geometry.path"
+                out.append(Finding("warning", where, (
+                    f"{where} = {body.geometry.path!r}: the particles span {_g(extent)} m, more "
+                    f"than {_g(LENGTH_RANGE[1])} m for an impact specimen; were the "
+                    f"coordinates written in mm? (then {_g(extent * 1e-3)} m)")))
+    # walls: particles behind a plane at t = 0
+    walls = walls_of(case.boundaries, dim)
+    ghosts = 0
+    reach = SUPPORT_RADIUS * float(h.max()) * (1.0 + case.time.neighbour_skin)
+    for w in range(len(walls)):
+        d = (s.position - walls.points[w]) @ walls.normals[w]
+        ghosts += int(np.count_nonzero((d >= 0.0) & (d < reach)))
+        behind = d < 0.0
+        for b in np.flatnonzero(np.bincount(s.body[behind], minlength=len(names))):
+            sel = behind & (s.body == b)
+            out.append(Finding("error", f"boundaries.{w}", (
+                f"boundaries.{w}: {int(sel.sum()):,} of the {int(per_body[b]):,} particles of "
+                f"body {names[b]!r} (bodies.{b}) start behind the wall (down to "
+                f"{_g(float(-d[sel].min()))} m; the normal {case.boundaries[w].normal} points "
+                f"into the material): the run would stop at its first step")))
+    # pairs: a neighbour list of radius 2 h_max (at least the overlap distance)
+    radius = max(SUPPORT_RADIUS * float(h.max()), OVERLAP_SPACINGS * float(dx.max()))
+    counts = np.zeros(n, dtype=np.int64)
+    overlaps: dict[tuple[int, int], list] = {}
+    duplicates: dict[int, list] = {}
+    if n > 1:
+        nl = NeighbourList.build(s.position, radius)
+        order = nl.order.astype(np.int64)
+        row_len = np.diff(nl.offsets)
+        budget = 250_000  # pairs per chunk: temporaries of about 20 MB
+        cuts = np.unique(np.concatenate([
+            np.searchsorted(nl.offsets, np.arange(0, nl.n_pairs, budget), side="right") - 1,
+            [n]]))
+        for p0, p1 in zip(cuts[:-1], cuts[1:], strict=True):
+            lo, hi = int(nl.offsets[p0]), int(nl.offsets[p1])
+            i = np.repeat(order[p0:p1], row_len[p0:p1])
+            j = order[nl.indices[lo:hi]]
+            r = np.sqrt(np.sum((s.position[i] - s.position[j]) ** 2, axis=1))
+            inside = (r > 0.0) & (r < SUPPORT_RADIUS * 0.5 * (h[i] + h[j]))
+            counts += np.bincount(i[inside], minlength=n)
+            first = i < j
+            close = first & (r < OVERLAP_SPACINGS * np.minimum(dx[i], dx[j]))
+            other = close & (s.body[i] != s.body[j])
+            if other.any():
+                bi, bj = s.body[i[other]], s.body[j[other]]
+                a, b_ = np.minimum(bi, bj), np.maximum(bi, bj)
+                for key in set(zip(a.tolist(), b_.tolist(), strict=True)):
+                    sel = (a == key[0]) & (b_ == key[1])
+                    k = int(np.argmin(r[other][sel]))
+                    entry = overlaps.setdefault(key, [0, math.inf, None])
+                    entry[0] += int(sel.sum())
+                    if r[other][sel][k] < entry[1]:
+                        entry[1], entry[2] = float(r[other][sel][k]), i[other][sel][k]
+            dup = first & (s.body[i] == s.body[j]) & (r <= DUPLICATE_SPACINGS * dx[i])
+            if dup.any():
+                for b in np.unique(s.body[i[dup]]).tolist():
+                    sel = s.body[i[dup]] == b
+                    entry = duplicates.setdefault(b, [0, n])
+                    entry[0] += int(sel.sum())
+                    entry[1] = min(entry[1], int(j[dup][sel].min()))
+    for (a, b), (pairs, closest, i) in sorted(overlaps.items()):
+        out.append(Finding("warning", f"bodies.{b}.geometry", (
+            f"bodies.{b}.geometry: body {names[b]!r} overlaps body {names[a]!r} "
+            f"(bodies.{a}): {_plural(pairs, 'particle pair')} closer than {OVERLAP_SPACINGS} "
+            f"spacing "
+            f"(the closest {_g(closest)} m apart, at {_where(s.position[i])}); the bodies "
+            f"start interpenetrated")))
+    offset = np.concatenate([[0], np.cumsum(per_body)])
+    for b, (pairs, j) in sorted(duplicates.items()):
+        g = case.bodies[b].geometry
+        where = f"bodies.{b}.geometry" + (".path" if isinstance(g, ParticleFile) else "")
+        out.append(Finding("warning", where, (
+            f"{where}: {_plural(pairs, 'pair')} of particles of body {names[b]!r} share a "
+            f"position "
+            f"(first: particle {int(j - offset[b])} at {_where(s.position[j])}); the pair loop "
+            f"skips coincident particles, so they never push each other apart")))
+    # neighbours within the kernel support
+    need = MIN_NEIGHBOURS[dim]
+    best = np.zeros(len(names), dtype=np.int64)
+    np.maximum.at(best, s.body, counts)
+    few = [b for b in range(len(names)) if per_body[b] > 1 and best[b] < need]
+    if few and case.kernel.h_over_dx < 1.0:
+        listed = ", ".join(f"{names[b]!r} {int(best[b])}" for b in few)
+        out.append(Finding("warning", "kernel.h_over_dx", (
+            f"kernel.h_over_dx = {case.kernel.h_over_dx!r}: too few neighbours within the "
+            f"kernel support 2h at t = 0 (most of any particle, by body: {listed}); the cubic "
+            f"spline needs about {need} in {dim}D (h_over_dx >= 1 on a lattice)")))
+    else:
+        for b in few:
+            out.append(Finding("warning", f"bodies.{b}.geometry", (
+                f"bodies.{b}.geometry: no particle of body {names[b]!r} has more than "
+                f"{int(best[b])} neighbours within the kernel support 2h at t = 0; the cubic "
+                f"spline needs about {need} in {dim}D: the body is too thin or too sparse for "
+                f"its spacing (kernel.h_over_dx = {case.kernel.h_over_dx!r})")))
+    for b in range(len(names)):
+        if per_body[b] < 2 or best[b] == 0:  # one particle, or all isolated: said above
+            continue
+        alone = np.flatnonzero((s.body == b) & (counts == 0))
+        if alone.size:
+            g = case.bodies[b].geometry
+            where = f"bodies.{b}.geometry" + (".path" if isinstance(g, ParticleFile) else "")
+            out.append(Finding("warning", where, (
+                f"{where}: {_plural(alone.size, 'particle')} of body {names[b]!r} "
+                f"{'has' if alone.size == 1 else 'have'} no neighbour "
+                f"within the kernel support 2h at t = 0 (first: particle "
+                f"{int(alone[0] - offset[b])} at {_where(s.position[alone[0]])}): "
+                f"{'it' if alone.size == 1 else 'they'} will not interact")))
+    return out, counts, ghosts
+
+
+# -- the whole check ---------------------------------------------------------------------------
+
+def preflight(case: Case) -> Report:
+    """Count, estimate and check a validated case (see the module docstring).  A memory
+    refusal is returned as the report's only error, before any particle is placed; the
+    other checks build the particles (:func:`impactsph.problem.build_problem`, which raises
+    :class:`~impactsph.errors.CaseError` for a set-up it cannot make)."""
+    from .problem import build_problem
+
+    counts = count_particles(case)
+    est = estimate(case, counts)
+    refusal = memory_check(case, est)
+    if refusal is not None:
+        return Report(est, [refusal])
+    findings = magnitude_checks(case)
+    problem = build_problem(case)
+    particle_findings, pairs, ghosts = particle_checks(case, problem)
+    n = problem.state.n
+    est = estimate(case, counts, pairs_per_particle=float(pairs.sum()) / max(n, 1),
+                   ghosts=ghosts)
+    refusal = memory_check(case, est)
+    findings = [*([refusal] if refusal else []), *particle_findings, *findings,
+                *_steps_check(case, est)]
+    findings.sort(key=lambda f: f.level != "error")
+    return Report(est, findings)
+
+
+def check_case(case: Case) -> Report:
+    """:func:`preflight`; raise :class:`~impactsph.errors.CaseError` with the first error's
+    line (without its ``error: ``) if there is one."""
+    report = preflight(case)
+    if report.errors:
+        raise CaseError(report.errors[0].message)
+    return report
+
+
+def _stderr(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+def before_run(case: Case, quiet: bool = False,
+               echo: Callable[[str], None] = _stderr) -> Report:
+    """What ``impactsph run`` does first: :func:`check_case`, its lines to ``echo`` (stderr;
+    the warnings only if ``quiet``), then the :func:`compile_notice` if the kernels are not
+    cached."""
+    report = check_case(case)
+    for line in [f.line() for f in report.findings] if quiet else report.lines():
+        echo(line)
+    notice = compile_notice(case)
+    if notice is not None:
+        echo(notice)
+        _COMPILING.add(case.name)  # this run's time is not a pair rate worth keeping
+    return report
+
+
+# -- compilation ---------------------------------------------------------------------------------
+
+def kernels_cached(case: Case) -> bool | None:
+    """Whether numba's disk cache holds the generated passes the case's run uses (its pair
+    pass, and the integrator's advance pass): False means the run compiles them first.  None
+    where it cannot tell."""
+    from .physics.options import PassOptions
+    from .physics.rates import compiled_passes
+
+    try:
+        dispatchers = (compiled_passes(case.dimension,
+                                       options=PassOptions.of_case(case)).pair_pass,
+                       compiled_passes(case.dimension).advance)
+        return all(Path(d._cache._cache_file._index_path).is_file() for d in dispatchers)
+    except (AttributeError, OSError, TypeError):
+        return None
+
+
+def compile_notice(case: Case) -> str | None:
+    """The line to show before a run that compiles the kernels (None if they are cached)."""
+    if case.compute.device == "cpu" and kernels_cached(case) is False:
+        return "compiling the SPH kernels for this machine (first run only, ~1 min)"
+    return None
+
+
+# -- after the run -------------------------------------------------------------------------------
+
+def keeps_kinetic_energy(case: Case) -> bool:
+    """Whether the case is expected to keep its kinetic energy: no material yields (elastic
+    bodies rebound and vibrate), or nothing stops the body (one body, no wall, no clamp)."""
+    from .models import STRENGTH
+
+    dissipative = any(STRENGTH[m.model].return_map is not None for m in case.materials.values())
+    held = bool(case.boundaries) or len(case.bodies) > 1 or any(
+        b.clamped is not None for b in case.bodies)
+    return not (dissipative and held)
+
+
+def after_run(case: Case, summary: dict[str, Any], restarted: bool = False,
+              echo: Callable[[str], None] = _stderr) -> list[str]:
+    """Warnings about a finished run, one line each to ``echo`` (stderr) and returned, and
+    the pair rate it measured kept for later estimates (:func:`record_pair_rate`; not for a
+    run that compiled the kernels or was ``restarted`` from a checkpoint, whose summary counts
+    the pairs since t = 0 over the wall time since the restart).  Warns when more than
+    :data:`KINETIC_ENERGY_REMAINING` of the initial kinetic energy remains at the end time in
+    a problem that is expected to dissipate it (:func:`keeps_kinetic_energy`)."""
+    if case.name not in _COMPILING and not restarted:
+        record_pair_rate(summary, case.name)
+    lines = []
+    ratio = summary.get("kinetic_energy_ratio_final")
+    reached = summary.get("t_end", case.time.end) >= case.time.end * (1 - 1e-9)
+    if (ratio is not None and ratio > KINETIC_ENERGY_REMAINING and reached
+            and not keeps_kinetic_energy(case)):
+        lines.append(f"warning: time.end = {case.time.end!r}: {100 * ratio:.3g}% of the "
+                     f"initial kinetic energy remains at the end time: the impact may not be "
+                     f"over; consider a longer time.end")
+    for line in lines:
+        echo(line)
+    return lines
