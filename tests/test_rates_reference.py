@@ -58,6 +58,9 @@ def two_blocks(dim: int, scheme: str) -> Simulation:
              "geometry": {"origin": shifted, "size": size, "spacing": DX}},
         ],
         "kernel": {"h_over_dx": 1.3}, "viscosity": {"scheme": scheme},
+        # the reference restates the plain terms and the pressure contact (docs/modelling.md)
+        "stabilisation": {"gradient_correction": "none", "hourglass": 0.0},
+        "contact": {"traction": "pressure"},
         "time": {"end": 1e-6}, "output": {"figures": False},
     })
     sim = Simulation(case)

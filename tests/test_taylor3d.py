@@ -94,26 +94,28 @@ def test_coarse_cylinder_run_directory(run):
 
 
 def test_the_wall_layer_holds_the_spreading_foot_off_the_wall(tmp_path):
-    """Issue 11: the impact face of the cylinder thins as it spreads (as 1/lambda^2) and
-    without the penalty layer its particles reach the wall plane, where only the constraint
-    stops them (measured at 40 us: 1840 constraint events, energy error 6.6e-4).  With
-    ``contact.wall_layer = 0.25`` none reaches it and the energy error halves (3.0e-4)."""
+    """Issue 11: the impact face of the cylinder thins as it spreads (as 1/lambda^2) and,
+    with the paper's wall (the ghosts' pressure contact, no penalty layer), its particles
+    reach the wall plane, where only the constraint stops them (measured at 40 us: 1840
+    constraint events, energy error 6.6e-4).  With the defaults (the normal-stress contact
+    and ``contact.wall_layer = 0.25``) none reaches it and the energy error halves
+    (3.0e-4)."""
     got = {}
-    for layer in (0.0, 0.25):
+    for name, contact in (("paper", ['contact.traction="pressure"', "contact.wall_layer=0"]),
+                          ("defaults", [])):
         case = load_case(EXAMPLE, [f"bodies.0.geometry.spacing={DX}", "time.end=40e-6",
                                    "output.snapshot_times=[]", "output.figures=false",
-                                   f"contact.wall_layer={layer}"])
+                                   *contact])
         last: dict = {}
-        s = run_case(case, tmp_path / f"layer{layer}",
-                     callback=lambda sim, last=last: last.update(sim=sim))
-        got[layer] = (s, last["sim"].state.position[:, 2].min())
-    bare, held = got[0.0][0], got[0.25][0]
+        s = run_case(case, tmp_path / name, callback=lambda sim, last=last: last.update(sim=sim))
+        got[name] = (s, last["sim"].state.position[:, 2].min())
+    bare, held = got["paper"][0], got["defaults"][0]
     assert bare["wall_constraint_events"] > 100  # the failure the layer is for
     assert held["wall_constraint_events"] == 0
-    assert got[0.25][1] > 0.05 * DX  # held off the plane, not put back onto it
+    assert got["defaults"][1] > 0.05 * DX  # held off the plane, not put back onto it
     assert held["total_energy_relative_error"] < 1e-3
     assert held["total_energy_relative_error"] < bare["total_energy_relative_error"]
-    # the same bar: the layer changes the length and foot by about 1%
+    # the same bar: the wall options change the length and foot by a few per cent
     assert held["final_length_ratio"] == pytest.approx(bare["final_length_ratio"], rel=0.03)
     assert held["footprint_radius_ratio"] == pytest.approx(bare["footprint_radius_ratio"],
-                                                           rel=0.03)
+                                                           rel=0.05)
