@@ -25,12 +25,13 @@ if TYPE_CHECKING:
 
 
 def initial_neighbour_pairs(x0: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """Ordered pairs (i, j) closer than 2h at t = 0."""
+    """Ordered pairs (i, j) of particles closer than 2h at t = 0."""
     from ..neighbours import NeighbourList
 
     nl = NeighbourList.build(x0, 2.0 * h)
-    i = np.repeat(np.arange(x0.shape[0]), np.diff(nl.offsets))
-    return i, nl.indices
+    p = np.repeat(np.arange(x0.shape[0]), np.diff(nl.offsets))
+    # the list is in cell order: its sorted positions are mapped back to the particles
+    return nl.order[p], nl.order[nl.indices]
 
 
 def max_neighbour_gap_over_h(x0: np.ndarray, x: np.ndarray, h: float) -> float:
