@@ -117,7 +117,7 @@ def test_taylor_bar_past_its_rebound_gives_a_summary_and_its_figures(tmp_path):
     assert summary["bodies"]["bar"]["final_velocity"][1] > 0  # moving away from the wall
     log = (out / "run.log").read_text()
     assert "INFO impactsph: taylor: 261 particles" in log and "reference run with" in log
-    assert "figure " in log and "note: the bar has rebounded" in log
+    assert "figure " in log and f"note ({out}): the bar has rebounded" in log
     assert "INFO" not in res.stderr  # --quiet: warnings and notes only on the console
     assert (out / "reference" / "run.log").is_file()
 

@@ -236,7 +236,7 @@ def _run(sim: Simulation, case: Case, out: Path, *,
                 "viscosity": ref,
                 "output": case.output.model_copy(update={"figures": False,
                                                          "reference_viscosity": None})})
-            log.info("reference run with %s", label_of(ref_case))
+            log.info("reference run with %s, into %s", label_of(ref_case), out / "reference")
             try:
                 run_case(ref_case, out / "reference", figures=False, stop=stop,
                          checkpoint_wall_seconds=checkpoint_wall_seconds)
@@ -251,7 +251,7 @@ def _run(sim: Simulation, case: Case, out: Path, *,
         summary["figures"] = [str(p) for p in draw_figures(runs, out, notes=summary["notes"])]
         write_summary(out, summary)  # again, with the list of figures
     for note in summary["notes"]:
-        log.info("note: %s", note)
+        log.info("note (%s): %s", out, note)
     return summary
 
 
