@@ -357,7 +357,7 @@ def test_a_non_empty_out_is_refused_and_overwrite_clears_it(tmp_path):
     assert res.exit_code == 0, res.output
     # the previous run's outputs that this one does not write are gone
     assert sorted(p.name for p in out.iterdir()) == [
-        "case.json", "history.csv", "probes.csv", "snapshots.npz", "summary.json"]
+        "case.json", "history.csv", "probes.csv", "run.log", "snapshots.npz", "summary.json"]
     # --overwrite deletes no file impactsph did not write
     (out / "notes.txt").write_text("mine")
     res = runner.invoke(app, ["run", "bars", "--quiet", "--out", str(out), *SHORT,

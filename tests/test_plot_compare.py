@@ -59,7 +59,7 @@ def runs(tmp_path_factory):
 
 
 def test_plot_redraws_a_runs_figures_in_place(runs):
-    names = ("kinetic_energy.png", "velocity_profile.png", "mid_velocity.png")
+    names = ("kinetic_energy.png", "energies.png", "velocity_profile.png", "mid_velocity.png")
     for name in names:
         assert not (runs / "ac" / name).exists()  # the run drew none
     res = invoke(["plot", runs / "ac"])
@@ -72,14 +72,15 @@ def test_plot_redraws_a_runs_figures_in_place(runs):
 def test_plot_writes_elsewhere_with_out(runs, tmp_path):
     res = invoke(["plot", runs / "av", "--out", tmp_path / "figs"])
     drawn = figures_of(res.output)
-    assert {p.rsplit("/", 1)[1] for p in drawn} == {"kinetic_energy.png", "velocity_profile.png",
-                                                     "mid_velocity.png"}
+    assert {p.rsplit("/", 1)[1] for p in drawn} == {"kinetic_energy.png", "energies.png",
+                                                     "velocity_profile.png", "mid_velocity.png"}
     assert all(p.startswith(str(tmp_path / "figs")) for p in drawn)
 
 
 def test_plot_draws_the_shapes_of_the_taylor_bar(runs, tmp_path):
     drawn = figures_of(invoke(["plot", runs / "taylor", "--out", tmp_path]).output)
-    assert [p.rsplit("/", 1)[1] for p in drawn] == ["kinetic_energy.png", "deformed_shape.png"]
+    assert [p.rsplit("/", 1)[1] for p in drawn] == ["kinetic_energy.png", "energies.png",
+                                                     "deformed_shape.png"]
 
 
 def test_plot_refuses_what_is_not_a_run_directory(runs, tmp_path):
@@ -101,7 +102,7 @@ def test_compare_overlays_the_bars_with_theory(runs, tmp_path):
     out = tmp_path / "cmp"
     res = invoke(["compare", runs / "av", runs / "ac", "--out", out, "--labels", "AV,AC"])
     drawn = figures_of(res.output)
-    assert [p.rsplit("/", 1)[1] for p in drawn] == ["kinetic_energy.png",
+    assert [p.rsplit("/", 1)[1] for p in drawn] == ["kinetic_energy.png", "energies.png",
                                                      "velocity_profile.png", "mid_velocity.png"]
     for p in drawn:
         assert p.startswith(str(out)) and (out / p.rsplit("/", 1)[1]).stat().st_size > FIGURE
@@ -110,7 +111,8 @@ def test_compare_overlays_the_bars_with_theory(runs, tmp_path):
 
 def test_compare_of_different_cases_overlays_the_kinetic_energy_only(runs, tmp_path):
     res = invoke(["compare", runs / "av", runs / "taylor", runs / "disk", "--out", tmp_path])
-    assert figures_of(res.output) == [str(tmp_path / "kinetic_energy.png")]
+    assert figures_of(res.output) == [str(tmp_path / "kinetic_energy.png"),
+                                      str(tmp_path / "energies.png")]
     assert "note: the runs are of different cases" in res.output
     assert not (tmp_path / "velocity_profile.png").exists()
 
@@ -119,7 +121,7 @@ def test_compare_taylor_runs_draws_the_shapes(runs, tmp_path):
     res = invoke(["compare", runs / "taylor", runs / "taylor", "--out", tmp_path,
                   "--labels", "one, two"])
     assert [p.rsplit("/", 1)[1] for p in figures_of(res.output)] == [
-        "kinetic_energy.png", "deformed_shape.png"]
+        "kinetic_energy.png", "energies.png", "deformed_shape.png"]
 
 
 def test_compare_refuses_bad_input(runs, tmp_path):

@@ -92,7 +92,8 @@ def test_a_registered_problem_runs_from_a_case_file(tmp_path):
     assert written["max_displacement"] == summary["max_displacement"]
     # the block moves at V towards the wall and is stopped by it: it moves less than V t
     assert 0 < written["max_displacement"] < V * T_END
-    assert written["figures"] == [str(out / "kinetic_energy.png"), str(out / "toy.png")]
+    assert written["figures"] == [str(out / "kinetic_energy.png"), str(out / "energies.png"),
+                                  str(out / "toy.png")]
     assert (out / "toy.png").stat().st_size > 5_000
 
 

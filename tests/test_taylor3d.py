@@ -89,7 +89,7 @@ def test_coarse_cylinder_shortens_and_spreads_on_the_wall(run):
 def test_coarse_cylinder_run_directory(run):
     sim, s = run
     names = {Path(p).name for p in s["figures"]}
-    assert names == {"kinetic_energy.png", "deformed_shape.png"}
+    assert names == {"kinetic_energy.png", "energies.png", "deformed_shape.png"}
     assert all(Path(p).stat().st_size > 10_000 for p in s["figures"])
 
 

@@ -104,6 +104,10 @@ def write_checkpoint(sim: Simulation, path: Path | str) -> Path:
             p.create_dataset("time", data=np.array([t for t, _ in samples]))
             p.create_dataset("velocity", data=np.array([v for _, v in samples]))
         rec.attrs["probe_names"] = json.dumps(list(sim.record.probes))
+        if sim.gauges is not None:
+            rec.attrs["gauge_columns"] = json.dumps(sim.gauges.columns)
+            rec.create_dataset("gauges", data=np.array(sim.record.gauges, dtype=np.float64
+                                                       ).reshape(-1, len(sim.gauges.columns)))
         rec.attrs["wall_seconds"] = sim.record.wall_seconds
         rec.attrs["setup_seconds"] = sim.record.setup_seconds
         for k, snap in enumerate(sim.record.snapshots):
@@ -177,6 +181,7 @@ def accumulators(sim: Simulation) -> dict[str, Any]:
         "pair_evaluations": s.pair_evaluations,
         "rate_evaluations": s.rate_evaluations,
         "abs_momentum0": sim._abs_momentum0,
+        "max_displacement": sim.max_displacement,
     }
 
 
@@ -225,6 +230,15 @@ def load_checkpoint(path: Path | str, case: Any = None, *, verify: bool = True
         sim.solver.pair_evaluations = int(acc["pair_evaluations"])
         sim.solver.rate_evaluations = int(acc["rate_evaluations"])
         sim._abs_momentum0 = float(acc["abs_momentum0"])
+        if "max_displacement" in acc:  # not in the checkpoints of earlier versions
+            sim.max_displacement = np.array(acc["max_displacement"], dtype=np.float64)
+        else:  # the largest displacement now, the best an older checkpoint tells
+            from .simulation import body_totals
+
+            sim.max_displacement = np.sqrt(body_totals(
+                state.body, state.mass, state.velocity, state.specific_energy,
+                state.plastic_work, state.position, state.initial_position,
+                len(sim.problem.body_names))[:, 3])
         rec = f["record"]
         columns = json.loads(rec.attrs["history_columns"])
         sim.record.history = [dict(zip(columns, map(float, row), strict=True))
@@ -235,6 +249,11 @@ def load_checkpoint(path: Path | str, case: Any = None, *, verify: bool = True
             p = rec[f"probe_{name}"]
             sim.record.probes[name] = list(zip(p["time"][()].tolist(), list(p["velocity"][()]),
                                                strict=True))
+        # the gauges' rows, when the checkpoint's gauges are the case's (a gauge added on
+        # restart records from the restart on)
+        if (sim.gauges is not None and "gauges" in rec
+                and json.loads(rec.attrs["gauge_columns"]) == sim.gauges.columns):
+            sim.record.gauges = list(rec["gauges"][()])
         sim.record.snapshots = [
             Snapshot(float(rec[f"snapshot_{k}"].attrs["time"]),
                      {n: rec[f"snapshot_{k}"][n][()] for n in rec[f"snapshot_{k}"]})

@@ -22,6 +22,21 @@ app = typer.Typer(add_completion=False, no_args_is_help=True,
                        "correction.")
 err = Console(stderr=True)
 
+
+def _version(value: bool) -> None:
+    if value:
+        from ._version import __version__
+
+        typer.echo(f"impactsph {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(version: Annotated[bool, typer.Option(
+        "--version", callback=_version, is_eager=True,
+        help="print the version and exit")] = False) -> None:
+    """SPH for solids under impact, with the Shaw-Reid acceleration correction."""
+
 #: What ``impactsph run`` prints of every run's summary; the case's problem adds its own
 #: (:meth:`impactsph.problems.ProblemKind.summary_keys`).
 SUMMARY_KEYS = (
@@ -134,6 +149,9 @@ def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Pat
     typer.echo(f"summary: {out / 'summary.json'}")
     for fig in summary.get("figures", []):
         typer.echo(f"figure: {fig}")
+    typer.echo(f"log: {out / 'run.log'}")
+    for note in summary.get("notes", []):
+        _say(f"note: {note}")
     after_run(c, summary, restarted=restart is not None)  # e.g. kinetic energy left
 
 
@@ -206,10 +224,16 @@ def sweep(
         help="threshold of the problem's sweep criterion (the bars: oscillation, excess "
              "total variation / V below this, default 0.5); unused by a problem without "
              "one")] = None,
+    metric: Annotated[list[str] | None, typer.Option(
+        help="a value of the runs' summary.json to tabulate and plot against the grid "
+             "(sweep_KEY.png); a dotted path for nested ones, e.g. final_length_ratio, "
+             "bodies.bar.max_displacement, gauges.tip.max_displacement; repeatable")] = None,
 ) -> None:
     """Run a case over a grid of parameters in parallel (Dask); write sweep.csv, sweep.json
-    and sweep.png.  For a problem with a sweep criterion (the bars: a profile free of
-    spurious oscillation), name the smallest value of the first parameter that meets it."""
+    and sweep.png (and sweep_KEY.png per --metric).  Each run writes into
+    OUT/runs/NAME, named by its grid values.  For a problem with a sweep criterion (the bars:
+    a profile free of spurious oscillation), name the smallest value of the first parameter
+    that meets it."""
     from .problems.registry import get_problem
     from .sweep import sweep as run_sweep
 
@@ -218,11 +242,13 @@ def sweep(
         c = load_case(case, set_ or [])
         result = run_sweep(case, grid, out or Path("runs") / f"{c.name}-sweep",
                            scheduler=scheduler, workers=workers, overrides=set_ or [],
-                           threshold=threshold)
+                           threshold=threshold, metrics=metric or [])
     except CaseError as exc:
         _fail(str(exc))
     problem = get_problem(c.analysis)
-    cols = [*result["columns"], "status", "kinetic_energy_ratio_final", *problem.table_keys(c)]
+    cols = [*result["columns"], "run", "status", "kinetic_energy_ratio_final",
+            *problem.table_keys(c), *[m for m in result["metrics"]
+                                      if m not in problem.table_keys(c)]]
     typer.echo("  ".join(cols))
     for row in result["rows"]:
         typer.echo("  ".join(_fmt(row.get(k)) for k in cols))
@@ -230,6 +256,10 @@ def sweep(
     if f is not None and criterion is not None:
         typer.echo(f"smallest {criterion.name.replace('_', '-')} {f['parameter']}: "
                    f"{f[f'smallest_{criterion.name}']} ({f['criterion']})")
+    for fig in result["figures"]:
+        typer.echo(f"figure: {fig}")
+    for note in result["notes"]:
+        _say(f"note: {note}")
 
 
 @app.command()
@@ -296,8 +326,40 @@ def plot(
         runs.append(_load_run_dir(run_dir / "reference"))
     out = out or run_dir
     out.mkdir(parents=True, exist_ok=True)
-    for fig in draw_figures(runs, out):
+    notes: list[str] = []
+    for fig in draw_figures(runs, out, notes=notes):
         typer.echo(f"figure: {fig}")
+    for note in notes:
+        _say(f"note: {note}")
+
+
+@app.command()
+def animate(
+    run_dir: Annotated[Path, typer.Argument(help="a run directory (written by impactsph run)")],
+    field: Annotated[str | None, typer.Option(
+        help="the field the particles are coloured by: a stored one (density, pressure, "
+             "specific_energy, plastic_work, ...), a vector's magnitude or component "
+             "(velocity, velocity_x, displacement, displacement_y, speed), von_mises_stress, "
+             "deviatoric_stress_xy, ...; default: the case's problem's (taylor: "
+             "plastic_work, bars: velocity_x, cantilever: displacement, else speed)")] = None,
+    out: Annotated[Path | None, typer.Option(
+        help="the file, .mp4 (needs ffmpeg) or .gif (default: RUN_DIR/animation_FIELD.mp4 "
+             "where ffmpeg is installed, else .gif)")] = None,
+    fps: Annotated[float, typer.Option(help="frames per second")] = 4.0,
+    section: Annotated[str, typer.Option(
+        help="3D: the axis normal to the mid-plane section drawn (x, y or z)")] = "y",
+) -> None:
+    """Animate a run's particles coloured by a field, one frame per snapshot
+    (output.snapshot_times), with a colour bar and the time: 1D as the field along x, 2D as
+    the particles in the plane, 3D as a mid-plane section."""
+    from .animate import animate_run
+
+    _load_run_dir(run_dir)
+    try:
+        path = animate_run(run_dir, field, out, fps=fps, section=section)
+    except CaseError as exc:
+        _fail(str(exc))
+    typer.echo(f"animation: {path}")
 
 
 @app.command()
@@ -329,8 +391,11 @@ def compare(
     if mismatch is not None:
         typer.echo(f"note: {mismatch}; only the kinetic energy is overlaid", err=True)
     out.mkdir(parents=True, exist_ok=True)
-    for fig in draw_figures(runs, out, names):
+    notes: list[str] = []
+    for fig in draw_figures(runs, out, names, notes=notes):
         typer.echo(f"figure: {fig}")
+    for note in notes:
+        _say(f"note: {note}")
 
 
 def _fmt(v) -> str:

@@ -410,6 +410,26 @@ class Probe(_Model):
     position: list[FiniteFloat]
 
 
+#: What a gauge can record (``output.gauges``' ``fields``); the columns of ``gauges.csv``
+#: each gives are :func:`impactsph.gauges.field_columns`'.
+GAUGE_FIELDS = ("position", "displacement", "velocity", "density", "pressure",
+                "specific_energy", "deviatoric_stress", "von_mises_stress", "plastic_work",
+                "strength_state")
+#: What a gauge records when its ``fields`` are not given: every field but the strength
+#: models' state.
+DEFAULT_GAUGE_FIELDS = GAUGE_FIELDS[:-1]
+
+
+class Gauge(Probe):
+    """A material point whose fields are recorded every step in ``gauges.csv``: the particle
+    of ``body`` nearest to ``position`` at t = 0, followed as it moves (a probe that records
+    more than the velocity)."""
+
+    fields: list[Literal[GAUGE_FIELDS]] = Field(  # type: ignore[valid-type]
+        default_factory=lambda: list(DEFAULT_GAUGE_FIELDS), min_length=1,
+        description="what to record: " + ", ".join(GAUGE_FIELDS))
+
+
 class Output(_Model):
     """What a run writes."""
 
@@ -419,6 +439,9 @@ class Output(_Model):
     history_every: int = Field(1, ge=1, description="write a history row every N steps")
     figures: bool = True
     probes: list[Probe] = Field(default_factory=list)
+    gauges: list[Gauge] = Field(
+        default_factory=list, description="material points whose fields are recorded every "
+        "step in gauges.csv")
     reference_viscosity: Viscosity | None = Field(
         None, description="a run whose viscosity differs from this one also runs the case "
         "with it and overlays it in its figures (the bars: AV (0.3, 0.3), the paper's optimum)")
@@ -546,11 +569,18 @@ class Case(_Model):
             if d not in allowed:
                 raise ValueError(f"materials.{name}.model = {mat.model!r} is for dimension = "
                                  f"{' or '.join(map(str, allowed))} only")
-        for k, probe in enumerate(self.output.probes):
-            if probe.body not in names:
-                raise ValueError(f"output.probes.{k}.body = {probe.body!r} is not a body name")
-            if len(probe.position) != d:
-                raise ValueError(f"output.probes.{k}.position needs {d} components")
+        for kind, points in (("probes", self.output.probes), ("gauges", self.output.gauges)):
+            seen: set[str] = set()
+            for k, probe in enumerate(points):
+                if probe.body not in names:
+                    raise ValueError(f"output.{kind}.{k}.body = {probe.body!r} is not a body "
+                                     f"name")
+                if len(probe.position) != d:
+                    raise ValueError(f"output.{kind}.{k}.position needs {d} components")
+                if kind == "gauges" and probe.name in seen:
+                    raise ValueError(f"output.gauges.{k}.name = {probe.name!r} is used by two "
+                                     f"gauges")
+                seen.add(probe.name)
         self._resolve_stabilisation()
         return self
 

@@ -9,14 +9,17 @@ naming the field, the value and what is allowed.
 from __future__ import annotations
 
 import copy
+import difflib
 import os
 import re
 import tomllib
+import types
+import typing
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from .config import GEOMETRY_TYPES, Case, ParticleFile, schema
 from .errors import CaseError
@@ -137,8 +140,70 @@ def _location(loc: tuple[Any, ...]) -> str:
     return ".".join(str(p) for p in parts)
 
 
+def _members(annotation: Any) -> list[Any]:
+    """The types an annotation may hold: through ``Annotated``, unions and ``Optional``."""
+    origin = typing.get_origin(annotation)
+    if origin is typing.Annotated:
+        return _members(typing.get_args(annotation)[0])
+    if origin is typing.Union or origin is types.UnionType:
+        return [m for a in typing.get_args(annotation) for m in _members(a)]
+    return [annotation]
+
+
+def allowed_keys(loc: tuple[Any, ...]) -> list[str]:
+    """The keys the case schema allows in the table at the error location ``loc`` (the
+    path of pydantic's error, union members' names included), e.g. ``("viscosity",)`` ->
+    the fields of ``[viscosity]``; ``[]`` where the path leads to no table."""
+    nodes: list[Any] = [schema().Case]
+    for part in loc:
+        following: list[Any] = []
+        for node in (m for n in nodes for m in _members(n)):
+            origin = typing.get_origin(node)
+            if isinstance(node, type) and issubclass(node, BaseModel):
+                fields = node.model_fields
+                if isinstance(part, str) and part in fields:
+                    info = fields[part]
+                    following.append(info.annotation)
+                elif getattr(fields.get("type"), "default", None) == part:
+                    following.append(node)  # a union member's tag (the geometry's type)
+            elif origin is list and isinstance(part, int):
+                following.append(typing.get_args(node)[0])
+            elif origin is dict and isinstance(part, str):
+                following.append(typing.get_args(node)[1])
+        nodes = following
+    keys: dict[str, None] = {}
+    for node in (m for n in nodes for m in _members(n)):
+        if isinstance(node, type) and issubclass(node, BaseModel):
+            keys.update(dict.fromkeys(node.model_fields))
+    return list(keys)
+
+
+def did_you_mean(key: str, allowed: list[str]) -> str:
+    """``"; did you mean 'alpha1'?"`` (or two or three names) for a misspelt ``key`` among
+    the ``allowed`` ones (:func:`difflib.get_close_matches`); ``""`` when none is close."""
+    close = difflib.get_close_matches(str(key), allowed, n=3, cutoff=0.6)
+    if not close:
+        return ""
+    *rest, last = map(repr, close)
+    return f"; did you mean {', '.join(rest) + ' or ' if rest else ''}{last}?"
+
+
+def _misspelt_first(errors: list[Any]) -> list[Any]:
+    """The errors with an unknown key put first when it is a misspelling of a required
+    field missing from the same table (``positon`` for ``position``): the cause first."""
+    for k, err in enumerate(errors):
+        if err["type"] != "extra_forbidden" or not err["loc"]:
+            continue
+        parent, key = err["loc"][:-1], err["loc"][-1]
+        missing = [e["loc"][-1] for e in errors if e["type"] == "missing"
+                   and e["loc"][:-1] == parent and isinstance(e["loc"][-1], str)]
+        if difflib.get_close_matches(str(key), missing, n=1, cutoff=0.6):
+            return [err, *errors[:k], *errors[k + 1:]]
+    return errors
+
+
 def _format_error(exc: ValidationError) -> str:
-    errors = exc.errors()
+    errors = _misspelt_first(exc.errors())
     err = errors[0]
     loc = _location(err["loc"])
     msg = err["msg"]
@@ -149,7 +214,8 @@ def _format_error(exc: ValidationError) -> str:
         loc, value = f"{loc}.type", value.get("type")
     more = f" (and {len(errors) - 1} more errors)" if len(errors) > 1 else ""
     if err["type"] == "extra_forbidden":
-        return f"{loc}: unknown key{more}"
+        hint = did_you_mean(err["loc"][-1], allowed_keys(err["loc"][:-1])) if err["loc"] else ""
+        return f"{loc}: unknown key{hint}{more}"
     if err["type"] == "missing":
         return f"{loc}: required field is missing{more}"
     if loc and not isinstance(value, dict):

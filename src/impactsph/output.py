@@ -6,6 +6,8 @@ A run directory holds:
 - ``case.json``: the fully resolved case (every default filled in) and the impactsph version;
 - ``history.csv``: one row per recorded step (time, energies, momentum, contact forces);
 - ``probes.csv``: the velocity of each probe particle at every step;
+- ``gauges.csv``: the fields of each gauge's material point at every step (with gauges);
+- ``run.log``: the run's log lines (:mod:`impactsph.runlog`);
 - ``snapshots.npz``: the particle fields at each snapshot time;
 - ``summary.json``: run-wide numbers and the problem's metrics, and the run's ``status``;
 - ``checkpoint.h5``: where the run can continue from (:mod:`.checkpoint`), when it has one;
@@ -103,14 +105,26 @@ def _probe_samples(sim: Any) -> int:
     return len(next(iter(probes.values()))) if probes else 0
 
 
+def _gauge_rows(sim: Any, start: int = 0) -> list[dict[str, Any]]:
+    """The rows of ``gauges.csv`` from the ``start``-th on."""
+    from .gauges import gauge_rows
+
+    gauges = getattr(sim, "gauges", None)
+    return [] if gauges is None else gauge_rows(gauges.columns, sim.record.gauges, start)
+
+
 def write_history(out: Path, sim: Any) -> None:
-    """``history.csv`` and ``probes.csv`` as far as the run has got, each written whole."""
+    """``history.csv``, ``probes.csv`` and (with gauges) ``gauges.csv`` as far as the run
+    has got, each written whole."""
     write_text(out / "history.csv", _csv_text(sim.record.history))
     write_text(out / "probes.csv", _csv_text(_probe_rows(sim)))
+    if getattr(sim, "gauges", None) is not None:
+        write_text(out / "gauges.csv", _csv_text(_gauge_rows(sim)))
 
 
 class HistoryStream:
-    """``history.csv`` and ``probes.csv`` written while a run goes: created with the rows
+    """``history.csv``, ``probes.csv`` and ``gauges.csv`` (with gauges) written while a run
+    goes: created with the rows
     recorded so far (a restarted run's, from its checkpoint), then appended and flushed to the
     operating system by :meth:`update` whenever the run has recorded more, so a run that is
     killed leaves every row up to its last step; :meth:`close` flushes them to disk (fsync).
@@ -119,17 +133,21 @@ class HistoryStream:
     Rows are not fsynced one by one: those the operating system had not yet stored are lost
     in a power cut (the checkpoints, fsynced, are not)."""
 
-    _NAMES = ("history.csv", "probes.csv")
-
     def __init__(self, out: Path, sim: Any) -> None:
         self.out = Path(out)
         write_history(self.out, sim)
+        self._names = ("history.csv", "probes.csv") + (
+            ("gauges.csv",) if getattr(sim, "gauges", None) is not None else ())
         self._done = {"history.csv": len(sim.record.history),
-                      "probes.csv": _probe_samples(sim)}
+                      "probes.csv": _probe_samples(sim), "gauges.csv": len(sim.record.gauges)}
+        # the columns of a file that already has rows (a restarted run's): rows of a later
+        # version with more columns keep to that header
+        self._fields = {"history.csv": list(sim.record.history[0])
+                        if sim.record.history else None}
         self._files: dict[str, Any] = {}
-        self._buffers = {name: io.StringIO() for name in self._NAMES}
+        self._buffers = {name: io.StringIO() for name in self._names}
         self._writers: dict[str, csv.DictWriter] = {}
-        for name in self._NAMES:
+        for name in self._names:
             try:
                 self._files[name] = open(self.out / name, "ab")  # noqa: SIM115 (see close)
             except OSError as exc:
@@ -140,8 +158,10 @@ class HistoryStream:
         buf = self._buffers[name]
         writer = self._writers.get(name)
         if writer is None:
-            writer = self._writers[name] = csv.DictWriter(buf, fieldnames=list(rows[0]),
-                                                          lineterminator="\n")
+            fields = self._fields.get(name) if self._done[name] else None
+            writer = self._writers[name] = csv.DictWriter(
+                buf, fieldnames=fields or list(rows[0]), lineterminator="\n",
+                extrasaction="ignore", restval="nan")
             if self._done[name] == 0:
                 writer.writeheader()
         for r in rows:
@@ -167,6 +187,11 @@ class HistoryStream:
         if samples > done:
             self._append("probes.csv", _probe_rows(sim, done))
             self._done["probes.csv"] = samples
+        if "gauges.csv" in self._names:
+            done = self._done["gauges.csv"]
+            if len(sim.record.gauges) > done:
+                self._append("gauges.csv", _gauge_rows(sim, done))
+                self._done["gauges.csv"] = len(sim.record.gauges)
 
     def close(self, sync: bool = True) -> None:
         """Close the files (with ``sync``, after storing them on disk); the text appended
@@ -220,6 +245,7 @@ def load_run(path: Path) -> dict[str, Any]:
         run["case"] = json.load(fh)["case"]
     run["history"] = read_csv(path / "history.csv")
     run["probes"] = read_csv(path / "probes.csv") if (path / "probes.csv").exists() else {}
+    run["gauges"] = read_csv(path / "gauges.csv") if (path / "gauges.csv").exists() else {}
     if (path / "summary.json").exists():
         with open(path / "summary.json") as fh:
             run["summary"] = json.load(fh)

@@ -47,6 +47,47 @@ def kinetic_energy_figure(runs: list[dict[str, Any]], path: Path, title: str = "
     return save_figure(fig, path)
 
 
+def energies_figure(runs: list[dict[str, Any]], path: Path, dimension: int | None = 3,
+                    title: str = "") -> Path:
+    """The energy budget against time, one panel per run (at most :data:`ENERGY_PANELS`):
+    kinetic, internal and total energy, and the parts of the internal energy that are plastic
+    work and viscous heating, from ``history.csv``; with several bodies, each body's kinetic
+    energy (thin lines).  ``runs``: dicts with ``label``, ``history`` (columns as arrays)
+    and ``bodies`` (names)."""
+    shown = runs[:ENERGY_PANELS]
+    n = len(shown)
+    fig, axes = plt.subplots(1, n, figsize=(6 * n, 4.2), squeeze=False, sharey=True)
+    for ax, r in zip(axes[0], shown, strict=True):
+        h = r["history"]
+        t = np.asarray(h["time"]) * 1e6
+        ax.plot(t, h["kinetic_energy"], color="C0", label="kinetic")
+        ax.plot(t, h["internal_energy"], color="C1", label="internal")
+        ax.plot(t, h["total_energy"], color="k", label="total (kinetic + internal)")
+        if "plastic_work" in h:
+            ax.plot(t, h["plastic_work"], color="C3", ls="--", label="plastic work (in internal)")
+        if np.any(np.asarray(h.get("viscous_dissipation", [0.0])) != 0.0):
+            ax.plot(t, h["viscous_dissipation"], color="C2", ls=":",
+                    label="viscous heating (in internal)")
+        for k, body in enumerate(r.get("bodies", [])):
+            column = f"kinetic_energy_{body}"
+            if column in h:
+                ax.plot(t, h[column], color=f"C{4 + k % 6}", lw=0.8,
+                        label=f"kinetic, {body}")
+        ax.set_xlabel("time (us)")
+        ax.set_title(r["label"], fontsize=9)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    unit = ENERGY_UNITS.get(dimension, "J, J/m or J/m^2 by dimension")
+    axes[0][0].set_ylabel(f"energy ({unit})")
+    more = f" (the first {n} of {len(runs)} runs)" if len(runs) > n else ""
+    fig.suptitle((title or "Energies") + more)
+    return save_figure(fig, path)
+
+
+#: the most runs :func:`energies_figure` draws, one panel each
+ENERGY_PANELS = 4
+
+
 def label_of(case: Any) -> str:
     """Short label of a run's viscosity settings, e.g. ``AV (0.3, 0.3)``, ``AC (shepard)``."""
     v = case.viscosity

@@ -401,16 +401,20 @@ def record_pair_rate(summary: dict[str, Any], name: str) -> None:
 
 def history_values(case: Case, steps: int) -> int:
     """Numbers a run of ``steps`` steps keeps in its history (a row every
-    ``output.history_every`` steps: time, step, dt, 6 energies, the momentum, the external
-    impulse with walls or clamps, the contact forces with walls or several bodies) and its
-    probes (every step: the time and each probe's velocity)."""
+    ``output.history_every`` steps: time, step, dt, 6 energies, the plastic work, the
+    momentum, the external impulse with walls or clamps, the contact forces with walls or
+    several bodies, and with several bodies 3 energies per body), its probes (every step: the
+    time and each probe's velocity) and its gauges (every step: the time and each gauge's
+    columns, at most 3 d + 13 each: held as numpy rows, about 8 bytes a number, but counted
+    at the history's rate, which errs high)."""
     d, bodies = case.dimension, len(case.bodies)
     supported = bool(case.boundaries) or any(b.clamped is not None for b in case.bodies)
     contact = bodies * d if bodies > 1 else (d if case.boundaries else 0)
-    columns = 9 + d + (d if supported else 0) + contact
+    columns = 10 + d + (d if supported else 0) + contact + (3 * bodies if bodies > 1 else 0)
     rows = steps // case.output.history_every + 1
     probes = (1 + d * len(case.output.probes)) if case.output.probes else 0
-    return rows * columns + (steps + 1) * probes
+    gauges = (1 + (3 * d + 13) * len(case.output.gauges)) if case.output.gauges else 0
+    return rows * columns + (steps + 1) * probes + (steps + 1) * gauges
 
 
 def initial_time_step(case: Case) -> float:

@@ -22,6 +22,15 @@ class Problem:
     body_names: list[str]
     probes: dict[str, int]
     info: dict[str, float] = field(default_factory=dict)  #: set-up facts worth reporting
+    #: ``output.gauges``: name -> the particle followed (chosen as the probes are)
+    gauges: dict[str, int] = field(default_factory=dict)
+
+
+def nearest_particle(state: ParticleState, body: int, position: list[float]) -> int:
+    """The particle of body ``body`` nearest to ``position`` (a probe's or a gauge's)."""
+    members = np.flatnonzero(state.body == body)
+    d = np.linalg.norm(state.position[members] - np.asarray(position), axis=1)
+    return int(members[np.argmin(d)])
 
 
 def build_problem(case: Case) -> Problem:
@@ -77,10 +86,9 @@ def build_problem(case: Case) -> Problem:
         clamped=cat["clamped"], strength_state=np.zeros((n, layout.state_width)),
     )
     body_names = [b.name for b in case.bodies]
-    probes = {}
-    for probe in case.output.probes:
-        members = np.flatnonzero(state.body == body_names.index(probe.body))
-        d = np.linalg.norm(state.position[members] - np.asarray(probe.position), axis=1)
-        probes[probe.name] = int(members[np.argmin(d)])
+    probes = {p.name: nearest_particle(state, body_names.index(p.body), p.position)
+              for p in case.output.probes}
+    gauges = {g.name: nearest_particle(state, body_names.index(g.body), g.position)
+              for g in case.output.gauges}
     return Problem(state, materials, material_table(materials, case.time.wave_speed, layout),
-                   body_names, probes, info)
+                   body_names, probes, info, gauges)

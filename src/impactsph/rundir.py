@@ -33,8 +33,10 @@ from .errors import OutputError
 #: the lock file's name, in the run directory
 LOCK = ".lock"
 #: what a run writes into its directory: files, and folders (a reference run, ParaView files)
-OUTPUT_FILES = ("case.json", "history.csv", "probes.csv", "snapshots.npz", "summary.json",
-                "checkpoint.h5")
+OUTPUT_FILES = ("case.json", "history.csv", "probes.csv", "gauges.csv", "snapshots.npz",
+                "summary.json", "checkpoint.h5", "run.log")
+#: the suffixes of figures and animations (``impactsph animate``) in a run directory
+OUTPUT_SUFFIXES = (".png", ".gif", ".mp4")
 OUTPUT_DIRS = ("vtk", "reference")
 
 IfExists = Literal["keep", "refuse", "overwrite"]
@@ -49,7 +51,7 @@ def _is_output(entry: Path) -> bool:
     name = entry.name
     if entry.is_dir() and not entry.is_symlink():
         return name in OUTPUT_DIRS
-    return (name in OUTPUT_FILES or name == LOCK or name.endswith(".png")
+    return (name in OUTPUT_FILES or name == LOCK or name.endswith(OUTPUT_SUFFIXES)
             or (name.startswith(".") and ".tmp" in name))  # an atomic write's leftover
 
 

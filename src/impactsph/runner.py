@@ -21,6 +21,7 @@ from .config import Case
 from .errors import RunInterrupted
 from .figures import draw_figures
 from .interrupt import StopRequest
+from .measures import run_measures
 from .output import (
     HistoryStream,
     load_run,
@@ -31,6 +32,7 @@ from .output import (
 from .plotting import label_of
 from .problems.registry import analyse
 from .rundir import IfExists, RunLock, check_run_dir, clear_outputs, make_run_dir, remove_if_empty
+from .runlog import run_log
 from .simulation import Simulation, SimulationError
 
 log = logging.getLogger("impactsph")
@@ -151,8 +153,12 @@ def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], No
             stop.arm()  # set up: a signal now asks for a stop after a step
         if if_exists == "overwrite":
             clear_outputs(out)
-        return _run(sim, case, out, callback=callback, figures=figures, stop=stop,
-                    checkpoint_wall_seconds=checkpoint_wall_seconds)
+        with run_log(out):
+            if restart is not None:
+                log.info("restarted from %s at t = %g s (step %d)", restart, sim.state.time,
+                         sim.state.step)
+            return _run(sim, case, out, callback=callback, figures=figures, stop=stop,
+                        checkpoint_wall_seconds=checkpoint_wall_seconds)
     finally:
         lock.release()
         if created:
@@ -207,7 +213,9 @@ def _run(sim: Simulation, case: Case, out: Path, *,
     stream.close()
     periodic.finish(sim)
     write_snapshots(out, sim)
-    summary = {"status": "finished", **sim.summary(), **analyse(case.analysis, sim)}
+    log.info("finished: t = %g s, %d steps, %.3g s of wall time", sim.state.time,
+             sim.state.step, sim.record.wall_seconds)
+    summary = finished_summary(sim)
     write_summary(out, summary)  # before the figures, which read it back (load_run)
     if case.output.checkpoint_interval is None:  # complete: no automatic checkpoint kept
         (out / "checkpoint.h5").unlink(missing_ok=True)
@@ -228,13 +236,31 @@ def _run(sim: Simulation, case: Case, out: Path, *,
                 "viscosity": ref,
                 "output": case.output.model_copy(update={"figures": False,
                                                          "reference_viscosity": None})})
-            log.info("reference run with %s", label_of(ref_case))
+            log.info("reference run with %s, into %s", label_of(ref_case), out / "reference")
             try:
                 run_case(ref_case, out / "reference", figures=False, stop=stop,
                          checkpoint_wall_seconds=checkpoint_wall_seconds)
+                runs.append(load_run(out / "reference"))
             except RunInterrupted:
                 raise stopped() from None
-            runs.append(load_run(out / "reference"))
-        summary["figures"] = [str(p) for p in draw_figures(runs, out)]
+            except SimulationError as exc:  # the run itself is complete: drawn without it
+                note = (f"reference run ({label_of(ref_case)}): unstable ({exc}); the "
+                        f"figures are drawn without it")
+                log.warning("%s", note)
+                summary["notes"].append(note)
+        summary["figures"] = [str(p) for p in draw_figures(runs, out, notes=summary["notes"])]
         write_summary(out, summary)  # again, with the list of figures
+    for note in summary["notes"]:
+        log.info("note (%s): %s", out, note)
     return summary
+
+
+def finished_summary(sim: Simulation) -> dict[str, Any]:
+    """The summary of a finished run: the run-wide numbers, the measures of every body and
+    gauge (:func:`~impactsph.measures.run_measures`), the problem's metrics
+    (:func:`~impactsph.problems.analyse`), and ``notes``: what could not be measured, and
+    why (a measure or an analysis that fails is a note, never an exception)."""
+    generic = run_measures(sim)
+    metrics = analyse(sim.case.analysis, sim)
+    notes = [*generic.pop("notes"), *metrics.pop("notes", [])]
+    return {"status": "finished", **sim.summary(), **generic, **metrics, "notes": notes}

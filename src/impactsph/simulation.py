@@ -6,12 +6,14 @@ import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+import numba as nb
 import numpy as np
 
 from .boundaries import walls_of
 from .config import Case
 from .devices import select_backend
 from .errors import SimulationError
+from .gauges import Gauges
 from .integrate import MidpointIntegrator
 from .physics.options import PassOptions
 from .physics.rates import ViscositySettings
@@ -35,9 +37,34 @@ class RunRecord:
     history: list[dict[str, float]] = field(default_factory=list)
     snapshots: list[Snapshot] = field(default_factory=list)
     probes: dict[str, list[tuple[float, np.ndarray]]] = field(default_factory=dict)
+    #: rows of ``gauges.csv`` (the time, then the gauges' columns: :class:`~.gauges.Gauges`)
+    gauges: list[np.ndarray] = field(default_factory=list)
     wall_seconds: float = 0.0
     setup_seconds: float = 0.0
     failure: str | None = None
+
+
+@nb.njit(cache=True)
+def body_totals(body, mass, velocity, specific_energy, plastic_work, position,
+                initial_position, n_bodies):  # pragma: no cover (compiled)
+    """Per body, in one compiled pass over the particles: kinetic energy, internal energy,
+    plastic work (J) and the largest squared displacement ``|x - x0|^2`` (m^2), as the
+    columns of an ``(n_bodies, 4)`` array."""
+    out = np.zeros((n_bodies, 4))
+    for i in range(body.shape[0]):
+        b = body[i]
+        v2 = 0.0
+        u2 = 0.0
+        for a in range(velocity.shape[1]):
+            v2 += velocity[i, a] * velocity[i, a]
+            d = position[i, a] - initial_position[i, a]
+            u2 += d * d
+        out[b, 0] += 0.5 * mass[i] * v2
+        out[b, 1] += mass[i] * specific_energy[i]
+        out[b, 2] += mass[i] * plastic_work[i]
+        if u2 > out[b, 3]:
+            out[b, 3] = u2
+    return out
 
 
 @dataclass
@@ -81,6 +108,9 @@ class Simulation:
             self.solver.rates, self.problem.table, self.state.n, self.state.dim,
             constraint=self.walls.enforce if len(self.walls) else None)
         self.record = RunRecord(probes={name: [] for name in self.problem.probes})
+        self.gauges = Gauges.of(case, self.problem)
+        #: per body, the largest displacement |x - x0| of a particle at the history's rows (m)
+        self.max_displacement = np.zeros(len(self.problem.body_names))
         self.viscous_dissipation = 0.0  # J, time integral of the AV heating
         self.correction_work = 0.0  # J, work of the AC correction force on the particles
         self.correction_heating = 0.0  # J, internal energy the AC energy term added
@@ -136,6 +166,15 @@ class Simulation:
                 per_body = np.bincount(s.body, weights=force[:, a], minlength=n_bodies)
                 for b, body in enumerate(self.problem.body_names):
                     row[f"contact_force_{body}_{name}"] = float(per_body[b])
+        totals = body_totals(s.body, s.mass, s.velocity, s.specific_energy, s.plastic_work,
+                             s.position, s.initial_position, n_bodies)
+        row["plastic_work"] = float(totals[:, 2].sum())
+        if n_bodies > 1:  # the energies of each body
+            for b, body in enumerate(self.problem.body_names):
+                row[f"kinetic_energy_{body}"] = float(totals[b, 0])
+                row[f"internal_energy_{body}"] = float(totals[b, 1])
+                row[f"plastic_work_{body}"] = float(totals[b, 2])
+        np.maximum(self.max_displacement, np.sqrt(totals[:, 3]), out=self.max_displacement)
         self.record.history.append(row)
 
     def external_impulse(self) -> np.ndarray:
@@ -157,6 +196,8 @@ class Simulation:
                 self.record.snapshots.append(Snapshot(ts, self._snapshot_fields()))
         for name, idx in self.problem.probes.items():
             self.record.probes[name].append((t, self.state.velocity[idx].copy()))
+        if self.gauges is not None:
+            self.record.gauges.append(self.gauges.sample(self))
 
     def _next_stop(self, t_end: float) -> float:
         t = self.state.time

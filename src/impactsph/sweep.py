@@ -16,6 +16,16 @@ core) by default, or an existing one given its scheduler address.  A run that fa
 retried; a run whose directory already holds a finished summary of the same case is not run
 again, so an interrupted sweep restarts where it stopped.  The table ``sweep.csv`` is
 rewritten (atomically) as runs finish.
+
+Each run writes into ``OUT/runs/NAME``, its name built from its grid values
+(:func:`run_names`: ``alpha1=0.3_alpha2=0.3``), with a short hash of its overrides added only
+where two names would be the same or a name would be too long.  A run directory of an
+earlier version (named by the hash alone, :func:`run_id`) that holds a summary is used
+instead, so older sweeps still resume.
+
+``metrics`` (``impactsph sweep --metric KEY``) adds any value of the runs' ``summary.json``
+to the table, a dotted path for nested ones (``bodies.bar.max_displacement``,
+``gauges.tip.max_displacement``), and draws each against the grid in ``sweep_KEY.png``.
 """
 
 from __future__ import annotations
@@ -24,7 +34,9 @@ import hashlib
 import itertools
 import json
 import logging
+import math
 import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -74,12 +86,91 @@ def parse_grid(specs: list[str]) -> tuple[list[str], list[list[tuple[str, Any]]]
 
 
 def run_id(overrides: list[str]) -> str:
-    """A short stable name for a parameter set."""
+    """A short stable name for a parameter set (the run directories' names before
+    :func:`run_names`; still the Dask task's key)."""
     return hashlib.sha1("\n".join(overrides).encode()).hexdigest()[:12]
 
 
-def run_one(case_data: dict[str, Any], overrides: list[str], out: str) -> dict[str, Any]:
-    """Run one case of a sweep (executed on a Dask worker) and return its table row."""
+#: the longest run directory name built from the grid values (longer: cut, a hash added)
+NAME_LENGTH = 80
+
+
+def _sanitise(text: str) -> str:
+    """``text`` with every character but letters, digits and ``. , + - = _`` replaced by
+    ``-`` (runs of them by one), so that it is a portable file name."""
+    return re.sub(r"[^A-Za-z0-9.,+=_-]+", "-", text).strip("-") or "run"
+
+
+def _value_text(value: Any) -> str:
+    """A grid value as short text: a number as the shortest form that reads back the same
+    (``6e+08``, ``0.3``), a list's items joined by commas, other values as JSON."""
+    if isinstance(value, bool):
+        return json.dumps(value)
+    if isinstance(value, int | float):
+        short = f"{value:g}"
+        return short if float(short) == value else repr(value)
+    if isinstance(value, list):
+        return ",".join(_value_text(v) for v in value)
+    return value if isinstance(value, str) else json.dumps(value, separators=(",", ":"))
+
+
+def run_names(runs: list[list[tuple[str, Any]]], overrides: list[list[str]]) -> list[str]:
+    """Readable, unique directory names of a sweep's runs, from their grid values
+    (``[(key, value), ...]`` each): ``alpha1=0.3_alpha2=0.3``, a key by its last dotted part
+    unless two keys of the grid share it (then the whole key), a value as
+    :func:`_value_text` writes it, other characters than letters, digits and ``. , + - = _``
+    replaced by ``-``.  A name that two runs would share, or of :data:`NAME_LENGTH`
+    characters or more, is cut there and gets ``-`` and 6 hex digits of the hash of that
+    run's ``overrides`` (:func:`run_id`)."""
+    keys = list(dict.fromkeys(k for kv in runs for k, _ in kv))
+    tails = [k.rsplit(".", 1)[-1] for k in keys]
+    short = {k: (t if tails.count(t) == 1 else k) for k, t in zip(keys, tails, strict=True)}
+    names = ["_".join(_sanitise(f"{short[k]}={_value_text(v)}") for k, v in kv) or "run"
+             for kv in runs]
+    counts = {n: names.count(n) for n in names}
+    return [f"{n[:NAME_LENGTH]}-{run_id(ov)[:6]}" if counts[n] > 1 or len(n) >= NAME_LENGTH
+            else n for n, ov in zip(names, overrides, strict=True)]
+
+
+def summary_value(summary: dict[str, Any], key: str) -> Any:
+    """The value at the dotted path ``key`` of a summary (``bodies.bar.max_displacement``;
+    a list's element by its index), or None; a key that holds dots itself is found too."""
+    node: Any = summary
+    rest = key
+    while rest:
+        if isinstance(node, dict) and rest in node:
+            return node[rest]
+        head, _, rest = rest.partition(".")
+        if isinstance(node, dict) and head in node:
+            node = node[head]
+        elif isinstance(node, list) and head.isdecimal() and int(head) < len(node):
+            node = node[int(head)]
+        else:
+            return None
+    return node
+
+
+def summary_keys(summary: dict[str, Any], prefix: str = "") -> list[str]:
+    """Every dotted path of a summary that leads to a number (what ``--metric`` takes)."""
+    keys = []
+    for k, v in summary.items():
+        if k == "provenance":
+            continue
+        path = f"{prefix}{k}"
+        if isinstance(v, dict):
+            keys += summary_keys(v, f"{path}.")
+        elif isinstance(v, list) and all(isinstance(e, int | float) for e in v):
+            keys += [f"{path}.{i}" for i in range(len(v))]
+        elif isinstance(v, int | float) and not isinstance(v, bool):
+            keys.append(path)
+    return keys
+
+
+def run_one(case_data: dict[str, Any], overrides: list[str], out: str,
+            metrics: tuple[str, ...] | list[str] = ()) -> dict[str, Any]:
+    """Run one case of a sweep (executed on a Dask worker) and return its table row: the
+    problem's columns (:func:`table_keys`) and the summary values ``metrics`` (dotted
+    paths, :func:`summary_value`)."""
     import numba
 
     from .runner import run_case
@@ -96,7 +187,8 @@ def run_one(case_data: dict[str, Any], overrides: list[str], out: str) -> dict[s
         if (done.get("case") == case.model_dump(mode="json")
                 and done.get("status", "finished") in ("finished", "unstable")):
             return {"status": "ok" if not done.get("failure") else "unstable",
-                    **{k: done.get(k) for k in keys}, "reused": True}
+                    **{k: done.get(k) for k in keys},
+                    **{k: summary_value(done, k) for k in metrics}, "reused": True}
     try:
         summary = run_case(case, out, figures=False)
         status = "ok"
@@ -105,15 +197,29 @@ def run_one(case_data: dict[str, Any], overrides: list[str], out: str) -> dict[s
         status = f"unstable: {exc}"
     summary["case"] = case.model_dump(mode="json")
     write_summary(out, summary)
-    return {"status": status, **{k: summary.get(k) for k in keys}, "reused": False}
+    return {"status": status, **{k: summary.get(k) for k in keys},
+            **{k: summary_value(summary, k) for k in metrics}, "reused": False}
+
+
+def run_dir_name(out: Path, name: str, overrides: list[str]) -> str:
+    """The directory of a run under ``out/runs``: ``name``, unless only the directory an
+    earlier version named by :func:`run_id` holds this run's summary (an older sweep goes on
+    where it stopped)."""
+    legacy = run_id(overrides)
+    if (not (out / "runs" / name).exists()
+            and (out / "runs" / legacy / "summary.json").is_file()):
+        return legacy
+    return name
 
 
 def run_many(base: dict[str, Any], run_overrides: list[list[str]], out: Path, *,
              scheduler: str | None = None, workers: int | None = None,
-             on_result: Any = None) -> list[dict[str, Any]]:
+             on_result: Any = None, names: list[str] | None = None,
+             metrics: tuple[str, ...] | list[str] = ()) -> list[dict[str, Any]]:
     """Run the case ``base`` once per override list on a Dask cluster; each run writes into
-    ``out/runs/<id>``.  Returns one row per run, in the order given; ``on_result(i, row)`` is
-    called as runs finish."""
+    ``out/runs/NAME`` (``names``, else :func:`run_id`; see :func:`run_dir_name`).  Returns
+    one row per run, in the order given (``run``: the directory's name; ``metrics``: summary
+    values added, :func:`run_one`); ``on_result(i, row)`` is called as runs finish."""
     from distributed import Client, LocalCluster, as_completed
 
     for name in ("distributed", "distributed.nanny", "distributed.scheduler",
@@ -143,9 +249,10 @@ def run_many(base: dict[str, Any], run_overrides: list[list[str]], out: Path, *,
         futures = {}
         for i, ov in enumerate(run_overrides):
             rid = run_id(ov)
-            fut = client.submit(run_one, base, ov, str((out / "runs" / rid).resolve()),
-                                key=f"impactsph-{rid}", retries=3, pure=False)
-            futures[fut] = (i, rid)
+            name = run_dir_name(out, names[i], ov) if names else rid
+            fut = client.submit(run_one, base, ov, str((out / "runs" / name).resolve()),
+                                tuple(metrics), key=f"impactsph-{rid}", retries=3, pure=False)
+            futures[fut] = (i, name)
         for fut in as_completed(list(futures)):
             i, rid = futures[fut]
             try:
@@ -165,11 +272,15 @@ def run_many(base: dict[str, Any], run_overrides: list[list[str]], out: Path, *,
 
 def sweep(case_source: str, grids: list[str], out: Path | str, *, scheduler: str | None = None,
           workers: int | None = None, overrides: list[str] | None = None,
-          threshold: float | None = None) -> dict[str, Any]:
+          threshold: float | None = None, metrics: list[str] | None = None
+          ) -> dict[str, Any]:
     """Run ``case_source`` over the grids; write ``sweep.csv``, ``sweep.json`` and
-    ``sweep.png`` into ``out``.  Returns the result: the grid's ``columns``, the table's
-    ``rows`` and the ``finding`` of the problem's sweep criterion (at ``threshold``, the
-    criterion's own when None; the finding is None for a problem without a criterion)."""
+    ``sweep.png`` into ``out``, and per metric ``sweep_KEY.png``.  Returns the result: the
+    grid's ``columns``, the table's ``rows`` (with the ``metrics``: values of the runs'
+    summaries by dotted path), the ``finding`` of the problem's sweep criterion (at
+    ``threshold``, the criterion's own when None; None for a problem without a criterion),
+    the ``figures`` written and ``notes`` (a metric that no run has, with the keys close
+    to it)."""
     out = Path(out)
     base = apply_overrides(read_case_dict(case_source), overrides or [])
     criterion = get_problem(validate_case(base).analysis).sweep_criterion
@@ -183,7 +294,9 @@ def sweep(case_source: str, grids: list[str], out: Path | str, *, scheduler: str
         done[i] = {**dict(runs[i]), **row}
         atomic_write_text(out / "sweep.csv", _csv_text([done[k] for k in sorted(done)]))
 
-    run_many(base, run_overrides, out, scheduler=scheduler, workers=workers, on_result=record)
+    metrics = list(dict.fromkeys(metrics or []))
+    run_many(base, run_overrides, out, scheduler=scheduler, workers=workers, on_result=record,
+             names=run_names(runs, run_overrides), metrics=metrics)
     table = [done[i] for i in sorted(done)]
     first = columns[0]
     finding = None
@@ -194,36 +307,71 @@ def sweep(case_source: str, grids: list[str], out: Path | str, *, scheduler: str
             "parameter": first,
             f"smallest_{criterion.name}": min((r[first] for r in passed), default=None),
         }
-    result = {"columns": columns, "rows": table, "finding": finding}
+    figures = [sweep_figure(table, columns, out / "sweep.png", criterion, threshold)]
+    notes = []
+    for key in metrics:
+        if not any(_is_number(r.get(key)) for r in table):
+            notes.append(f"--metric {key}: no run's summary has a number there"
+                         + _metric_hint(out, table, key))
+            log.warning("%s", notes[-1])
+            continue
+        figures.append(sweep_figure(table, columns, out / f"sweep_{_sanitise(key)}.png",
+                                    panels=[(key, key)]))
+    result = {"columns": columns, "rows": table, "finding": finding, "metrics": metrics,
+              "figures": [str(f) for f in figures], "notes": notes}
     atomic_write_text(out / "sweep.json", json.dumps(result, indent=2, default=float))
-    sweep_figure(table, columns, out / "sweep.png", criterion, threshold)
     return result
 
 
+def _is_number(value: Any) -> bool:
+    return (isinstance(value, int | float) and not isinstance(value, bool)
+            and math.isfinite(value))
+
+
+def _metric_hint(out: Path, table: list[dict[str, Any]], key: str) -> str:
+    """``; did you mean ...?`` among the numeric keys of the first run's summary."""
+    from .loading import did_you_mean
+
+    for row in table:
+        path = out / "runs" / str(row.get("run")) / "summary.json"
+        if path.is_file():
+            try:
+                return did_you_mean(key, summary_keys(json.loads(path.read_text())))
+            except (OSError, ValueError):
+                return ""
+    return ""
+
+
 def sweep_figure(table: list[dict[str, Any]], columns: list[str], path: Path,
-                 criterion: SweepCriterion | None = None, threshold: float | None = None
-                 ) -> Path:
+                 criterion: SweepCriterion | None = None, threshold: float | None = None,
+                 panels: list[tuple[str, str]] | None = None) -> Path:
     """Kinetic energy kept against the first grid parameter, one line per value of the
     others, and beside it the column of the problem's sweep ``criterion`` (if any) with its
-    ``threshold`` (the criterion's own when None)."""
+    ``threshold`` (the criterion's own when None); or, given ``panels`` (column, y label),
+    those columns instead."""
     from .plotting import plt, save_figure
 
     first = columns[0]
     others = [c for c in columns[1:] if not all(r.get(c) == r.get(first) for r in table)]
-    panels = [("kinetic_energy_ratio_final", "kinetic energy kept at the end")]
-    if criterion is not None:
-        panels.append((criterion.key, criterion.label))
+    if panels is None:
+        panels = [("kinetic_energy_ratio_final", "kinetic energy kept at the end")]
+        if criterion is not None:
+            panels.append((criterion.key, criterion.label))
+    else:
+        criterion = None
     fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4), squeeze=False)
     axes = list(axes[0])
     groups: dict[tuple, list[dict[str, Any]]] = {}
     for r in table:
         groups.setdefault(tuple(r.get(c) for c in others), []).append(r)
     for key, rs in groups.items():
-        rs = sorted(rs, key=lambda r: r[first])
-        x = [r[first] for r in rs]
+        rs = sorted(rs, key=lambda r: (not _is_number(r[first]), r[first]
+                                       if _is_number(r[first]) else json.dumps(r[first])))
+        # a value that is not a number (a list, a name) is placed as a category
+        x = [r[first] if _is_number(r[first]) else json.dumps(r[first]) for r in rs]
         label = ", ".join(f"{c}={v}" for c, v in zip(others, key, strict=True)) or None
         for ax, (col, _) in zip(axes, panels, strict=True):
-            y = [r.get(col) if r.get(col) is not None else np.nan for r in rs]
+            y = [r.get(col) if _is_number(r.get(col)) else np.nan for r in rs]
             ax.plot(x, y, "o-", label=label)
     for ax, (_, ylabel) in zip(axes, panels, strict=True):
         ax.set_ylabel(ylabel)

@@ -82,6 +82,9 @@ class ProblemKind:
     geometry_needs: GeometryNeeds | None = None
     #: The criterion of a sweep's finding (None: a sweep reports its table only).
     sweep_criterion: SweepCriterion | None = None
+    #: The field ``impactsph animate`` colours the particles by when ``--field`` is not
+    #: given (a name of :func:`impactsph.animate.field_names`).
+    animation_field: str = "speed"
 
     def metrics(self, sim: Any) -> dict[str, Any]:
         """The problem's measures of a finished run, added to ``summary.json``."""

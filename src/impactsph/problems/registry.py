@@ -6,9 +6,12 @@ registers the built-in problems."""
 
 from __future__ import annotations
 
+import logging
 from typing import Any, TypeVar
 
 from .base import ProblemKind
+
+log = logging.getLogger("impactsph")
 
 _REGISTRY: dict[str, ProblemKind] = {}
 
@@ -65,5 +68,17 @@ def get_problem(name: str) -> ProblemKind:
 
 def analyse(name: str, sim: Any) -> dict[str, Any]:
     """Metrics of the problem ``name`` (the case's ``analysis`` field) for a finished run:
-    ``{}`` for ``none``."""
-    return get_problem(name).metrics(sim)
+    ``{}`` for ``none``.  Never raises for a problem whose metrics fail: the result is then
+    ``{"notes": [why]}`` (the run keeps its generic measures), and the failure is logged."""
+    problem = get_problem(name)
+    try:
+        metrics = dict(problem.metrics(sim))
+    except Exception as exc:  # noqa: BLE001 - an analysis never stops a finished run
+        note = (f"analysis {name!r}: its metrics could not be taken ({type(exc).__name__}: "
+                f"{exc}); the run's generic measures are kept")
+        log.warning("%s", note)
+        return {"notes": [note]}
+    notes = metrics.get("notes")
+    if notes is not None and not isinstance(notes, list):
+        metrics["notes"] = [str(notes)]
+    return metrics

@@ -1,0 +1,170 @@
+"""Gauges: material points whose fields are recorded every step (``[[output.gauges]]``).
+
+A gauge is a probe (``[[output.probes]]``, the velocity only) that records any field of the
+particle state: the particle of its body nearest to its position at t = 0 is chosen as a
+probe's is (:func:`impactsph.problem.nearest_particle`) and followed as it moves, so a gauge
+is a material point (a penetration or a deflection at a gauge is its displacement).  A row of
+``gauges.csv`` is taken with the probes' sample, every step, from one gather over the gauges'
+particles (no loop over particles).
+
+Columns (``NAME`` the gauge's name; ``x``, ``y``, ``z`` up to the dimension):
+
+========================  ==============================================  ========
+field                     columns                                         unit
+========================  ==============================================  ========
+``position``              ``NAME_x``, ``NAME_y``, ``NAME_z``              m
+``displacement``          ``NAME_ux``, ``NAME_uy``, ``NAME_uz``           m
+``velocity``              ``NAME_vx``, ``NAME_vy``, ``NAME_vz``           m/s
+``density``               ``NAME_density``                                kg/m^3
+``pressure``              ``NAME_pressure``                               Pa
+``specific_energy``       ``NAME_specific_energy``                        J/kg
+``deviatoric_stress``     ``NAME_sxx``, ``_syy``, ``_szz``, ``_sxy``,     Pa
+                          ``_sxz``, ``_syz``
+``von_mises_stress``      ``NAME_von_mises``                              Pa
+``plastic_work``          ``NAME_plastic_work``                           J/kg
+``strength_state``        ``NAME_<state>`` per state of its material's    as the
+                          strength model (none for the built-in ones)     model says
+========================  ==============================================  ========
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+#: the stress components written, as (row, column) of the 3x3 deviator
+STRESS_COMPONENTS = (("xx", 0, 0), ("yy", 1, 1), ("zz", 2, 2), ("xy", 0, 1), ("xz", 0, 2),
+                     ("yz", 1, 2))
+
+#: the unit of each gauge field's columns
+UNITS = {"position": "m", "displacement": "m", "velocity": "m/s", "density": "kg/m^3",
+         "pressure": "Pa", "specific_energy": "J/kg", "deviatoric_stress": "Pa",
+         "von_mises_stress": "Pa", "plastic_work": "J/kg", "strength_state": ""}
+
+
+def field_columns(field: str, dim: int, state_names: tuple[str, ...] = ()) -> list[str]:
+    """The column suffixes of one gauge field (``NAME_`` + suffix is the column)."""
+    axes = "xyz"[:dim]
+    if field == "position":
+        return list(axes)
+    if field == "displacement":
+        return [f"u{a}" for a in axes]
+    if field == "velocity":
+        return [f"v{a}" for a in axes]
+    if field == "deviatoric_stress":
+        return [f"s{c}" for c, _, _ in STRESS_COMPONENTS]
+    if field == "von_mises_stress":
+        return ["von_mises"]
+    if field == "strength_state":
+        return list(state_names)
+    return [field]
+
+
+@dataclass
+class Gauges:
+    """The gauges of a run: their particles and columns, and :meth:`sample`, one row."""
+
+    names: list[str]
+    indices: np.ndarray  #: (k,) the particle of each gauge
+    columns: list[str]  #: ``time`` and every gauge's columns
+    select: np.ndarray  #: positions of the columns in the flattened (k, T) table of values
+    needs_pressure: bool
+    width: int  #: T, the values gathered per gauge
+
+    @classmethod
+    def of(cls, case: Any, problem: Any) -> Gauges | None:
+        """The gauges of ``case`` (None without any), their particles chosen in
+        ``problem`` (:class:`impactsph.problem.Problem`)."""
+        from .models import STRENGTH
+
+        if not problem.gauges:
+            return None
+        s = problem.state
+        dim = s.dim
+        width_state = s.strength_state.shape[1]
+        # the gathered table: position, displacement, velocity (dim each), density,
+        # pressure, specific energy, 6 stress components, von Mises, plastic work, state
+        offsets: dict[str, int] = {}
+        at = 0
+        for field, size in (("position", dim), ("displacement", dim), ("velocity", dim),
+                            ("density", 1), ("pressure", 1), ("specific_energy", 1),
+                            ("deviatoric_stress", 6), ("von_mises_stress", 1),
+                            ("plastic_work", 1), ("strength_state", width_state)):
+            offsets[field] = at
+            at += size
+        names = list(problem.gauges)
+        columns, select = ["time"], []
+        needs_pressure = False
+        by_name = {g.name: g for g in case.output.gauges}
+        for k, name in enumerate(names):
+            i = problem.gauges[name]
+            state_names = STRENGTH[problem.materials[s.material[i]].model].state
+            for field in by_name[name].fields:
+                suffixes = field_columns(field, dim, state_names)
+                columns += [f"{name}_{c}" for c in suffixes]
+                select += [k * at + offsets[field] + c for c in range(len(suffixes))]
+                needs_pressure |= field == "pressure"
+        return cls(names, np.array([problem.gauges[n] for n in names], dtype=np.int64),
+                   columns, np.array(select, dtype=np.int64), needs_pressure, at)
+
+    def sample(self, sim: Any) -> np.ndarray:
+        """The row of the current state: the time, then every gauge's values."""
+        from .models.strength.von_mises import von_mises_stress
+        from .physics.rates import pressures
+
+        s, i = sim.state, self.indices
+        k = i.shape[0]
+        x = s.position[i]
+        S = s.deviatoric_stress[i]
+        pressure = (pressures(s.density[i], s.specific_energy[i], s.material[i],
+                              sim.problem.table, s.dim) if self.needs_pressure
+                    else np.zeros(k))
+        table = np.concatenate([
+            x, x - s.initial_position[i], s.velocity[i], s.density[i, None], pressure[:, None],
+            s.specific_energy[i, None],
+            np.stack([S[:, a, b] for _, a, b in STRESS_COMPONENTS], axis=1),
+            von_mises_stress(S)[:, None], s.plastic_work[i, None], s.strength_state[i]],
+            axis=1)
+        return np.concatenate([[s.time], table.ravel()[self.select]])
+
+
+def gauge_rows(columns: list[str], rows: list[np.ndarray], start: int = 0
+               ) -> list[dict[str, Any]]:
+    """The rows of ``gauges.csv`` from the ``start``-th on, as dicts of floats."""
+    return [dict(zip(columns, map(float, row), strict=True)) for row in rows[start:]]
+
+
+def gauge_summary(sim: Any) -> dict[str, dict[str, Any]]:
+    """Per gauge: its particle, body and initial position, its final displacement (vector,
+    m), and the largest ``|u|`` over the recorded rows with the displacement of that row
+    (m): the penetration or deflection at the gauge."""
+    out: dict[str, dict[str, Any]] = {}
+    s = sim.state
+    gauges = getattr(sim, "gauges", None)
+    rows = np.array(sim.record.gauges) if sim.record.gauges else None
+    for name, i in sim.problem.gauges.items():
+        u = s.position[i] - s.initial_position[i]
+        entry: dict[str, Any] = {
+            "index": int(i), "body": sim.problem.body_names[s.body[i]],
+            "initial_position": s.initial_position[i].tolist(),
+            "final_displacement": u.tolist()}
+        history = None
+        if gauges is not None and rows is not None:
+            axes = "xyz"[: s.dim]
+            for stem, offset in (("u", False), ("", True)):
+                cols = [f"{name}_{stem}{a}" for a in axes]
+                if all(c in gauges.columns for c in cols):
+                    history = rows[:, [gauges.columns.index(c) for c in cols]]
+                    if offset:
+                        history = history - s.initial_position[i]
+                    break
+        if history is None:
+            history = u[None, :]
+        size = np.linalg.norm(history, axis=1)
+        k = int(np.argmax(size))
+        entry["max_displacement"] = float(size[k])
+        entry["displacement_at_max"] = history[k].tolist()
+        out[name] = entry
+    return out
