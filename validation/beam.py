@@ -154,14 +154,27 @@ def measure(n_depth: int, overrides: list[str] | None = None, periods: float = 1
             "steps": s.step, "wall_seconds": time.perf_counter() - start}
 
 
+def set_beam(nu: float, slenderness: float) -> None:
+    """Set the beam's Poisson's ratio and L/H (module constants the case and the theory
+    read) for this process."""
+    global NU, LENGTH
+    NU, LENGTH = float(nu), float(slenderness) * DEPTH
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("n_depth", nargs="+", type=int, help="particles through the depth")
     ap.add_argument("--set", dest="overrides", action="append", default=[],
                     help="a case override, e.g. stabilisation.hourglass=1.0")
+    ap.add_argument("--nu", type=float, default=NU,
+                    help="Poisson's ratio (default 0.3; issue 11's plate: 0.4)")
+    ap.add_argument("--slenderness", type=float, default=LENGTH / DEPTH,
+                    help="L/H (default 12; issue 11's plate: 10)")
     args = ap.parse_args(argv)
+    set_beam(args.nu, args.slenderness)
     for n in args.n_depth:
-        print(json.dumps(measure(n, args.overrides)), flush=True)
+        print(json.dumps({**measure(n, args.overrides), "nu": NU,
+                          "slenderness": LENGTH / DEPTH}), flush=True)
     return 0
 
 
