@@ -1,3 +1,3 @@
 """Equations of state, one module each; importing this package registers them."""
 
-from . import linear, mie_gruneisen  # noqa: F401
+from . import linear, mie_gruneisen, tillotson  # noqa: F401
