@@ -195,7 +195,7 @@ def load(template: ModuleType, dim: int, simulated: bool = False,
          options: PassOptions | str | None = None) -> ModuleType:
     """The template bound to the registered models, ``dim`` and the compile-time ``options``,
     imported (cached in this process per registry version)."""
-    return _load(template.__name__, dim, simulated, PassOptions.coerce(options),
+    return _load(template.__name__, dim, simulated, PassOptions.coerce(options).compiled(),
                  _registry.version())
 
 

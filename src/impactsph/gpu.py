@@ -197,7 +197,8 @@ class GpuRates:
             if n_active:
                 pair_kernel[blocks, tpb, stream](
                     n_rows, n_active, dorder, packed, doff, dind, int(viscosity.kind),
-                    viscosity.pair, dS_, dmat, dtable, out["drho"], out["dv"], out["de"],
+                    viscosity.pair, self.options.normal_stress, dS_, dmat, dtable,
+                    out["drho"], out["dv"], out["de"],
                     out["de_visc"], out["contact_force"], out["pair_count"], out["dS"],
                     gradients)
                 if corrected:

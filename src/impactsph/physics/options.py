@@ -8,14 +8,14 @@ for an option pays nothing for it.  The options come from a case's ``[stabilisat
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 #: ``gradient_correction`` modes and the file-name tag of their generated modules
 GRADIENT_CORRECTIONS = {"none": "", "velocity_gradient": "_kgc",
                         "velocity_gradient_and_forces": "_kgcf"}
-#: ``contact_traction`` modes and their tags
-CONTACT_TRACTIONS = {"pressure": "", "normal_stress": "_ns"}
+#: ``contact_traction`` modes (a run-time switch of the pair pass: no module of their own)
+CONTACT_TRACTIONS = ("pressure", "normal_stress")
 
 
 @dataclass(frozen=True)
@@ -27,7 +27,8 @@ class PassOptions:
     - ``contact_traction``: what pushes two particles of different bodies (or a particle and
       its wall ghost) apart: ``"pressure"`` (``P_i/rho_i^2 + P_j/rho_j^2``, the paper's
       contact) or ``"normal_stress"`` (the compressive normal stress along the line of
-      centres, deviatoric part included);
+      centres, deviatoric part included); a run-time argument of the pair pass (contact pairs
+      are few, so the test costs nothing), not part of the generated module;
     - ``artificial_stress``: Monaghan's (2000) coefficient epsilon, 0 for none;
       ``artificial_stress_exponent`` n and ``reference_q`` = dx / h, the kernel argument at
       which ``f_ij = W(r_ij) / W(dx)`` is 1.
@@ -68,10 +69,20 @@ class PassOptions:
                    reference_q=1.0 / float(case.kernel.h_over_dx))
 
     @property
+    def normal_stress(self) -> bool:
+        """The pair pass's run-time switch for the contact traction."""
+        return self.contact_traction == "normal_stress"
+
+    def compiled(self) -> PassOptions:
+        """The options that decide the generated module: these, with the run-time ones
+        (the contact traction) set to their defaults, so that runs differing only in those
+        share one compiled module."""
+        return replace(self, contact_traction="pressure")
+
+    @property
     def tag(self) -> str:
         """A short tag for the generated module's file name."""
         tag = GRADIENT_CORRECTIONS[self.gradient_correction]
-        tag += CONTACT_TRACTIONS[self.contact_traction]
         if self.artificial_stress > 0.0:
             tag += "_as"
         return tag
@@ -83,7 +94,6 @@ class PassOptions:
         return [
             f"GRADIENT_CORRECTION = {self.gradient_correction == 'velocity_gradient'}",
             f"FORCE_CORRECTION = {self.gradient_correction == 'velocity_gradient_and_forces'}",
-            f"NORMAL_STRESS_CONTACT = {self.contact_traction == 'normal_stress'}",
             f"ARTIFICIAL_STRESS = {float(self.artificial_stress)!r}",
             f"ARTIFICIAL_STRESS_EXPONENT = "
             f"{float(self.artificial_stress_exponent) if on else 4.0!r}",

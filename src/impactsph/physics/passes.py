@@ -50,7 +50,6 @@ from impactsph.physics.stress_rate import jaumann_stress_rate
 DIM = 3
 GRADIENT_CORRECTION = False
 FORCE_CORRECTION = False
-NORMAL_STRESS_CONTACT = False
 ARTIFICIAL_STRESS = 0.0
 ARTIFICIAL_STRESS_EXPONENT = 4.0
 REFERENCE_Q = 1.0
@@ -418,8 +417,8 @@ def stress_along(record, d0, d1, d2):
 
 
 @JIT(inline="always", cache=True)
-def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, material, table,
-                   drho, dv, de, de_visc, contact_force, pair_count, dS, L, L_sorted):
+def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_stress, S, material,
+                   table, drho, dv, de, de_visc, contact_force, pair_count, dS, L, L_sorted):
     """Pass 2 for the active particle ``i`` at sorted position ``p``: the sums over its
     neighbours (eqs 22, 27, 28) in scalar accumulators (kept in registers) and its stress rate
     (eq 14, into ``dS[i]``, with ``L`` as scratch for the velocity gradient); its viscous
@@ -598,7 +597,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, materia
                 T21 += m_j * u2 * g1
                 T22 += m_j * u2 * g2
         else:  # another body or a wall ghost: compression-only contact
-            if NORMAL_STRESS_CONTACT:  # the compressive normal stresses along r_ij (/rho^2)
+            if normal_stress:  # the compressive normal stresses along r_ij (/rho^2)
                 sn_i = -stress_along(Pi_, d0, d1, d2) / r2
                 sn_j = -stress_along(Pj, d0, d1, d2) / r2
             else:
@@ -802,8 +801,9 @@ def moment_pass(order, P, offsets, indices, chunk_size):
 
 
 @JIT(parallel=True, cache=True, fastmath=FASTMATH)
-def pair_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, S, material, table,
-              drho, dv, de, de_visc, contact_force, pair_count, dS, L_sorted, chunk_size):
+def pair_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, normal_stress, S,
+              material, table, drho, dv, de, de_visc, contact_force, pair_count, dS, L_sorted,
+              chunk_size):
     """Pass 2 over the active particles, in parallel chunks of sorted positions; ghosts
     (``order[p] >= n_active``) only take part as neighbours."""
     n = order.shape[0]
@@ -816,9 +816,9 @@ def pair_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, S, m
                 for a in range(DIM):
                     P[p, U + a] = 0.0
                 continue
-            particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, material,
-                           table, drho, dv, de, de_visc, contact_force, pair_count, dS, L,
-                           L_sorted)
+            particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_stress, S,
+                           material, table, drho, dv, de, de_visc, contact_force, pair_count,
+                           dS, L, L_sorted)
 
 
 @JIT(parallel=True, cache=True)
@@ -886,9 +886,9 @@ def cuda_kernels():
             particle_record(p, order[p], x, v, m, rho, e, S, h, body, material, table, P)
 
     @cuda.jit
-    def pair_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind, visc_params, S,
-                    material, table, drho, dv, de, de_visc, contact_force, pair_count, dS,
-                    L_sorted):
+    def pair_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind, visc_params,
+                    normal_stress, S, material, table, drho, dv, de, de_visc, contact_force,
+                    pair_count, dS, L_sorted):
         p = cuda.grid(1)
         if p >= n_rows:
             return
@@ -898,8 +898,9 @@ def cuda_kernels():
                 P[p, U + a] = 0.0
             return
         L = cuda.local.array((DIM, DIM), nb.float64)
-        particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, S, material, table,
-                       drho, dv, de, de_visc, contact_force, pair_count, dS, L, L_sorted)
+        particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_stress, S,
+                       material, table, drho, dv, de, de_visc, contact_force, pair_count, dS, L,
+                       L_sorted)
 
     @cuda.jit
     def correction_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind,

@@ -119,7 +119,8 @@ class CpuRates:
         if k.FORCE_CORRECTION:
             k.moment_pass(nl.order, self._packed, nl.offsets, nl.indices, chunk)
         k.pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, viscosity.kind,
-                    viscosity.pair, S, material, table, b.drho, b.dv, b.de, b.de_visc,
+                    viscosity.pair, self.options.normal_stress, S, material, table, b.drho,
+                    b.dv, b.de, b.de_visc,
                     b.contact_force, b.pair_count, b.dS, self._gradients, chunk)
         if viscosity.correction is not None:
             k.correction_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
