@@ -5,8 +5,8 @@ hand.
 - ``scaled_linear`` (EOS): ``P = factor K (rho/rho0 - 1)``, its parameter in the sub-table
   ``[materials.NAME.scaled_linear]``.
 - ``capped_deviator`` (strength): the deviator scaled back to ``sqrt(3/2 S:S) <= cap``, the
-  dissipated elastic energy booked as plastic work, and a per-particle state, the number of
-  steps in which the cap acted.
+  work ``cap d / rho`` of the plastic increment booked as plastic work, and a per-particle
+  state of its own, the number of steps in which the cap acted.
 
 With ``factor = 1`` and ``cap`` equal to a yield stress these are the built-in ``linear`` EOS
 and ``elastic_plastic`` model written again, so a run with them must equal the built-in run
@@ -29,6 +29,7 @@ from pydantic import Field
 
 from impactsph import Simulation, load_case, run_case
 from impactsph.config import CaseError
+from impactsph.materials import TableLayout
 from impactsph.models import (
     EOS,
     STRENGTH,
@@ -56,7 +57,7 @@ class CappedDeviatorParameters(Parameters):
 
 
 @nb.njit(inline="always", cache=True)
-def capped_return(S, rho, shear_modulus, params, state):
+def capped_return(S, rho, pressure, shear_modulus, params, state, own, dt):
     ss = 0.0
     for a in range(3):
         for b in range(3):
@@ -68,8 +69,9 @@ def capped_return(S, rho, shear_modulus, params, state):
     for a in range(3):
         for b in range(3):
             S[a, b] *= f
-    state[0] += 1.0
-    return ss * (1.0 - f * f) / (4.0 * shear_modulus * rho)
+    own[0] += 1.0
+    # the plastic work sigma_y d / rho of the increment d = (sigma_eq - sigma_y) / (3 mu)
+    return params[0] * (params[0] * (1.0 / f - 1.0) / (3.0 * shear_modulus)) / rho
 
 
 def register_toy_models() -> None:
@@ -183,7 +185,7 @@ def test_toy_models_by_hand(toy_models, tmp_path):
     von_mises = np.sqrt(1.5 * np.einsum("iab,iab->i", S, S))
     assert von_mises.max() <= 600e6 * (1 + 1e-12)
     assert von_mises.max() > 0.99 * 600e6  # the cap is reached
-    capped = s.strength_state[:, 0]
+    capped = s.material_state[:, TableLayout.registered().strength_state]
     assert capped.max() >= 1 and np.all(capped == np.round(capped))
     # plastic work is kept from the final stage of each step only, as the count is
     np.testing.assert_array_equal(capped > 0, s.plastic_work > 0)

@@ -31,7 +31,7 @@ import pytest
 
 TOL = 1e-10
 SKIP_CODE = 77  # the worker's exit code for "cannot run here", with the reason on stdout
-FIELDS = ("x", "v", "rho", "e", "S", "m", "h", "material", "body")
+FIELDS = ("x", "v", "rho", "e", "S", "m", "h", "material", "body", "damage")
 
 #: Small problems (the simulator interprets the kernels in Python).
 CASES = {
@@ -376,12 +376,13 @@ def test_rates_match_cpu(rate_comparison, case):
 
 
 def test_only_changed_inputs_are_uploaded(rate_comparison):
-    """After the first evaluation the state (x, v, rho, e, S, and the hourglass acceleration
-    where the control is on) is copied every time; the neighbour list and the masses only when
-    new arrays come (here: offsets, indices, m, and the list's order where it has one)."""
+    """After the first evaluation the state (x, v, rho, e, S, the damage, and the hourglass
+    acceleration where the control is on) is copied every time; the neighbour list and the
+    masses only when new arrays come (here: offsets, indices, m, and the list's order where it
+    has one)."""
     _, _, report, _ = rate_comparison
     for case, uploads in report["uploads"].items():
-        state = 5 + (case in HOURGLASS)
+        state = 6 + (case in HOURGLASS)
         assert uploads[1:] == [state, state + 3 + report["ordered"][case]], (case, uploads)
 
 

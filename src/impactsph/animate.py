@@ -57,12 +57,13 @@ def field_names(snapshot: dict[str, Any], case: Any) -> list[str]:
 
 
 def _state_columns(case: Any) -> dict[str, int]:
-    """The strength models' per-particle states of the case's materials: name -> column."""
-    from .models import STRENGTH
+    """The material state's fields of the case's materials: name -> column."""
+    from .materials import TableLayout
 
+    layout = TableLayout.registered()
     columns: dict[str, int] = {}
     for material in case.materials.values():
-        for c, name in enumerate(STRENGTH[material.model].state):
+        for name, c in layout.state_names(material).items():
             columns.setdefault(name, c)
     return columns
 
@@ -95,8 +96,8 @@ def field_values(snapshot: dict[str, Any], name: str, case: Any) -> tuple[np.nda
         a, b = AXES.index(axis[0]), AXES.index(axis[1])
         return snapshot["deviatoric_stress"][:, a, b], "Pa"
     states = _state_columns(case)
-    if name in states and snapshot["strength_state"].shape[1] > states[name]:
-        return snapshot["strength_state"][:, states[name]], ""
+    if name in states and snapshot["material_state"].shape[1] > states[name]:
+        return snapshot["material_state"][:, states[name]], ""
     from .loading import did_you_mean
 
     names = field_names(snapshot, case)

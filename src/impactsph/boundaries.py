@@ -134,8 +134,8 @@ def _first_behind(x, points, normals):
 
 
 @nb.njit(parallel=True, cache=True)
-def fill_ghosts(src, wall, points, normals, kinds, n_real, x, v, rho, e, S, m, h, material,
-                body, ghost_body0):
+def fill_ghosts(src, wall, points, normals, kinds, n_real, x, v, rho, e, S, damage, m, h,
+                material, body, ghost_body0):
     """Write the ghosts' states into rows ``n_real + k`` of the extended arrays."""
     dim = x.shape[1]
     for k in nb.prange(src.shape[0]):
@@ -168,6 +168,7 @@ def fill_ghosts(src, wall, points, normals, kinds, n_real, x, v, rho, e, S, m, h
                 S[g, a, b] = acc
         rho[g] = rho[i]
         e[g] = e[i]
+        damage[g] = damage[i]
         m[g] = m[i]
         h[g] = h[i]
         material[g] = material[i]

@@ -210,6 +210,45 @@ def check(case: Annotated[str, typer.Argument(help="case file or built-in name")
 
 
 @app.command()
+def materials(name: Annotated[str | None, typer.Argument(
+        help="a library material: print all its fields and sources as a case table")] = None
+              ) -> None:
+    """The material library: each material's models and the published source of its
+    parameters (use one in a case with [materials.X] library = "NAME")."""
+    from .library import INFORMATION, library
+
+    entries = library()
+    if name is None:
+        for key, entry in entries.items():
+            typer.echo(f"{key}: {entry.get('description', '')}")
+            typer.echo(f"    eos {entry.get('eos', 'linear')}, model {entry.get('model')}, "
+                       f"damage {entry.get('damage', 'none')}")
+            for part, source in entry.get("sources", {}).items():
+                typer.echo(f"    {part}: {source}")
+        return
+    if name not in entries:
+        _fail(f"materials {name!r}: not a library material; one of "
+              f"{', '.join(sorted(entries))}")
+    entry = entries[name]
+    typer.echo(f"# {name}: {entry.get('description', '')}")
+    for part, source in entry.get("sources", {}).items():
+        typer.echo(f"# {part}: {source}")
+    typer.echo(f"[materials.{name}]")
+    tables = {k: v for k, v in entry.items() if isinstance(v, dict) and k not in INFORMATION}
+    for key, value in entry.items():
+        if key not in INFORMATION and key not in tables:
+            typer.echo(f"{key} = {_toml_value(value)}")
+    for table, fields in tables.items():
+        typer.echo(f"[materials.{name}.{table}]")
+        for key, value in fields.items():
+            typer.echo(f"{key} = {_toml_value(value)}")
+
+
+def _toml_value(value) -> str:
+    return json.dumps(value) if isinstance(value, str) else repr(value)
+
+
+@app.command()
 def sweep(
     case: Annotated[str, typer.Argument(help="case file or built-in name")],
     grid: Annotated[list[str], typer.Option(

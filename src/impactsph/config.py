@@ -22,7 +22,7 @@ from pydantic import (
 )
 
 from .errors import CaseError  # noqa: F401  (defined there, kept importable from here)
-from .models import EOS, STRENGTH, VISCOSITY
+from .models import DAMAGE, EOS, STRENGTH, VISCOSITY
 from .models import registry as _registry
 from .models.registry import Parameters as _Model
 from .models.types import FiniteFloat, NonNegativeFloat, PositiveFloat
@@ -54,10 +54,36 @@ class Material(_Model):
     eos: str = Field(
         "linear", description="equation of state: 'linear' (eq 6, K = E / (3 (1 - 2 nu))), "
         "'mie_gruneisen' (eqs 7-12), or a registered one")
+    damage: str = Field(
+        "none", description="damage model: 'none', 'johnson_cook_damage' (ductile), "
+        "'grady_kipp' (brittle, tensile), or a registered one")
+    specific_heat: PositiveFloat | None = Field(
+        None, description="specific heat c_p (J/(kg K)); without it the temperature stays "
+        "at its initial value")
+    taylor_quinney: float = Field(
+        0.9, ge=0.0, le=1.0, description="Taylor-Quinney factor beta: the fraction of the "
+        "plastic work that heats, in [0, 1]")
+    melting_temperature: PositiveFloat | None = Field(
+        None, description="melting temperature T_melt (K), for thermal softening and damage")
+    temperature: PositiveFloat = Field(293.15, description="initial temperature (K)")
+    library: str | None = Field(
+        None, description="the library material this one starts from (impactsph materials); "
+        "its fields are filled in when the case is read, and any field given here overrides")
 
     @model_validator(mode="after")
     def _consistent(self) -> Material:
         eos, strength = EOS[self.eos], STRENGTH[self.model]
+        damage = DAMAGE[self.damage]
+        if damage.parameters is not None and getattr(self, damage.name, None) is None:
+            if not _all_defaults(damage.parameters):
+                raise ValueError(f"damage = {damage.name!r} needs a [{damage.name}] table")
+            setattr(self, damage.name, damage.parameters())
+        for model, kind in ((strength, "model"), (damage, "damage")):
+            for need in model.needs:
+                if getattr(self, need, None) is None:
+                    info = Material.model_fields[need]
+                    raise ValueError(f"{kind} = {model.name!r} needs {need} "
+                                     f"({info.description})")
         if eos.parameters is not None and getattr(self, eos.name, None) is None:
             if _all_defaults(eos.parameters):  # a table of defaults may be left out
                 setattr(self, eos.name, eos.parameters())
@@ -82,6 +108,11 @@ class Material(_Model):
     def eos_parameters(self) -> Any:
         """The validated parameters of the selected equation of state (None if it has none)."""
         return getattr(self, self.eos, None) if EOS[self.eos].parameters is not None else None
+
+    def damage_parameters(self) -> Any:
+        """The validated parameters of the selected damage model (None if it has none)."""
+        return (getattr(self, self.damage, None) if DAMAGE[self.damage].parameters is not None
+                else None)
 
     def strength_parameters(self) -> Any:
         """The validated parameters of the selected strength model (None if it has none)."""
@@ -197,6 +228,28 @@ class Ring(_Model):
         return self
 
 
+class Sphere(_Model):
+    """A ball of particles (3D): the cell centres of a cubic lattice of spacing ``spacing``,
+    with a cell corner at ``centre``, that lie within ``radius`` of it (each of volume
+    ``dx^3``)."""
+
+    type: Literal["sphere"] = "sphere"
+    centre: list[FiniteFloat] = Field(description="centre of the sphere (m)")
+    radius: PositiveFloat = Field(description="radius (m)")
+    spacing: PositiveFloat = Field(description="particle spacing dx (m)")
+
+    def spacings(self) -> list[float]:
+        """Particle spacing along each axis (m)."""
+        return [float(self.spacing)] * 3
+
+    @model_validator(mode="after")
+    def _not_empty(self) -> Sphere:
+        if self.radius < math.sqrt(3.0) / 2.0 * self.spacing:
+            raise ValueError(f"radius = {self.radius!r} holds no particle at spacing = "
+                             f"{self.spacing!r} (needs radius >= sqrt(3)/2 spacing)")
+        return self
+
+
 class Cylinder(_Model):
     """A circular cylinder of particles (3D): layers of the :class:`Disk` lattice across
     ``axis``, ``round(length / spacing)`` of them (at least 1) at ``(k + 1/2) dx`` from the
@@ -242,7 +295,7 @@ class ParticleFile(_Model):
         return os.path.abspath(os.path.expanduser(value))
 
 
-GEOMETRY_TYPES = ("block", "disk", "ring", "cylinder", "file")
+GEOMETRY_TYPES = ("block", "disk", "ring", "cylinder", "sphere", "file")
 
 
 def _geometry_type(value: Any) -> str | None:
@@ -256,7 +309,8 @@ def _geometry_type(value: Any) -> str | None:
 
 Geometry = Annotated[
     Annotated[Block, Tag("block")] | Annotated[Disk, Tag("disk")] | Annotated[Ring, Tag("ring")]
-    | Annotated[Cylinder, Tag("cylinder")] | Annotated[ParticleFile, Tag("file")],
+    | Annotated[Cylinder, Tag("cylinder")] | Annotated[Sphere, Tag("sphere")]
+    | Annotated[ParticleFile, Tag("file")],
     Discriminator(_geometry_type, custom_error_type="geometry_type",
                   custom_error_message="Input should be " + ", ".join(
                       repr(t) for t in GEOMETRY_TYPES[:-1]) + f" or {GEOMETRY_TYPES[-1]!r}"),
@@ -414,7 +468,7 @@ class Probe(_Model):
 #: each gives are :func:`impactsph.gauges.field_columns`'.
 GAUGE_FIELDS = ("position", "displacement", "velocity", "density", "pressure",
                 "specific_energy", "deviatoric_stress", "von_mises_stress", "plastic_work",
-                "strength_state")
+                "material_state")
 #: What a gauge records when its ``fields`` are not given: every field but the strength
 #: models' state.
 DEFAULT_GAUGE_FIELDS = GAUGE_FIELDS[:-1]
@@ -518,8 +572,8 @@ class Case(_Model):
                         raise ValueError(f"{where}.geometry.{field} has "
                                          f"{len(getattr(g, field))} components; "
                                          f"dimension = {d} needs {d}")
-            elif isinstance(g, Disk | Ring | Cylinder):
-                needs = 3 if isinstance(g, Cylinder) else 2
+            elif isinstance(g, Disk | Ring | Cylinder | Sphere):
+                needs = 3 if isinstance(g, Cylinder | Sphere) else 2
                 if d != needs:
                     raise ValueError(f"{where}.geometry: type = {g.type!r} is for dimension = "
                                      f"{needs} only")
@@ -645,7 +699,11 @@ def schema() -> Any:
     if version in _SCHEMA:
         return _SCHEMA[version]
     material_fields: dict[str, Any] = {"model": (_names(STRENGTH), Material.model_fields[
-        "model"]), "eos": (_names(EOS), Material.model_fields["eos"])}
+        "model"]), "eos": (_names(EOS), Material.model_fields["eos"]),
+        "damage": (_names(DAMAGE), Material.model_fields["damage"])}
+    for damage in DAMAGE:
+        if damage.parameters is not None:
+            material_fields[damage.name] = (damage.parameters | None, Field(None))
     for eos in EOS:
         if eos.parameters is not None:
             material_fields[eos.name] = (eos.parameters | None, Field(None))

@@ -22,8 +22,10 @@ field                     columns                                         unit
                           ``_sxz``, ``_syz``
 ``von_mises_stress``      ``NAME_von_mises``                              Pa
 ``plastic_work``          ``NAME_plastic_work``                           J/kg
-``strength_state``        ``NAME_<state>`` per state of its material's    as the
-                          strength model (none for the built-in ones)     model says
+``material_state``        ``NAME_<state>`` per state of its material:     -, 1/s,
+                          ``equivalent_plastic_strain``,                  K, -, then
+                          ``plastic_strain_rate``, ``temperature``,       as the
+                          ``damage``, then its models' own                model says
 ========================  ==============================================  ========
 """
 
@@ -34,6 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from .models.columns import DAMAGE
+
 #: the stress components written, as (row, column) of the 3x3 deviator
 STRESS_COMPONENTS = (("xx", 0, 0), ("yy", 1, 1), ("zz", 2, 2), ("xy", 0, 1), ("xz", 0, 2),
                      ("yz", 1, 2))
@@ -41,7 +45,7 @@ STRESS_COMPONENTS = (("xx", 0, 0), ("yy", 1, 1), ("zz", 2, 2), ("xy", 0, 1), ("x
 #: the unit of each gauge field's columns
 UNITS = {"position": "m", "displacement": "m", "velocity": "m/s", "density": "kg/m^3",
          "pressure": "Pa", "specific_energy": "J/kg", "deviatoric_stress": "Pa",
-         "von_mises_stress": "Pa", "plastic_work": "J/kg", "strength_state": ""}
+         "von_mises_stress": "Pa", "plastic_work": "J/kg", "material_state": ""}
 
 
 def field_columns(field: str, dim: int, state_names: tuple[str, ...] = ()) -> list[str]:
@@ -57,7 +61,7 @@ def field_columns(field: str, dim: int, state_names: tuple[str, ...] = ()) -> li
         return [f"s{c}" for c, _, _ in STRESS_COMPONENTS]
     if field == "von_mises_stress":
         return ["von_mises"]
-    if field == "strength_state":
+    if field == "material_state":
         return list(state_names)
     return [field]
 
@@ -77,13 +81,13 @@ class Gauges:
     def of(cls, case: Any, problem: Any) -> Gauges | None:
         """The gauges of ``case`` (None without any), their particles chosen in
         ``problem`` (:class:`impactsph.problem.Problem`)."""
-        from .models import STRENGTH
+        from .materials import TableLayout
 
         if not problem.gauges:
             return None
         s = problem.state
         dim = s.dim
-        width_state = s.strength_state.shape[1]
+        width_state = s.material_state.shape[1]
         # the gathered table: position, displacement, velocity (dim each), density,
         # pressure, specific energy, 6 stress components, von Mises, plastic work, state
         offsets: dict[str, int] = {}
@@ -91,7 +95,7 @@ class Gauges:
         for field, size in (("position", dim), ("displacement", dim), ("velocity", dim),
                             ("density", 1), ("pressure", 1), ("specific_energy", 1),
                             ("deviatoric_stress", 6), ("von_mises_stress", 1),
-                            ("plastic_work", 1), ("strength_state", width_state)):
+                            ("plastic_work", 1), ("material_state", width_state)):
             offsets[field] = at
             at += size
         names = list(problem.gauges)
@@ -100,11 +104,14 @@ class Gauges:
         by_name = {g.name: g for g in case.output.gauges}
         for k, name in enumerate(names):
             i = problem.gauges[name]
-            state_names = STRENGTH[problem.materials[s.material[i]].model].state
+            state_columns = TableLayout.registered().state_names(problem.materials[s.material[i]])
             for field in by_name[name].fields:
-                suffixes = field_columns(field, dim, state_names)
+                suffixes = field_columns(field, dim, tuple(state_columns))
                 columns += [f"{name}_{c}" for c in suffixes]
-                select += [k * at + offsets[field] + c for c in range(len(suffixes))]
+                if field == "material_state":
+                    select += [k * at + offsets[field] + c for c in state_columns.values()]
+                else:
+                    select += [k * at + offsets[field] + c for c in range(len(suffixes))]
                 needs_pressure |= field == "pressure"
         return cls(names, np.array([problem.gauges[n] for n in names], dtype=np.int64),
                    columns, np.array(select, dtype=np.int64), needs_pressure, at)
@@ -121,11 +128,13 @@ class Gauges:
         pressure = (pressures(s.density[i], s.specific_energy[i], s.material[i],
                               sim.problem.table, s.dim) if self.needs_pressure
                     else np.zeros(k))
+        damage = s.material_state[i, DAMAGE]
+        pressure = np.where(pressure < 0.0, pressure * (1.0 - damage), pressure)
         table = np.concatenate([
             x, x - s.initial_position[i], s.velocity[i], s.density[i, None], pressure[:, None],
             s.specific_energy[i, None],
             np.stack([S[:, a, b] for _, a, b in STRESS_COMPONENTS], axis=1),
-            von_mises_stress(S)[:, None], s.plastic_work[i, None], s.strength_state[i]],
+            von_mises_stress(S)[:, None], s.plastic_work[i, None], s.material_state[i]],
             axis=1)
         return np.concatenate([[s.time], table.ravel()[self.select]])
 

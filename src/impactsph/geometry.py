@@ -93,6 +93,19 @@ def ring_particles(centre: list[float], inner_radius: float, outer_radius: float
     return Particles(x, np.full(x.shape[0], spacing**2), float(spacing))
 
 
+def sphere_particles(centre: list[float], radius: float, spacing: float) -> Particles:
+    """A ball (3D): the cell centres of a cubic lattice of spacing ``dx`` with a cell corner at
+    ``centre`` whose distance from it is at most ``radius``; each of volume ``dx^3``, so the
+    total is ``4/3 pi r^3`` up to the lattice's staircase error."""
+    half = int(math.ceil(radius / spacing))
+    k = np.arange(-half, half) + 0.5
+    a, b, c = np.meshgrid(k, k, k, indexing="ij")
+    offsets = np.stack([a.ravel(order="F"), b.ravel(order="F"), c.ravel(order="F")], axis=1)
+    keep = np.einsum("ia,ia->i", offsets, offsets) <= (radius / spacing) ** 2
+    x = np.asarray(centre, dtype=np.float64) + offsets[keep] * spacing
+    return Particles(x, np.full(x.shape[0], spacing**3), float(spacing))
+
+
 def cylinder_particles(centre: list[float], radius: float, length: float, axis: str,
                        spacing: float) -> Particles:
     """A circular cylinder (3D) along ``axis`` (``"x"``, ``"y"`` or ``"z"``) from the base
@@ -124,8 +137,9 @@ def file_particles(path: str | Path, dim: int, spacing: float,
 
 
 def body_particles(geometry: Any, dim: int, where: str = "geometry") -> Particles:
-    """The particles of a validated ``[bodies.geometry]`` table (a :class:`~impactsph.config.Block`,
-    ``Disk``, ``Ring``, ``Cylinder`` or ``ParticleFile``); ``where`` names it in error messages."""
+    """The particles of a validated ``[bodies.geometry]`` table (a
+    :class:`~impactsph.config.Block`, ``Disk``, ``Ring``, ``Cylinder``, ``Sphere`` or
+    ``ParticleFile``); ``where`` names it in error messages."""
     kind = geometry.type
     if kind == "block":
         return block_particles(geometry.origin, geometry.size, geometry.spacings())
@@ -134,6 +148,8 @@ def body_particles(geometry: Any, dim: int, where: str = "geometry") -> Particle
     if kind == "ring":
         return ring_particles(geometry.centre, geometry.inner_radius, geometry.outer_radius,
                               geometry.spacing)
+    if kind == "sphere":
+        return sphere_particles(geometry.centre, geometry.radius, geometry.spacing)
     if kind == "cylinder":
         return cylinder_particles(geometry.centre, geometry.radius, geometry.length,
                                   geometry.axis, geometry.spacing)

@@ -156,9 +156,9 @@ class GpuRates:
                  viscosity, b, hourglass: float = 0.0,
                  hourglass_acceleration: np.ndarray | None = None) -> None:
         """As :meth:`impactsph.physics.rates.CpuRates.evaluate`: the rates of the first
-        ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h, material, body)`` into the
+        ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h, material, body, damage)`` into the
         host buffers ``b``; rows the CPU backend leaves alone are left alone."""
-        x, v, rho, e, S, m, h, material, body = arrays
+        x, v, rho, e, S, m, h, material, body, damage = arrays
         (particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
          force_correction, record_width) = self._kernels
         n_rows, dim = rho.shape[0], self.dim
@@ -167,6 +167,7 @@ class GpuRates:
         # the state (every call); the constant fields and the list (when they are new arrays)
         dx, dv, drho_, de, dS_ = (up("x", x), up("v", v), up("rho", rho), up("e", e),
                                   up("S", S))
+        ddamage = up("damage", damage)
         dm, dh, dmat, dbody = (up("m", m, True), up("h", h, True),
                                up("material", material, True), up("body", body, True))
         dtable = up("table", table, True)
@@ -191,7 +192,8 @@ class GpuRates:
         if n_rows:
             blocks = (n_rows + tpb - 1) // tpb
             particle_kernel[blocks, tpb, stream](
-                n_rows, dorder, dx, dv, dm, drho_, de, dS_, dh, dbody, dmat, dtable, packed)
+                n_rows, dorder, dx, dv, dm, drho_, de, dS_, ddamage, dh, dbody, dmat, dtable,
+                packed)
             if force_correction:
                 moment_kernel[blocks, tpb, stream](n_rows, packed, doff, dind)
             if n_active:

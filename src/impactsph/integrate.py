@@ -138,11 +138,15 @@ class MidpointIntegrator:
 
     #: the fields the integrator advances (the rest of the state is constant within a step)
     INTEGRATED = ("position", "velocity", "density", "specific_energy", "deviatoric_stress",
-                  "plastic_work", "strength_state", "hourglass_acceleration")
+                  "plastic_work", "material_state", "hourglass_acceleration")
 
     def _save_start(self, state: ParticleState) -> SimpleNamespace:
         """The integrated fields at the start of the step, in buffers reused every step."""
         if self._start is None or self._start.position.shape != state.position.shape:
+            width = compiled_passes(state.dim).STATE_WIDTH
+            if state.material_state.shape != (state.n, width):
+                raise ValueError(f"material_state has shape {state.material_state.shape}; the "
+                                 f"registered models need ({state.n}, {width})")
             self._start = SimpleNamespace(**{f: np.empty_like(getattr(state, f))
                                              for f in self.INTEGRATED})
         for f in self.INTEGRATED:
@@ -154,10 +158,11 @@ class MidpointIntegrator:
         dv, drho, de, dS, dhg = rates
         self._advance(self.n_active, dt, start.position, start.velocity, start.density,
                       start.specific_energy, start.deviatoric_stress, start.plastic_work,
-                      start.strength_state, start.hourglass_acceleration, v_rate, dv, drho, de,
-                      dS, dhg, state.clamped, state.material, self.table, state.position,
+                      start.material_state, start.hourglass_acceleration, v_rate, dv, drho, de,
+                      dS, dhg, state.clamped, state.material, self.table,
+                      state.smoothing_length, state.position,
                       state.velocity, state.density, state.specific_energy,
-                      state.deviatoric_stress, state.plastic_work, state.strength_state,
+                      state.deviatoric_stress, state.plastic_work, state.material_state,
                       state.hourglass_acceleration)
         if self.constraint is not None:
             count, impulse = self.constraint(state.position, state.velocity, state.mass)

@@ -23,6 +23,7 @@ from pydantic import BaseModel, ValidationError
 
 from .config import GEOMETRY_TYPES, Case, ParticleFile, schema
 from .errors import CaseError
+from .library import expand
 
 BUILTIN_CASES = ("bars", "taylor", "cantilever")
 
@@ -260,9 +261,11 @@ def load_plugins(plugins: Any) -> None:
 
 def validate_case(data: dict[str, Any]) -> Case:
     """Validate a case dict against the :func:`schema` of the registered models (after
-    importing its ``plugins``); raise :class:`CaseError` with a one-line message."""
+    importing its ``plugins`` and filling in its library materials,
+    :func:`impactsph.library.expand`); raise :class:`CaseError` with a one-line message."""
     if isinstance(data, dict):
         load_plugins(data.get("plugins"))
+        data = expand(data)
     try:
         return schema().Case.model_validate(data)
     except ValidationError as exc:

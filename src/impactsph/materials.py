@@ -1,46 +1,76 @@
 """Materials resolved from a case, and their packed form for the compiled kernels: the
 material table, one row of floats per material.
 
-A row holds the columns every kernel reads (named below), then the columns of the material's
-equation of state and of its strength model, as those models declare them
-(:mod:`impactsph.models`).  :class:`TableLayout` says where each block starts; it is the same
-for every material of a run, sized for the widest registered model, and the generated passes
-(:mod:`impactsph.physics.passes`) are compiled for it.
+A row holds the columns every kernel reads (:mod:`impactsph.models.columns`), then the columns
+of the material's equation of state, of its strength model and of its damage model, as those
+models declare them (:mod:`impactsph.models`).  :class:`TableLayout` says where each block
+starts; it is the same for every material of a run, sized for the widest registered model, and
+the generated passes (:mod:`impactsph.physics.passes`) are compiled for it.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from .models import EOS, STRENGTH, ElasticConstants
-
-#: Columns every material has: reference density, bulk modulus K, shear modulus mu, the
-#: modulus M of the wave speed ``c = sqrt(M / rho)`` (eq 26), and the kind codes of its
-#: equation of state and strength model (their positions in the registries).
-RHO0, BULK, SHEAR, WAVE_MODULUS, EOS_KIND, STRENGTH_KIND = range(6)
-COMMON_COLUMNS = ("density", "bulk_modulus", "shear_modulus", "wave_modulus", "eos_kind",
-                  "strength_kind")
+from .models import DAMAGE, EOS, STRENGTH, ElasticConstants
+from .models.columns import (  # noqa: F401  (re-exported: the kernels import them from here)
+    BULK,
+    COMMON_COLUMNS,
+    COMMON_STATE,
+    DAMAGE_KIND,
+    EOS_KIND,
+    HEAT_PER_WORK,
+    LONGITUDINAL_SPEED,
+    MELTING_TEMPERATURE,
+    RHO0,
+    SHEAR,
+    STRENGTH_KIND,
+    TEMPERATURE,
+    WAVE_MODULUS,
+    YOUNGS,
+)
 
 
 @dataclass(frozen=True)
 class TableLayout:
-    """Where the models' blocks start in a row of the material table, and the width of the
-    per-particle strength state (:attr:`impactsph.state.ParticleState.strength_state`)."""
+    """Where the models' blocks start in a row of the material table, and the layout of the
+    per-particle material state (:attr:`impactsph.state.ParticleState.material_state`): the
+    common state, then the strength model's own, then the damage model's own."""
 
     eos_width: int
     strength_width: int
-    state_width: int
+    damage_width: int
+    strength_state_width: int
+    damage_state_width: int
 
     @classmethod
     def registered(cls) -> TableLayout:
         """The layout that fits every registered model."""
         return cls(max((len(m.columns) for m in EOS), default=0),
                    max((len(m.columns) for m in STRENGTH), default=0),
-                   max((len(m.state) for m in STRENGTH), default=0))
+                   max((len(m.columns) for m in DAMAGE), default=0),
+                   max((len(m.state) for m in STRENGTH), default=0),
+                   max((len(m.state) for m in DAMAGE), default=0))
+
+    @property
+    def strength_state(self) -> int:
+        """First column of the strength model's own state."""
+        return len(COMMON_STATE)
+
+    @property
+    def damage_state(self) -> int:
+        """First column of the damage model's own state."""
+        return self.strength_state + self.strength_state_width
+
+    @property
+    def state_width(self) -> int:
+        """Width of the material state (at least one own column per model, so that slices
+        are never empty)."""
+        return self.damage_state + max(self.damage_state_width, 1)
 
     @property
     def eos_params(self) -> int:
@@ -53,9 +83,23 @@ class TableLayout:
         return self.eos_params + self.eos_width
 
     @property
+    def damage_params(self) -> int:
+        """First column of the damage model's parameters."""
+        return self.strength_params + max(self.strength_width, 1)
+
+    @property
     def n_columns(self) -> int:
         """Length of a row (at least one column per block, so that slices are never empty)."""
-        return self.strength_params + max(self.strength_width, 1)
+        return self.damage_params + max(self.damage_width, 1)
+
+    def state_names(self, material: MaterialModel) -> dict[str, int]:
+        """The material state's columns that mean something for ``material``, by name."""
+        names = {name: k for k, name in enumerate(COMMON_STATE)}
+        for k, name in enumerate(STRENGTH[material.model].state):
+            names[name] = self.strength_state + k
+        for k, name in enumerate(DAMAGE[material.damage].state):
+            names[name] = self.damage_state + k
+        return names
 
 
 @dataclass(frozen=True)
@@ -72,6 +116,14 @@ class MaterialModel:
     bulk_modulus: float
     eos_columns: tuple[float, ...] = ()
     strength_columns: tuple[float, ...] = ()
+    damage: str = "none"  #: the damage model's registered name
+    damage_columns: tuple[float, ...] = ()
+    specific_heat: float = 0.0  #: J/(kg K); 0: the temperature does not change
+    taylor_quinney: float = 0.9  #: fraction of the plastic work that heats
+    melting_temperature: float = 0.0  #: K; 0: not given
+    temperature: float = 293.15  #: initial temperature (K)
+    #: the validated damage parameters (for the damage model's initial_state)
+    damage_parameters: Any = field(default=None, compare=False, hash=False)
 
     @property
     def yield_stress(self) -> float:
@@ -98,9 +150,18 @@ class MaterialModel:
         r[WAVE_MODULUS] = self.wave_modulus(wave_speed)
         r[EOS_KIND] = EOS.index(self.eos)
         r[STRENGTH_KIND] = STRENGTH.index(self.model)
+        r[DAMAGE_KIND] = DAMAGE.index(self.damage)
+        r[YOUNGS] = self.youngs_modulus
+        r[HEAT_PER_WORK] = (self.taylor_quinney / self.specific_heat
+                            if self.specific_heat > 0.0 else 0.0)
+        r[MELTING_TEMPERATURE] = self.melting_temperature
+        r[LONGITUDINAL_SPEED] = math.sqrt((self.bulk_modulus + 4.0 / 3.0 * self.shear_modulus)
+                                          / self.density)
         r[layout.eos_params: layout.eos_params + len(self.eos_columns)] = self.eos_columns
         r[layout.strength_params: layout.strength_params + len(self.strength_columns)] = \
             self.strength_columns
+        r[layout.damage_params: layout.damage_params + len(self.damage_columns)] = \
+            self.damage_columns
         return r
 
 
@@ -116,7 +177,10 @@ def resolve_material(name: str, material: Any) -> MaterialModel:
         mu = (material.shear_modulus if material.shear_modulus is not None
               else E / (2.0 * (1.0 + nu)))
         K = E / (3.0 * (1.0 - 2.0 * nu))
-    constants = ElasticConstants(material.density, E, nu, K, mu)
+    melting = float(material.melting_temperature or 0.0)
+    specific_heat = float(material.specific_heat or 0.0)
+    constants = ElasticConstants(material.density, E, nu, K, mu, melting, specific_heat)
+    damage = DAMAGE[material.damage]
 
     def columns(model: Any, parameters: Any) -> tuple[float, ...]:
         if model.coefficients is None:
@@ -131,7 +195,11 @@ def resolve_material(name: str, material: Any) -> MaterialModel:
         name=name, model=material.model, eos=material.eos, density=material.density,
         youngs_modulus=E, poisson_ratio=nu, shear_modulus=mu, bulk_modulus=K,
         eos_columns=columns(eos, material.eos_parameters()),
-        strength_columns=columns(strength, material.strength_parameters()))
+        strength_columns=columns(strength, material.strength_parameters()),
+        damage=material.damage, damage_columns=columns(damage, material.damage_parameters()),
+        specific_heat=specific_heat, taylor_quinney=float(material.taylor_quinney),
+        melting_temperature=melting, temperature=float(material.temperature),
+        damage_parameters=material.damage_parameters())
 
 
 def material_table(materials: list[MaterialModel], wave_speed: str,

@@ -96,7 +96,8 @@ def largest_piece(x: np.ndarray, mass: np.ndarray, support: float
 
 def body_measures(sim: Any, notes: list[str]) -> dict[str, dict[str, Any]]:
     """The per-body measures of the module docstring, by body name."""
-    from .models import STRENGTH
+    from .materials import TableLayout
+    from .models.columns import DAMAGE
 
     s = sim.state
     out: dict[str, dict[str, Any]] = {}
@@ -120,13 +121,15 @@ def body_measures(sim: Any, notes: list[str]) -> dict[str, dict[str, Any]]:
         entry["plastic_work"] = float(np.dot(m, wp))
         entry["max_plastic_work_per_mass"] = float(wp.max())
         materials = sim.problem.materials
+        layout = TableLayout.registered()
         for k in np.unique(s.material[members]):
-            for c, state_name in enumerate(STRENGTH[materials[k].model].state):
-                sel = members[s.material[members] == k]
-                if c < s.strength_state.shape[1]:
-                    value = float(s.strength_state[sel, c].max())
-                    key = f"max_{state_name}"
-                    entry[key] = max(entry.get(key, value), value)
+            sel = members[s.material[members] == k]
+            for state_name, c in layout.state_names(materials[k]).items():
+                value = float(s.material_state[sel, c].max())
+                key = f"max_{state_name}"
+                entry[key] = max(entry.get(key, value), value)
+        entry["failed_mass_fraction"] = float(
+            m[s.material_state[members, DAMAGE] >= 1.0].sum() / M)
 
         def pieces(x: np.ndarray = x, m: np.ndarray = m, members: np.ndarray = members
                    ) -> dict[str, Any]:

@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from .config import Block, Case, Cylinder, Disk, ParticleFile
+from .config import Block, Case, Cylinder, Disk, ParticleFile, Ring, Sphere
 from .errors import CaseError
 from .kernels import SUPPORT_RADIUS
 
@@ -239,6 +239,10 @@ def count_particles(case: Case) -> list[int]:
             n = _disk_count(g.radius, g.spacing) * max(1, round(g.length / g.spacing))
         elif isinstance(g, Disk):
             n = _disk_count(g.radius, g.spacing)
+        elif isinstance(g, Ring | Sphere):
+            from .geometry import body_particles
+
+            n = body_particles(g, case.dimension).position.shape[0]
         else:
             from .geometry import read_particle_file
 
@@ -554,7 +558,7 @@ def magnitude_checks(case: Case) -> list[Finding]:
         lengths: list[tuple[str, Any, float, float]] = []  # field, value, smallest, largest
         if isinstance(g, Block):
             lengths.append(("size", g.size, min(g.size), max(g.size)))
-        elif isinstance(g, Disk | Cylinder):
+        elif isinstance(g, Disk | Cylinder | Sphere):
             lengths.append(("radius", g.radius, g.radius, g.radius))
             if isinstance(g, Cylinder):
                 lengths.append(("length", g.length, g.length, g.length))

@@ -9,6 +9,8 @@ import numpy as np
 from .config import Case, CaseError
 from .geometry import body_particles, inside
 from .materials import MaterialModel, TableLayout, material_table, resolve_material
+from .models import DAMAGE
+from .models.columns import TEMPERATURE
 from .state import ParticleState
 
 
@@ -31,6 +33,28 @@ def nearest_particle(state: ParticleState, body: int, position: list[float]) -> 
     members = np.flatnonzero(state.body == body)
     d = np.linalg.norm(state.position[members] - np.asarray(position), axis=1)
     return int(members[np.argmin(d)])
+
+
+def initialise_material_state(state: ParticleState, materials: list[MaterialModel],
+                              layout: TableLayout) -> None:
+    """The material state at t = 0: each particle's temperature its material's initial one,
+    and the damage model's own state (``DamageModel.initial_state``, e.g. the Grady-Kipp
+    flaws) body by body, from the particles' volumes ``m / rho0`` and a generator seeded by
+    the damage parameters' ``seed`` (0 if none) and the body's index."""
+    for k, material in enumerate(materials):
+        sel = state.material == k
+        state.material_state[sel, TEMPERATURE] = material.temperature
+        model = DAMAGE[material.damage]
+        if model.initial_state is None:
+            continue
+        width = len(model.state)
+        for b in np.unique(state.body[sel]):
+            members = np.flatnonzero(sel & (state.body == b))
+            seed = int(getattr(material.damage_parameters, "seed", 0))
+            rng = np.random.default_rng([seed, int(b)])
+            own = model.initial_state(material.damage_parameters,
+                                      state.mass[members] / material.density, rng)
+            state.material_state[members, layout.damage_state: layout.damage_state + width] = own
 
 
 def build_problem(case: Case) -> Problem:
@@ -83,8 +107,9 @@ def build_problem(case: Case) -> Problem:
         position=np.ascontiguousarray(cat["x"]), velocity=np.ascontiguousarray(cat["v"]),
         density=cat["rho"], specific_energy=np.zeros(n), deviatoric_stress=np.zeros((n, 3, 3)),
         mass=cat["m"], smoothing_length=cat["h"], body=cat["body"], material=cat["mat"],
-        clamped=cat["clamped"], strength_state=np.zeros((n, layout.state_width)),
+        clamped=cat["clamped"], material_state=np.zeros((n, layout.state_width)),
     )
+    initialise_material_state(state, materials, layout)
     body_names = [b.name for b in case.bodies]
     probes = {p.name: nearest_particle(state, body_names.index(p.body), p.position)
               for p in case.output.probes}

@@ -15,6 +15,8 @@ from .devices import select_backend
 from .errors import SimulationError
 from .gauges import Gauges
 from .integrate import MidpointIntegrator
+from .models.columns import COMMON_STATE, DAMAGE
+from .models.strength.von_mises import von_mises_stress
 from .physics.options import PassOptions
 from .physics.rates import ViscositySettings
 from .problem import Problem, build_problem
@@ -187,6 +189,10 @@ class Simulation:
         s = self.state
         fields = {k: v.copy() for k, v in s.arrays().items()}
         fields["pressure"] = self.solver.pressure(s)
+        damage = s.material_state[:, DAMAGE]
+        fields["von_mises_stress"] = (1.0 - damage) * von_mises_stress(s.deviatoric_stress)
+        for k, name in enumerate(COMMON_STATE):
+            fields[name] = s.material_state[:, k].copy()
         return fields
 
     def _take_snapshots(self, previous: float) -> None:

@@ -9,6 +9,7 @@ import numpy as np
 
 from .boundaries import Walls, fill_ghosts, layer_push
 from .kernels import SUPPORT_RADIUS
+from .models.columns import DAMAGE
 from .neighbours import NeighbourList
 from .physics.rates import CpuRates, RateBuffers, ViscositySettings, pressures
 from .state import ParticleState
@@ -83,6 +84,7 @@ class Solver:
         self.powers = (0.0, 0.0, 0.0)
         self.wall_force = np.zeros(state.dim)
         self.neighbours: NeighbourList | None = None
+        self._damage: np.ndarray | None = None  # the particles' damage, contiguous
         self._build(state)
 
     def _build(self, state: ParticleState) -> None:
@@ -114,7 +116,7 @@ class Solver:
         if self.walls is not None:
             ext = {"x": np.zeros((n_ext, self.dim)), "v": np.zeros((n_ext, self.dim)),
                    "rho": np.zeros(n_ext), "e": np.zeros(n_ext), "S": np.zeros((n_ext, 3, 3)),
-                   "m": np.zeros(n_ext), "h": np.zeros(n_ext),
+                   "damage": np.zeros(n_ext), "m": np.zeros(n_ext), "h": np.zeros(n_ext),
                    "material": np.zeros(n_ext, np.int32), "body": np.zeros(n_ext, np.int32)}
             ext["m"][:n], ext["h"][:n] = state.mass, state.smoothing_length
             ext["material"][:n], ext["body"][:n] = state.material, state.body
@@ -137,20 +139,26 @@ class Solver:
         ext["x"][:n], ext["v"][:n] = state.position, state.velocity
         ext["rho"][:n], ext["e"][:n] = state.density, state.specific_energy
         ext["S"][:n] = state.deviatoric_stress
+        ext["damage"][:n] = state.material_state[:, DAMAGE]
         w = self.walls
         fill_ghosts(self._ghost_src, self._ghost_wall, w.points, w.normals, w.kinds, n,
-                    ext["x"], ext["v"], ext["rho"], ext["e"], ext["S"], ext["m"], ext["h"],
-                    ext["material"], ext["body"], self.n_bodies)
+                    ext["x"], ext["v"], ext["rho"], ext["e"], ext["S"], ext["damage"], ext["m"],
+                    ext["h"], ext["material"], ext["body"], self.n_bodies)
 
     def _arrays(self, state: ParticleState):
+        """``(x, v, rho, e, S, m, h, material, body, damage)`` of every row, ghosts
+        included."""
         if self._ext is None:
+            if self._damage is None or self._damage.shape[0] != state.n:
+                self._damage = np.empty(state.n)
+            np.copyto(self._damage, state.material_state[:, DAMAGE])
             return (state.position, state.velocity, state.density, state.specific_energy,
                     state.deviatoric_stress, state.mass, state.smoothing_length, state.material,
-                    state.body)
+                    state.body, self._damage)
         self._fill(state)
         e = self._ext
         return (e["x"], e["v"], e["rho"], e["e"], e["S"], e["m"], e["h"], e["material"],
-                e["body"])
+                e["body"], e["damage"])
 
     def rates(self, state: ParticleState):
         """Rates at ``state`` (Table 1's subroutine RATES): ``(dv, drho, de, dS, dhg)``, the
@@ -187,6 +195,9 @@ class Solver:
         return b.dv, b.drho, b.de, b.dS, b.dhg
 
     def pressure(self, state: ParticleState) -> np.ndarray:
-        """Pressure (Pa) of each particle of ``state``, from the equations of state."""
-        return pressures(state.density, state.specific_energy, state.material, self.table,
-                         self.dim, np.empty(state.n))
+        """Pressure (Pa) of each particle of ``state``, from the equations of state, a
+        damaged particle's tension reduced by ``1 - D`` (as the forces see it)."""
+        p = pressures(state.density, state.specific_energy, state.material, self.table,
+                      self.dim, np.empty(state.n))
+        damage = state.material_state[:, DAMAGE]
+        return np.where(p < 0.0, p * (1.0 - damage), p)

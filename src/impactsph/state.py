@@ -29,9 +29,11 @@ class ParticleState:
     clamped: np.ndarray  #: (n,) bool, held at zero velocity
     plastic_work: np.ndarray = field(default=None)  #: (n,) J/kg dissipated by yielding
     initial_position: np.ndarray = field(default=None)  #: (n, dim) m, position at t = 0
-    #: (n, k) the per-particle state of the strength models (as each declares it: see
-    #: :class:`impactsph.models.StrengthModel`); k is the widest registered model's
-    strength_state: np.ndarray = field(default=None)
+    #: (n, k) the material state: the equivalent plastic strain, its rate, the temperature
+    #: and the damage (:mod:`impactsph.models.columns`), then the strength and damage models'
+    #: own state (:class:`impactsph.materials.TableLayout`); default zeros, the registered
+    #: layout's width
+    material_state: np.ndarray = field(default=None)
     #: (n, dim) m/s^2, the hourglass control's acceleration (docs/stabilisation.md); (n, 0)
     #: when the control is off
     hourglass_acceleration: np.ndarray = field(default=None)
@@ -43,8 +45,10 @@ class ParticleState:
             self.plastic_work = np.zeros(self.n)
         if self.initial_position is None:
             self.initial_position = self.position.copy()
-        if self.strength_state is None:
-            self.strength_state = np.zeros((self.n, 0))
+        if self.material_state is None:
+            from .materials import TableLayout  # the layout of the registered models
+
+            self.material_state = np.zeros((self.n, TableLayout.registered().state_width))
         if self.hourglass_acceleration is None:
             self.hourglass_acceleration = np.zeros((self.n, 0))
 

@@ -1,10 +1,13 @@
 """ParaView output: one VTK XML unstructured-grid file (``.vtu``) of particles (vertex cells)
 per snapshot, written with meshio, and a ``.pvd`` collection that indexes them by time.
 
-Point data: velocity (m/s, 3 components), density (kg/m^3), pressure (Pa), deviatoric stress
-(Pa, 9 components, row-major), von Mises stress (Pa), plastic flag (1 where the von Mises
-stress is at the yield stress), specific internal energy (J/kg), body id, plastic work (J/kg).
-In 1D and 2D the missing coordinates are written as zero.
+Point data: velocity (m/s, 3 components), density (kg/m^3), pressure (Pa; a damaged particle's
+tension reduced by ``1 - D``), deviatoric stress (Pa, 9 components, row-major; undamaged, as
+integrated), von Mises stress (Pa, of the damaged deviator ``(1 - D) S``: what the particle
+carries), plastic flag (1 where the particle yielded in the last step), specific internal
+energy (J/kg), body id, plastic work (J/kg), equivalent plastic strain (-), plastic strain
+rate (1/s), temperature (K), damage (-).  In 1D and 2D the missing coordinates are written as
+zero.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import meshio
 import numpy as np
 
 from .atomic import atomic_path, write_text
+from .models.columns import COMMON_STATE, DAMAGE, PLASTIC_STRAIN_RATE
 from .models.strength.von_mises import von_mises_stress
 
 
@@ -26,9 +30,9 @@ def particle_fields(sim: Any) -> dict[str, np.ndarray]:
     n = s.n
     vel = np.zeros((n, 3))
     vel[:, : s.dim] = s.velocity
-    vm = von_mises_stress(s.deviatoric_stress)
-    yield_stress = np.array([m.yield_stress for m in sim.problem.materials])[s.material]
-    plastic = np.isfinite(yield_stress) & (vm >= yield_stress * (1 - 1e-9))
+    damage = s.material_state[:, DAMAGE]
+    vm = (1.0 - damage) * von_mises_stress(s.deviatoric_stress)
+    plastic = s.material_state[:, PLASTIC_STRAIN_RATE] > 0.0
     return {
         "velocity": vel,
         "density": s.density.copy(),
@@ -39,6 +43,7 @@ def particle_fields(sim: Any) -> dict[str, np.ndarray]:
         "specific_internal_energy": s.specific_energy.copy(),
         "body": s.body.astype(np.int32),
         "plastic_work": s.plastic_work.copy(),
+        **{name: s.material_state[:, k].copy() for k, name in enumerate(COMMON_STATE)},
     }
 
 

@@ -15,8 +15,11 @@ A model is one module that builds one of the dataclasses below and registers it 
   (:mod:`impactsph.codegen`): an EOS's ``pressure``, a strength model's ``return_map``, a
   viscosity scheme's ``pair_viscosity`` and optional ``correction`` (a per-particle pass after
   the pair pass);
-- the **per-particle state** it needs (a strength model's ``state``: names of scalar fields
-  that the integrator carries and hands to its return map).
+- the **per-particle state** it needs (a strength or damage model's ``state``: names of
+  scalar fields that the integrator carries and hands to it, after the state every particle
+  carries, :mod:`impactsph.models.columns`);
+- the **material fields** it needs (``needs``: e.g. ``("melting_temperature",)``), refused at
+  validation when missing.
 
 The registries are read by the case schema (:mod:`impactsph.config`), the material table
 (:mod:`impactsph.materials`), the problem set-up, the generated passes and the outputs.  A model
@@ -41,13 +44,15 @@ class Parameters(BaseModel):
 
 @dataclass(frozen=True)
 class ElasticConstants:
-    """A material's resolved elastic constants (SI), handed to ``coefficients``."""
+    """A material's resolved constants (SI), handed to ``coefficients``."""
 
     density: float  #: reference density rho0 (kg/m^3)
     youngs_modulus: float  #: E (Pa)
     poisson_ratio: float  #: nu
     bulk_modulus: float  #: K (Pa)
     shear_modulus: float  #: mu (Pa)
+    melting_temperature: float = 0.0  #: K (0: not given)
+    specific_heat: float = 0.0  #: J/(kg K) (0: not given)
 
 
 @dataclass(frozen=True)
@@ -73,12 +78,16 @@ class EquationOfState:
 class StrengthModel:
     """A strength model: what becomes of the deviatoric stress after each integrator stage.
 
-    ``return_map(S, rho, shear_modulus, params, state) -> dissipated specific work (J/kg)``:
-    compiled; ``S`` is the particle's 3x3 deviatoric stress after the elastic (Jaumann)
-    update, changed in place; ``params`` the material's row of the table from this model's
-    first column; ``state`` the particle's values of this model's ``state`` fields (a view;
-    the integrator restores them at the start of each stage, as it does the stress), changed
-    in place.  ``None``: the stress is left as it is (elastic).
+    ``return_map(S, rho, pressure, shear_modulus, params, state, own, dt) -> dissipated
+    specific work (J/kg)``: compiled; ``S`` is the particle's 3x3 deviatoric stress after the
+    elastic (Jaumann) update, changed in place; ``pressure`` the particle's pressure (Pa);
+    ``params`` the material's row of the table from this model's first column; ``state`` the
+    particle's common material state (:mod:`impactsph.models.columns`: the equivalent plastic
+    strain and its rate, which the model updates, the temperature, the damage), ``own`` its
+    values of this model's ``state`` fields (views; the integrator restores both at the start
+    of each stage, as it does the stress), changed in place; ``dt`` the stage's time step (s).
+    The integrator then heats the particle by ``beta / c_p`` times the returned work.
+    ``None``: the stress is left as it is (elastic).
 
     ``uniaxial_stress``: the 1D bar of the paper's Example 1 (``K = E``, no deviatoric stress,
     bar wave speed); ``dimensions`` and ``equations_of_state`` (None: any) restrict where the
@@ -92,9 +101,40 @@ class StrengthModel:
     columns: tuple[str, ...] = ()
     coefficients: Callable[[Any, ElasticConstants], tuple[float, ...]] | None = None
     state: tuple[str, ...] = ()
+    needs: tuple[str, ...] = ()  #: material fields it cannot do without
     uniaxial_stress: bool = False
     dimensions: tuple[int, ...] = (1, 2, 3)
     equations_of_state: tuple[str, ...] | None = None
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class DamageModel:
+    """A damage (failure) model: how the damage D of a particle grows after each stage.
+
+    ``update(S, pressure, rho, size, dt, plastic_strain_increment, row, params, state, own)``
+    (compiled) is called after the strength model's return map with the particle's deviatoric
+    stress ``S`` (undamaged), its pressure (Pa, undamaged), density, size (its smoothing
+    length, m), the stage's ``dt`` and the increment of equivalent plastic strain the return
+    map just made; ``row`` is the material's whole row of the table
+    (:mod:`impactsph.models.columns` for the common columns), ``params`` its columns of this
+    model; it writes the damage into ``state[DAMAGE]`` and its own fields into ``own``.  The
+    passes apply D (``impactsph.physics.passes.particle_record``): the deviatoric stress and a
+    tensile pressure are scaled by ``1 - D``.
+
+    ``initial_state(parameters, volume, rng) -> (n, len(state))``: the own fields at t = 0
+    (e.g. each particle's flaws), from the particles' volumes (m^3, or m^2 and m in 2D and 1D)
+    and a seeded ``numpy.random.Generator``; None: zeros."""
+
+    name: str
+    update: Any = None
+    description: str = ""
+    parameters: type[Parameters] | None = None
+    columns: tuple[str, ...] = ()
+    coefficients: Callable[[Any, ElasticConstants], tuple[float, ...]] | None = None
+    state: tuple[str, ...] = ()
+    initial_state: Callable[..., Any] | None = None
+    needs: tuple[str, ...] = ()
     source: str = ""
 
 
@@ -123,7 +163,7 @@ class ViscosityScheme:
     source: str = ""
 
 
-M = TypeVar("M", EquationOfState, StrengthModel, ViscosityScheme)
+M = TypeVar("M", EquationOfState, StrengthModel, DamageModel, ViscosityScheme)
 
 
 @dataclass
@@ -190,14 +230,16 @@ def version() -> int:
 
 EOS: Registry[EquationOfState] = Registry("equation of state")
 STRENGTH: Registry[StrengthModel] = Registry("strength model")
+DAMAGE: Registry[DamageModel] = Registry("damage model")
 VISCOSITY: Registry[ViscosityScheme] = Registry("viscosity scheme")
 
 
 def register(model: M, *, replace: bool = False) -> M:
-    """Register an equation of state, strength model or viscosity scheme (by its type)."""
-    registry = {EquationOfState: EOS, StrengthModel: STRENGTH,
+    """Register an equation of state, strength model, damage model or viscosity scheme (by
+    its type)."""
+    registry = {EquationOfState: EOS, StrengthModel: STRENGTH, DamageModel: DAMAGE,
                 ViscosityScheme: VISCOSITY}.get(type(model))
     if registry is None:
-        raise TypeError(f"cannot register {model!r}: not an EquationOfState, StrengthModel or "
-                        f"ViscosityScheme")
+        raise TypeError(f"cannot register {model!r}: not an EquationOfState, StrengthModel, "
+                        f"DamageModel or ViscosityScheme")
     return registry.register(model, replace=replace)

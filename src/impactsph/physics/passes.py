@@ -38,7 +38,17 @@ import numba as nb
 import numpy as np
 
 from impactsph.kernels import cubic_spline_gradient_factor, cubic_spline_shape
-from impactsph.materials import BULK, EOS_KIND, RHO0, SHEAR, STRENGTH_KIND, WAVE_MODULUS
+from impactsph.materials import (
+    BULK,
+    DAMAGE_KIND,
+    EOS_KIND,
+    HEAT_PER_WORK,
+    RHO0,
+    SHEAR,
+    STRENGTH_KIND,
+    WAVE_MODULUS,
+)
+from impactsph.models.columns import EQUIVALENT_PLASTIC_STRAIN, TEMPERATURE
 from impactsph.physics.contact import contact_acceleration_pair, contact_work_pair, in_contact
 from impactsph.physics.continuity import continuity_pair, velocity_gradient_pair
 from impactsph.physics.energy import viscous_heating_pair
@@ -54,8 +64,9 @@ ARTIFICIAL_STRESS = 0.0
 ARTIFICIAL_STRESS_EXPONENT = 4.0
 REFERENCE_Q = 1.0
 JIT = nb.njit
-EOS_PARAMS = STRENGTH_PARAMS = STATE_WIDTH = 6
-eos_pressure = strength_return = pair_viscosity = viscosity_correction = None
+EOS_PARAMS = STRENGTH_PARAMS = DAMAGE_PARAMS = STATE_WIDTH = 6
+STRENGTH_STATE = DAMAGE_STATE = 4
+eos_pressure = strength_return = damage_update = pair_viscosity = viscosity_correction = None
 # <<< binding
 
 #: LLVM may fuse multiply-adds and use reciprocals in the pair pass (deterministic on one
@@ -254,19 +265,26 @@ def artificial_stress_weight(q):
 
 
 @JIT(inline="always", cache=True)
-def particle_record(p, i, x, v, m, rho, e, S, h, body, material, table, P):
+def particle_record(p, i, x, v, m, rho, e, S, damage, h, body, material, table, P):
     """Pass 1 for particle ``i`` at sorted position ``p``: ``P``, ``c = sqrt(M/rho)``, and its
     packed record (``V = m/rho``, ``P/rho^2``, ``A = (-P I + S)/rho^2``, ...) in row ``p``;
-    with the artificial stress, ``R`` (:func:`artificial_stress_record`)."""
+    with the artificial stress, ``R`` (:func:`artificial_stress_record`).
+
+    The damage ``D = damage[i]`` acts here (Benz & Asphaug 1995, section 3.2): the forces see
+    ``(1 - D) S`` and, in tension, ``(1 - D) P``; the stored stress stays undamaged (the
+    strength model's return and the damage models read it)."""
     k = material[i]
     pr = material_pressure(table, k, rho[i], e[i])
+    intact = 1.0 - damage[i]
+    if pr < 0.0:
+        pr *= intact
     c = math.sqrt(table[k, WAVE_MODULUS] / rho[i])
     inv_rho2 = 1.0 / (rho[i] * rho[i])
     for a in range(DIM):
         P[p, X + a] = x[i, a]
         P[p, V + a] = v[i, a]
         for b in range(a, DIM):
-            P[p, SYM[a][b]] = S[i, a, b] * inv_rho2
+            P[p, SYM[a][b]] = intact * S[i, a, b] * inv_rho2
         P[p, SYM[a][a]] -= pr * inv_rho2
     P[p, H] = h[i]
     P[p, M] = m[i]
@@ -672,12 +690,13 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
 
 @JIT(inline="always", cache=True)
 def advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, drho, de, dS,
-                     dhg, clamped, material, table, x, v, rho, e, S, plastic_work, state, hg):
+                     dhg, clamped, material, table, h, x, v, rho, e, S, plastic_work, state, hg):
     """One integrator stage of particle ``i``: ``y = y0 + dt ydot`` with ``xdot = v_rate``
-    (a clamped particle keeps ``v = 0``), the strength state restored to its value at the
+    (a clamped particle keeps ``v = 0``), the material state restored to its value at the
     start of the step, then the strength model's return map and the specific plastic work
-    it dissipates.  ``v_rate`` may be ``v`` itself: the position is advanced before the
-    velocity."""
+    ``w`` it dissipates, the temperature raised by ``beta w / c_p`` (the Taylor-Quinney
+    factor over the specific heat), and the damage model's update.  ``v_rate`` may be ``v``
+    itself: the position is advanced before the velocity."""
     for a in range(DIM):
         x[i, a] = x0[i, a] + dt * v_rate[i, a]
         v[i, a] = 0.0 if clamped[i] else v0[i, a] + dt * dv[i, a]
@@ -692,8 +711,18 @@ def advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, 
         hg[i, a] = hg0[i, a] + dt * dhg[i, a]
     k = material[i]
     row = table[k]
-    plastic_work[i] = pw0[i] + strength_return(int(row[STRENGTH_KIND]), S[i], rho[i],
-                                               row[SHEAR], row[STRENGTH_PARAMS:], state[i])
+    pr = eos_pressure(int(row[EOS_KIND]), rho[i], e[i], row[RHO0], row[BULK],
+                      row[EOS_PARAMS:])
+    st = state[i]
+    eps_before = st[EQUIVALENT_PLASTIC_STRAIN]
+    work = strength_return(int(row[STRENGTH_KIND]), S[i], rho[i], pr, row[SHEAR],
+                           row[STRENGTH_PARAMS:DAMAGE_PARAMS], st,
+                           st[STRENGTH_STATE:DAMAGE_STATE], dt)
+    plastic_work[i] = pw0[i] + work
+    st[TEMPERATURE] += row[HEAT_PER_WORK] * work
+    damage_update(int(row[DAMAGE_KIND]), S[i], pr, rho[i], h[i], dt,
+                  st[EQUIVALENT_PLASTIC_STRAIN] - eps_before, row, row[DAMAGE_PARAMS:], st,
+                  st[DAMAGE_STATE:])
 
 
 @JIT(inline="always", cache=True)
@@ -783,11 +812,11 @@ def hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zet
 
 
 @JIT(parallel=True, cache=True)
-def particle_pass(order, x, v, m, rho, e, S, h, body, material, table, P):
+def particle_pass(order, x, v, m, rho, e, S, damage, h, body, material, table, P):
     """Pass 1 over every row (ghosts included), in the list's order (``order[p]`` is the
     particle at sorted position ``p``)."""
     for p in nb.prange(order.shape[0]):
-        particle_record(p, order[p], x, v, m, rho, e, S, h, body, material, table, P)
+        particle_record(p, order[p], x, v, m, rho, e, S, damage, h, body, material, table, P)
 
 
 @JIT(parallel=True, cache=True)
@@ -852,11 +881,11 @@ def hourglass_pass(n_active, order, P, L_sorted, offsets, indices, material, tab
 
 @JIT(parallel=True, cache=True)
 def advance(n_active, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, drho, de, dS,
-            dhg, clamped, material, table, x, v, rho, e, S, plastic_work, state, hg):
+            dhg, clamped, material, table, h, x, v, rho, e, S, plastic_work, state, hg):
     """:func:`advance_particle` for every active particle."""
     for i in nb.prange(n_active):
         advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, drho, de,
-                         dS, dhg, clamped, material, table, x, v, rho, e, S, plastic_work,
+                         dS, dhg, clamped, material, table, h, x, v, rho, e, S, plastic_work,
                          state, hg)
 
 
@@ -880,10 +909,12 @@ def cuda_kernels():
     from numba import cuda
 
     @cuda.jit
-    def particle_kernel(n_rows, order, x, v, m, rho, e, S, h, body, material, table, P):
+    def particle_kernel(n_rows, order, x, v, m, rho, e, S, damage, h, body, material, table,
+                        P):
         p = cuda.grid(1)
         if p < n_rows:
-            particle_record(p, order[p], x, v, m, rho, e, S, h, body, material, table, P)
+            particle_record(p, order[p], x, v, m, rho, e, S, damage, h, body, material, table,
+                            P)
 
     @cuda.jit
     def pair_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind, visc_params,

@@ -94,18 +94,19 @@ class CpuRates:
                  viscosity: ViscositySettings, b: RateBuffers, hourglass: float = 0.0,
                  hourglass_acceleration: np.ndarray | None = None) -> None:
         """Rates of the first ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h,
-        material, body)`` (all rows, ghosts included, take part in the sums) into ``b``:
+        material, body, damage)`` (all rows, ghosts included, take part in the sums) into ``b``:
         ``drho``, the total accelerations ``dv`` and specific-energy rates ``de``, the
         viscous heating ``de_visc``, ``contact_force, pair_count, dS`` and, for a scheme with
         a correction, ``dv_corr, de_corr``; with ``hourglass`` (the coefficient zeta) > 0,
         ``dhg`` from the particles' ``hourglass_acceleration`` (added to ``dv``)."""
-        x, v, rho, e, S, m, h, material, body = arrays
+        x, v, rho, e, S, m, h, material, body, damage = arrays
         k = self.passes
         nl = neighbours
         n = x.shape[0]
         if self._packed is None or self._packed.shape[0] != n:
             self._packed = np.empty((n, k.RECORD_WIDTH))
-        k.particle_pass(nl.order, x, v, m, rho, e, S, h, body, material, table, self._packed)
+        k.particle_pass(nl.order, x, v, m, rho, e, S, damage, h, body, material, table,
+                        self._packed)
         if self._chunk is None or self._chunk[0] != n:  # get_num_threads takes a lock
             self._chunk = (n, chunk_size(n))
         chunk = self._chunk[1]

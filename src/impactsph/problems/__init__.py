@@ -9,6 +9,7 @@ examples (section 5), one module each:
 - ``bars`` (:mod:`.bars`): Example 1, two elastic bars in collinear impact (section 5.1);
 - ``taylor`` (:mod:`.taylor`): Example 2, the Taylor bar on a rigid wall (section 5.2);
 - ``cantilever`` (:mod:`.cantilever`): Example 3, the Parkes cantilever (section 5.3);
+- ``perforation`` (:mod:`.perforation`): a projectile into a plate (residual velocity, hole);
 
 and ``none``, no problem-specific analysis (the default).
 
@@ -37,6 +38,7 @@ from __future__ import annotations
 from .bars import BarsProblem
 from .base import GeometryNeeds, ProblemKind, SweepCriterion
 from .cantilever import CantileverProblem
+from .perforation import PerforationProblem
 from .registry import (
     NoAnalysis,
     analyse,
@@ -50,5 +52,5 @@ from .taylor import TaylorProblem
 __all__ = ["GeometryNeeds", "ProblemKind", "SweepCriterion", "analyse", "get_problem",
            "problem_names", "register_problem", "unregister_problem"]
 
-for _kind in (NoAnalysis, BarsProblem, TaylorProblem, CantileverProblem):
+for _kind in (NoAnalysis, BarsProblem, TaylorProblem, CantileverProblem, PerforationProblem):
     register_problem(_kind)

@@ -1,3 +1,3 @@
 """Strength models, one module each; importing this package registers them."""
 
-from . import elastic, von_mises  # noqa: F401
+from . import elastic, hardening, von_mises  # noqa: F401

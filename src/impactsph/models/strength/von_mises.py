@@ -7,8 +7,13 @@ deviator is scaled back onto the yield surface::
 
     S <- f S,    f = min(sigma_y / sigma_eq, 1)
 
-The specific plastic work of one return is the drop in stored deviatoric elastic energy,
-``(S_trial:S_trial - S:S) / (4 mu rho)`` (J/kg).  Registered as ``model = "elastic_plastic"``
+The equivalent plastic strain grows by ``d = (sigma_eq - sigma_y) / (3 mu)`` (the radial
+return's plastic multiplier), its rate is ``d / dt`` over the stage, and the specific plastic
+work of the return is ``sigma_y d / rho`` (J/kg): the work of the returned stress on the
+plastic strain increment, as the backward-Euler return defines it.  (Before version 0.2 this
+was the drop in stored elastic energy, ``(S_trial:S_trial - S:S) / (4 mu rho) = d (sigma_y +
+3/2 mu d) / rho``, which counts the trial overshoot too: 4% more heat for copper at 2e-4
+plastic strain per step, 17% at 1e-3.)  Registered as ``model = "elastic_plastic"``
 with the flat material field ``yield_stress`` (Pa).
 """
 
@@ -20,6 +25,7 @@ import numba as nb
 import numpy as np
 from pydantic import Field
 
+from ..columns import EQUIVALENT_PLASTIC_STRAIN, PLASTIC_STRAIN_RATE
 from ..registry import STRENGTH, Parameters, StrengthModel
 from ..types import PositiveFloat
 
@@ -60,13 +66,19 @@ def radial_return(S, yield_stress: float) -> float:
 
 
 @nb.njit(inline="always", cache=True)
-def return_map(S, rho: float, shear_modulus: float, params, state) -> float:
-    """The registered form: radial return to ``sigma_y = params[0]``; returns the specific
-    plastic work ``S_trial:S_trial (1 - f^2) / (4 mu rho)`` (J/kg)."""
-    before = double_contraction(S)
+def return_map(S, rho: float, pressure: float, shear_modulus: float, params, state, own,
+               dt: float) -> float:
+    """The registered form: radial return to ``sigma_y = params[0]``, the equivalent plastic
+    strain and its rate in ``state``; returns the specific plastic work ``sigma_y d / rho``
+    (J/kg)."""
     f = radial_return(S, params[0])
     if f < 1.0:
-        return before * (1.0 - f * f) / (4.0 * shear_modulus * rho)
+        # sigma_trial - sigma_y = sigma_y (1/f - 1) = 3 mu d
+        d = params[0] * (1.0 / f - 1.0) / (3.0 * shear_modulus)
+        state[EQUIVALENT_PLASTIC_STRAIN] += d
+        state[PLASTIC_STRAIN_RATE] = d / dt if dt > 0.0 else 0.0
+        return params[0] * d / rho
+    state[PLASTIC_STRAIN_RATE] = 0.0
     return 0.0
 
 

@@ -1,0 +1,117 @@
+"""Taylor cylinder impacts against measured final lengths and foot diameters: the 3D cylinder
+of ``examples/taylor3d.toml`` (a free-slip rigid wall, AC viscosity, the defaults), made of a
+library material (Johnson-Cook strength, Mie-Gruneisen or linear EOS, ``impactsph
+materials``) with the size and speed of each test in ``validation/taylor_measured.toml``, at
+two resolutions (particles across the diameter).  Writes
+``runs/validation/taylor-measured/taylor_measured.json`` and prints a Markdown table.
+
+    .venv/bin/python validation/taylor_measured.py                      # the default tests
+    .venv/bin/python validation/taylor_measured.py --across 10 20 --all --workers 2
+
+Default tests: OFHC copper at 190 m/s (Johnson & Cook 1983, as read by Zerilli & Armstrong
+1987) and 4340 steel at 208 m/s (Johnson & Cook 1983).  Johnson-Cook damage is switched off
+(``damage = "none"``): these bars do not break, and the measured shapes are of whole bars.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import tomllib
+from pathlib import Path
+
+from impactsph.loading import read_case_dict
+from impactsph.output import load_run
+from impactsph.sweep import run_many
+
+HERE = Path(__file__).resolve().parent
+DEFAULT = [("ofhc_copper", 190.0), ("steel_4340", 208.0)]
+
+
+def tests(select_all: bool) -> list[dict]:
+    entries = tomllib.loads((HERE / "taylor_measured.toml").read_text())["test"]
+    found = [t for t in entries if t.get("final_length") is not None]
+    if select_all:
+        return found
+    return [t for t in found if (t["material"], t["velocity"]) in DEFAULT]
+
+
+def case_of(test: dict, across: int, end: float) -> dict:
+    base = read_case_dict(HERE.parent / "examples" / "taylor3d.toml")
+    base["name"] = f"taylor-{test['material']}-{test['velocity']:.0f}"
+    base["description"] = f"Taylor test: {test['source']}"
+    base["materials"] = {"bar": {"library": test["material"], "damage": "none"}}
+    body = base["bodies"][0]
+    body["material"] = "bar"
+    body["velocity"] = [0.0, 0.0, -float(test["velocity"])]
+    geometry = body["geometry"]
+    geometry["radius"] = test["diameter"] / 2.0
+    geometry["length"] = test["length"]
+    layers = round(test["length"] / (test["diameter"] / across))
+    geometry["spacing"] = test["length"] / layers
+    base["time"]["end"] = end
+    base["output"] = {"snapshot_times": [end], "figures": False}
+    return base
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--across", nargs="+", type=int, default=[10, 20],
+                        help="particles across the diameter (default: 10 20)")
+    parser.add_argument("--all", action="store_true", help="every test with measured values")
+    parser.add_argument("--end", type=float, default=100e-6, help="end time (s)")
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--out", type=Path, default=Path("runs/validation/taylor-measured"))
+    args = parser.parse_args()
+    chosen = tests(args.all)
+    labels, names = [], []
+    cases = []
+    for test in chosen:
+        for across in args.across:
+            labels.append((test, across))
+            cases.append(case_of(test, across, args.end))
+            names.append(f"{test['material']}-{test['velocity']:.0f}-x{across}")
+    # one base per test: run_many takes one base and override lists, so each case is its own
+    rows = []
+    for case, name in zip(cases, names, strict=True):
+        rows += run_many(case, [[]], args.out, workers=args.workers, names=[name])
+    result = []
+    for (test, across), row in zip(labels, rows, strict=True):
+        summary = load_run(args.out / "runs" / row["run"]).get("summary", {})
+        L0, D0 = test["length"], test["diameter"]
+        Lf = summary.get("final_length_ratio", math.nan) * L0
+        foot = 2.0 * summary.get("footprint_radius", math.nan)
+        bar = summary.get("bodies", {}).get("bar", {})
+        result.append({
+            "material": test["material"], "velocity": test["velocity"], "across": across,
+            "n_particles": summary.get("n_particles"), "status": row.get("status"),
+            "final_length_mm": 1e3 * Lf, "measured_final_length_mm": 1e3 * test["final_length"],
+            "final_length_error": Lf / test["final_length"] - 1.0,
+            "foot_diameter_mm": 1e3 * foot,
+            "measured_foot_diameter_mm": 1e3 * test["foot_diameter"],
+            "foot_diameter_error": foot / test["foot_diameter"] - 1.0,
+            "initial_diameter_mm": 1e3 * D0,
+            "max_equivalent_plastic_strain": bar.get("max_equivalent_plastic_strain"),
+            "max_temperature": bar.get("max_temperature"),
+            "total_energy_relative_error": summary.get("total_energy_relative_error"),
+            "wall_constraint_events": summary.get("wall_constraint_events"),
+            "wall_seconds": summary.get("wall_seconds"), "source": test["source"]})
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "taylor_measured.json").write_text(json.dumps(result, indent=2, default=float))
+    cols = ["material", "velocity", "across", "n_particles", "final_length_mm",
+            "measured_final_length_mm", "final_length_error", "foot_diameter_mm",
+            "measured_foot_diameter_mm", "foot_diameter_error", "max_equivalent_plastic_strain",
+            "max_temperature", "total_energy_relative_error", "wall_constraint_events",
+            "wall_seconds"]
+    print("| " + " | ".join(cols) + " |")
+    print("|" + "---|" * len(cols))
+    for r in result:
+        print("| " + " | ".join(
+            (f"{r[c]:+.1%}" if c.endswith("_error") and c.startswith(("final", "foot"))
+             else f"{r[c]:.4g}") if isinstance(r[c], float) else str(r[c])
+            for c in cols) + " |")
+
+
+if __name__ == "__main__":
+    main()
