@@ -38,9 +38,9 @@ from numpy.typing import ArrayLike
 from .materials import BULK, RHO0
 
 #: wall kinds (``Walls.kinds``); module-level ints, so compile-time constants in the kernels
-FREE_SLIP, NO_SLIP = 1, 2
-#: the kind of each ``slip`` name of a case's wall
-SLIP_KINDS = {"free": FREE_SLIP, "no": NO_SLIP}
+FREE_SLIP, NO_SLIP, SYMMETRY = 1, 2, 3
+#: the kind of each ``slip`` name of a case's wall (``"symmetry"``: a symmetry plane)
+SLIP_KINDS = {"free": FREE_SLIP, "no": NO_SLIP, "symmetry": SYMMETRY}
 
 
 @dataclass
@@ -83,19 +83,47 @@ class Walls:
         """The first particle behind a wall (``d < 0``), or -1."""
         return int(_first_behind(x, self.points, self.normals))
 
+    @property
+    def walls_only(self) -> np.ndarray:
+        """Indices of the rigid walls (not the symmetry planes)."""
+        return np.flatnonzero(self.kinds != SYMMETRY)
+
     def select(self, x: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
-        """Sources and walls of the ghosts: particles with ``0 <= d < reach``."""
-        d = self.distances(x)
-        src, wall = np.nonzero((d >= 0.0) & (d < reach))
-        return src.astype(np.int64), wall.astype(np.int64)
+        """Sources and walls (or planes) of the ghosts, in the order they are filled: first
+        the rigid walls' ghosts of the particles with ``0 <= d < reach``, then for each
+        symmetry plane in turn the mirrors of every row so far (particles and the ghosts
+        before it) within ``reach`` of it, so that a particle near a wall and a symmetry
+        plane, or near two planes, finds the corner images the whole model would give it.
+        A ghost's source is a row before it (:func:`fill_ghosts` fills them in order)."""
+        n = x.shape[0]
+        rigid = self.walls_only
+        d = self.distances(x)[:, rigid] if rigid.size else np.zeros((n, 0))
+        src, k = np.nonzero((d >= 0.0) & (d < reach))
+        sources, walls = [src.astype(np.int64)], [rigid[k].astype(np.int64)]
+        positions = [x, _mirrored(x[src], self.points[rigid[k]], self.normals[rigid[k]])]
+        for w in np.flatnonzero(self.kinds == SYMMETRY):
+            rows = np.concatenate(positions)
+            dist = (rows - self.points[w]) @ self.normals[w]
+            near = np.flatnonzero((dist >= 0.0) & (dist < reach))
+            sources.append(near.astype(np.int64))
+            walls.append(np.full(near.size, w, dtype=np.int64))
+            positions.append(_mirrored(rows[near], self.points[w][None], self.normals[w][None]))
+        return np.concatenate(sources), np.concatenate(walls)
+
+
+def _mirrored(x: np.ndarray, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Mirror images of points ``x`` across the planes (one per point, or one for all)."""
+    d = np.einsum("ia,ia->i", x - points, np.broadcast_to(normals, x.shape))
+    return x - 2.0 * d[:, None] * normals
 
 
 def walls_of(specs: Iterable[Any], dim: int) -> Walls:
-    """The walls described by objects with ``point``, ``normal`` and ``slip`` attributes, such
-    as a case's ``boundaries``."""
+    """The walls described by objects with ``point``, ``normal`` and ``slip`` attributes (a
+    case's ``boundaries``: a symmetry plane has ``type = "symmetry"``)."""
     specs = list(specs)
     return Walls.from_planes([w.point for w in specs], [w.normal for w in specs],
-                             [w.slip for w in specs], dim)
+                             ["symmetry" if getattr(w, "type", "wall") == "symmetry" else w.slip
+                              for w in specs], dim)
 
 
 @nb.njit(cache=True)
@@ -133,12 +161,15 @@ def _first_behind(x, points, normals):
     return -1
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(cache=True)
 def fill_ghosts(src, wall, points, normals, kinds, n_real, x, v, rho, e, S, damage, m, h,
                 material, body, ghost_body0):
-    """Write the ghosts' states into rows ``n_real + k`` of the extended arrays."""
+    """Write the ghosts' states into rows ``n_real + k`` of the extended arrays, in order (a
+    symmetry plane's ghost may mirror an earlier ghost).  A rigid wall's ghost is a body of
+    its own (``ghost_body0 + w``: the contact law); a symmetry plane's ghost belongs to its
+    source's body, so it interacts as the mirrored half of the model would."""
     dim = x.shape[1]
-    for k in nb.prange(src.shape[0]):
+    for k in range(src.shape[0]):
         i = src[k]
         w = wall[k]
         g = n_real + k
@@ -172,7 +203,64 @@ def fill_ghosts(src, wall, points, normals, kinds, n_real, x, v, rho, e, S, dama
         m[g] = m[i]
         h[g] = h[i]
         material[g] = material[i]
-        body[g] = ghost_body0 + w
+        body[g] = body[i] if kinds[w] == SYMMETRY else ghost_body0 + w
+
+
+@nb.njit(cache=True)
+def mirror_ghost_results(src, wall, normals, kinds, n_real, position, P, u_column, dim,
+                         gradients):
+    """After the pair pass: give each symmetry-plane ghost of a particle the mirror of that
+    particle's per-particle results that later passes read, as the mirrored half of the model
+    would have them: its viscous acceleration ``u`` in the packed records (the acceleration
+    correction reads it) and its velocity gradient ``L_g = R L R`` (the hourglass control
+    reads it; ``gradients`` has no rows when that is off).  ``position[row]`` is the row's
+    place in the packed records."""
+    for k in range(src.shape[0]):
+        i = src[k]
+        w = wall[k]
+        if kinds[w] != SYMMETRY or i >= n_real:
+            continue
+        pg = position[n_real + k]
+        pi = position[i]
+        un = 0.0
+        for a in range(dim):
+            un += P[pi, u_column + a] * normals[w, a]
+        for a in range(dim):
+            P[pg, u_column + a] = P[pi, u_column + a] - 2.0 * un * normals[w, a]
+        if gradients.shape[0] > 0:
+            for a in range(dim):
+                for b in range(dim):
+                    acc = 0.0
+                    for c in range(dim):
+                        rac = (1.0 if a == c else 0.0) - 2.0 * normals[w, a] * normals[w, c]
+                        for d in range(dim):
+                            rdb = (1.0 if d == b else 0.0) - 2.0 * normals[w, d] * normals[w, b]
+                            acc += rac * gradients[pi, c, d] * rdb
+                    gradients[pg, a, b] = acc
+
+
+@nb.njit(cache=True)
+def mirror_ghost_matrices(src, wall, normals, kinds, n_real, position, P, c0, dim):
+    """After the correction matrices (the kernel gradient correction of the forces): give
+    each symmetry-plane ghost of a particle the mirror ``R C R`` of that particle's matrix,
+    which its own neighbourhood (cut at the ghosts' reach) would get wrong.  ``C`` is stored
+    row by row from record column ``c0``."""
+    for k in range(src.shape[0]):
+        i = src[k]
+        w = wall[k]
+        if kinds[w] != SYMMETRY or i >= n_real:
+            continue
+        pg = position[n_real + k]
+        pi = position[i]
+        for a in range(dim):
+            for b in range(dim):
+                acc = 0.0
+                for c in range(dim):
+                    rac = (1.0 if a == c else 0.0) - 2.0 * normals[w, a] * normals[w, c]
+                    for d in range(dim):
+                        rdb = (1.0 if d == b else 0.0) - 2.0 * normals[w, d] * normals[w, b]
+                        acc += rac * P[pi, c0 + c * dim + d] * rdb
+                P[pg, c0 + a * dim + b] = acc
 
 
 #: damping ratio of the wall layer's dashpot: the midpoint integrator amplifies an undamped

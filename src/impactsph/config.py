@@ -364,6 +364,20 @@ class Wall(_Model):
     slip: Literal["free", "no"] = "free"
 
 
+class Symmetry(_Model):
+    """A symmetry plane: the model is the half on the side the normal points to, and the other
+    half is its mirror image.  Modelled by mirror ghosts of the particles (and of the walls'
+    ghosts) within the kernel's reach, which belong to their sources' bodies: they carry the
+    whole stress (tension and shear too), the viscosity and the correction as the mirrored
+    half would (docs/case-files.md).  Not a wall: no contact law, no penalty layer.  A half
+    or quarter model equals the whole one when the whole one is symmetric (to round-off:
+    ``tests/test_symmetry.py``)."""
+
+    type: Literal["symmetry"] = "symmetry"
+    point: list[FiniteFloat] = Field(description="a point of the plane (m)")
+    normal: list[FiniteFloat] = Field(description="normal pointing into the modelled half")
+
+
 class Kernel(_Model):
     """Smoothing kernel and length."""
 
@@ -533,7 +547,8 @@ class Case(_Model):
     )
     materials: dict[str, Material] = Field(min_length=1)
     bodies: list[Body] = Field(min_length=1)
-    boundaries: list[Wall] = Field(default_factory=list)
+    boundaries: list[Annotated[Wall | Symmetry, Field(discriminator="type")]] = Field(
+        default_factory=list)
     kernel: Kernel = Field(default_factory=Kernel)
     stabilisation: Stabilisation = Field(default_factory=Stabilisation)
     contact: Contact = Field(default_factory=Contact)

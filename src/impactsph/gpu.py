@@ -154,10 +154,14 @@ class GpuRates:
     # -- the backend interface ---------------------------------------------------------------
     def evaluate(self, n_active: int, arrays: tuple, table: np.ndarray, neighbours,
                  viscosity, b, hourglass: float = 0.0,
-                 hourglass_acceleration: np.ndarray | None = None) -> None:
+                 hourglass_acceleration: np.ndarray | None = None,
+                 after_pairs=None) -> None:
         """As :meth:`impactsph.physics.rates.CpuRates.evaluate`: the rates of the first
         ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h, material, body, damage)`` into the
         host buffers ``b``; rows the CPU backend leaves alone are left alone."""
+        if after_pairs is not None:
+            raise NotImplementedError("symmetry planes run on the CPU only (--device cpu): the "
+                                      "GPU passes do not mirror the pair results onto ghosts")
         x, v, rho, e, S, m, h, material, body, damage = arrays
         (particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
          force_correction, record_width) = self._kernels

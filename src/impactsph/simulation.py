@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
-from .boundaries import walls_of
+from .boundaries import SYMMETRY, walls_of
 from .config import Case
 from .devices import select_backend
 from .errors import SimulationError
@@ -297,6 +297,11 @@ class Simulation:
         dims = "xyz"[: self.state.dim]
         p = np.array([[r[f"momentum_{a}"] - r.get(f"external_impulse_{a}", 0.0) for a in dims]
                       for r in h])
+        # a symmetry plane exchanges the momentum normal to it with the mirrored half: the
+        # drift is measured in the directions along every plane
+        for w in np.flatnonzero(self.walls.kinds == SYMMETRY):
+            n = self.walls.normals[w]
+            p = p - np.outer(p @ n, n)
         e0 = tot[0]
         wall = self.record.wall_seconds
         return {

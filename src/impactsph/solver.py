@@ -7,7 +7,14 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from .boundaries import Walls, fill_ghosts, layer_push
+from .boundaries import (
+    SYMMETRY,
+    Walls,
+    fill_ghosts,
+    layer_push,
+    mirror_ghost_matrices,
+    mirror_ghost_results,
+)
 from .kernels import SUPPORT_RADIUS
 from .models.columns import DAMAGE
 from .neighbours import NeighbourList
@@ -85,6 +92,14 @@ class Solver:
         self.wall_force = np.zeros(state.dim)
         self.neighbours: NeighbourList | None = None
         self._damage: np.ndarray | None = None  # the particles' damage, contiguous
+        #: symmetry planes: their ghosts get the mirror of their sources' pair results
+        self._symmetric = self.walls is not None and bool((self.walls.kinds == SYMMETRY).any())
+        self._positions: np.ndarray | None = None  # row -> place in the packed records
+        rigid = np.zeros(0, dtype=np.int64) if self.walls is None else self.walls.walls_only
+        self._rigid = rigid
+        if self.walls is not None:  # the rigid walls' planes, for the penalty layer
+            self._rigid_points = np.ascontiguousarray(self.walls.points[rigid])
+            self._rigid_normals = np.ascontiguousarray(self.walls.normals[rigid])
         self._build(state)
 
     def _build(self, state: ParticleState) -> None:
@@ -100,6 +115,7 @@ class Solver:
         self.neighbours = None  # free the old list first: the peak memory is one list
         self.neighbours = NeighbourList.build(positions, support, skin)
         self.neighbours.builds += builds
+        self._positions = None
 
     def restore(self, state: ParticleState, neighbours: NeighbourList, ghost_src: np.ndarray,
                 ghost_wall: np.ndarray) -> None:
@@ -145,6 +161,27 @@ class Solver:
                     ext["x"], ext["v"], ext["rho"], ext["e"], ext["S"], ext["damage"], ext["m"],
                     ext["h"], ext["material"], ext["body"], self.n_bodies)
 
+    def _record_positions(self) -> np.ndarray:
+        """Each row's place in the packed records (the inverse of the list's order)."""
+        order = self.neighbours.order
+        if self._positions is None or self._positions.shape[0] != order.shape[0]:
+            self._positions = np.empty(order.shape[0], dtype=np.int64)
+            self._positions[order] = np.arange(order.shape[0])
+        return self._positions
+
+    def _mirror(self, packed: np.ndarray, gradients: np.ndarray, u_column: int) -> None:
+        """:func:`impactsph.boundaries.mirror_ghost_results` for this list's order."""
+        w = self.walls
+        mirror_ghost_results(self._ghost_src, self._ghost_wall, w.normals, w.kinds,
+                             self.n_active, self._record_positions(), packed, u_column,
+                             self.dim, gradients)
+
+    def _mirror_moments(self, packed: np.ndarray, c0: int) -> None:
+        """:func:`impactsph.boundaries.mirror_ghost_matrices` for this list's order."""
+        w = self.walls
+        mirror_ghost_matrices(self._ghost_src, self._ghost_wall, w.normals, w.kinds,
+                              self.n_active, self._record_positions(), packed, c0, self.dim)
+
     def _arrays(self, state: ParticleState):
         """``(x, v, rho, e, S, m, h, material, body, damage)`` of every row, ghosts
         included."""
@@ -169,13 +206,15 @@ class Solver:
         if self.neighbours.stale(state.position, support):
             self._build(state)
             b = self.buffers
+        extra = ({"after_pairs": self._mirror, "after_moments": self._mirror_moments}
+                 if self._symmetric else {})
         if self.hourglass > 0.0:
             self.backend.evaluate(self.n_active, self._arrays(state), self.table,
                                   self.neighbours, self.viscosity, b, self.hourglass,
-                                  state.hourglass_acceleration)
+                                  state.hourglass_acceleration, **extra)
         else:
             self.backend.evaluate(self.n_active, self._arrays(state), self.table,
-                                  self.neighbours, self.viscosity, b)
+                                  self.neighbours, self.viscosity, b, **extra)
         n = self.n_active
         totals = rate_totals(n, state.mass, state.velocity, b.de_visc, b.dv_corr, b.de_corr,
                              b.contact_force, b.pair_count, self.corrected)
@@ -185,11 +224,10 @@ class Solver:
         self.powers = (float(totals[0]), float(totals[1]), float(totals[2]))
         if self.walls is not None:  # the ghosts' push on the real particles (N, or N/m)
             self.wall_force = totals[4: 4 + self.dim].copy()
-            if self.wall_layer > 0.0:
-                w = self.walls
+            if self.wall_layer > 0.0 and self._rigid.size:  # rigid walls, not symmetry planes
                 self.wall_force += layer_push(n, state.position, state.velocity, state.mass,
-                                              state.material, self.table, w.points, w.normals,
-                                              self.wall_layer, b.dv, b.de)
+                                              state.material, self.table, self._rigid_points,
+                                              self._rigid_normals, self.wall_layer, b.dv, b.de)
         self.pair_evaluations += int(totals[3])
         self.rate_evaluations += 1
         return b.dv, b.drho, b.de, b.dS, b.dhg

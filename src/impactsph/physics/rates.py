@@ -92,13 +92,18 @@ class CpuRates:
 
     def evaluate(self, n_active: int, arrays: tuple, table: np.ndarray, neighbours,
                  viscosity: ViscositySettings, b: RateBuffers, hourglass: float = 0.0,
-                 hourglass_acceleration: np.ndarray | None = None) -> None:
+                 hourglass_acceleration: np.ndarray | None = None,
+                 after_pairs=None, after_moments=None) -> None:
         """Rates of the first ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h,
         material, body, damage)`` (all rows, ghosts included, take part in the sums) into ``b``:
         ``drho``, the total accelerations ``dv`` and specific-energy rates ``de``, the
         viscous heating ``de_visc``, ``contact_force, pair_count, dS`` and, for a scheme with
         a correction, ``dv_corr, de_corr``; with ``hourglass`` (the coefficient zeta) > 0,
-        ``dhg`` from the particles' ``hourglass_acceleration`` (added to ``dv``)."""
+        ``dhg`` from the particles' ``hourglass_acceleration`` (added to ``dv``).
+        ``after_pairs(packed, gradients, u_column)``, if given, runs after the pair pass and
+        before the passes that read its per-particle results (the symmetry planes' mirror:
+        :func:`impactsph.boundaries.mirror_ghost_results`); ``after_moments(packed, c0)``
+        likewise after the correction matrices (``c0`` their first record column)."""
         x, v, rho, e, S, m, h, material, body, damage = arrays
         k = self.passes
         nl = neighbours
@@ -119,10 +124,14 @@ class CpuRates:
             self._gradients = np.empty((rows, self.dim, self.dim))
         if k.FORCE_CORRECTION:
             k.moment_pass(nl.order, self._packed, nl.offsets, nl.indices, chunk)
+            if after_moments is not None:
+                after_moments(self._packed, k.CM0)
         k.pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, viscosity.kind,
                     viscosity.pair, self.options.normal_stress, S, material, table, b.drho,
                     b.dv, b.de, b.de_visc,
                     b.contact_force, b.pair_count, b.dS, self._gradients, chunk)
+        if after_pairs is not None:
+            after_pairs(self._packed, self._gradients, k.U)
         if viscosity.correction is not None:
             k.correction_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
                               viscosity.kind, viscosity.correction, b.dv_corr, b.de_corr,
