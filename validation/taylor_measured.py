@@ -7,6 +7,7 @@ two resolutions (particles across the diameter).  Writes
 
     .venv/bin/python validation/taylor_measured.py                      # the default tests
     .venv/bin/python validation/taylor_measured.py --across 10 20 --all --workers 2
+    .venv/bin/python validation/taylor_measured.py --across 20 30 --quarter   # 2 symmetry planes
 
 Default tests: OFHC copper at 190 m/s (Johnson & Cook 1983, as read by Zerilli & Armstrong
 1987) and 4340 steel at 208 m/s (Johnson & Cook 1983).  Johnson-Cook damage is switched off
@@ -20,6 +21,8 @@ import json
 import math
 import tomllib
 from pathlib import Path
+
+import numpy as np
 
 from impactsph.loading import read_case_dict
 from impactsph.output import load_run
@@ -35,6 +38,27 @@ def tests(select_all: bool) -> list[dict]:
     if select_all:
         return found
     return [t for t in found if (t["material"], t["velocity"]) in DEFAULT]
+
+
+def quarter(case: dict, folder: Path) -> dict:
+    """The quarter x > 0, y > 0 of the case's cylinder, its particles in a file, with two
+    symmetry planes through the axis (tests/test_symmetry.py: it equals the whole)."""
+    from impactsph.geometry import cylinder_particles
+
+    g = case["bodies"][0]["geometry"]
+    particles = cylinder_particles(g["centre"], g["radius"], g["length"], g["axis"],
+                                   g["spacing"])
+    x = particles.position
+    keep = (x[:, 0] > 0) & (x[:, 1] > 0)
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{case['name']}-{g['spacing']:.4e}-quarter.npz"
+    np.savez(path, position=x[keep], volume=particles.volume[keep])
+    case["bodies"][0]["geometry"] = {"type": "file", "path": str(path.resolve()),
+                                     "spacing": g["spacing"]}
+    case["boundaries"] = [*case["boundaries"],
+                          {"type": "symmetry", "point": [0.0, 0.0, 0.0], "normal": [1.0, 0, 0]},
+                          {"type": "symmetry", "point": [0.0, 0.0, 0.0], "normal": [0, 1.0, 0]}]
+    return case
 
 
 def case_of(test: dict, across: int, end: float) -> dict:
@@ -63,6 +87,8 @@ def main() -> None:
     parser.add_argument("--end", type=float, default=100e-6, help="end time (s)")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--out", type=Path, default=Path("runs/validation/taylor-measured"))
+    parser.add_argument("--quarter", action="store_true",
+                        help="run the quarter with two symmetry planes (4x cheaper)")
     parser.add_argument("--report-only", action="store_true",
                         help="tabulate the runs already in --out, run nothing")
     args = parser.parse_args()
@@ -72,8 +98,12 @@ def main() -> None:
     for test in chosen:
         for across in args.across:
             labels.append((test, across))
-            cases.append(case_of(test, across, args.end))
-            names.append(f"{test['material']}-{test['velocity']:.0f}-x{across}")
+            case = case_of(test, across, args.end)
+            if args.quarter:
+                case = quarter(case, args.out / "particles")
+            cases.append(case)
+            names.append(f"{test['material']}-{test['velocity']:.0f}-x{across}"
+                         + ("-quarter" if args.quarter else ""))
     # one base per test: run_many takes one base and override lists, so each case is its own
     rows = []
     for case, name in zip(cases, names, strict=True):

@@ -289,6 +289,10 @@ class ParticleFile(_Model):
         description="particle spacing dx (m): sets h, and the volume dx^dim of particles "
         "without one")
 
+    def spacings(self) -> list[float]:
+        """Particle spacing along each axis (m): the one spacing, for every axis."""
+        return [float(self.spacing)] * 3
+
     @field_validator("path")
     @classmethod
     def _absolute(cls, value: str) -> str:

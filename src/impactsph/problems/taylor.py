@@ -40,14 +40,16 @@ LENGTH_RATIO_BAND = (0.75, 0.87)
 
 
 def bar_measures(x0: np.ndarray, x: np.ndarray, axis: int, spacing: list[float],
-                 wall_level: float) -> dict[str, float]:
+                 wall_level: float, centre: np.ndarray | None = None) -> dict[str, float]:
     """Length ratio and footprint half-width ratio of a bar along ``axis`` standing on a wall
-    at ``wall_level`` (initial positions ``x0``, current ``x``)."""
+    at ``wall_level`` (initial positions ``x0``, current ``x``); ``centre``: the axis's
+    lateral coordinates (default: the mean of ``x0``'s)."""
     along = spacing[axis]
     L0 = x0[:, axis].max() - x0[:, axis].min() + along
     Lf = x[:, axis].max() - x[:, axis].min() + along
     lateral = [a for a in range(x.shape[1]) if a != axis]
-    centre = x0[:, lateral].mean(axis=0)
+    if centre is None:
+        centre = x0[:, lateral].mean(axis=0)
     half0 = np.max(np.linalg.norm(x0[:, lateral] - centre, axis=1)) + 0.5 * spacing[lateral[0]]
     foot = x[:, axis] < foot_level(x, axis, along, wall_level)
     half = np.max(np.linalg.norm(x[foot][:, lateral] - centre, axis=1)) + 0.5 * spacing[
@@ -76,17 +78,20 @@ N_SECTORS = 8
 
 
 def cylinder_measures(x0: np.ndarray, x: np.ndarray, axis: int, spacing: list[float],
-                      wall_level: float) -> dict[str, float]:
+                      wall_level: float, centre: np.ndarray | None = None
+                      ) -> dict[str, float]:
     """Length ratio and footprint radius ratio of a 3D bar (a cylinder) along ``axis``
     standing on a wall at ``wall_level`` (initial positions ``x0``, current ``x``): the 3D
     counterpart of :func:`bar_measures`, the half-width replaced by the distance from the
-    axis (see the module docstring).  ``spacing``: per axis, as for :func:`bar_measures`."""
+    axis (see the module docstring).  ``spacing``: per axis, as for :func:`bar_measures`;
+    ``centre`` as there."""
     along = spacing[axis]
     L0 = x0[:, axis].max() - x0[:, axis].min() + along
     Lf = x[:, axis].max() - x[:, axis].min() + along
     lateral = [a for a in range(3) if a != axis]
     across = spacing[lateral[0]]
-    centre = x0[:, lateral].mean(axis=0)
+    if centre is None:
+        centre = x0[:, lateral].mean(axis=0)
     R0 = float(np.max(np.linalg.norm(x0[:, lateral] - centre, axis=1))) + 0.5 * across
     d = x[x[:, axis] < foot_level(x, axis, along, wall_level)][:, lateral] - centre
     r = np.hypot(d[:, 0], d[:, 1])
@@ -110,7 +115,24 @@ def bar_axis(case: Any) -> int:
 
 def bar_wall(case: Any, axis: int) -> float:
     """Where the (first) wall, the bar's, cuts ``axis``; 0 without walls."""
-    return case.boundaries[0].point[axis] if case.boundaries else 0.0
+    walls = [b for b in case.boundaries if b.type == "wall"]
+    return walls[0].point[axis] if walls else 0.0
+
+
+def bar_centre(case: Any, x0: np.ndarray, axis: int) -> np.ndarray:
+    """The bar axis's lateral coordinates: the mean of the initial positions, except across a
+    symmetry plane (a half or quarter model), where the axis lies on the plane."""
+    lateral = [a for a in range(x0.shape[1]) if a != axis]
+    centre = x0[:, lateral].mean(axis=0)
+    for plane in case.boundaries:
+        if plane.type != "symmetry":
+            continue
+        normal = np.asarray(plane.normal, dtype=float)
+        normal /= np.linalg.norm(normal)
+        for k, a in enumerate(lateral):
+            if abs(abs(normal[a]) - 1.0) < 1e-12:  # a plane across this lateral axis
+                centre[k] = plane.point[a]
+    return centre
 
 
 def taylor_metrics(sim: Any) -> dict[str, Any]:
@@ -137,8 +159,9 @@ def taylor_metrics(sim: Any) -> dict[str, Any]:
                      f"length and footprint are measured on the largest piece "
                      f"({100 * share:.3g}% of its mass)")
     measures = cylinder_measures if sim.case.dimension == 3 else bar_measures
+    centre = bar_centre(sim.case, x0, axis)
     out.update(attempt(notes, "final_length_ratio and footprint", lambda: measures(
-        x0, x, axis, spacing, wall), {}))
+        x0, x, axis, spacing, wall, centre), {}))
     if "final_length_ratio" in out:
         lo, hi = LENGTH_RATIO_BAND
         out["length_ratio_in_1d_band"] = bool(lo <= out["final_length_ratio"] <= hi)
@@ -263,7 +286,7 @@ class TaylorProblem(ProblemKind):
     name = "taylor"
     title = "Example 2: the Taylor bar on a rigid wall, final length and footprint"
     # the measures use the lattice's spacings
-    geometry_needs = GeometryNeeds(bodies=1, types=("block", "disk", "cylinder"))
+    geometry_needs = GeometryNeeds(bodies=1, types=("block", "disk", "cylinder", "file"))
     animation_field = "plastic_work"
 
     def metrics(self, sim: Any) -> dict[str, Any]:
