@@ -358,9 +358,9 @@ def _with_geometry(geometry: dict, dimension: int = 2, analysis: str = "none") -
     ({"type": "cylinder", "centre": [0.0, 0.0, 0.0], "radius": 1.0, "length": 1.0,
       "axis": "w", "spacing": 0.1}, 3, "bodies.0.geometry.axis = 'w': Input should be 'x', "
                                        "'y' or 'z'"),
-    ({"type": "sphere", "radius": 1.0}, 2, "bodies.0.geometry.type = 'sphere': Input should "
-                                           "be 'block', 'disk', 'ring', 'cylinder' or "
-                                           "'file'"),
+    ({"type": "cone", "radius": 1.0}, 2, "bodies.0.geometry.type = 'cone': Input should "
+                                         "be 'block', 'disk', 'ring', 'cylinder', 'sphere' "
+                                         "or 'file'"),
     ({"type": "file", "path": "", "spacing": 0.1}, 2, "bodies.0.geometry.path = ''"),
     ({"type": "file", "path": "p.csv", "spacing": 0.0}, 2,
      "bodies.0.geometry.spacing = 0.0: Input should be greater than 0"),

@@ -349,7 +349,9 @@ class Body(_Model):
     material: str = Field(description="key of a [materials.NAME] table")
     geometry: Geometry = Field(description="the particles: a block, disk, ring, cylinder or "
                                "file")
-    velocity: list[FiniteFloat] = Field(description="initial velocity (m/s)")
+    velocity: list[FiniteFloat | str] = Field(
+        description="initial velocity (m/s): per axis a number, or an expression of x, y, z "
+        "(m) evaluated at each particle (impactsph.initial), e.g. ['-1000 * y', '1000 * x']")
     clamped: Region | None = Field(
         None, description="particles inside are held at zero velocity; they take part in "
         "every sum")
@@ -380,6 +382,20 @@ class Symmetry(_Model):
     type: Literal["symmetry"] = "symmetry"
     point: list[FiniteFloat] = Field(description="a point of the plane (m)")
     normal: list[FiniteFloat] = Field(description="normal pointing into the modelled half")
+
+
+def _boundary_type(value: Any) -> str | None:
+    """A boundary's ``type`` (``wall`` when left out); None for an unknown one."""
+    kind = value.get("type", "wall") if isinstance(value, dict) else getattr(value, "type",
+                                                                            "wall")
+    return kind if kind in ("wall", "symmetry") else None
+
+
+Boundary = Annotated[
+    Annotated[Wall, Tag("wall")] | Annotated[Symmetry, Tag("symmetry")],
+    Discriminator(_boundary_type, custom_error_type="boundary_type",
+                  custom_error_message="Input should be 'wall' or 'symmetry'"),
+]
 
 
 class Kernel(_Model):
@@ -551,8 +567,7 @@ class Case(_Model):
     )
     materials: dict[str, Material] = Field(min_length=1)
     bodies: list[Body] = Field(min_length=1)
-    boundaries: list[Annotated[Wall | Symmetry, Field(discriminator="type")]] = Field(
-        default_factory=list)
+    boundaries: list[Boundary] = Field(default_factory=list)
     kernel: Kernel = Field(default_factory=Kernel)
     stabilisation: Stabilisation = Field(default_factory=Stabilisation)
     contact: Contact = Field(default_factory=Contact)
@@ -599,6 +614,13 @@ class Case(_Model):
                 if len(g.centre) != d:
                     raise ValueError(f"{where}.geometry.centre has {len(g.centre)} components; "
                                      f"dimension = {d} needs {d}")
+            for a, component in enumerate(body.velocity):
+                if isinstance(component, str):
+                    from .initial import check_expression
+
+                    why = check_expression(component, d)
+                    if why:
+                        raise ValueError(f"{where}.velocity.{a} = {component!r}: {why}")
             if len(body.velocity) != d:
                 raise ValueError(f"{where}.velocity has {len(body.velocity)} components; "
                                  f"dimension = {d} needs {d}")

@@ -30,6 +30,10 @@ class Particles:
     position: np.ndarray  #: (n, dim), m
     volume: np.ndarray  #: (n,), m^dim: the mass is ``density * volume``
     spacing: float  #: m: the smoothing length is ``h_over_dx * spacing``
+    #: (n, dim) m/s, a particle file's velocity columns (added to the body's velocity)
+    velocity: np.ndarray | None = None
+    #: (n,) K, a particle file's initial temperatures
+    temperature: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -130,10 +134,10 @@ def file_particles(path: str | Path, dim: int, spacing: float,
     """Particles read from a CSV or NPZ file (see :func:`read_particle_file`); a particle
     without a volume in the file has the volume ``spacing^dim``; h is scaled from
     ``spacing``."""
-    x, volume = read_particle_file(path, dim, where)
+    x, volume, extra = _read_particle_file(path, dim, where)
     if volume is None:
         volume = np.full(x.shape[0], float(spacing) ** dim)
-    return Particles(x, volume, float(spacing))
+    return Particles(x, volume, float(spacing), extra.get("velocity"), extra.get("temperature"))
 
 
 def body_particles(geometry: Any, dim: int, where: str = "geometry") -> Particles:
@@ -174,14 +178,24 @@ def read_particle_file(path: str | Path, dim: int, where: str = "geometry.path"
     file gives none).
 
     - ``.csv``: a header naming the columns, ``x`` (``x, y`` in 2D, ``x, y, z`` in 3D) and
-      optionally ``volume``, in any order, then one particle per line; blank lines and lines
+      optionally ``volume``, the velocity ``vx`` (``vx, vy``, ``vx, vy, vz``: all or none) and
+      ``temperature``, in any order, then one particle per line; blank lines and lines
       starting with ``#`` are skipped.
     - ``.npz``: the arrays ``position`` of shape ``(n, dim)`` (``(n,)`` in 1D too) and
-      optionally ``volume`` of shape ``(n,)``.
+      optionally ``volume`` and ``temperature`` of shape ``(n,)`` and ``velocity`` of shape
+      ``(n, dim)``.
 
-    Every coordinate must be finite, every volume finite and > 0, and the file must hold at
-    least one particle.  Raises :class:`~impactsph.errors.CaseError`, one line starting with
-    ``where = 'PATH': ``, for a file that is missing, unreadable or malformed."""
+    Every coordinate, velocity and temperature must be finite, every volume and temperature
+    > 0, and the file must hold at least one particle.  Raises
+    :class:`~impactsph.errors.CaseError`, one line starting with ``where = 'PATH': ``, for a
+    file that is missing, unreadable or malformed.  The velocity and temperature:
+    :func:`file_particles`."""
+    x, volume, _ = _read_particle_file(path, dim, where)
+    return x, volume
+
+
+def _read_particle_file(path: str | Path, dim: int, where: str
+                        ) -> tuple[np.ndarray, np.ndarray | None, dict[str, np.ndarray]]:
     path = Path(path)
 
     def fail(msg: str) -> CaseError:
@@ -194,9 +208,9 @@ def read_particle_file(path: str | Path, dim: int, where: str = "geometry.path"
         raise fail("a particle file must be .csv or .npz")
     try:
         if suffix == ".csv":
-            x, volume = _read_csv(path, dim, fail)
+            x, volume, extra = _read_csv(path, dim, fail)
         else:
-            x, volume = _read_npz(path, dim, fail)
+            x, volume, extra = _read_npz(path, dim, fail)
     except CaseError:
         raise
     except UnicodeDecodeError as exc:
@@ -213,12 +227,28 @@ def read_particle_file(path: str | Path, dim: int, where: str = "geometry.path"
         if bad.size:
             raise fail(f"particle {int(bad[0])} has the volume {float(volume[bad[0]])!r}; "
                        f"volumes must be finite and > 0")
-    return np.ascontiguousarray(x, dtype=np.float64), volume
+    if "velocity" in extra:
+        v = extra["velocity"]
+        bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
+        if bad.size:
+            raise fail(f"particle {int(bad[0])} has a non-finite velocity {v[bad[0]].tolist()}")
+    if "temperature" in extra:
+        T = extra["temperature"]
+        bad = np.flatnonzero(~(np.isfinite(T) & (T > 0)))
+        if bad.size:
+            raise fail(f"particle {int(bad[0])} has the temperature {float(T[bad[0]])!r}; "
+                       f"temperatures (K) must be finite and > 0")
+    return np.ascontiguousarray(x, dtype=np.float64), volume, extra
 
 
-def _read_csv(path: Path, dim: int, fail) -> tuple[np.ndarray, np.ndarray | None]:
+VELOCITY_COLUMNS = ("vx", "vy", "vz")
+
+
+def _read_csv(path: Path, dim: int, fail):
     expected = list(AXES[:dim])
-    allowed = f"{', '.join(expected)} and optionally volume"
+    speeds = list(VELOCITY_COLUMNS[:dim])
+    allowed = (f"{', '.join(expected)} and optionally volume, {', '.join(speeds)} and "
+               f"temperature")
     with open(path, newline="", encoding="utf-8-sig") as fh:  # a BOM (spreadsheets) is skipped
         lines = [(k + 1, row) for k, row in enumerate(csv.reader(fh))
                  if row and any(f.strip() for f in row) and not row[0].lstrip().startswith("#")]
@@ -229,8 +259,10 @@ def _read_csv(path: Path, dim: int, fail) -> tuple[np.ndarray, np.ndarray | None
     if any(_is_number(name) for name in names):
         raise fail(f"line {line_no}: expected a header naming the columns {allowed}, found "
                    f"{header!r}")
-    unknown = [n for n in names if n not in (*expected, "volume")]
-    if unknown or len(set(names)) != len(names) or not set(expected) <= set(names):
+    unknown = [n for n in names if n not in (*expected, "volume", *speeds, "temperature")]
+    some_speeds = set(speeds) & set(names)
+    if (unknown or len(set(names)) != len(names) or not set(expected) <= set(names)
+            or (some_speeds and some_speeds != set(speeds))):
         raise fail(f"has the columns {names!r}; dimension = {dim} needs {allowed}")
     values = np.empty((len(lines) - 1, len(names)))
     for row_index, (line_no, row) in enumerate(lines[1:]):
@@ -244,7 +276,12 @@ def _read_csv(path: Path, dim: int, fail) -> tuple[np.ndarray, np.ndarray | None
                            f"number") from None
     x = values[:, [names.index(a) for a in expected]]
     volume = values[:, names.index("volume")].copy() if "volume" in names else None
-    return x, volume
+    extra = {}
+    if some_speeds:
+        extra["velocity"] = np.ascontiguousarray(values[:, [names.index(a) for a in speeds]])
+    if "temperature" in names:
+        extra["temperature"] = values[:, names.index("temperature")].copy()
+    return x, volume, extra
 
 
 def _is_number(text: str) -> bool:
@@ -255,19 +292,22 @@ def _is_number(text: str) -> bool:
     return True
 
 
-def _read_npz(path: Path, dim: int, fail) -> tuple[np.ndarray, np.ndarray | None]:
+def _read_npz(path: Path, dim: int, fail):
     data = np.load(path, allow_pickle=False)
     if not isinstance(data, np.lib.npyio.NpzFile):
         raise fail("is not an NPZ archive (a .npy array?)")
     with data:
-        unknown = [k for k in data.files if k not in ("position", "volume")]
+        unknown = [k for k in data.files
+                   if k not in ("position", "volume", "velocity", "temperature")]
         if unknown:
             raise fail(f"holds the unknown array {unknown[0]!r}; expected position and "
-                       f"optionally volume")
+                       f"optionally volume, velocity and temperature")
         if "position" not in data.files:
             raise fail("holds no array 'position'")
         x = np.asarray(data["position"])
         volume = np.asarray(data["volume"]) if "volume" in data.files else None
+        extra = {k: np.asarray(data[k], dtype=np.float64) for k in ("velocity", "temperature")
+                 if k in data.files}
     if dim == 1 and x.ndim == 1:
         x = x[:, None]
     if x.ndim != 2 or x.shape[1] != dim:
@@ -282,4 +322,13 @@ def _read_npz(path: Path, dim: int, fail) -> tuple[np.ndarray, np.ndarray | None
                 or np.issubdtype(volume.dtype, np.integer)):
             raise fail(f"volume has the type {volume.dtype}; expected numbers")
         volume = volume.astype(np.float64)
-    return x, volume
+    if "velocity" in extra:
+        if dim == 1 and extra["velocity"].ndim == 1:
+            extra["velocity"] = extra["velocity"][:, None]
+        if extra["velocity"].shape != x.shape:
+            raise fail(f"velocity has the shape {extra['velocity'].shape}; position needs "
+                       f"{x.shape}")
+    if "temperature" in extra and extra["temperature"].shape != (x.shape[0],):
+        raise fail(f"temperature has the shape {extra['temperature'].shape}; position needs "
+                   f"({x.shape[0]},)")
+    return x, volume, extra

@@ -43,6 +43,7 @@ import numpy as np
 
 from .config import Block, Case, Cylinder, Disk, ParticleFile, Ring, Sphere
 from .errors import CaseError
+from .initial import max_speed
 from .kernels import SUPPORT_RADIUS
 
 # -- thresholds (documented in docs/case-files.md, "Preflight checks") ----------------------
@@ -430,7 +431,7 @@ def initial_time_step(case: Case) -> float:
     for body in case.bodies:
         mat = resolve_material(body.material, case.materials[body.material])
         c = math.sqrt(mat.wave_modulus(case.time.wave_speed) / mat.density)
-        speed = float(np.linalg.norm(body.velocity))
+        speed = max_speed(body, case.dimension)
         if body.tip_mass is not None:
             speed = max(speed, float(np.linalg.norm(body.tip_mass.velocity)))
         h = case.kernel.h_over_dx * body_spacing(body.geometry)
@@ -576,11 +577,13 @@ def magnitude_checks(case: Case) -> list[Finding]:
         if spacing is not None and spacing > hi:
             warn(f"{where}.spacing", g.spacing, f"a spacing of {_g(spacing)} m is large "
                  f"(over {_g(hi)} m); did you mean mm = {spacing * 1e-3:.3g} m?")
-        for key, velocity in (("velocity", body.velocity),
-                              ("tip_mass.velocity", body.tip_mass and body.tip_mass.velocity)):
-            if velocity and float(np.linalg.norm(velocity)) > SPEED_MAX:
+        for key, velocity, speed in (
+                ("velocity", body.velocity, max_speed(body, case.dimension)),
+                ("tip_mass.velocity", body.tip_mass and body.tip_mass.velocity,
+                 float(np.linalg.norm(body.tip_mass.velocity)) if body.tip_mass else 0.0)):
+            if velocity and speed > SPEED_MAX:
                 warn(f"bodies.{b}.{key}", velocity,
-                     f"a speed of {_g(float(np.linalg.norm(velocity)))} m/s is beyond "
+                     f"a speed of {_g(speed)} m/s is beyond "
                      f"hypervelocity impact ({_g(SPEED_MAX)} m/s); velocities are in m/s")
     if case.time.end > END_TIME_MAX:
         warn("time.end", case.time.end, f"more than {_g(END_TIME_MAX)} s of simulated time for "

@@ -8,6 +8,7 @@ import numpy as np
 
 from .config import Case, CaseError
 from .geometry import body_particles, inside
+from .initial import body_velocity
 from .materials import MaterialModel, TableLayout, material_table, resolve_material
 from .models import DAMAGE
 from .models.columns import TEMPERATURE
@@ -67,7 +68,8 @@ def build_problem(case: Case) -> Problem:
     materials = [resolve_material(n, case.materials[n]) for n in mat_names]
     dim = case.dimension
     parts: dict[str, list[np.ndarray]] = {k: [] for k in
-                                          ("x", "v", "rho", "m", "h", "body", "mat", "clamped")}
+                                          ("x", "v", "rho", "m", "h", "body", "mat", "clamped",
+                                           "temperature")}
     for b, body in enumerate(case.bodies):
         particles = body_particles(body.geometry, dim, where=f"bodies.{b}.geometry")
         x = particles.position
@@ -75,7 +77,9 @@ def build_problem(case: Case) -> Problem:
         rho0 = materials[k].density
         n = x.shape[0]
         mass = rho0 * particles.volume
-        velocity = np.tile(np.asarray(body.velocity, dtype=np.float64), (n, 1))
+        velocity = body_velocity(body.velocity, x)
+        if particles.velocity is not None:  # a particle file's velocity columns
+            velocity += particles.velocity
         clamped = np.zeros(n, dtype=bool)
         if body.clamped is not None:
             clamped = inside(x, body.clamped.origin, body.clamped.size)
@@ -101,6 +105,8 @@ def build_problem(case: Case) -> Problem:
         parts["body"].append(np.full(n, b, dtype=np.int32))
         parts["mat"].append(np.full(n, k, dtype=np.int32))
         parts["clamped"].append(clamped)
+        parts["temperature"].append(particles.temperature if particles.temperature is not None
+                                    else np.full(n, np.nan))
     cat = {k: np.concatenate(v) for k, v in parts.items()}
     n = cat["x"].shape[0]
     state = ParticleState(
@@ -110,6 +116,8 @@ def build_problem(case: Case) -> Problem:
         clamped=cat["clamped"], material_state=np.zeros((n, layout.state_width)),
     )
     initialise_material_state(state, materials, layout)
+    from_file = np.isfinite(cat["temperature"])  # a particle file's temperature column
+    state.material_state[from_file, TEMPERATURE] = cat["temperature"][from_file]
     body_names = [b.name for b in case.bodies]
     probes = {p.name: nearest_particle(state, body_names.index(p.body), p.position)
               for p in case.output.probes}

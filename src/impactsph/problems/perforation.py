@@ -80,7 +80,12 @@ class PerforationProblem(ProblemKind):
     def metrics(self, sim: Any) -> dict[str, Any]:
         s = sim.state
         spacing = float(s.smoothing_length[s.body == 1].mean()) / sim.case.kernel.h_over_dx
-        initial_velocity = np.array([b.velocity for b in sim.case.bodies])[s.body]
+        from ..initial import body_velocity
+
+        initial_velocity = np.empty_like(s.velocity)
+        for b, body in enumerate(sim.case.bodies):
+            rows = s.body == b
+            initial_velocity[rows] = body_velocity(body.velocity, s.initial_position[rows])
         return perforation_measures(s.initial_position, s.position, initial_velocity,
                                     s.velocity, s.mass, s.body, spacing)
 
