@@ -342,6 +342,17 @@ class TipMass(_Model):
     region: Region
 
 
+class Driven(Region):
+    """Particles of a body whose velocity is prescribed: a loading platen, the grips of a
+    tension test (``impactsph.driven``).  Each component of ``velocity`` is a number or an
+    expression of the time ``t`` (s), e.g. ``"5.0 * min(t / 1e-6, 1.0)"`` is not allowed
+    (numexpr has no min) but ``"where(t < 1e-6, 5e6 * t, 5.0)"`` is: a ramp to 5 m/s."""
+
+    name: str = Field(min_length=1, description="names its reaction force in history.csv")
+    velocity: list[FiniteFloat | str] = Field(
+        description="prescribed velocity (m/s): per axis a number or an expression of t (s)")
+
+
 class Body(_Model):
     """A body: a material, a geometry and an initial velocity."""
 
@@ -352,9 +363,12 @@ class Body(_Model):
     velocity: list[FiniteFloat | str] = Field(
         description="initial velocity (m/s): per axis a number, or an expression of x, y, z "
         "(m) evaluated at each particle (impactsph.initial), e.g. ['-1000 * y', '1000 * x']")
-    clamped: Region | None = Field(
-        None, description="particles inside are held at zero velocity; they take part in "
-        "every sum")
+    clamped: Region | list[Region] | None = Field(
+        None, description="particles inside (one region or several) are held at zero "
+        "velocity; they take part in every sum")
+    driven: list[Driven] = Field(
+        default_factory=list, description="regions whose particles move at a prescribed "
+        "velocity, their reaction force recorded")
     tip_mass: TipMass | None = None
 
 
@@ -629,7 +643,22 @@ class Case(_Model):
                     raise ValueError(f"{where}.geometry.spacing needs 1 or {d} values")
                 if g.count is not None and len(g.count) != d:
                     raise ValueError(f"{where}.geometry.count needs {d} values")
-            regions = [("clamped", body.clamped)]
+            clamps = body.clamped if isinstance(body.clamped, list) else [body.clamped]
+            regions = [(f"clamped.{k}" if isinstance(body.clamped, list) else "clamped", c)
+                       for k, c in enumerate(clamps)]
+            for k, drive in enumerate(body.driven):
+                regions.append((f"driven.{k}", drive))
+                if len(drive.velocity) != d:
+                    raise ValueError(f"{where}.driven.{k}.velocity has {len(drive.velocity)} "
+                                     f"components; dimension = {d} needs {d}")
+                for a, component in enumerate(drive.velocity):
+                    if isinstance(component, str):
+                        from .initial import check_expression
+
+                        why = check_expression(component, d, names=("t",))
+                        if why:
+                            raise ValueError(f"{where}.driven.{k}.velocity.{a} = "
+                                             f"{component!r}: {why}")
             if body.tip_mass is not None:
                 regions.append(("tip_mass.region", body.tip_mass.region))
                 if len(body.tip_mass.velocity) != d:

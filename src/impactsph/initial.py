@@ -28,18 +28,18 @@ def evaluate(expression: str, position: np.ndarray) -> np.ndarray:
     return np.broadcast_to(np.asarray(value, dtype=np.float64), (position.shape[0],)).copy()
 
 
-def check_expression(expression: str, dim: int) -> str | None:
+def check_expression(expression: str, dim: int, names: tuple[str, ...] | None = None
+                     ) -> str | None:
     """Why ``expression`` cannot be an initial field of a ``dim``-dimensional case (None if it
-    can): names other than the coordinates and constants, syntax, a non-finite value at the
-    origin."""
+    can): names other than the coordinates (or ``names``) and the constants, or bad syntax."""
+    allowed = AXES[:dim] if names is None else names
     try:
-        names = set(numexpr.NumExpr(expression).input_names)
+        used = set(numexpr.NumExpr(expression).input_names)
     except Exception as exc:  # noqa: BLE001 - numexpr raises several types; say what it said
-        return f"not an expression of {', '.join(AXES[:dim])} ({type(exc).__name__}: {exc})"
-    unknown = sorted(names - set(AXES[:dim]) - set(CONSTANTS))
+        return f"not an expression of {', '.join(allowed)} ({type(exc).__name__}: {exc})"
+    unknown = sorted(used - set(allowed) - set(CONSTANTS))
     if unknown:
-        return (f"uses {', '.join(unknown)}; an initial field may use "
-                f"{', '.join(AXES[:dim])}, pi and e")
+        return f"uses {', '.join(unknown)}; it may use {', '.join(allowed)}, pi and e"
     return None
 
 

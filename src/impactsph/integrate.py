@@ -120,8 +120,11 @@ class MidpointIntegrator:
     """Table 1's predictor-corrector.  ``rates(state)`` must return
     ``(dv, drho, de, dS, dhg)`` for the active particles; see :class:`~impactsph.solver.Solver`."""
 
-    def __init__(self, rates, table: np.ndarray, n_active: int, dim: int, constraint=None):
+    def __init__(self, rates, table: np.ndarray, n_active: int, dim: int, constraint=None,
+                 drivers=None):
         self.rates = rates
+        #: the driven regions (:class:`impactsph.driven.Drivers`), or None
+        self.drivers = drivers
         # constraint(x, v, m) -> (count, impulse), applied after each stage
         self.constraint = constraint
         self.constraint_events = 0
@@ -175,11 +178,17 @@ class MidpointIntegrator:
         if self._any_clamped is None:
             self._any_clamped = bool(state.clamped.any())
         start = self._save_start(state)
+        drivers = self.drivers
         self._stage(state, 0.5 * dt, start, start.velocity, self.rates(state), final=False)
+        if drivers is not None:
+            drivers.apply(state.velocity, state.time + 0.5 * dt)
         rates = self.rates(state)
         # x(t + dt) = x(t) + dt v(t + dt/2): the kernel reads each particle's midpoint
         # velocity before it overwrites it, so the velocity array itself is the position rate
         self._stage(state, dt, start, state.velocity, rates, final=True)
+        if drivers is not None:
+            drivers.apply(state.velocity, state.time + dt)
+            drivers.account(state.mass, rates[0][: state.n], state.time, dt)
         if self._any_clamped:
             clamped = state.clamped
             self.clamp_impulse -= dt * (state.mass[clamped] @ rates[0][: state.n][clamped])

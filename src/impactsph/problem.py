@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .config import Case, CaseError
+from .driven import prescribed
 from .geometry import body_particles, inside
 from .initial import body_velocity
 from .materials import MaterialModel, TableLayout, material_table, resolve_material
@@ -81,9 +82,19 @@ def build_problem(case: Case) -> Problem:
         if particles.velocity is not None:  # a particle file's velocity columns
             velocity += particles.velocity
         clamped = np.zeros(n, dtype=bool)
-        if body.clamped is not None:
-            clamped = inside(x, body.clamped.origin, body.clamped.size)
-            velocity[clamped] = 0.0
+        clamps = body.clamped if isinstance(body.clamped, list) else [body.clamped]
+        for region in clamps:
+            if region is not None:
+                held = inside(x, region.origin, region.size)
+                clamped |= held
+                velocity[held] = 0.0
+        for k, drive in enumerate(body.driven):  # held as clamped, moved at v_p(t)
+            sel = inside(x, drive.origin, drive.size)
+            if not sel.any():
+                raise CaseError(f"bodies.{b}.driven.{k} holds no particle of body "
+                                f"{body.name!r}")
+            clamped |= sel
+            velocity[sel] = prescribed(drive.velocity, 0.0)
         if body.tip_mass is not None:
             tip = body.tip_mass
             sel = inside(x, tip.region.origin, tip.region.size)

@@ -12,6 +12,7 @@ import numpy as np
 from .boundaries import SYMMETRY, walls_of
 from .config import Case
 from .devices import select_backend
+from .driven import Drivers
 from .errors import SimulationError
 from .gauges import Gauges
 from .integrate import MidpointIntegrator
@@ -108,7 +109,8 @@ class Simulation:
             self.state.hourglass_acceleration = np.zeros((self.state.n, self.state.dim))
         self.integrator = MidpointIntegrator(
             self.solver.rates, self.problem.table, self.state.n, self.state.dim,
-            constraint=self.walls.enforce if len(self.walls) else None)
+            constraint=self.walls.enforce if len(self.walls) else None,
+            drivers=Drivers.of(case, self.state))
         self.record = RunRecord(probes={name: [] for name in self.problem.probes})
         self.gauges = Gauges.of(case, self.problem)
         #: per body, the largest displacement |x - x0| of a particle at the history's rows (m)
@@ -151,12 +153,20 @@ class Simulation:
                "correction_heating": self.correction_heating}
         external = self.external_impulse()
         if self._supported is None:  # walls or clamps: fixed for the run
-            self._supported = bool(len(self.walls) or s.clamped.any())
+            self._supported = bool(len(self.walls) or s.clamped.any()
+                                   or self.integrator.drivers is not None)
         supported = self._supported
         for a, name in enumerate("xyz"[: s.dim]):
             row[f"momentum_{name}"] = float(d["momentum"][a])
             if supported:
                 row[f"external_impulse_{name}"] = float(external[a])
+        drivers = self.integrator.drivers
+        if drivers is not None:  # the driven regions' reactions and work
+            row["external_work"] = drivers.work
+            for r in drivers.regions:
+                force = drivers.reaction.get(r.name, np.zeros(s.dim))
+                for a, name in enumerate("xyz"[: s.dim]):
+                    row[f"reaction_force_{r.name}_{name}"] = float(force[a])
         n_bodies = len(self.problem.body_names)
         if n_bodies == 1 and len(self.walls):  # one body: its force is the walls' push
             for a, name in enumerate("xyz"[: s.dim]):
@@ -182,7 +192,8 @@ class Simulation:
     def external_impulse(self) -> np.ndarray:
         """Impulse (N s) given to the particles by walls and clamps since t = 0."""
         i = self.integrator
-        return self.wall_impulse + i.constraint_impulse + i.clamp_impulse
+        driven = i.drivers.impulse if i.drivers is not None else 0.0
+        return self.wall_impulse + i.constraint_impulse + i.clamp_impulse + driven
 
     # -- snapshots and probes ------------------------------------------------------------
     def _snapshot_fields(self) -> dict[str, np.ndarray]:
@@ -293,7 +304,8 @@ class Simulation:
         """Run-wide numbers: size, speed, energy and momentum conservation."""
         h = self.record.history
         ke = np.array([r["kinetic_energy"] for r in h])
-        tot = np.array([r["total_energy"] for r in h])
+        # the energy the driven regions' supports put in is not an error
+        tot = np.array([r["total_energy"] - r.get("external_work", 0.0) for r in h])
         dims = "xyz"[: self.state.dim]
         p = np.array([[r[f"momentum_{a}"] - r.get(f"external_impulse_{a}", 0.0) for a in dims]
                       for r in h])
@@ -303,6 +315,9 @@ class Simulation:
             n = self.walls.normals[w]
             p = p - np.outer(p @ n, n)
         e0 = tot[0]
+        scale = e0  # what the energy errors are relative to
+        if "external_work" in h[0]:  # driven regions: the energy they put in counts too
+            scale = max(abs(e0), float(np.max(np.abs([r["external_work"] for r in h]))))
         wall = self.record.wall_seconds
         return {
             "n_particles": self.state.n,
@@ -325,12 +340,13 @@ class Simulation:
             "correction_heating": float(h[-1]["correction_heating"]),
             # what the scheme itself adds to or takes from the total energy (0 for AV)
             "energy_imbalance": float((h[-1]["correction_work"] + h[-1]["correction_heating"])
-                                      / e0) if e0 else 0.0,
+                                      / scale) if scale else 0.0,
             # KE + IE - E0 against what the budget books: the time integration's share
             "energy_budget_residual": float(np.max(np.abs(
                 tot - e0 - np.array([r["correction_work"] + r["correction_heating"]
-                                     for r in h]))) / e0) if e0 else 0.0,
-            "total_energy_relative_error": float(np.max(np.abs(tot - e0)) / e0) if e0 else 0.0,
+                                     for r in h]))) / scale) if scale else 0.0,
+            "total_energy_relative_error": (float(np.max(np.abs(tot - e0)) / scale) if scale
+                                            else 0.0),
             "momentum_drift": float(np.max(np.linalg.norm(p - p[0], axis=1))
                                     / self._abs_momentum0) if self._abs_momentum0 else 0.0,
             "plastic_work": float(np.dot(self.state.mass, self.state.plastic_work)),
