@@ -35,7 +35,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .materials import BULK, RHO0
+from .materials import BULK, RHO0, SHEAR
 
 #: wall kinds (``Walls.kinds``); module-level ints, so compile-time constants in the kernels
 FREE_SLIP, NO_SLIP, SYMMETRY = 1, 2, 3
@@ -49,18 +49,26 @@ class Walls:
 
     points: np.ndarray  #: (n_walls, dim)
     normals: np.ndarray  #: (n_walls, dim), unit
-    kinds: np.ndarray  #: (n_walls,) FREE_SLIP or NO_SLIP
+    kinds: np.ndarray  #: (n_walls,) FREE_SLIP, NO_SLIP or SYMMETRY
+    #: (n_walls,) Coulomb friction coefficients (0: frictionless; a symmetry plane's is 0)
+    friction: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.friction is None:
+            self.friction = np.zeros(self.points.shape[0])
 
     @classmethod
     def from_planes(cls, points: ArrayLike, normals: ArrayLike, slips: Sequence[str],
-                    dim: int) -> Walls:
+                    dim: int, friction: Sequence[float] | None = None) -> Walls:
         """Walls through ``points`` with ``normals`` (into the material, any length: they
         are normalised) and slip names of :data:`SLIP_KINDS` (``"free"``, ``"no"``), one
-        of each per wall; no wall at all is allowed."""
+        of each per wall, and their Coulomb ``friction`` coefficients (default 0); no wall at
+        all is allowed."""
         normals = np.array(normals, dtype=np.float64).reshape(-1, dim)
         normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+        mu = np.zeros(normals.shape[0]) if friction is None else np.array(friction, dtype=float)
         return cls(np.array(points, dtype=np.float64).reshape(-1, dim), normals,
-                   np.array([SLIP_KINDS[s] for s in slips], dtype=np.int8))
+                   np.array([SLIP_KINDS[s] for s in slips], dtype=np.int8), mu)
 
     def __len__(self) -> int:
         return int(self.points.shape[0])
@@ -123,7 +131,8 @@ def walls_of(specs: Iterable[Any], dim: int) -> Walls:
     specs = list(specs)
     return Walls.from_planes([w.point for w in specs], [w.normal for w in specs],
                              ["symmetry" if getattr(w, "type", "wall") == "symmetry" else w.slip
-                              for w in specs], dim)
+                              for w in specs], dim,
+                             [float(getattr(w, "friction", 0.0)) for w in specs])
 
 
 @nb.njit(cache=True)
@@ -261,6 +270,63 @@ def mirror_ghost_matrices(src, wall, normals, kinds, n_real, position, P, c0, di
                         rdb = (1.0 if d == b else 0.0) - 2.0 * normals[w, d] * normals[w, b]
                         acc += rac * P[pi, c0 + c * dim + d] * rdb
                 P[pg, c0 + a * dim + b] = acc
+
+
+#: the regularising speed of the walls' Coulomb friction, in units of the material's
+#: longitudinal wave speed: a particle sliding slower than this feels a friction falling to
+#: zero with its speed (a smooth stick), so that the friction cannot reverse a slow slide
+#: within a step
+FRICTION_REGULARISATION = 1e-6
+
+
+@nb.njit(cache=True)
+def friction_push(n, x, v, m, material, table, contact_force, points, normals, mu, reach,
+                  dv, de):
+    """Coulomb friction of the rigid walls on the first ``n`` particles, added to ``dv`` and
+    ``de``; returns the total force on them (N, or N/m in 2D).
+
+    A particle within ``reach`` of wall ``w`` (``0 <= d < reach``) that the wall pushes with
+    the normal force ``f_n = max(0, f_c . n_w)`` (``f_c`` its contact force: the ghosts'
+    push) is slowed along the wall by::
+
+        dv_i/dt += -mu_w f_n / m_i  v_t / sqrt(|v_t|^2 + v_r^2)
+        de_i/dt -= v_i . (that acceleration)             (the friction's work, as heat)
+
+    with ``v_t`` its velocity along the wall and ``v_r = FRICTION_REGULARISATION c_l`` the
+    regularising speed (``c_l`` the longitudinal wave speed at rho0): Coulomb's law
+    ``|f_t| = mu f_n`` while it slides faster than ``v_r``.  The heat keeps the total
+    energy."""
+    dim = x.shape[1]
+    total = np.zeros(dim)
+    for w in range(points.shape[0]):
+        if mu[w] <= 0.0:
+            continue
+        for i in range(n):
+            d = 0.0
+            fn = 0.0
+            vn = 0.0
+            for a in range(dim):
+                d += (x[i, a] - points[w, a]) * normals[w, a]
+                fn += contact_force[i, a] * normals[w, a]
+                vn += v[i, a] * normals[w, a]
+            if d < 0.0 or d >= reach or fn <= 0.0:
+                continue
+            k = material[i]
+            v_reg = FRICTION_REGULARISATION * math.sqrt(
+                (table[k, BULK] + 4.0 / 3.0 * table[k, SHEAR]) / table[k, RHO0])
+            vt2 = 0.0
+            for a in range(dim):
+                vt = v[i, a] - vn * normals[w, a]
+                vt2 += vt * vt
+            scale = mu[w] * fn / (m[i] * math.sqrt(vt2 + v_reg * v_reg))
+            power = 0.0
+            for a in range(dim):
+                acc = -scale * (v[i, a] - vn * normals[w, a])
+                dv[i, a] += acc
+                total[a] += m[i] * acc
+                power += v[i, a] * acc
+            de[i] -= power
+    return total
 
 
 #: damping ratio of the wall layer's dashpot: the midpoint integrator amplifies an undamped

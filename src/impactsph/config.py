@@ -382,6 +382,10 @@ class Wall(_Model):
     point: list[FiniteFloat] = Field(description="a point of the wall plane (m)")
     normal: list[FiniteFloat] = Field(description="normal pointing into the material")
     slip: Literal["free", "no"] = "free"
+    friction: NonNegativeFloat = Field(
+        0.0, description="Coulomb friction coefficient mu: a particle the wall pushes with "
+        "f_n is slowed along it by mu f_n (impactsph.boundaries.friction_push); its work is "
+        "booked as heat")
 
 
 class Symmetry(_Model):

@@ -11,6 +11,7 @@ from .boundaries import (
     SYMMETRY,
     Walls,
     fill_ghosts,
+    friction_push,
     layer_push,
     mirror_ghost_matrices,
     mirror_ghost_results,
@@ -94,6 +95,7 @@ class Solver:
         self._damage: np.ndarray | None = None  # the particles' damage, contiguous
         #: symmetry planes: their ghosts get the mirror of their sources' pair results
         self._symmetric = self.walls is not None and bool((self.walls.kinds == SYMMETRY).any())
+        self._friction = self.walls is not None and bool((self.walls.friction > 0.0).any())
         self._positions: np.ndarray | None = None  # row -> place in the packed records
         rigid = np.zeros(0, dtype=np.int64) if self.walls is None else self.walls.walls_only
         self._rigid = rigid
@@ -224,6 +226,11 @@ class Solver:
         self.powers = (float(totals[0]), float(totals[1]), float(totals[2]))
         if self.walls is not None:  # the ghosts' push on the real particles (N, or N/m)
             self.wall_force = totals[4: 4 + self.dim].copy()
+            if self._friction:  # Coulomb friction of the walls, from the ghosts' push
+                w = self.walls
+                self.wall_force += friction_push(
+                    n, state.position, state.velocity, state.mass, state.material, self.table,
+                    b.contact_force, w.points, w.normals, w.friction, support, b.dv, b.de)
             if self.wall_layer > 0.0 and self._rigid.size:  # rigid walls, not symmetry planes
                 self.wall_force += layer_push(n, state.position, state.velocity, state.mass,
                                               state.material, self.table, self._rigid_points,
