@@ -18,6 +18,7 @@ Usage::
     .venv/bin/python validation/beam.py 5 10 20                # plain SPH
     .venv/bin/python validation/beam.py 5 10 \
         --set stabilisation.gradient_correction=velocity_gradient --set stabilisation.hourglass=1
+    .venv/bin/python validation/beam.py 5 10 20 --formulation total_lagrangian
 
 Each line printed is one run (JSON): particles through the depth, period, its error against
 Timoshenko and Euler-Bernoulli, energy error, steps and wall time.
@@ -166,12 +167,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("n_depth", nargs="+", type=int, help="particles through the depth")
     ap.add_argument("--set", dest="overrides", action="append", default=[],
                     help="a case override, e.g. stabilisation.hourglass=1.0")
+    ap.add_argument("--formulation", choices=("updated_lagrangian", "total_lagrangian"),
+                    default=None, help="the case's formulation (default: the case's, "
+                    "updated_lagrangian)")
     ap.add_argument("--nu", type=float, default=NU,
                     help="Poisson's ratio (default 0.3; issue 11's plate: 0.4)")
     ap.add_argument("--slenderness", type=float, default=LENGTH / DEPTH,
                     help="L/H (default 12; issue 11's plate: 10)")
     args = ap.parse_args(argv)
     set_beam(args.nu, args.slenderness)
+    if args.formulation is not None:
+        args.overrides.append(f"formulation={args.formulation}")
     for n in args.n_depth:
         print(json.dumps({**measure(n, args.overrides), "nu": NU,
                           "slenderness": LENGTH / DEPTH}), flush=True)

@@ -429,6 +429,11 @@ class Kernel(_Model):
 AUTO_HOURGLASS = 2.0
 
 
+#: the total-Lagrangian hourglass coefficient alpha (``tl_hourglass``; measured on the clamped
+#: beam: docs/stabilisation.md, "Total-Lagrangian formulation")
+TL_HOURGLASS = 10.0
+
+
 class Stabilisation(_Model):
     """Remedies for the discretisation's own errors (docs/stabilisation.md).  ``"auto"`` (the
     default of ``gradient_correction`` and ``hourglass``) resolves, when the case is
@@ -457,6 +462,12 @@ class Stabilisation(_Model):
         "sigma'/rho^2 along each principal direction in tension, weighted by (W(r)/W(dx))^n; "
         "0.3 is their value for solids; it also softens the material in tension (a tensile "
         "wave 10% slower in 1D at 0.3: docs/stabilisation.md); 0 switches it off")
+    tl_hourglass: NonNegativeFloat = Field(
+        TL_HOURGLASS, description="coefficient alpha of the total-Lagrangian formulation's "
+        "hourglass control (Ganzenmueller 2015): a penalty along each reference pair, alpha/2 "
+        "E V0_i V0_j W_ij / |X_ij|^2 times the pair's error against the particles' "
+        "deformation gradients, its work booked in their internal energy; 0 switches it off; "
+        "used by formulation = 'total_lagrangian' only")
     artificial_stress_exponent: float = Field(
         4.0, gt=0.0, description="exponent n of the artificial stress's weight "
         "(W(r)/W(dx))^n (Gray et al. 2001 use 4)")
@@ -579,6 +590,11 @@ class Case(_Model):
         "(relative to the case file) imported before the case is validated: where models, "
         "problems or boundaries of your own are registered")
     dimension: Literal[1, 2, 3]
+    formulation: Literal["updated_lagrangian", "total_lagrangian"] = Field(
+        "updated_lagrangian", description="'updated_lagrangian': kernel and neighbours of the "
+        "current configuration (the paper's SPH); 'total_lagrangian': kernel and neighbours of "
+        "the configuration at t = 0, deformation gradient and first Piola-Kirchhoff stress, "
+        "for a single body that does not fragment (docs/stabilisation.md)")
     analysis: str = Field(
         "none", description="problem-specific analysis and figures: 'none' or the name of a "
         "registered problem (impactsph.problems: 'bars', 'taylor', 'cantilever', ...)"
@@ -709,13 +725,47 @@ class Case(_Model):
                     raise ValueError(f"output.gauges.{k}.name = {probe.name!r} is used by two "
                                      f"gauges")
                 seen.add(probe.name)
+        if self.formulation == "total_lagrangian":
+            self._total_lagrangian_limits()
         self._resolve_stabilisation()
         return self
+
+    def _total_lagrangian_limits(self) -> None:
+        """Refuse what the total-Lagrangian formulation does not do, in one line each."""
+        tl = "with formulation = 'total_lagrangian'"
+        stab = self.stabilisation
+        if len(self.bodies) > 1:
+            raise ValueError(f"bodies: {tl} a case has one body (contact between "
+                             f"total-Lagrangian bodies is not implemented)")
+        if self.compute.device != "cpu":
+            raise ValueError(f"compute.device = {self.compute.device!r}: the total-Lagrangian "
+                             f"passes run on the CPU only")
+        if self.viscosity.scheme != "av":
+            raise ValueError(f"viscosity.scheme = {self.viscosity.scheme!r} is not available "
+                             f"{tl} (use 'av')")
+        if stab.gradient_correction not in ("auto", "none"):
+            raise ValueError(f"stabilisation.gradient_correction = "
+                             f"{stab.gradient_correction!r} is an updated-Lagrangian option "
+                             f"(the total-Lagrangian gradient is always corrected)")
+        if stab.hourglass not in ("auto", 0.0):
+            raise ValueError(f"stabilisation.hourglass = {stab.hourglass!r} is an "
+                             f"updated-Lagrangian option ({tl} use stabilisation.tl_hourglass)")
+        if stab.artificial_stress > 0.0:
+            raise ValueError(f"stabilisation.artificial_stress = {stab.artificial_stress!r} is "
+                             f"an updated-Lagrangian option (a total-Lagrangian body has no "
+                             f"tensile instability)")
+        if self.boundaries and self.contact.wall_layer == 0.0:
+            raise ValueError(f"contact.wall_layer = 0: {tl} the walls' penalty layer is what "
+                             f"holds a wall (there are no wall ghosts)")
 
     def _resolve_stabilisation(self) -> None:
         """Replace the ``"auto"`` of ``[stabilisation]`` by the measured choice (see
         :class:`Stabilisation`), so that the case recorded with a run says what ran."""
         stab = self.stabilisation
+        if self.formulation == "total_lagrangian":  # the UL remedies do not apply
+            stab.gradient_correction = "none"
+            stab.hourglass = 0.0
+            return
         elastic = all(STRENGTH[m.model].return_map is None for m in self.materials.values())
         if stab.gradient_correction == "auto":
             stab.gradient_correction = "velocity_gradient_and_forces" if elastic else "none"

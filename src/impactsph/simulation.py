@@ -23,6 +23,7 @@ from .physics.rates import ViscositySettings
 from .problem import Problem, build_problem
 from .solver import Solver
 from .state import ParticleState
+from .tl_solver import TotalLagrangianSolver
 
 
 @dataclass
@@ -96,14 +97,21 @@ class Simulation:
             self.problem.state = state
         self.state: ParticleState = self.problem.state
         self.walls = walls_of(case.boundaries, case.dimension)
-        self.solver = Solver(self.state, self.problem.table,
-                             ViscositySettings.of(case.viscosity), walls=self.walls,
-                             skin_fraction=case.time.neighbour_skin,
-                             backend=select_backend(
-                                 case.compute.device, case.dimension,
-                                 PassOptions.of_case(case)),
-                             hourglass=case.stabilisation.hourglass,
-                             wall_layer=case.contact.wall_layer)
+        self.solver: Solver | TotalLagrangianSolver
+        if case.formulation == "total_lagrangian":
+            self.solver = TotalLagrangianSolver(
+                self.state, self.problem.table, ViscositySettings.of(case.viscosity),
+                walls=self.walls, hourglass=case.stabilisation.tl_hourglass,
+                wall_layer=case.contact.wall_layer)
+        else:
+            self.solver = Solver(self.state, self.problem.table,
+                                 ViscositySettings.of(case.viscosity), walls=self.walls,
+                                 skin_fraction=case.time.neighbour_skin,
+                                 backend=select_backend(
+                                     case.compute.device, case.dimension,
+                                     PassOptions.of_case(case)),
+                                 hourglass=case.stabilisation.hourglass,
+                                 wall_layer=case.contact.wall_layer)
         if case.stabilisation.hourglass > 0.0 and self.state.hourglass_acceleration.shape[1] \
                 != self.state.dim:
             self.state.hourglass_acceleration = np.zeros((self.state.n, self.state.dim))
