@@ -757,6 +757,14 @@ class Case(_Model):
         if self.boundaries and self.contact.wall_layer == 0.0:
             raise ValueError(f"contact.wall_layer = 0: {tl} the walls' penalty layer is what "
                              f"holds a wall (there are no wall ghosts)")
+        for k, boundary in enumerate(self.boundaries):
+            if boundary.type == "symmetry":
+                raise ValueError(f"boundaries.{k}: type = 'symmetry' is not available {tl} "
+                                 f"(symmetry planes are mirror ghosts of the updated-Lagrangian "
+                                 f"passes)")
+            if boundary.friction > 0.0:
+                raise ValueError(f"boundaries.{k}.friction = {boundary.friction!r} is not "
+                                 f"available {tl} (wall friction acts on the ghosts' push)")
 
     def _resolve_stabilisation(self) -> None:
         """Replace the ``"auto"`` of ``[stabilisation]`` by the measured choice (see
