@@ -87,6 +87,9 @@ def main() -> None:
     parser.add_argument("--end", type=float, default=100e-6, help="end time (s)")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--out", type=Path, default=Path("runs/validation/taylor-measured"))
+    parser.add_argument("--set", dest="sets", action="append", default=[],
+                        help="an override for every run (key=value), e.g. "
+                        "'viscosity.scheme=\"av\"'")
     parser.add_argument("--quarter", action="store_true",
                         help="run the quarter with two symmetry planes (4x cheaper)")
     parser.add_argument("--report-only", action="store_true",
@@ -110,7 +113,7 @@ def main() -> None:
         if args.report_only:
             rows.append({"run": name, "status": "ok"})
         else:
-            rows += run_many(case, [[]], args.out, workers=args.workers, names=[name])
+            rows += run_many(case, [args.sets], args.out, workers=args.workers, names=[name])
     result = []
     for (test, across), row in zip(labels, rows, strict=True):
         summary = load_run(args.out / "runs" / row["run"]).get("summary", {})
