@@ -30,25 +30,31 @@ import numpy as np
 from .base import GeometryNeeds, ProblemKind
 
 
-def impact_geometry(x0: np.ndarray, v0: np.ndarray, mass: np.ndarray, body: np.ndarray
-                    ) -> dict[str, Any]:
+def impact_geometry(x0: np.ndarray, v0: np.ndarray, mass: np.ndarray, body: np.ndarray,
+                    planes: list[tuple[np.ndarray, np.ndarray]] = ()) -> dict[str, Any]:
     """The impact direction, axis point and the plate's extent along it, from the initial
-    state (body 0 the projectile, body 1 the plate)."""
+    state (body 0 the projectile, body 1 the plate); ``planes``: the symmetry planes
+    ``(point, unit normal)`` of a half or quarter model, on which the axis lies."""
     proj, plate = body == 0, body == 1
     m = mass[proj]
     velocity = (m @ v0[proj]) / m.sum()
+    centre = (m @ x0[proj]) / m.sum()
+    for point, normal in planes:  # the whole model's axis: on every symmetry plane
+        velocity = velocity - (velocity @ normal) * normal
+        centre = centre - ((centre - point) @ normal) * normal
     speed = float(np.linalg.norm(velocity))
     direction = velocity / speed
-    centre = (m @ x0[proj]) / m.sum()
     along_plate = x0[plate] @ direction
     return {"direction": direction, "centre": centre, "speed": speed,
             "front": float(along_plate.min()), "rear": float(along_plate.max())}
 
 
 def perforation_measures(x0: np.ndarray, x: np.ndarray, v0: np.ndarray, v: np.ndarray,
-                         mass: np.ndarray, body: np.ndarray, spacing: float) -> dict[str, Any]:
-    """The measures of the module docstring (``spacing``: the plate's particle spacing)."""
-    g = impact_geometry(x0, v0, mass, body)
+                         mass: np.ndarray, body: np.ndarray, spacing: float,
+                         planes: list[tuple[np.ndarray, np.ndarray]] = ()) -> dict[str, Any]:
+    """The measures of the module docstring (``spacing``: the plate's particle spacing;
+    ``planes`` as :func:`impact_geometry`'s)."""
+    g = impact_geometry(x0, v0, mass, body, planes)
     d, c = g["direction"], g["centre"]
     proj, plate = body == 0, body == 1
     thickness = g["rear"] - g["front"] + spacing
@@ -86,8 +92,11 @@ class PerforationProblem(ProblemKind):
         for b, body in enumerate(sim.case.bodies):
             rows = s.body == b
             initial_velocity[rows] = body_velocity(body.velocity, s.initial_position[rows])
+        planes = [(np.asarray(b.point, float), np.asarray(b.normal, float)
+                   / np.linalg.norm(b.normal)) for b in sim.case.boundaries
+                  if b.type == "symmetry"]
         return perforation_measures(s.initial_position, s.position, initial_velocity,
-                                    s.velocity, s.mass, s.body, spacing)
+                                    s.velocity, s.mass, s.body, spacing, planes)
 
     def summary_keys(self, case: Any) -> tuple[str, ...]:
         return ("residual_velocity", "residual_velocity_ratio", "hole_diameter",
