@@ -26,7 +26,7 @@ velocity = [20.0, -10.0]
 [bodies.geometry]
 origin = [0.0, 0.0]
 size = [0.004, 0.004]
-spacing = 0.00025
+spacing = 0.0005
 
 [[boundaries]]
 type = "wall"
