@@ -70,7 +70,7 @@ def largest_principal(a00, a01, a02, a11, a12, a22):
     return q + 2.0 * p * math.cos(phi)
 
 
-@nb.njit(inline="always", cache=True)
+@nb.njit(cache=True)
 def update(S, pressure, rho, size, dt, plastic_strain_increment, row, params, state, own):
     """Grow ``D^(1/3)`` by ``n_act^(1/3) c_g dt / (2 h)`` where ``sigma_1 / E > eps_min``."""
     damage = state[DAMAGE]

@@ -58,7 +58,7 @@ def fracture_strain(triaxiality, rate, t_star, d1, d2, d3, d4, d5, rate0):
     return max(eps_f, SMALLEST_FRACTURE_STRAIN)
 
 
-@nb.njit(inline="always", cache=True)
+@nb.njit(cache=True)
 def update(S, pressure, rho, size, dt, plastic_strain_increment, row, params, state, own):
     """``own[0] += d eps_p / eps_f``; ``state[DAMAGE] = 1`` once it reaches 1."""
     if state[DAMAGE] >= 1.0:

@@ -152,7 +152,7 @@ class LinearHardeningParameters(Parameters):
         description="plastic modulus H = d sigma_y / d eps_p (Pa)")
 
 
-@nb.njit(inline="always", cache=True)
+@nb.njit(cache=True)
 def linear_return(S, rho, pressure, shear_modulus, params, state, own, dt):
     """``sigma_y = sigma_0 + H eps_p``: :func:`hardening_return` with ``n = 1``, ``C = 0``."""
     return hardening_return(S, rho, shear_modulus, state, dt, params[0], params[1], 1.0, 0.0,
@@ -179,7 +179,7 @@ class PowerLawHardeningParameters(Parameters):
                                               "in (0, 1]")
 
 
-@nb.njit(inline="always", cache=True)
+@nb.njit(cache=True)
 def power_law_return(S, rho, pressure, shear_modulus, params, state, own, dt):
     """``sigma_y = sigma_0 + K eps_p^n`` (Ludwik): :func:`hardening_return` with ``C = 0``."""
     return hardening_return(S, rho, shear_modulus, state, dt, params[0], params[1], params[2],
@@ -217,7 +217,7 @@ class JohnsonCookParameters(Parameters):
         293.15, description="T_r: the room temperature of T* (K)")
 
 
-@nb.njit(inline="always", cache=True)
+@nb.njit(cache=True)
 def johnson_cook_return(S, rho, pressure, shear_modulus, params, state, own, dt):
     """Johnson-Cook flow stress: :func:`hardening_return` with ``params = (A, B, n, C,
     rate0, m, T_r, T_melt)``, the temperature of the stage's start."""

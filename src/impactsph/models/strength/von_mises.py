@@ -65,7 +65,7 @@ def radial_return(S, yield_stress: float) -> float:
     return f
 
 
-@nb.njit(inline="always", cache=True)
+@nb.njit(cache=True)
 def return_map(S, rho: float, pressure: float, shear_modulus: float, params, state, own,
                dt: float) -> float:
     """The registered form: radial return to ``sigma_y = params[0]``, the equivalent plastic
