@@ -112,3 +112,24 @@ def test_bad_driven_regions_refused(tmp_path, change, field):
     assert res.exit_code == 2, res.output
     lines = [ln for ln in res.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and field in lines[0], lines
+
+
+def test_restart_continues_the_supports_work(tmp_path):
+    """A driven run restarted from its checkpoint ends where the straight run ends, the
+    supports' work and impulse included."""
+    from impactsph.checkpoint import load_checkpoint
+    from impactsph.runner import run_case
+
+    path = tmp_path / "rod.toml"
+    path.write_text(CASE.replace("@PULL@", str(PULL)).replace("@END@", "3e-6"))
+    case = load_case(path, [f"output.checkpoint_interval={3e-6 / 3.5}"])
+    run_case(case, tmp_path / "whole")
+    reference = Simulation(case)
+    reference.run()
+    restarted = load_checkpoint(tmp_path / "whole" / "checkpoint.h5", case)
+    assert 0 < restarted.state.time < 3e-6
+    restarted.run()
+    np.testing.assert_array_equal(restarted.state.velocity, reference.state.velocity)
+    drivers, ref = restarted.integrator.drivers, reference.integrator.drivers
+    assert drivers.work == pytest.approx(ref.work, rel=1e-12)
+    np.testing.assert_allclose(drivers.impulse, ref.impulse, rtol=1e-12)

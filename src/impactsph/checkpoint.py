@@ -182,6 +182,10 @@ def accumulators(sim: Simulation) -> dict[str, Any]:
         "rate_evaluations": s.rate_evaluations,
         "abs_momentum0": sim._abs_momentum0,
         "max_displacement": sim.max_displacement,
+        # the driven regions' supports (zeros without any)
+        "driven_impulse": (i.drivers.impulse if i.drivers is not None
+                           else np.zeros(sim.state.dim)),
+        "driven_work": i.drivers.work if i.drivers is not None else 0.0,
     }
 
 
@@ -230,6 +234,9 @@ def load_checkpoint(path: Path | str, case: Any = None, *, verify: bool = True
         sim.solver.pair_evaluations = int(acc["pair_evaluations"])
         sim.solver.rate_evaluations = int(acc["rate_evaluations"])
         sim._abs_momentum0 = float(acc["abs_momentum0"])
+        if sim.integrator.drivers is not None and "driven_work" in acc:
+            sim.integrator.drivers.impulse = np.array(acc["driven_impulse"], dtype=np.float64)
+            sim.integrator.drivers.work = float(acc["driven_work"])
         if "max_displacement" in acc:  # not in the checkpoints of earlier versions
             sim.max_displacement = np.array(acc["max_displacement"], dtype=np.float64)
         else:  # the largest displacement now, the best an older checkpoint tells
