@@ -123,6 +123,17 @@ def main() -> None:
         # t = 0 (each the outermost particle plus half a spacing), times the true diameter
         foot = summary.get("footprint_radius_ratio", math.nan) * D0
         bar = summary.get("bodies", {}).get("bar", {})
+        outline = {}
+        if test.get("outline") and summary.get("profile"):
+            # the computed radius at the measured outline's heights, each over the measured
+            # one less 1 (the profile's radius is over its initial measure, times R0)
+            profile = np.array(summary["profile"])
+            scale = (test["diameter"] / 2) / summary["initial_radius"]
+            measured = np.array(test["outline"])
+            computed = np.interp(measured[:, 1], profile[:, 0], profile[:, 1] * scale)
+            errors = computed / measured[:, 0] - 1.0
+            outline = {"outline_radius_error_max": float(np.max(np.abs(errors))),
+                       "outline_radius_error_mean": float(np.mean(errors))}
         result.append({
             "material": test["material"], "velocity": test["velocity"], "across": across,
             "n_particles": summary.get("n_particles"), "status": row.get("status"),
@@ -136,20 +147,21 @@ def main() -> None:
             "max_temperature": bar.get("max_temperature"),
             "total_energy_relative_error": summary.get("total_energy_relative_error"),
             "wall_constraint_events": summary.get("wall_constraint_events"),
-            "wall_seconds": summary.get("wall_seconds"), "source": test["source"]})
+            "wall_seconds": summary.get("wall_seconds"), "source": test["source"],
+            **outline})
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "taylor_measured.json").write_text(json.dumps(result, indent=2, default=float))
     cols = ["material", "velocity", "across", "n_particles", "final_length_mm",
             "measured_final_length_mm", "final_length_error", "foot_diameter_mm",
             "measured_foot_diameter_mm", "foot_diameter_error", "max_equivalent_plastic_strain",
             "max_temperature", "total_energy_relative_error", "wall_constraint_events",
-            "wall_seconds"]
+            "wall_seconds", "outline_radius_error_mean", "outline_radius_error_max"]
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
     for r in result:
         print("| " + " | ".join(
             (f"{r[c]:+.1%}" if c.endswith("_error") and c.startswith(("final", "foot"))
-             else f"{r[c]:.4g}") if isinstance(r[c], float) else str(r[c])
+             else f"{r[c]:.4g}") if isinstance(r.get(c), float) else str(r.get(c))
             for c in cols) + " |")
 
 

@@ -19,6 +19,10 @@ sectors about the axis, centred on the lateral coordinate axes and their diagona
 ``footprint_radius_ratio_min_sector`` is the smallest of their radii, so it equals
 ``footprint_radius_ratio`` for a round footprint and falls below it where the foot spreads
 unevenly.
+
+``profile``: the mushroom, ``[height, half-width or radius]`` in 20 slices of the final bar
+(:func:`bar_profile`), to set beside a measured outline (``validation/taylor_measured.py``).
+On a half or quarter model (symmetry planes) the axis is taken on the planes.
 """
 
 from __future__ import annotations
@@ -107,6 +111,28 @@ def cylinder_measures(x0: np.ndarray, x: np.ndarray, axis: int, spacing: list[fl
             "lift_off": lift_off(x, axis, along, wall_level)}
 
 
+def bar_profile(x: np.ndarray, axis: int, spacing: list[float], centre: np.ndarray,
+                bins: int = 20) -> list[list[float]]:
+    """The mushroom profile of a bar along ``axis``: ``[height above its lowest particle,
+    half-width or radius]`` (m) at the middle of ``bins`` equal slices of its length, each the
+    largest distance of a slice's particles from the axis plus half a spacing (the measure of
+    the footprint, taken all along the bar)."""
+    along = spacing[axis]
+    lateral = [a for a in range(x.shape[1]) if a != axis]
+    across = spacing[lateral[0]]
+    z = x[:, axis] - x[:, axis].min()
+    length = float(z.max()) + along
+    r = np.linalg.norm(x[:, lateral] - centre, axis=1)
+    edges = np.linspace(0.0, length, bins + 1)
+    out = []
+    for k in range(bins):
+        sel = (z >= edges[k] - 0.5 * along) & (z < edges[k + 1] - 0.5 * along)
+        if sel.any():
+            out.append([float(0.5 * (edges[k] + edges[k + 1])),
+                        float(r[sel].max() + 0.5 * across)])
+    return out
+
+
 def bar_axis(case: Any) -> int:
     """The axis the bar stands along: a cylinder's own axis, else the last one."""
     geometry = case.bodies[0].geometry
@@ -162,6 +188,8 @@ def taylor_metrics(sim: Any) -> dict[str, Any]:
     centre = bar_centre(sim.case, x0, axis)
     out.update(attempt(notes, "final_length_ratio and footprint", lambda: measures(
         x0, x, axis, spacing, wall, centre), {}))
+    out.update(attempt(notes, "profile", lambda: {"profile": bar_profile(
+        x, axis, spacing, centre)}, {}))
     if "final_length_ratio" in out:
         lo, hi = LENGTH_RATIO_BAND
         out["length_ratio_in_1d_band"] = bool(lo <= out["final_length_ratio"] <= hi)
