@@ -84,6 +84,8 @@ def main() -> None:
     parser.add_argument("--across", nargs="+", type=int, default=[10, 20],
                         help="particles across the diameter (default: 10 20)")
     parser.add_argument("--all", action="store_true", help="every test with measured values")
+    parser.add_argument("--materials", nargs="+", default=None,
+                        help="only the tests of these library materials")
     parser.add_argument("--end", type=float, default=100e-6, help="end time (s)")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--out", type=Path, default=Path("runs/validation/taylor-measured"))
@@ -95,7 +97,8 @@ def main() -> None:
     parser.add_argument("--report-only", action="store_true",
                         help="tabulate the runs already in --out, run nothing")
     args = parser.parse_args()
-    chosen = tests(args.all)
+    chosen = [t for t in tests(args.all)
+              if args.materials is None or t["material"] in args.materials]
     labels, names = [], []
     cases = []
     for test in chosen:
