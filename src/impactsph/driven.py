@@ -45,9 +45,16 @@ class DrivenRegion:
     rows: np.ndarray  #: the particles (indices into the state)
     components: list[Any]  #: per axis a number or an expression of t
     mass: float  #: of its particles (kg, or kg/m in 2D)
+    #: the last few ``t -> v_p(t)``: a step asks for t + dt/2 and t + dt twice each
+    _recent: dict[float, np.ndarray] = field(default_factory=dict, repr=False)
 
     def velocity(self, t: float) -> np.ndarray:
-        return prescribed(self.components, t)
+        v = self._recent.get(t)
+        if v is None:
+            if len(self._recent) >= 4:
+                self._recent.clear()
+            v = self._recent[t] = prescribed(self.components, t)
+        return v
 
 
 @dataclass

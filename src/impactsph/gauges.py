@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from .materials import carried_pressure
 from .models.columns import DAMAGE
 
 #: the stress components written, as (row, column) of the 3x3 deviator
@@ -129,7 +130,7 @@ class Gauges:
                               sim.problem.table, s.dim) if self.needs_pressure
                     else np.zeros(k))
         damage = s.material_state[i, DAMAGE]
-        pressure = np.where(pressure < 0.0, pressure * (1.0 - damage), pressure)
+        pressure = carried_pressure(pressure, damage)
         table = np.concatenate([
             x, x - s.initial_position[i], s.velocity[i], s.density[i, None], pressure[:, None],
             s.specific_energy[i, None],

@@ -34,7 +34,13 @@ from typing import Any, Literal
 
 import numpy as np
 
-from .materials import MaterialModel, TableLayout, material_table, resolve_material
+from .materials import (
+    MaterialModel,
+    TableLayout,
+    carried_pressure,
+    material_table,
+    resolve_material,
+)
 from .models import DAMAGE
 from .models.columns import (
     DAMAGE as DAMAGE_COLUMN,
@@ -141,8 +147,8 @@ def material_point(material: Any, *, strain_rate: float, strain: float | None = 
     own = np.zeros((n, layout.state_width - len(("eps", "rate", "T", "D"))))
 
     def pressure_of(rho_, e_, damage):
-        p = float(k.pressures(rho_, e_, mat, table, np.empty(1))[0])
-        return p * (1.0 - damage) if p < 0.0 else p
+        return float(carried_pressure(k.pressures(rho_, e_, mat, table, np.empty(1)),
+                                      damage)[0])
 
     def record(step):
         D = state0[0, DAMAGE_COLUMN]

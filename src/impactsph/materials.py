@@ -207,3 +207,16 @@ def material_table(materials: list[MaterialModel], wave_speed: str,
     """Stack the materials' rows into the ``(n_materials, layout.n_columns)`` table."""
     layout = layout or TableLayout.registered()
     return np.ascontiguousarray(np.stack([m.row(wave_speed, layout) for m in materials]))
+
+
+def carried_pressure(pressure: np.ndarray, damage: np.ndarray) -> np.ndarray:
+    """The pressure a particle carries (Pa): its EOS pressure, in tension times ``1 - D``
+    (as :func:`impactsph.physics.passes.particle_record` gives the forces)."""
+    return np.where(pressure < 0.0, pressure * (1.0 - damage), pressure)
+
+
+def carried_von_mises(deviatoric_stress: np.ndarray, damage: np.ndarray) -> np.ndarray:
+    """The von Mises stress a particle carries (Pa): that of its deviator times ``1 - D``."""
+    from .models.strength.von_mises import von_mises_stress
+
+    return (1.0 - damage) * von_mises_stress(deviatoric_stress)

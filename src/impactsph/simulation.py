@@ -16,8 +16,8 @@ from .driven import Drivers
 from .errors import SimulationError
 from .gauges import Gauges
 from .integrate import MidpointIntegrator
+from .materials import carried_von_mises
 from .models.columns import COMMON_STATE, DAMAGE
-from .models.strength.von_mises import von_mises_stress
 from .physics.options import PassOptions
 from .physics.rates import ViscositySettings
 from .problem import Problem, build_problem
@@ -209,7 +209,7 @@ class Simulation:
         fields = {k: v.copy() for k, v in s.arrays().items()}
         fields["pressure"] = self.solver.pressure(s)
         damage = s.material_state[:, DAMAGE]
-        fields["von_mises_stress"] = (1.0 - damage) * von_mises_stress(s.deviatoric_stress)
+        fields["von_mises_stress"] = carried_von_mises(s.deviatoric_stress, damage)
         for k, name in enumerate(COMMON_STATE):
             fields[name] = s.material_state[:, k].copy()
         return fields

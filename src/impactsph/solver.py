@@ -17,6 +17,7 @@ from .boundaries import (
     mirror_ghost_results,
 )
 from .kernels import SUPPORT_RADIUS
+from .materials import carried_pressure
 from .models.columns import DAMAGE
 from .neighbours import NeighbourList
 from .physics.rates import CpuRates, RateBuffers, ViscositySettings, pressures
@@ -245,4 +246,4 @@ class Solver:
         p = pressures(state.density, state.specific_energy, state.material, self.table,
                       self.dim, np.empty(state.n))
         damage = state.material_state[:, DAMAGE]
-        return np.where(p < 0.0, p * (1.0 - damage), p)
+        return carried_pressure(p, damage)

@@ -6,8 +6,8 @@ formulation").
 It returns the same ``(dv, drho, de, dS, dhg)`` as the updated-Lagrangian solver, so the
 midpoint integrator and its compiled ``advance`` stage (the EOS, the strength model's return
 map, the heating and the damage) are the same.  Rigid walls act through a penalty layer
-(:func:`impactsph.physics.total_lagrangian.wall_push`, softer than
-:func:`impactsph.boundaries.layer_push` and with a continuous dashpot) and the integrator's
+(:func:`impactsph.boundaries.layer_push` with ``soft``, softer than
+the updated-Lagrangian layer and with a continuous dashpot) and the integrator's
 constraint; there are no wall ghosts.  One body per case (the case schema refuses more); it
 does not fragment: its neighbours are those of t = 0 for the whole run.  CPU only.
 """
@@ -18,9 +18,10 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .boundaries import LAYER_DAMPING, Walls
+from .boundaries import Walls, layer_push
 from .errors import CaseError
 from .kernels import SUPPORT_RADIUS
+from .materials import carried_pressure
 from .models.columns import DAMAGE
 from .neighbours import NeighbourList
 from .physics import total_lagrangian as tl
@@ -101,9 +102,9 @@ class TotalLagrangianSolver:
         self.powers = (float(state.mass @ b.de_visc), 0.0, 0.0)
         if self.walls is not None:
             w = self.walls
-            self.wall_force = tl.wall_push(n, state.position, state.velocity, state.mass,
-                                           state.material, self.table, w.points, w.normals,
-                                           self.wall_layer, LAYER_DAMPING, b.dv, b.de)
+            self.wall_force = layer_push(n, state.position, state.velocity, state.mass,
+                                         state.material, self.table, w.points, w.normals,
+                                         self.wall_layer, b.dv, b.de, True)
         self.pair_evaluations += self._pairs
         self.rate_evaluations += 1
         return b.dv, b.drho, b.de, b.dS, b.dhg
@@ -114,4 +115,4 @@ class TotalLagrangianSolver:
         p = self._pressures(state.density, state.specific_energy, state.material, self.table,
                             np.empty(state.n))
         damage = state.material_state[:, DAMAGE]
-        return np.where(p < 0.0, p * (1.0 - damage), p)
+        return carried_pressure(p, damage)

@@ -20,8 +20,8 @@ import meshio
 import numpy as np
 
 from .atomic import atomic_path, write_text
+from .materials import carried_von_mises
 from .models.columns import COMMON_STATE, DAMAGE, PLASTIC_STRAIN_RATE
-from .models.strength.von_mises import von_mises_stress
 
 
 def particle_fields(sim: Any) -> dict[str, np.ndarray]:
@@ -31,7 +31,7 @@ def particle_fields(sim: Any) -> dict[str, np.ndarray]:
     vel = np.zeros((n, 3))
     vel[:, : s.dim] = s.velocity
     damage = s.material_state[:, DAMAGE]
-    vm = (1.0 - damage) * von_mises_stress(s.deviatoric_stress)
+    vm = carried_von_mises(s.deviatoric_stress, damage)
     plastic = s.material_state[:, PLASTIC_STRAIN_RATE] > 0.0
     return {
         "velocity": vel,

@@ -41,7 +41,7 @@ import numba as nb
 import numpy as np
 
 from impactsph.kernels import cubic_spline, cubic_spline_gradient_factor
-from impactsph.materials import BULK, RHO0, SHEAR, WAVE_MODULUS, YOUNGS
+from impactsph.materials import RHO0, SHEAR, WAVE_MODULUS, YOUNGS
 from impactsph.models.viscosity.monaghan import monaghan_viscosity
 from impactsph.physics.stress_rate import jaumann_stress_rate
 
@@ -338,57 +338,3 @@ def reference(X: np.ndarray, V0: np.ndarray, h: np.ndarray, body: np.ndarray
     return ref
 
 
-@nb.njit(parallel=True, cache=True)
-def wall_push(n, x, v, m, material, table, points, normals, layer, damping, dv, de
-              ):  # pragma: no cover
-    """The rigid walls of a total-Lagrangian body: a penalty layer on the particles closer
-    than ``r0 = layer dx_i`` to a wall (``dx_i = (m_i / rho0_i)^(1/dim)``), a spring and a
-    dashpot scaled by the penetration (Hunt & Crossley 1975), so that the push is continuous
-    where a particle enters the layer::
-
-        omega = c_K / (2 dx_i),   c_K^2 = K / rho0,   delta = r0 - d
-        dv_i/dt += max(0, omega^2 delta - 2 zeta omega v_n delta / r0) n
-        de_i/dt -= v_i . (that acceleration)
-
-    The spring is a quarter of the bulk stiffness of one particle spacing (``m_i omega^2 =
-    K dx_i^(dim-2) / 4``).  The updated-Lagrangian layer
-    (:func:`impactsph.boundaries.layer_push`) is stiffer (``K / (rho0 r0 dx)``) and its
-    dashpot starts at full strength at the layer's edge: there the wall ghosts carry most of
-    the load, here the layer carries all of it, and with that layer a steel block thrown at a
-    wall lost 8-12% of its energy to the midpoint rule (a bottom row ringing in 4-6 steps);
-    with this one 9e-4 at 10 and at 100 m/s (``tests/test_total_lagrangian.py``).  A particle
-    reaches the plane only above a contact stress of about ``K/16`` (the integrator's
-    constraint then holds it).  Adds to ``dv``, ``de``; returns the total force (N, or N/m in
-    2D)."""
-    dim = x.shape[1]
-    chunk = 1024
-    n_chunks = max(1, (n + chunk - 1) // chunk)
-    part = np.zeros((n_chunks, 3))
-    for c in nb.prange(n_chunks):
-        for i in range(c * chunk, min((c + 1) * chunk, n)):
-            k = material[i]
-            rho0 = table[k, RHO0]
-            dx = (m[i] / rho0) ** (1.0 / dim)
-            r0 = layer * dx
-            for w in range(points.shape[0]):
-                d = 0.0
-                vn = 0.0
-                for a in range(dim):
-                    d += (x[i, a] - points[w, a]) * normals[w, a]
-                    vn += v[i, a] * normals[w, a]
-                if d >= r0:
-                    continue
-                omega = 0.5 * math.sqrt(table[k, BULK] / rho0) / dx
-                delta = r0 - d
-                push = omega * omega * delta - 2.0 * damping * omega * vn * delta / r0
-                if push <= 0.0:
-                    continue
-                for a in range(dim):
-                    dv[i, a] += push * normals[w, a]
-                    part[c, a] += m[i] * push * normals[w, a]
-                de[i] -= push * vn
-    total = np.zeros(dim)
-    for c in range(n_chunks):
-        for a in range(dim):
-            total[a] += part[c, a]
-    return total
