@@ -106,7 +106,8 @@ def record_artificial_stress(problem, dim: int) -> np.ndarray:
     s, n = problem.state, problem.state.n
     P = np.zeros((n, k.RECORD_WIDTH))
     k.particle_pass(np.arange(n), s.position, s.velocity, s.mass, s.density,
-                    s.specific_energy, s.deviatoric_stress, np.zeros(n), s.smoothing_length, s.body,
+                    s.specific_energy, s.deviatoric_stress, s.material_state[:, :5].copy(),
+                    s.smoothing_length, s.body,
                     s.material, problem.table, P)
     upper = np.triu_indices(dim)
     return np.stack([symmetric(P[p, k.RS0: k.RS0 + len(upper[0])], dim) for p in range(n)])

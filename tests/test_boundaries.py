@@ -103,7 +103,7 @@ def test_ghost_velocity_follows_the_slip_kind(slip):
     rho, e, m, h = np.ones(2), np.ones(2), np.ones(2), np.ones(2)
     material, body = np.zeros(2, np.int32), np.zeros(2, np.int32)
     fill_ghosts(np.array([0]), np.array([0]), walls.points, walls.normals, walls.kinds, 1,
-                x, v, rho, e, S, np.zeros(2), m, h, material, body, 1)
+                x, v, rho, e, S, np.zeros((2, 5)), m, h, material, body, 1)
     np.testing.assert_array_equal(x[1], [0.3, -0.2])
     np.testing.assert_array_equal(v[1], [1.0, 2.0] if slip == "free" else [-1.0, 2.0])
     assert body[1] == 1

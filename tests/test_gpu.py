@@ -31,7 +31,7 @@ import pytest
 
 TOL = 1e-10
 SKIP_CODE = 77  # the worker's exit code for "cannot run here", with the reason on stdout
-FIELDS = ("x", "v", "rho", "e", "S", "m", "h", "material", "body", "damage")
+FIELDS = ("x", "v", "rho", "e", "S", "m", "h", "material", "body", "carried")
 
 #: Small problems (the simulator interprets the kernels in Python).
 CASES = {
@@ -68,6 +68,9 @@ CASES = {
                                               "boundaries.0.point=[0.0, 0.0, 0.0]",
                                               "boundaries.0.normal=[0.0, 0.0, 1.0]",
                                               "stabilisation.artificial_stress=0.3"]),
+    # plane stress (a compile-time variant: the particle pass reads the thickness ratio)
+    "taylor-2d-plane-stress": ("taylor", ["bodies.0.geometry.count=[6, 10]",
+                                          'two_dimensional="plane_stress"']),
 }
 #: Cases evaluated into buffers without rows for the contact force and AC, as the solver makes
 #: for runs without them (the bars have no AC; their contact force is then not recorded).
@@ -262,6 +265,10 @@ def _perturb(state, rng) -> None:
         if dim == 2:  # plane strain: no xz, yz shear
             s[:, 2, :2] = s[:, :2, 2] = 0.0
         state.deviatoric_stress[:] = s
+    # the thickness ratio (read by the plane-stress passes only)
+    from impactsph.models.columns import THICKNESS_RATIO
+
+    state.material_state[:, THICKNESS_RATIO] = rng.uniform(0.8, 1.2, n)
     if state.hourglass_acceleration.shape[1]:  # the hourglass control's state
         state.hourglass_acceleration[:] = rng.normal(0.0, 1e3, state.hourglass_acceleration.shape)
 
@@ -376,10 +383,10 @@ def test_rates_match_cpu(rate_comparison, case):
 
 
 def test_only_changed_inputs_are_uploaded(rate_comparison):
-    """After the first evaluation the state (x, v, rho, e, S, the damage, and the hourglass
-    acceleration where the control is on) is copied every time; the neighbour list and the
-    masses only when new arrays come (here: offsets, indices, m, and the list's order where it
-    has one)."""
+    """After the first evaluation the state (x, v, rho, e, S, the carried material state, and
+    the hourglass acceleration where the control is on) is copied every time; the neighbour
+    list and the masses only when new arrays come (here: offsets, indices, m, and the list's
+    order where it has one)."""
     _, _, report, _ = rate_comparison
     for case, uploads in report["uploads"].items():
         state = 6 + (case in HOURGLASS)

@@ -171,7 +171,7 @@ def _first_behind(x, points, normals):
 
 
 @nb.njit(cache=True)
-def fill_ghosts(src, wall, points, normals, kinds, n_real, x, v, rho, e, S, damage, m, h,
+def fill_ghosts(src, wall, points, normals, kinds, n_real, x, v, rho, e, S, carried, m, h,
                 material, body, ghost_body0):
     """Write the ghosts' states into rows ``n_real + k`` of the extended arrays, in order (a
     symmetry plane's ghost may mirror an earlier ghost).  A rigid wall's ghost is a body of
@@ -208,7 +208,8 @@ def fill_ghosts(src, wall, points, normals, kinds, n_real, x, v, rho, e, S, dama
                 S[g, a, b] = acc
         rho[g] = rho[i]
         e[g] = e[i]
-        damage[g] = damage[i]
+        for c in range(carried.shape[1]):  # the common material state (damage, thickness)
+            carried[g, c] = carried[i, c]
         m[g] = m[i]
         h[g] = h[i]
         material[g] = material[i]

@@ -590,6 +590,10 @@ class Case(_Model):
         "(relative to the case file) imported before the case is validated: where models, "
         "problems or boundaries of your own are registered")
     dimension: Literal[1, 2, 3]
+    two_dimensional: Literal["plane_strain", "plane_stress"] = Field(
+        "plane_strain", description="what a 2D case models: 'plane_strain' (eps_zz = 0: a "
+        "long body, the paper's choice) or 'plane_stress' (sigma_zz = 0: a thin plate loaded "
+        "in its plane, each particle's thickness changing; docs/modelling.md)")
     formulation: Literal["updated_lagrangian", "total_lagrangian"] = Field(
         "updated_lagrangian", description="'updated_lagrangian': kernel and neighbours of the "
         "current configuration (the paper's SPH); 'total_lagrangian': kernel and neighbours of "
@@ -624,6 +628,14 @@ class Case(_Model):
     @model_validator(mode="after")
     def _consistent(self) -> Case:
         d = self.dimension
+        if self.two_dimensional != "plane_strain":
+            if d != 2:
+                raise ValueError(f"two_dimensional = {self.two_dimensional!r} is for dimension "
+                                 f"= 2 (the case has dimension = {d})")
+            if self.formulation == "total_lagrangian":
+                raise ValueError(f"two_dimensional = {self.two_dimensional!r} is not available "
+                                 f"with formulation = 'total_lagrangian' (its passes are "
+                                 f"plane strain)")
         names = set()
         for k, body in enumerate(self.bodies):
             where = f"bodies.{k}"

@@ -126,7 +126,7 @@ class Gauges:
         k = i.shape[0]
         x = s.position[i]
         S = s.deviatoric_stress[i]
-        pressure = (pressures(s.density[i], s.specific_energy[i], s.material[i],
+        pressure = (pressures(s.material_density[i], s.specific_energy[i], s.material[i],
                               sim.problem.table, s.dim) if self.needs_pressure
                     else np.zeros(k))
         damage = s.material_state[i, DAMAGE]

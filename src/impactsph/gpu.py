@@ -157,12 +157,12 @@ class GpuRates:
                  hourglass_acceleration: np.ndarray | None = None,
                  after_pairs=None) -> None:
         """As :meth:`impactsph.physics.rates.CpuRates.evaluate`: the rates of the first
-        ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h, material, body, damage)`` into the
+        ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h, material, body, carried)`` into the
         host buffers ``b``; rows the CPU backend leaves alone are left alone."""
         if after_pairs is not None:
             raise NotImplementedError("symmetry planes run on the CPU only (--device cpu): the "
                                       "GPU passes do not mirror the pair results onto ghosts")
-        x, v, rho, e, S, m, h, material, body, damage = arrays
+        x, v, rho, e, S, m, h, material, body, carried = arrays
         (particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
          force_correction, record_width) = self._kernels
         n_rows, dim = rho.shape[0], self.dim
@@ -171,7 +171,7 @@ class GpuRates:
         # the state (every call); the constant fields and the list (when they are new arrays)
         dx, dv, drho_, de, dS_ = (up("x", x), up("v", v), up("rho", rho), up("e", e),
                                   up("S", S))
-        ddamage = up("damage", damage)
+        dcarried = up("carried", carried)
         dm, dh, dmat, dbody = (up("m", m, True), up("h", h, True),
                                up("material", material, True), up("body", body, True))
         dtable = up("table", table, True)
@@ -196,7 +196,7 @@ class GpuRates:
         if n_rows:
             blocks = (n_rows + tpb - 1) // tpb
             particle_kernel[blocks, tpb, stream](
-                n_rows, dorder, dx, dv, dm, drho_, de, dS_, ddamage, dh, dbody, dmat, dtable,
+                n_rows, dorder, dx, dv, dm, drho_, de, dS_, dcarried, dh, dbody, dmat, dtable,
                 packed)
             if force_correction:
                 moment_kernel[blocks, tpb, stream](n_rows, packed, doff, dind)

@@ -21,6 +21,7 @@ import numba as nb
 import numpy as np
 
 from .materials import SHEAR, WAVE_MODULUS
+from .physics.options import PassOptions
 from .physics.rates import compiled_passes
 from .state import ParticleState
 
@@ -121,7 +122,7 @@ class MidpointIntegrator:
     ``(dv, drho, de, dS, dhg)`` for the active particles; see :class:`~impactsph.solver.Solver`."""
 
     def __init__(self, rates, table: np.ndarray, n_active: int, dim: int, constraint=None,
-                 drivers=None):
+                 drivers=None, plane_stress: bool = False):
         self.rates = rates
         #: the driven regions (:class:`impactsph.driven.Drivers`), or None
         self.drivers = drivers
@@ -134,7 +135,10 @@ class MidpointIntegrator:
         self.clamp_impulse = np.zeros(dim)
         self.table = table
         self.n_active = n_active
-        self._advance = compiled_passes(dim).advance
+        # the stage depends on no option of the pair passes but plane stress: one module serves
+        # every run of that kind
+        self._advance = compiled_passes(dim, options=PassOptions(plane_stress=plane_stress)
+                                        ).advance
         self.survey_kernel = _survey_kernel(dim)
         self._any_clamped: bool | None = None
         self._start: SimpleNamespace | None = None

@@ -21,6 +21,12 @@ tension):
 - ``shear``: simple shear, ``L_xy = rate`` (the rotation of the stress by the Jaumann rate
   included).
 
+With ``plane_stress=True`` the point is a particle of a 2D plane-stress run: the driver gives
+the in-plane velocity gradient (``L_zz`` of the modes above dropped) and the run's stage finds
+the thickness strain rate that keeps ``sigma_zz = 0``
+(:func:`impactsph.physics.passes.plane_stress_stage`); ``uniaxial_stress`` is then a tensile
+test of a thin sheet, and ``thickness_ratio`` records ``t / t0``.
+
 Each step is one forward-Euler stage of the run's integrator stage
 (:func:`impactsph.physics.passes.advance_particle`), with the density rate ``-rho tr D`` and
 the internal energy rate ``sigma : D / rho`` of the damaged stress.
@@ -49,7 +55,9 @@ from .models.columns import (
     EQUIVALENT_PLASTIC_STRAIN,
     PLASTIC_STRAIN_RATE,
     TEMPERATURE,
+    THICKNESS_RATIO,
 )
+from .physics.options import PassOptions
 from .physics.rates import compiled_passes
 from .physics.stress_rate import jaumann_stress_rate
 
@@ -71,8 +79,9 @@ class MaterialPointHistory:
     temperature: np.ndarray  #: K
     damage: np.ndarray
     plastic_work: np.ndarray  #: J/kg
-    density: np.ndarray  #: kg/m^3
+    density: np.ndarray  #: the material's density, kg/m^3
     own_state: np.ndarray  #: (n, k): the strength and damage models' own state columns
+    thickness_ratio: np.ndarray  #: t / t0 (plane stress; 1 otherwise)
 
     @property
     def axial_stress(self) -> np.ndarray:
@@ -97,13 +106,14 @@ def _resolved(material: Any, name: str) -> MaterialModel:
 def material_point(material: Any, *, strain_rate: float, strain: float | None = None,
                    duration: float | None = None, mode: Mode = "uniaxial_stress",
                    steps: int = 2000, flaws: np.ndarray | None = None,
-                   size: float = 1e-3) -> MaterialPointHistory:
+                   size: float = 1e-3, plane_stress: bool = False) -> MaterialPointHistory:
     """Drive one point of ``material`` (a validated case material, its dict, or a
     :class:`MaterialModel`) at the axial true strain rate ``strain_rate`` (1/s) to the true
     strain ``strain`` or for ``duration`` s, in ``steps`` equal steps.  ``flaws``: the
     damage model's own state at the start (e.g. Grady-Kipp's ``(N, eps_min, eps_max)``;
     default: its ``initial_state`` for one particle of volume ``size^3``); ``size``: the
-    particle's smoothing length h (m), which sets the Grady-Kipp growth time."""
+    particle's smoothing length h (m), which sets the Grady-Kipp growth time;
+    ``plane_stress``: a particle of a 2D plane-stress run (see the module's docstring)."""
     if (strain is None) == (duration is None):
         raise ValueError("give exactly one of strain and duration")
     if strain_rate == 0.0:
@@ -115,7 +125,8 @@ def material_point(material: Any, *, strain_rate: float, strain: float | None = 
     model = _resolved(material, "material")
     layout = TableLayout.registered()
     table = material_table([model], "longitudinal", layout)
-    k = compiled_passes(3)
+    dim = 2 if plane_stress else 3
+    k = compiled_passes(dim, options=PassOptions(plane_stress=plane_stress))
     dt = duration / steps
     n = steps + 1
 
@@ -128,6 +139,7 @@ def material_point(material: Any, *, strain_rate: float, strain: float | None = 
     S0, S, dS = one((3, 3)), one((3, 3)), one((3, 3))
     state0 = np.zeros((1, layout.state_width))
     state0[0, TEMPERATURE] = model.temperature
+    state0[0, THICKNESS_RATIO] = 1.0
     damage_model = DAMAGE[model.damage]
     width = len(damage_model.state)
     if flaws is not None:
@@ -142,9 +154,9 @@ def material_point(material: Any, *, strain_rate: float, strain: float | None = 
     clamped, mat, h = np.zeros(1, bool), np.zeros(1, np.int32), np.full(1, size)
 
     out = {name: np.zeros(n) for name in ("pressure", "von_mises", "eps", "rate", "T", "D",
-                                          "work", "rho")}
+                                          "work", "rho", "tau")}
     stresses = np.zeros((n, 3, 3))
-    own = np.zeros((n, layout.state_width - len(("eps", "rate", "T", "D"))))
+    own = np.zeros((n, layout.state_width - layout.strength_state))
 
     def pressure_of(rho_, e_, damage):
         return float(carried_pressure(k.pressures(rho_, e_, mat, table, np.empty(1)),
@@ -152,7 +164,8 @@ def material_point(material: Any, *, strain_rate: float, strain: float | None = 
 
     def record(step):
         D = state0[0, DAMAGE_COLUMN]
-        p = pressure_of(rho0, e0, D)
+        tau = state0[0, THICKNESS_RATIO]
+        p = pressure_of(rho0 / tau, e0, D)
         sigma = (1.0 - D) * S0[0] - p * np.eye(3)
         stresses[step] = sigma
         out["pressure"][step] = p
@@ -163,21 +176,24 @@ def material_point(material: Any, *, strain_rate: float, strain: float | None = 
         out["T"][step] = state0[0, TEMPERATURE]
         out["D"][step] = D
         out["work"][step] = pw0[0]
-        out["rho"][step] = rho0[0]
-        own[step] = state0[0, 4:]
+        out["rho"][step] = rho0[0] / tau
+        out["tau"][step] = tau
+        own[step] = state0[0, layout.strength_state:]
 
     def stage(L):
         """One forward-Euler step from the start arrays with velocity gradient L."""
+        L = np.ascontiguousarray(L[:dim, :dim])
         D = 0.5 * (L + L.T)
         damage = state0[0, DAMAGE_COLUMN]
-        p = pressure_of(rho0, e0, damage)
+        tau = state0[0, THICKNESS_RATIO]
+        p = pressure_of(rho0 / tau, e0, damage)
         sigma = (1.0 - damage) * S0[0] - p * np.eye(3)
-        drho[0] = -rho0[0] * np.trace(D)
-        de[0] = float(np.sum(sigma * D)) / rho0[0]
-        jaumann_stress_rate(np.ascontiguousarray(L), S0[0], model.shear_modulus, dS[0])
+        drho[0] = -rho0[0] * np.trace(D)  # in plane stress: the mass per area over t0
+        de[0] = tau * float(np.sum(sigma[:dim, :dim] * D)) / rho0[0]
+        jaumann_stress_rate(L, S0[0], model.shear_modulus, dS[0])
         k.advance(1, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v0, dv, drho, de, dS, dhg,
                   clamped, mat, table, h, x, v, rho, e, S, pw, state, hg)
-        p_new = pressure_of(rho, e, state[0, DAMAGE_COLUMN])
+        p_new = pressure_of(rho / state[0, THICKNESS_RATIO], e, state[0, DAMAGE_COLUMN])
         return (1.0 - state[0, DAMAGE_COLUMN]) * S[0] - p_new * np.eye(3)
 
     record(0)
@@ -214,4 +230,4 @@ def material_point(material: Any, *, strain_rate: float, strain: float | None = 
         pressure=out["pressure"], von_mises_stress=out["von_mises"],
         equivalent_plastic_strain=out["eps"], plastic_strain_rate=out["rate"],
         temperature=out["T"], damage=out["D"], plastic_work=out["work"], density=out["rho"],
-        own_state=own)
+        own_state=own, thickness_ratio=out["tau"])

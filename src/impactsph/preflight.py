@@ -313,7 +313,7 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
         + (8 * d + 8 * d * d if hourglass else 0)
     width = {1: 16, 2: 16, 3: 24}[d] + (8 if force_correction and d > 1 else 0)
     records = 8 * width
-    ghost_arrays = (16 * d + 112) if walls else 0
+    ghost_arrays = (16 * d + 144) if walls else 0  # with the carried common state (5 columns)
     neighbour_list = 12 + 4 * d + 32 + 8 * d  # offsets, order, reference; build temporaries
     per_row = buffers + records + ghost_arrays + neighbour_list + 4 * neighbours
     total = n * per_particle + (n + ghosts) * per_row + history_values * HISTORY_VALUE_BYTES

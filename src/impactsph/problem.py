@@ -12,7 +12,7 @@ from .geometry import body_particles, inside
 from .initial import body_velocity
 from .materials import MaterialModel, TableLayout, material_table, resolve_material
 from .models import DAMAGE
-from .models.columns import TEMPERATURE
+from .models.columns import TEMPERATURE, THICKNESS_RATIO
 from .state import ParticleState
 
 
@@ -42,7 +42,8 @@ def initialise_material_state(state: ParticleState, materials: list[MaterialMode
     """The material state at t = 0: each particle's temperature its material's initial one,
     and the damage model's own state (``DamageModel.initial_state``, e.g. the Grady-Kipp
     flaws) body by body, from the particles' volumes ``m / rho0`` and a generator seeded by
-    the damage parameters' ``seed`` (0 if none) and the body's index."""
+    the damage parameters' ``seed`` (0 if none) and the body's index; the thickness ratio 1."""
+    state.material_state[:, THICKNESS_RATIO] = 1.0
     for k, material in enumerate(materials):
         sel = state.material == k
         state.material_state[sel, TEMPERATURE] = material.temperature

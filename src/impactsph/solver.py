@@ -18,7 +18,7 @@ from .boundaries import (
 )
 from .kernels import SUPPORT_RADIUS
 from .materials import carried_pressure
-from .models.columns import DAMAGE
+from .models.columns import CARRIED, DAMAGE
 from .neighbours import NeighbourList
 from .physics.rates import CpuRates, RateBuffers, ViscositySettings, pressures
 from .state import ParticleState
@@ -93,7 +93,7 @@ class Solver:
         self.powers = (0.0, 0.0, 0.0)
         self.wall_force = np.zeros(state.dim)
         self.neighbours: NeighbourList | None = None
-        self._damage: np.ndarray | None = None  # the particles' damage, contiguous
+        self._carried: np.ndarray | None = None  # the common material state, contiguous
         #: symmetry planes: their ghosts get the mirror of their sources' pair results
         self._symmetric = self.walls is not None and bool((self.walls.kinds == SYMMETRY).any())
         self._friction = self.walls is not None and bool((self.walls.friction > 0.0).any())
@@ -135,7 +135,8 @@ class Solver:
         if self.walls is not None:
             ext = {"x": np.zeros((n_ext, self.dim)), "v": np.zeros((n_ext, self.dim)),
                    "rho": np.zeros(n_ext), "e": np.zeros(n_ext), "S": np.zeros((n_ext, 3, 3)),
-                   "damage": np.zeros(n_ext), "m": np.zeros(n_ext), "h": np.zeros(n_ext),
+                   "carried": np.zeros((n_ext, CARRIED)), "m": np.zeros(n_ext),
+                   "h": np.zeros(n_ext),
                    "material": np.zeros(n_ext, np.int32), "body": np.zeros(n_ext, np.int32)}
             ext["m"][:n], ext["h"][:n] = state.mass, state.smoothing_length
             ext["material"][:n], ext["body"][:n] = state.material, state.body
@@ -158,10 +159,10 @@ class Solver:
         ext["x"][:n], ext["v"][:n] = state.position, state.velocity
         ext["rho"][:n], ext["e"][:n] = state.density, state.specific_energy
         ext["S"][:n] = state.deviatoric_stress
-        ext["damage"][:n] = state.material_state[:, DAMAGE]
+        ext["carried"][:n] = state.material_state[:, :CARRIED]
         w = self.walls
         fill_ghosts(self._ghost_src, self._ghost_wall, w.points, w.normals, w.kinds, n,
-                    ext["x"], ext["v"], ext["rho"], ext["e"], ext["S"], ext["damage"], ext["m"],
+                    ext["x"], ext["v"], ext["rho"], ext["e"], ext["S"], ext["carried"], ext["m"],
                     ext["h"], ext["material"], ext["body"], self.n_bodies)
 
     def _record_positions(self) -> np.ndarray:
@@ -186,19 +187,19 @@ class Solver:
                               self.n_active, self._record_positions(), packed, c0, self.dim)
 
     def _arrays(self, state: ParticleState):
-        """``(x, v, rho, e, S, m, h, material, body, damage)`` of every row, ghosts
-        included."""
+        """``(x, v, rho, e, S, m, h, material, body, carried)`` of every row, ghosts
+        included (``carried``: the common material state, :mod:`impactsph.models.columns`)."""
         if self._ext is None:
-            if self._damage is None or self._damage.shape[0] != state.n:
-                self._damage = np.empty(state.n)
-            np.copyto(self._damage, state.material_state[:, DAMAGE])
+            if self._carried is None or self._carried.shape[0] != state.n:
+                self._carried = np.empty((state.n, CARRIED))
+            np.copyto(self._carried, state.material_state[:, :CARRIED])
             return (state.position, state.velocity, state.density, state.specific_energy,
                     state.deviatoric_stress, state.mass, state.smoothing_length, state.material,
-                    state.body, self._damage)
+                    state.body, self._carried)
         self._fill(state)
         e = self._ext
         return (e["x"], e["v"], e["rho"], e["e"], e["S"], e["m"], e["h"], e["material"],
-                e["body"], e["damage"])
+                e["body"], e["carried"])
 
     def rates(self, state: ParticleState):
         """Rates at ``state`` (Table 1's subroutine RATES): ``(dv, drho, de, dS, dhg)``, the
@@ -243,7 +244,7 @@ class Solver:
     def pressure(self, state: ParticleState) -> np.ndarray:
         """Pressure (Pa) of each particle of ``state``, from the equations of state, a
         damaged particle's tension reduced by ``1 - D`` (as the forces see it)."""
-        p = pressures(state.density, state.specific_energy, state.material, self.table,
+        p = pressures(state.material_density, state.specific_energy, state.material, self.table,
                       self.dim, np.empty(state.n))
         damage = state.material_state[:, DAMAGE]
         return carried_pressure(p, damage)

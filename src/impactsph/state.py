@@ -47,8 +47,10 @@ class ParticleState:
             self.initial_position = self.position.copy()
         if self.material_state is None:
             from .materials import TableLayout  # the layout of the registered models
+            from .models.columns import THICKNESS_RATIO
 
             self.material_state = np.zeros((self.n, TableLayout.registered().state_width))
+            self.material_state[:, THICKNESS_RATIO] = 1.0
         if self.hourglass_acceleration is None:
             self.hourglass_acceleration = np.zeros((self.n, 0))
 
@@ -61,6 +63,15 @@ class ParticleState:
     def dim(self) -> int:
         """Spatial dimension (1, 2 or 3)."""
         return int(self.position.shape[1])
+
+    @property
+    def material_density(self) -> np.ndarray:
+        """The material's density (kg/m^3): ``density`` over the thickness ratio ``t / t0``.
+        They differ in plane stress only, where ``density`` is the mass per unit area over the
+        initial thickness (the other models keep the ratio 1)."""
+        from .models.columns import THICKNESS_RATIO
+
+        return self.density / self.material_state[:, THICKNESS_RATIO]
 
     def copy(self) -> ParticleState:
         """A deep copy."""

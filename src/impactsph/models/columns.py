@@ -27,9 +27,13 @@ COMMON_COLUMNS = ("density", "bulk_modulus", "shear_modulus", "wave_modulus", "e
 #: The material state every particle carries: the equivalent plastic strain (-), its rate
 #: over the last integrator stage (1/s), the temperature (K) and the damage D in [0, 1] (the
 #: fraction of the tensile pressure and of the deviatoric stress that is lost: a particle
-#: with D = 1 carries pressure in compression only).
-EQUIVALENT_PLASTIC_STRAIN, PLASTIC_STRAIN_RATE, TEMPERATURE, DAMAGE = range(4)
-COMMON_STATE = ("equivalent_plastic_strain", "plastic_strain_rate", "temperature", "damage")
+#: with D = 1 carries pressure in compression only) and the thickness ratio t / t0 (plane
+#: stress: the particle's thickness over its initial one; 1 in every other model).
+EQUIVALENT_PLASTIC_STRAIN, PLASTIC_STRAIN_RATE, TEMPERATURE, DAMAGE, THICKNESS_RATIO = range(5)
+COMMON_STATE = ("equivalent_plastic_strain", "plastic_strain_rate", "temperature", "damage",
+                "thickness_ratio")
+#: the number of common columns: the rate passes carry these (as ``carried``) for every row
+CARRIED = len(COMMON_STATE)
 #: units of the common state, for outputs
 COMMON_STATE_UNITS = {"equivalent_plastic_strain": "", "plastic_strain_rate": "1/s",
-                      "temperature": "K", "damage": ""}
+                      "temperature": "K", "damage": "", "thickness_ratio": ""}

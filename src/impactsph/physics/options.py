@@ -31,7 +31,9 @@ class PassOptions:
       are few, so the test costs nothing), not part of the generated module;
     - ``artificial_stress``: Monaghan's (2000) coefficient epsilon, 0 for none;
       ``artificial_stress_exponent`` n and ``reference_q`` = dx / h, the kernel argument at
-      which ``f_ij = W(r_ij) / W(dx)`` is 1.
+      which ``f_ij = W(r_ij) / W(dx)`` is 1;
+    - ``plane_stress``: a 2D run in plane stress (``sigma_zz = 0``, each particle's thickness
+      changing; :func:`impactsph.physics.passes.plane_stress_return`) instead of plane strain.
     """
 
     gradient_correction: str = "none"
@@ -39,6 +41,7 @@ class PassOptions:
     artificial_stress: float = 0.0
     artificial_stress_exponent: float = 4.0
     reference_q: float = 1.0 / 1.3
+    plane_stress: bool = False
 
     def __post_init__(self) -> None:
         if self.gradient_correction not in GRADIENT_CORRECTIONS:
@@ -66,7 +69,8 @@ class PassOptions:
                    contact_traction=case.contact.traction,
                    artificial_stress=float(stab.artificial_stress),
                    artificial_stress_exponent=float(stab.artificial_stress_exponent),
-                   reference_q=1.0 / float(case.kernel.h_over_dx))
+                   reference_q=1.0 / float(case.kernel.h_over_dx),
+                   plane_stress=getattr(case, "two_dimensional", "") == "plane_stress")
 
     @property
     def normal_stress(self) -> bool:
@@ -85,6 +89,8 @@ class PassOptions:
         tag = GRADIENT_CORRECTIONS[self.gradient_correction]
         if self.artificial_stress > 0.0:
             tag += "_as"
+        if self.plane_stress:
+            tag += "_ps"
         return tag
 
     def constants(self) -> list[str]:
@@ -98,4 +104,5 @@ class PassOptions:
             f"ARTIFICIAL_STRESS_EXPONENT = "
             f"{float(self.artificial_stress_exponent) if on else 4.0!r}",
             f"REFERENCE_Q = {float(self.reference_q) if on else 1.0!r}",
+            f"PLANE_STRESS = {bool(self.plane_stress)}",
         ]

@@ -48,7 +48,12 @@ from impactsph.materials import (
     STRENGTH_KIND,
     WAVE_MODULUS,
 )
-from impactsph.models.columns import EQUIVALENT_PLASTIC_STRAIN, TEMPERATURE
+from impactsph.models.columns import (
+    DAMAGE,
+    EQUIVALENT_PLASTIC_STRAIN,
+    TEMPERATURE,
+    THICKNESS_RATIO,
+)
 from impactsph.physics.contact import contact_acceleration_pair, contact_work_pair, in_contact
 from impactsph.physics.continuity import continuity_pair, velocity_gradient_pair
 from impactsph.physics.energy import viscous_heating_pair
@@ -63,6 +68,7 @@ FORCE_CORRECTION = False
 ARTIFICIAL_STRESS = 0.0
 ARTIFICIAL_STRESS_EXPONENT = 4.0
 REFERENCE_Q = 1.0
+PLANE_STRESS = False
 JIT = nb.njit
 EOS_PARAMS = STRENGTH_PARAMS = DAMAGE_PARAMS = STATE_WIDTH = 6
 STRENGTH_STATE = DAMAGE_STATE = 4
@@ -265,21 +271,29 @@ def artificial_stress_weight(q):
 
 
 @JIT(inline="always", cache=True)
-def particle_record(p, i, x, v, m, rho, e, S, damage, h, body, material, table, P):
+def particle_record(p, i, x, v, m, rho, e, S, carried, h, body, material, table, P):
     """Pass 1 for particle ``i`` at sorted position ``p``: ``P``, ``c = sqrt(M/rho)``, and its
     packed record (``V = m/rho``, ``P/rho^2``, ``A = (-P I + S)/rho^2``, ...) in row ``p``;
-    with the artificial stress, ``R`` (:func:`artificial_stress_record`).
+    with the artificial stress, ``R`` (:func:`artificial_stress_record`).  ``carried`` holds
+    the common material state's columns (:mod:`impactsph.models.columns`).
 
-    The damage ``D = damage[i]`` acts here (Benz & Asphaug 1995, section 3.2): the forces see
-    ``(1 - D) S`` and, in tension, ``(1 - D) P``; the stored stress stays undamaged (the
-    strength model's return and the damage models read it)."""
+    The damage ``D = carried[i, DAMAGE]`` acts here (Benz & Asphaug 1995, section 3.2): the
+    forces see ``(1 - D) S`` and, in tension, ``(1 - D) P``; the stored stress stays undamaged
+    (the strength model's return and the damage models read it).
+
+    In plane stress ``rho`` is the mass per unit area over the initial thickness ``t0`` and
+    the material's density is ``rho / tau`` with ``tau = t / t0``: the EOS and the wave speed
+    take that, and the forces the stress resultant per unit initial thickness ``tau sigma``
+    (``rho dv/dt = div(tau sigma)``, the thickness varying from particle to particle)."""
     k = material[i]
-    pr = material_pressure(table, k, rho[i], e[i])
-    intact = 1.0 - damage[i]
+    tau = carried[i, THICKNESS_RATIO] if PLANE_STRESS else 1.0
+    rho_m = rho[i] / tau if PLANE_STRESS else rho[i]
+    pr = material_pressure(table, k, rho_m, e[i])
+    intact = 1.0 - carried[i, DAMAGE]
     if pr < 0.0:
         pr *= intact
-    c = math.sqrt(table[k, WAVE_MODULUS] / rho[i])
-    inv_rho2 = 1.0 / (rho[i] * rho[i])
+    c = math.sqrt(table[k, WAVE_MODULUS] / rho_m)
+    inv_rho2 = tau / (rho[i] * rho[i]) if PLANE_STRESS else 1.0 / (rho[i] * rho[i])
     for a in range(DIM):
         P[p, X + a] = x[i, a]
         P[p, V + a] = v[i, a]
@@ -688,6 +702,80 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     jaumann_stress_rate(L, S[i], shear, dS[i])
 
 
+#: plane stress: the out-of-plane stress ``sigma_zz`` is zeroed to ``PLANE_STRESS_TOLERANCE``
+#: times the bulk modulus (1e-13 K: 0.02 Pa for steel), in at most ``PLANE_STRESS_ITERATIONS``
+#: secant steps (:func:`plane_stress_stage`; two to four on the paper's cantilever)
+PLANE_STRESS_TOLERANCE = 1e-13
+PLANE_STRESS_ITERATIONS = 40
+
+
+@JIT(inline="always", cache=True)
+def thickness_trial(i, z, dt, rho, e, S, state0, state, row, t00, t01, t02, t11, t12, t22):
+    """Plane stress: the stage of particle ``i`` with thickness strain rate ``z``: the trial
+    deviator ``t`` (the in-plane rates' update) plus ``2 mu dt z (e_z e_z - I/3)``, the
+    material state restored, ``tau = tau0 exp(dt z)``, the pressure at ``rho / tau`` and the
+    strength model's return.  Returns ``(sigma_zz, P, rho / tau, w)``: the carried
+    out-of-plane stress ``(1 - D) S_zz - P_carried``, the pressure, the material's density
+    and the plastic work."""
+    g = 2.0 * row[SHEAR] * dt * z
+    S[i, 0, 0] = t00 - g / 3.0
+    S[i, 1, 1] = t11 - g / 3.0
+    S[i, 2, 2] = t22 + 2.0 * g / 3.0
+    S[i, 0, 1] = S[i, 1, 0] = t01
+    S[i, 0, 2] = S[i, 2, 0] = t02
+    S[i, 1, 2] = S[i, 2, 1] = t12
+    for c in range(STATE_WIDTH):
+        state[i, c] = state0[i, c]
+    st = state[i]
+    tau = state0[i, THICKNESS_RATIO] * math.exp(dt * z)
+    st[THICKNESS_RATIO] = tau
+    rho_m = rho[i] / tau
+    pr = eos_pressure(int(row[EOS_KIND]), rho_m, e[i], row[RHO0], row[BULK], row[EOS_PARAMS:])
+    work = strength_return(int(row[STRENGTH_KIND]), S[i], rho_m, pr, row[SHEAR],
+                           row[STRENGTH_PARAMS:DAMAGE_PARAMS], st,
+                           st[STRENGTH_STATE:DAMAGE_STATE], dt)
+    intact = 1.0 - st[DAMAGE]
+    carried = pr * intact if pr < 0.0 else pr
+    return intact * S[i, 2, 2] - carried, pr, rho_m, work
+
+
+@JIT(inline="always", cache=True)
+def plane_stress_stage(i, dt, rho, e, S, state0, state, row):
+    """Plane stress (``sigma_zz = 0``) for one integrator stage of particle ``i``, whose
+    in-plane quantities are already advanced: the thickness strain rate ``z = d ln t / dt``
+    found by the secant method such that, after the equation of state and the strength
+    model's return, the carried ``sigma_zz = (1 - D) S_zz - P`` is zero.
+
+    The residual rises with ``z`` (a thicker particle is less dense, its pressure lower and
+    its ``S_zz`` higher), with slope between ``dt K`` (fully plastic) and ``dt (K + 4 mu/3)``
+    (elastic); the first step uses the elastic slope, so an elastic stage converges in one
+    step of the secant beyond it.  Any equation of state and strength model works unchanged
+    (the return is 3D, its ``S_zz`` free): the iteration on the out-of-plane strain that
+    general-purpose FE codes use for plane stress, rather than a return written for plane
+    stress alone.  Returns ``(P, rho / tau, w)``."""
+    t00, t01, t02 = S[i, 0, 0], S[i, 0, 1], S[i, 0, 2]
+    t11, t12, t22 = S[i, 1, 1], S[i, 1, 2], S[i, 2, 2]
+    tolerance = PLANE_STRESS_TOLERANCE * row[BULK]
+    z_a = 0.0
+    f_a, pr, rho_m, work = thickness_trial(i, z_a, dt, rho, e, S, state0, state, row,
+                                           t00, t01, t02, t11, t12, t22)
+    if abs(f_a) <= tolerance or dt == 0.0:
+        return pr, rho_m, work
+    elastic = dt * (row[BULK] + 4.0 * row[SHEAR] / 3.0)
+    z_b = -f_a / elastic
+    for _ in range(PLANE_STRESS_ITERATIONS):
+        f_b, pr, rho_m, work = thickness_trial(i, z_b, dt, rho, e, S, state0, state, row,
+                                               t00, t01, t02, t11, t12, t22)
+        if abs(f_b) <= tolerance or f_b == f_a:
+            break
+        slope = (f_b - f_a) / (z_b - z_a)
+        if not slope > 0.0:  # never seen (the residual rises); a step of the elastic slope
+            slope = elastic
+        z_a, f_a = z_b, f_b
+        z_b -= f_b / slope
+    return pr, rho_m, work
+
+
 @JIT(inline="always", cache=True)
 def advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, drho, de, dS,
                      dhg, clamped, material, table, h, x, v, rho, e, S, plastic_work, state, hg):
@@ -711,16 +799,20 @@ def advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, 
         hg[i, a] = hg0[i, a] + dt * dhg[i, a]
     k = material[i]
     row = table[k]
-    pr = eos_pressure(int(row[EOS_KIND]), rho[i], e[i], row[RHO0], row[BULK],
-                      row[EOS_PARAMS:])
     st = state[i]
     eps_before = st[EQUIVALENT_PLASTIC_STRAIN]
-    work = strength_return(int(row[STRENGTH_KIND]), S[i], rho[i], pr, row[SHEAR],
-                           row[STRENGTH_PARAMS:DAMAGE_PARAMS], st,
-                           st[STRENGTH_STATE:DAMAGE_STATE], dt)
+    if PLANE_STRESS:
+        pr, rho_m, work = plane_stress_stage(i, dt, rho, e, S, state0, state, row)
+    else:
+        rho_m = rho[i]
+        pr = eos_pressure(int(row[EOS_KIND]), rho_m, e[i], row[RHO0], row[BULK],
+                          row[EOS_PARAMS:])
+        work = strength_return(int(row[STRENGTH_KIND]), S[i], rho_m, pr, row[SHEAR],
+                               row[STRENGTH_PARAMS:DAMAGE_PARAMS], st,
+                               st[STRENGTH_STATE:DAMAGE_STATE], dt)
     plastic_work[i] = pw0[i] + work
     st[TEMPERATURE] += row[HEAT_PER_WORK] * work
-    damage_update(int(row[DAMAGE_KIND]), S[i], pr, rho[i], h[i], dt,
+    damage_update(int(row[DAMAGE_KIND]), S[i], pr, rho_m, h[i], dt,
                   st[EQUIVALENT_PLASTIC_STRAIN] - eps_before, row, row[DAMAGE_PARAMS:], st,
                   st[DAMAGE_STATE:])
 
@@ -812,11 +904,11 @@ def hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zet
 
 
 @JIT(parallel=True, cache=True)
-def particle_pass(order, x, v, m, rho, e, S, damage, h, body, material, table, P):
+def particle_pass(order, x, v, m, rho, e, S, carried, h, body, material, table, P):
     """Pass 1 over every row (ghosts included), in the list's order (``order[p]`` is the
     particle at sorted position ``p``)."""
     for p in nb.prange(order.shape[0]):
-        particle_record(p, order[p], x, v, m, rho, e, S, damage, h, body, material, table, P)
+        particle_record(p, order[p], x, v, m, rho, e, S, carried, h, body, material, table, P)
 
 
 @JIT(parallel=True, cache=True)
@@ -909,11 +1001,11 @@ def cuda_kernels():
     from numba import cuda
 
     @cuda.jit
-    def particle_kernel(n_rows, order, x, v, m, rho, e, S, damage, h, body, material, table,
+    def particle_kernel(n_rows, order, x, v, m, rho, e, S, carried, h, body, material, table,
                         P):
         p = cuda.grid(1)
         if p < n_rows:
-            particle_record(p, order[p], x, v, m, rho, e, S, damage, h, body, material, table,
+            particle_record(p, order[p], x, v, m, rho, e, S, carried, h, body, material, table,
                             P)
 
     @cuda.jit

@@ -95,7 +95,8 @@ class CpuRates:
                  hourglass_acceleration: np.ndarray | None = None,
                  after_pairs=None, after_moments=None) -> None:
         """Rates of the first ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h,
-        material, body, damage)`` (all rows, ghosts included, take part in the sums) into ``b``:
+        material, body, carried)`` (``carried``: the common material state, damage and thickness
+        ratio among it; all rows, ghosts included, take part in the sums) into ``b``:
         ``drho``, the total accelerations ``dv`` and specific-energy rates ``de``, the
         viscous heating ``de_visc``, ``contact_force, pair_count, dS`` and, for a scheme with
         a correction, ``dv_corr, de_corr``; with ``hourglass`` (the coefficient zeta) > 0,
@@ -104,13 +105,13 @@ class CpuRates:
         before the passes that read its per-particle results (the symmetry planes' mirror:
         :func:`impactsph.boundaries.mirror_ghost_results`); ``after_moments(packed, c0)``
         likewise after the correction matrices (``c0`` their first record column)."""
-        x, v, rho, e, S, m, h, material, body, damage = arrays
+        x, v, rho, e, S, m, h, material, body, carried = arrays
         k = self.passes
         nl = neighbours
         n = x.shape[0]
         if self._packed is None or self._packed.shape[0] != n:
             self._packed = np.empty((n, k.RECORD_WIDTH))
-        k.particle_pass(nl.order, x, v, m, rho, e, S, damage, h, body, material, table,
+        k.particle_pass(nl.order, x, v, m, rho, e, S, carried, h, body, material, table,
                         self._packed)
         if self._chunk is None or self._chunk[0] != n:  # get_num_threads takes a lock
             self._chunk = (n, chunk_size(n))
