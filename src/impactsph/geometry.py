@@ -34,6 +34,8 @@ class Particles:
     velocity: np.ndarray | None = None
     #: (n,) K, a particle file's initial temperatures
     temperature: np.ndarray | None = None
+    #: (n, 3, 3) Pa, a particle file's initial Cauchy stress (tension positive)
+    stress: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -137,7 +139,8 @@ def file_particles(path: str | Path, dim: int, spacing: float,
     x, volume, extra = _read_particle_file(path, dim, where)
     if volume is None:
         volume = np.full(x.shape[0], float(spacing) ** dim)
-    return Particles(x, volume, float(spacing), extra.get("velocity"), extra.get("temperature"))
+    return Particles(x, volume, float(spacing), extra.get("velocity"), extra.get("temperature"),
+                     extra.get("stress"))
 
 
 def body_particles(geometry: Any, dim: int, where: str = "geometry") -> Particles:
@@ -178,15 +181,19 @@ def read_particle_file(path: str | Path, dim: int, where: str = "geometry.path"
     file gives none).
 
     - ``.csv``: a header naming the columns, ``x`` (``x, y`` in 2D, ``x, y, z`` in 3D) and
-      optionally ``volume``, the velocity ``vx`` (``vx, vy``, ``vx, vy, vz``: all or none) and
-      ``temperature``, in any order, then one particle per line; blank lines and lines
-      starting with ``#`` are skipped.
+      optionally ``volume``, the velocity ``vx`` (``vx, vy``, ``vx, vy, vz``: all or none),
+      ``temperature`` and the initial Cauchy stress (Pa, tension positive; in 2D
+      ``sigma_xx, sigma_yy, sigma_zz, sigma_xy``, in 3D those and ``sigma_xz, sigma_yz``:
+      all or none), in any order, then one particle per line; blank lines and lines starting
+      with ``#`` are skipped.
     - ``.npz``: the arrays ``position`` of shape ``(n, dim)`` (``(n,)`` in 1D too) and
-      optionally ``volume`` and ``temperature`` of shape ``(n,)`` and ``velocity`` of shape
-      ``(n, dim)``.
+      optionally ``volume`` and ``temperature`` of shape ``(n,)``, ``velocity`` of shape
+      ``(n, dim)`` and ``stress`` of shape ``(n, 3, 3)`` (symmetric; in 2D without ``xz`` and
+      ``yz`` components).
 
-    Every coordinate, velocity and temperature must be finite, every volume and temperature
-    > 0, and the file must hold at least one particle.  Raises
+    Every coordinate, velocity, temperature and stress must be finite, every volume and
+    temperature > 0, and the file must hold at least one particle; 1D files carry no
+    stress.  Raises
     :class:`~impactsph.errors.CaseError`, one line starting with ``where = 'PATH': ``, for a
     file that is missing, unreadable or malformed.  The velocity and temperature:
     :func:`file_particles`."""
@@ -238,17 +245,44 @@ def _read_particle_file(path: str | Path, dim: int, where: str
         if bad.size:
             raise fail(f"particle {int(bad[0])} has the temperature {float(T[bad[0]])!r}; "
                        f"temperatures (K) must be finite and > 0")
+    if "stress" in extra:
+        _check_stress(extra["stress"], dim, fail)
     return np.ascontiguousarray(x, dtype=np.float64), volume, extra
 
 
+def _check_stress(stress: np.ndarray, dim: int, fail) -> None:
+    """A file's initial stresses: finite, symmetric, in 2D without out-of-plane shear."""
+    bad = np.flatnonzero(~np.isfinite(stress).all(axis=(1, 2)))
+    if bad.size:
+        raise fail(f"particle {int(bad[0])} has a non-finite stress")
+    asym = np.abs(stress - stress.transpose(0, 2, 1)).max(axis=(1, 2))
+    bad = np.flatnonzero(asym > 1e-12 * np.abs(stress).max(axis=(1, 2)))
+    if bad.size:
+        raise fail(f"particle {int(bad[0])}'s stress is not symmetric; a Cauchy stress is")
+    if dim == 2:
+        bad = np.flatnonzero(np.abs(stress[:, 2, :2]).max(axis=1) > 0.0)
+        if bad.size:
+            raise fail(f"particle {int(bad[0])} has out-of-plane shear stress (xz or yz); a 2D "
+                       f"body has none")
+
+
 VELOCITY_COLUMNS = ("vx", "vy", "vz")
+#: a particle file's stress columns by dimension (row, column of the 3x3 Cauchy stress)
+STRESS_COLUMNS = {
+    1: {},
+    2: {"sigma_xx": (0, 0), "sigma_yy": (1, 1), "sigma_zz": (2, 2), "sigma_xy": (0, 1)},
+    3: {"sigma_xx": (0, 0), "sigma_yy": (1, 1), "sigma_zz": (2, 2), "sigma_xy": (0, 1),
+        "sigma_xz": (0, 2), "sigma_yz": (1, 2)},
+}
 
 
 def _read_csv(path: Path, dim: int, fail):
     expected = list(AXES[:dim])
     speeds = list(VELOCITY_COLUMNS[:dim])
-    allowed = (f"{', '.join(expected)} and optionally volume, {', '.join(speeds)} and "
-               f"temperature")
+    stresses = list(STRESS_COLUMNS[dim])
+    allowed = (f"{', '.join(expected)} and optionally volume, {', '.join(speeds)}"
+               + (f", temperature and {', '.join(stresses)}" if stresses else
+                  " and temperature"))
     with open(path, newline="", encoding="utf-8-sig") as fh:  # a BOM (spreadsheets) is skipped
         lines = [(k + 1, row) for k, row in enumerate(csv.reader(fh))
                  if row and any(f.strip() for f in row) and not row[0].lstrip().startswith("#")]
@@ -259,10 +293,13 @@ def _read_csv(path: Path, dim: int, fail):
     if any(_is_number(name) for name in names):
         raise fail(f"line {line_no}: expected a header naming the columns {allowed}, found "
                    f"{header!r}")
-    unknown = [n for n in names if n not in (*expected, "volume", *speeds, "temperature")]
+    unknown = [n for n in names
+               if n not in (*expected, "volume", *speeds, "temperature", *stresses)]
     some_speeds = set(speeds) & set(names)
+    some_stresses = set(stresses) & set(names)
     if (unknown or len(set(names)) != len(names) or not set(expected) <= set(names)
-            or (some_speeds and some_speeds != set(speeds))):
+            or (some_speeds and some_speeds != set(speeds))
+            or (some_stresses and some_stresses != set(stresses))):
         raise fail(f"has the columns {names!r}; dimension = {dim} needs {allowed}")
     values = np.empty((len(lines) - 1, len(names)))
     for row_index, (line_no, row) in enumerate(lines[1:]):
@@ -281,6 +318,11 @@ def _read_csv(path: Path, dim: int, fail):
         extra["velocity"] = np.ascontiguousarray(values[:, [names.index(a) for a in speeds]])
     if "temperature" in names:
         extra["temperature"] = values[:, names.index("temperature")].copy()
+    if some_stresses:
+        stress = np.zeros((values.shape[0], 3, 3))
+        for name, (a, b) in STRESS_COLUMNS[dim].items():
+            stress[:, a, b] = stress[:, b, a] = values[:, names.index(name)]
+        extra["stress"] = stress
     return x, volume, extra
 
 
@@ -297,17 +339,18 @@ def _read_npz(path: Path, dim: int, fail):
     if not isinstance(data, np.lib.npyio.NpzFile):
         raise fail("is not an NPZ archive (a .npy array?)")
     with data:
-        unknown = [k for k in data.files
-                   if k not in ("position", "volume", "velocity", "temperature")]
+        known = ("position", "volume", "velocity", "temperature") + (("stress",) if dim > 1
+                                                                      else ())
+        unknown = [k for k in data.files if k not in known]
         if unknown:
             raise fail(f"holds the unknown array {unknown[0]!r}; expected position and "
-                       f"optionally volume, velocity and temperature")
+                       f"optionally {', '.join(known[1:-1])} and {known[-1]}")
         if "position" not in data.files:
             raise fail("holds no array 'position'")
         x = np.asarray(data["position"])
         volume = np.asarray(data["volume"]) if "volume" in data.files else None
-        extra = {k: np.asarray(data[k], dtype=np.float64) for k in ("velocity", "temperature")
-                 if k in data.files}
+        extra = {k: np.asarray(data[k], dtype=np.float64)
+                 for k in ("velocity", "temperature", "stress") if k in data.files}
     if dim == 1 and x.ndim == 1:
         x = x[:, None]
     if x.ndim != 2 or x.shape[1] != dim:
@@ -331,4 +374,7 @@ def _read_npz(path: Path, dim: int, fail):
     if "temperature" in extra and extra["temperature"].shape != (x.shape[0],):
         raise fail(f"temperature has the shape {extra['temperature'].shape}; position needs "
                    f"({x.shape[0]},)")
+    if "stress" in extra and extra["stress"].shape != (x.shape[0], 3, 3):
+        raise fail(f"stress has the shape {extra['stress'].shape}; position needs "
+                   f"({x.shape[0]}, 3, 3)")
     return x, volume, extra

@@ -60,6 +60,52 @@ def initialise_material_state(state: ParticleState, materials: list[MaterialMode
             state.material_state[members, layout.damage_state: layout.damage_state + width] = own
 
 
+def stressed_state(stress: np.ndarray, k: int, table: np.ndarray, dim: int,
+                   two_dimensional: str, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """The density and deviator of particles of material ``k`` that start with the Cauchy
+    stress ``stress`` (n, 3, 3): ``S = sigma + P I`` with ``P = -tr(sigma)/3``, and the
+    density at which the material's equation of state gives ``P`` (at zero specific energy,
+    the state every particle starts in), found by Newton's method on the compiled EOS from
+    ``rho0 (1 + P / K)``, to ``|P(rho) - P| <= 1e-10 (|P| + 1 Pa)``.  A pressure no density
+    gives, or a plane-stress ``sigma_zz`` other than 0, is a :class:`CaseError` naming
+    ``where`` and the particle."""
+    from .materials import BULK, RHO0
+    from .physics.rates import pressures
+
+    if two_dimensional == "plane_stress":
+        bad = np.flatnonzero(stress[:, 2, 2] != 0.0)
+        if bad.size:
+            raise CaseError(f"{where}: particle {int(bad[0])} has sigma_zz = "
+                            f"{float(stress[bad[0], 2, 2])!r}; in plane stress it is 0")
+    n = stress.shape[0]
+    target = -np.trace(stress, axis1=1, axis2=2) / 3.0
+    deviator = stress + target[:, None, None] * np.eye(3)
+    material = np.full(n, k, dtype=np.int32)
+    energy = np.zeros(n)
+    rho0, bulk = table[k, RHO0], table[k, BULK]
+    rho = rho0 * np.maximum(1.0 + target / bulk, 0.05)
+
+    def residual(r: np.ndarray) -> np.ndarray:
+        return pressures(r, energy, material, table, dim, np.empty(n)) - target
+
+    tolerance = 1e-10 * (np.abs(target) + 1.0)
+    for _ in range(60):
+        f = residual(rho)
+        if (np.abs(f) <= tolerance).all():
+            break
+        step = 1e-7 * rho
+        slope = (residual(rho + step) - f) / step
+        slope = np.where(slope > 0.0, slope, bulk / rho)  # the EOS stiffens with density
+        rho = np.clip(rho - f / slope, 0.5 * rho, 2.0 * rho)
+    bad = np.flatnonzero(~(np.abs(residual(rho)) <= tolerance))
+    if bad.size:
+        i = int(bad[0])
+        raise CaseError(f"{where}: particle {i}'s pressure {float(target[i]):.6g} Pa is one "
+                        f"the material's equation of state gives at no density (nearest "
+                        f"{float(target[i] + residual(rho)[i]):.6g} Pa)")
+    return rho, deviator
+
+
 def build_problem(case: Case) -> Problem:
     """Place the particles of every body (:func:`~impactsph.geometry.body_particles`), set
     masses ``rho0 V`` from their volumes V (``dx^dim`` on a lattice; plus any tip mass),
@@ -69,16 +115,23 @@ def build_problem(case: Case) -> Problem:
     mat_names = list(case.materials)
     materials = [resolve_material(n, case.materials[n]) for n in mat_names]
     dim = case.dimension
+    table = material_table(materials, case.time.wave_speed, layout)
     parts: dict[str, list[np.ndarray]] = {k: [] for k in
                                           ("x", "v", "rho", "m", "h", "body", "mat", "clamped",
-                                           "temperature")}
+                                           "temperature", "S")}
     for b, body in enumerate(case.bodies):
         particles = body_particles(body.geometry, dim, where=f"bodies.{b}.geometry")
         x = particles.position
         k = mat_names.index(body.material)
         rho0 = materials[k].density
         n = x.shape[0]
-        mass = rho0 * particles.volume
+        density = np.full(n, rho0)
+        deviator = np.zeros((n, 3, 3))
+        if particles.stress is not None:  # a particle file's initial stress
+            density, deviator = stressed_state(
+                particles.stress, k, table, dim, case.two_dimensional,
+                f"bodies.{b}.geometry.path = {str(body.geometry.path)!r}")
+        mass = density * particles.volume
         velocity = body_velocity(body.velocity, x)
         if particles.velocity is not None:  # a particle file's velocity columns
             velocity += particles.velocity
@@ -110,7 +163,8 @@ def build_problem(case: Case) -> Problem:
                                               / (extra + own))
         parts["x"].append(x)
         parts["v"].append(velocity)
-        parts["rho"].append(np.full(n, rho0))
+        parts["rho"].append(density)
+        parts["S"].append(deviator)
         parts["m"].append(mass)
         # anisotropic lattices: the spacing is the geometric mean of the axes' spacings
         parts["h"].append(np.full(n, case.kernel.h_over_dx * particles.spacing))
@@ -123,7 +177,7 @@ def build_problem(case: Case) -> Problem:
     n = cat["x"].shape[0]
     state = ParticleState(
         position=np.ascontiguousarray(cat["x"]), velocity=np.ascontiguousarray(cat["v"]),
-        density=cat["rho"], specific_energy=np.zeros(n), deviatoric_stress=np.zeros((n, 3, 3)),
+        density=cat["rho"], specific_energy=np.zeros(n), deviatoric_stress=cat["S"],
         mass=cat["m"], smoothing_length=cat["h"], body=cat["body"], material=cat["mat"],
         clamped=cat["clamped"], material_state=np.zeros((n, layout.state_width)),
     )
@@ -135,5 +189,5 @@ def build_problem(case: Case) -> Problem:
               for p in case.output.probes}
     gauges = {g.name: nearest_particle(state, body_names.index(g.body), g.position)
               for g in case.output.gauges}
-    return Problem(state, materials, material_table(materials, case.time.wave_speed, layout),
+    return Problem(state, materials, table,
                    body_names, probes, info, gauges)
