@@ -65,7 +65,8 @@ def write_strip(folder: pathlib.Path, dx: float, stress=(-SIGMA, 0.0, -NU * SIGM
     xs, ys = np.arange(dx / 2, L, dx), np.arange(dx / 2, H, dx)
     x, y = (a.ravel() for a in np.meshgrid(xs, ys, indexing="ij"))
     values = ",".join(repr(float(s)) for s in stress)
-    lines = [f"x,y,{columns}"] + [f"{float(a)!r},{float(b)!r},{values}" for a, b in zip(x, y, strict=True)]
+    lines = [f"x,y,{columns}"] + [f"{float(a)!r},{float(b)!r},{values}"
+                                  for a, b in zip(x, y, strict=True)]
     (folder / "strip.csv").write_text("\n".join(lines) + "\n")
     path = folder / "strip.toml"
     path.write_text(CASE.replace("@DX@", repr(dx)).replace("@MODE@", mode))
