@@ -68,6 +68,8 @@ CASES = {
                                               "boundaries.0.point=[0.0, 0.0, 0.0]",
                                               "boundaries.0.normal=[0.0, 0.0, 1.0]",
                                               "stabilisation.artificial_stress=0.3"]),
+    # Coulomb friction between two bodies (the friction kernel, after the pairs)
+    "friction-2d": (str(Path(__file__).parent / "data" / "friction_pair.toml"), []),
     # plane stress (a compile-time variant: the particle pass reads the thickness ratio)
     "taylor-2d-plane-stress": ("taylor", ["bodies.0.geometry.count=[6, 10]",
                                           'two_dimensional="plane_stress"']),
@@ -76,7 +78,7 @@ CASES = {
 #: for runs without them (the bars have no AC; their contact force is then not recorded).
 LEAN = {"bars-1d"}
 #: Cases with the hourglass control: its state is one more array uploaded every evaluation.
-HOURGLASS = {"taylor-2d-stabilised"}
+HOURGLASS = {"taylor-2d-stabilised", "friction-2d"}  # the elastic friction pair: "auto" is on
 #: Whole runs of 100 steps: the bars, and a 4 x 6 Taylor bar (its neighbour list and ghosts
 #: are rebuilt several times, so the uploads after a rebuild are exercised).
 RUNS = {
@@ -132,7 +134,8 @@ def _load_call(path: Path, previous: dict | None) -> dict:
 
 def _evaluate(backend, call: dict, b) -> None:
     backend.evaluate(call["n_active"], tuple(call[k] for k in FIELDS), call["table"],
-                     call["neighbours"], call["viscosity"], b, *call.get("extra", ()))
+                     call["neighbours"], call["viscosity"], b, *call.get("extra", ()),
+                     **call.get("kwargs", {}))
 
 
 def _gpu_run(name: str, overrides: list[str], steps: int):
@@ -243,13 +246,14 @@ class _Recorder:
         self.inner = inner
         self.call = None
 
-    def evaluate(self, n_active, arrays, table, neighbours, viscosity, b, *extra):
+    def evaluate(self, n_active, arrays, table, neighbours, viscosity, b, *extra, **kwargs):
         self.call = {**{k: np.array(a) for k, a in zip(FIELDS, arrays, strict=True)},
                      "table": np.array(table), "neighbours": copy.deepcopy(neighbours),
                      "n_active": n_active, "viscosity": viscosity,
                      "extra": tuple(np.array(a) if isinstance(a, np.ndarray) else a
-                                    for a in extra)}
-        self.inner.evaluate(n_active, arrays, table, neighbours, viscosity, b, *extra)
+                                    for a in extra), "kwargs": dict(kwargs)}
+        self.inner.evaluate(n_active, arrays, table, neighbours, viscosity, b, *extra,
+                            **kwargs)
 
 
 def _perturb(state, rng) -> None:

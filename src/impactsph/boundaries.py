@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .materials import BULK, RHO0, SHEAR
+from .physics.contact import FRICTION_REGULARISATION
 
 #: wall kinds (``Walls.kinds``); module-level ints, so compile-time constants in the kernels
 FREE_SLIP, NO_SLIP, SYMMETRY = 1, 2, 3
@@ -279,11 +280,6 @@ def mirror_ghost_matrices(src, wall, normals, kinds, n_real, position, P, c0, di
                 P[pg, c0 + a * dim + b] = mirrored[a, b]
 
 
-#: the regularising speed of the walls' Coulomb friction, in units of the material's
-#: longitudinal wave speed: a particle sliding slower than this feels a friction falling to
-#: zero with its speed (a smooth stick), so that the friction cannot reverse a slow slide
-#: within a step
-FRICTION_REGULARISATION = 1e-6
 
 
 @nb.njit(cache=True)

@@ -488,6 +488,11 @@ class Contact(_Model):
         "push a particle closer than this to a wall back off it, their work booked in its "
         "internal energy (impactsph.boundaries.layer_push); it holds a layer that thins as it "
         "spreads along the wall, which the ghosts alone let through; 0 switches it off")
+    friction: float = Field(
+        0.0, ge=0.0, description="Coulomb friction coefficient between bodies in contact: a "
+        "pushing pair sliding past each other is slowed by mu times its push, the work booked "
+        "as heat in the two particles (impactsph.physics.contact); 0 is frictionless. A "
+        "wall's friction is the wall's own 'friction'")
 
 
 class Viscosity(_Model):

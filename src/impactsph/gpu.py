@@ -155,7 +155,7 @@ class GpuRates:
     def evaluate(self, n_active: int, arrays: tuple, table: np.ndarray, neighbours,
                  viscosity, b, hourglass: float = 0.0,
                  hourglass_acceleration: np.ndarray | None = None,
-                 after_pairs=None) -> None:
+                 after_pairs=None, n_bodies: int = 1) -> None:
         """As :meth:`impactsph.physics.rates.CpuRates.evaluate`: the rates of the first
         ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h, material, body, carried)`` into the
         host buffers ``b``; rows the CPU backend leaves alone are left alone."""
@@ -164,7 +164,7 @@ class GpuRates:
                                       "GPU passes do not mirror the pair results onto ghosts")
         x, v, rho, e, S, m, h, material, body, carried = arrays
         (particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
-         force_correction, record_width) = self._kernels
+         friction_kernel, force_correction, record_width) = self._kernels
         n_rows, dim = rho.shape[0], self.dim
         stream, tpb = self._stream, self.threads_per_block
         up = self._upload
@@ -207,6 +207,12 @@ class GpuRates:
                     out["drho"], out["dv"], out["de"],
                     out["de_visc"], out["contact_force"], out["pair_count"], out["dS"],
                     gradients)
+                if self.options.contact_friction > 0.0:
+                    friction_kernel[blocks, tpb, stream](
+                        n_rows, n_active, dorder, packed, doff, dind, int(viscosity.kind),
+                        viscosity.pair, float(self.options.contact_friction), int(n_bodies),
+                        self.options.normal_stress, out["dv"], out["de"],
+                        out["contact_force"])
                 if corrected:
                     correction_kernel[blocks, tpb, stream](
                         n_rows, n_active, dorder, packed, doff, dind, int(viscosity.kind),

@@ -32,6 +32,8 @@ class PassOptions:
     - ``artificial_stress``: Monaghan's (2000) coefficient epsilon, 0 for none;
       ``artificial_stress_exponent`` n and ``reference_q`` = dx / h, the kernel argument at
       which ``f_ij = W(r_ij) / W(dx)`` is 1;
+    - ``contact_friction``: the Coulomb coefficient between bodies (0: frictionless); a
+      run-time argument of the friction pass, which runs only where it is > 0;
     - ``plane_stress``: a 2D run in plane stress (``sigma_zz = 0``, each particle's thickness
       changing; :func:`impactsph.physics.passes.plane_stress_return`) instead of plane strain.
     """
@@ -42,6 +44,7 @@ class PassOptions:
     artificial_stress_exponent: float = 4.0
     reference_q: float = 1.0 / 1.3
     plane_stress: bool = False
+    contact_friction: float = 0.0
 
     def __post_init__(self) -> None:
         if self.gradient_correction not in GRADIENT_CORRECTIONS:
@@ -70,7 +73,8 @@ class PassOptions:
                    artificial_stress=float(stab.artificial_stress),
                    artificial_stress_exponent=float(stab.artificial_stress_exponent),
                    reference_q=1.0 / float(case.kernel.h_over_dx),
-                   plane_stress=getattr(case, "two_dimensional", "") == "plane_stress")
+                   plane_stress=getattr(case, "two_dimensional", "") == "plane_stress",
+                   contact_friction=float(case.contact.friction))
 
     @property
     def normal_stress(self) -> bool:
@@ -79,9 +83,9 @@ class PassOptions:
 
     def compiled(self) -> PassOptions:
         """The options that decide the generated module: these, with the run-time ones
-        (the contact traction) set to their defaults, so that runs differing only in those
+        (the contact traction and friction) set to their defaults, so that runs differing only in those
         share one compiled module."""
-        return replace(self, contact_traction="pressure")
+        return replace(self, contact_traction="pressure", contact_friction=0.0)
 
     @property
     def tag(self) -> str:

@@ -54,7 +54,13 @@ from impactsph.models.columns import (
     TEMPERATURE,
     THICKNESS_RATIO,
 )
-from impactsph.physics.contact import contact_acceleration_pair, contact_work_pair, in_contact
+from impactsph.physics.contact import (
+    FRICTION_REGULARISATION,
+    contact_acceleration_pair,
+    contact_work_pair,
+    friction_factor,
+    in_contact,
+)
 from impactsph.physics.continuity import continuity_pair, velocity_gradient_pair
 from impactsph.physics.energy import viscous_heating_pair
 from impactsph.physics.momentum import viscous_acceleration_pair
@@ -777,6 +783,68 @@ def plane_stress_stage(i, dt, rho, e, S, state0, state, row):
 
 
 @JIT(inline="always", cache=True)
+def friction_particle(p, i, P, offsets, indices, visc_kind, visc_params, mu, real_bodies,
+                      normal_stress, dv, de, contact_force):
+    """Coulomb friction between bodies on the active particle ``i`` at sorted position ``p``
+    (:mod:`impactsph.physics.contact`): over its neighbours of another body (``body <
+    real_bodies``: not a rigid wall's ghost, which has its own friction), the pushing pairs'
+    friction added to ``dv[i]``, their heat to ``de[i]`` and ``m_i`` times the force to
+    ``contact_force[i]``.  The push is the pair pass's: the contact traction (``normal_stress``
+    or the pressures) and the artificial viscosity of an approaching pair, as a wall's
+    friction takes the whole push of its ghosts."""
+    Pi_ = P[p]
+    bi, hi, ci = Pi_[BODY], Pi_[H], Pi_[C]
+    a0 = a1 = a2 = 0.0
+    heat = 0.0
+    for k in range(offsets[p], offsets[p + 1]):
+        Pj = P[indices[k]]
+        bj = Pj[BODY]
+        if bj == bi or bj >= real_bodies:
+            continue
+        d0 = Pi_[X] - Pj[X]
+        d1 = Pi_[X + 1] - Pj[X + 1] if DIM > 1 else 0.0
+        d2 = Pi_[X + 2] - Pj[X + 2] if DIM > 2 else 0.0
+        r2 = d0 * d0 + d1 * d1 + d2 * d2
+        h_ij = 0.5 * (hi + Pj[H])
+        inv_h = 1.0 / h_ij
+        q2 = r2 * inv_h * inv_h
+        if q2 >= 4.0 or r2 == 0.0:
+            continue
+        if normal_stress:
+            s_ij = -(stress_along(Pi_, d0, d1, d2) + stress_along(Pj, d0, d1, d2)) / r2
+        else:
+            s_ij = Pi_[PC] + Pj[PC]
+        u0 = Pi_[V] - Pj[V]
+        u1 = Pi_[V + 1] - Pj[V + 1] if DIM > 1 else 0.0
+        u2 = Pi_[V + 2] - Pj[V + 2] if DIM > 2 else 0.0
+        vr = u0 * d0 + u1 * d1 + u2 * d2
+        pi_ij = pair_viscosity(visc_kind, vr, r2, h_ij, 0.5 * (ci + Pj[C]),
+                               0.5 * (Pi_[RHO] + Pj[RHO]), visc_params)  # 0 if receding
+        normal = max(s_ij, 0.0) + pi_ij
+        if normal <= 0.0:
+            continue
+        r = math.sqrt(r2)
+        push = Pj[M] * normal * abs(cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM)) * r
+        along = vr / r2
+        t0 = u0 - along * d0
+        t1 = u1 - along * d1
+        t2 = u2 - along * d2
+        slip2 = t0 * t0 + t1 * t1 + t2 * t2
+        f = friction_factor(mu, push, slip2, FRICTION_REGULARISATION * 0.5 * (ci + Pj[C]))
+        a0 -= f * t0
+        a1 -= f * t1
+        a2 -= f * t2
+        heat += 0.5 * f * slip2
+    acc = (a0, a1, a2)
+    track = contact_force.shape[0] > 0
+    for a in range(DIM):
+        dv[i, a] += acc[a]
+        if track:
+            contact_force[i, a] += Pi_[M] * acc[a]
+    de[i] += heat
+
+
+@JIT(inline="always", cache=True)
 def advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, drho, de, dS,
                      dhg, clamped, material, table, h, x, v, rho, e, S, plastic_work, state, hg):
     """One integrator stage of particle ``i``: ``y = y0 + dt ydot`` with ``xdot = v_rate``
@@ -957,6 +1025,21 @@ def correction_pass(n_active, order, P, offsets, indices, visc_kind, correction_
 
 
 @JIT(parallel=True, cache=True)
+def friction_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, mu, real_bodies,
+                  normal_stress, dv, de, contact_force, chunk_size):
+    """Friction between bodies (a case with ``[contact] friction > 0`` only) over the active
+    particles, after the pair pass."""
+    n = order.shape[0]
+    n_chunks = (n + chunk_size - 1) // chunk_size
+    for chunk in nb.prange(n_chunks):
+        for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
+            i = order[p]
+            if i < n_active:
+                friction_particle(p, i, P, offsets, indices, visc_kind, visc_params, mu,
+                                  real_bodies, normal_stress, dv, de, contact_force)
+
+
+@JIT(parallel=True, cache=True)
 def hourglass_pass(n_active, order, P, L_sorted, offsets, indices, material, table, zeta, hg,
                    dv, de, dhg, chunk_size):
     """The hourglass control over the active particles (after the pair pass, whose velocity
@@ -994,7 +1077,8 @@ def pressures(rho, e, material, table, out):
 
 def cuda_kernels():
     """The same bodies as CUDA kernels, one thread per sorted position ``p``:
-    ``(particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel)``.
+    ``(particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
+    friction_kernel)``.
     They launch and
     state no physics; :class:`impactsph.gpu.GpuRates` moves the data."""
     global cuda  # a module global, as numba's CUDA simulator expects to find it
@@ -1048,4 +1132,13 @@ def cuda_kernels():
             hourglass_particle(p, order[p], P, L_sorted, offsets, indices, material, table,
                                zeta, hg, dv, de, dhg)
 
-    return particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel
+    @cuda.jit
+    def friction_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind, visc_params,
+                        mu, real_bodies, normal_stress, dv, de, contact_force):
+        p = cuda.grid(1)
+        if p < n_rows and order[p] < n_active:
+            friction_particle(p, order[p], P, offsets, indices, visc_kind, visc_params, mu,
+                              real_bodies, normal_stress, dv, de, contact_force)
+
+    return (particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
+            friction_kernel)

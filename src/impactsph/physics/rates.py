@@ -93,7 +93,7 @@ class CpuRates:
     def evaluate(self, n_active: int, arrays: tuple, table: np.ndarray, neighbours,
                  viscosity: ViscositySettings, b: RateBuffers, hourglass: float = 0.0,
                  hourglass_acceleration: np.ndarray | None = None,
-                 after_pairs=None, after_moments=None) -> None:
+                 after_pairs=None, after_moments=None, n_bodies: int = 1) -> None:
         """Rates of the first ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h,
         material, body, carried)`` (``carried``: the common material state, damage and thickness
         ratio among it; all rows, ghosts included, take part in the sums) into ``b``:
@@ -104,7 +104,9 @@ class CpuRates:
         ``after_pairs(packed, gradients, u_column)``, if given, runs after the pair pass and
         before the passes that read its per-particle results (the symmetry planes' mirror:
         :func:`impactsph.boundaries.mirror_ghost_results`); ``after_moments(packed, c0)``
-        likewise after the correction matrices (``c0`` their first record column)."""
+        likewise after the correction matrices (``c0`` their first record column).  With the
+        options' ``contact_friction`` > 0, the friction between the ``n_bodies`` bodies (rows
+        of a body index at or above it are rigid walls' ghosts) is added after the pairs."""
         x, v, rho, e, S, m, h, material, body, carried = arrays
         k = self.passes
         nl = neighbours
@@ -133,6 +135,10 @@ class CpuRates:
                     b.contact_force, b.pair_count, b.dS, self._gradients, chunk)
         if after_pairs is not None:
             after_pairs(self._packed, self._gradients, k.U)
+        if self.options.contact_friction > 0.0:
+            k.friction_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
+                            viscosity.kind, viscosity.pair, self.options.contact_friction, n_bodies, self.options.normal_stress,
+                            b.dv, b.de, b.contact_force, chunk)
         if viscosity.correction is not None:
             k.correction_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
                               viscosity.kind, viscosity.correction, b.dv_corr, b.de_corr,
