@@ -83,8 +83,8 @@ class PassOptions:
 
     def compiled(self) -> PassOptions:
         """The options that decide the generated module: these, with the run-time ones
-        (the contact traction and friction) set to their defaults, so that runs differing only in those
-        share one compiled module."""
+        (the contact traction and friction) set to their defaults, so that runs differing only
+        in those share one compiled module."""
         return replace(self, contact_traction="pressure", contact_friction=0.0)
 
     @property

@@ -137,8 +137,9 @@ class CpuRates:
             after_pairs(self._packed, self._gradients, k.U)
         if self.options.contact_friction > 0.0:
             k.friction_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
-                            viscosity.kind, viscosity.pair, self.options.contact_friction, n_bodies, self.options.normal_stress,
-                            b.dv, b.de, b.contact_force, chunk)
+                            viscosity.kind, viscosity.pair, self.options.contact_friction,
+                            n_bodies, self.options.normal_stress, b.dv, b.de, b.contact_force,
+                            chunk)
         if viscosity.correction is not None:
             k.correction_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
                               viscosity.kind, viscosity.correction, b.dv_corr, b.de_corr,
