@@ -64,10 +64,10 @@ def test_an_elastic_then_plastic_sheet():
     """Elastic: sigma_xx = E eps and t / t0 = exp(-nu eps); then yield at sigma_y exactly (a
     perfectly plastic steel), and the thickness thins at d ln t / d eps = -1/2 (plastic flow
     keeps the volume, the stress and so the elastic strains constant)."""
-    h = material_point(STEEL, strain_rate=1e3, strain=0.05, steps=3200, plane_stress=True)
+    h = material_point(STEEL, strain_rate=1e3, strain=0.05, steps=800, plane_stress=True)
     eps = h.axial_strain
     elastic = eps < 0.9 * YIELD / E
-    assert elastic.sum() > 50
+    assert elastic.sum() > 15
     np.testing.assert_allclose(h.axial_stress[elastic], E * eps[elastic], rtol=2e-4)
     np.testing.assert_allclose(np.log(h.thickness_ratio[elastic]), -NU * eps[elastic],
                                rtol=2e-4, atol=1e-12)
@@ -177,3 +177,33 @@ def test_bad_plane_stress_input_refused(tmp_path, change, message):
     assert result.exit_code == 2, result.output
     lines = [ln for ln in result.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and message in lines[0], result.output
+
+
+def test_the_taylor_measures_in_plane_stress(tmp_path):
+    """The 2D Taylor bar (coarse: 5 x 25) runs in plane stress with its measures: free to
+    thicken, the foot spreads less in the plane than in plane strain (footprint half-width
+    1.54 against 2.18 times the radius here; 1.55 against 2.05 at the paper's 21 x 67), the
+    final length about the same (0.861 against 0.871; 0.840 against 0.835)."""
+    import json
+
+    measures = {}
+    for mode in ("plane_strain", "plane_stress"):
+        out = tmp_path / mode
+        result = runner.invoke(app, [
+            "run", "taylor", "--out", str(out), "--set", f'two_dimensional="{mode}"',
+            "--set", "output.figures=false", "--set", 'contact.traction="normal_stress"',
+            "--set", "contact.wall_layer=0.25", "--set", "bodies.0.geometry.count=[5, 25]"])
+        assert result.exit_code == 0, result.output
+        summary = json.loads((out / "summary.json").read_text())
+        assert abs(summary["total_energy_relative_error"]) < 3e-3
+        assert summary["wall_constraint_events"] == 0
+        measures[mode] = summary
+    stress, strain = measures["plane_stress"], measures["plane_strain"]
+    assert stress["footprint_half_width_ratio"] < 0.8 * strain["footprint_half_width_ratio"]
+    assert stress["final_length_ratio"] == pytest.approx(strain["final_length_ratio"], abs=0.03)
+
+
+def test_paper_contact_in_plane_stress_is_warned_about():
+    result = runner.invoke(app, ["check", "taylor", "--set", 'two_dimensional="plane_stress"'])
+    assert result.exit_code == 0, result.output
+    assert "warning: contact.traction = 'pressure': in plane stress" in result.output
