@@ -119,8 +119,7 @@ class Simulation:
             self.solver.rates, self.problem.table, self.state.n, self.state.dim,
             constraint=self.walls.enforce if len(self.walls) else None,
             drivers=Drivers.of(case, self.state),
-            plane_stress=case.two_dimensional == "plane_stress",
-            axisymmetric=case.two_dimensional == "axisymmetric")
+            plane_stress=case.two_dimensional == "plane_stress")
         self.record = RunRecord(probes={name: [] for name in self.problem.probes})
         self.gauges = Gauges.of(case, self.problem)
         #: per body, the largest displacement |x - x0| of a particle at the history's rows (m)
@@ -145,8 +144,7 @@ class Simulation:
         """CFL step, energies, momentum and the first bad value of the state, in one pass."""
         s = self.state
         dt, sums, bad = self.integrator.survey_kernel(
-            s.n, s.position, s.velocity, s.material_density, s.specific_energy,
-            s.deviatoric_stress,
+            s.n, s.position, s.velocity, s.density, s.specific_energy, s.deviatoric_stress,
             s.mass, s.smoothing_length, s.material, self.problem.table, self.case.time.courant,
             float(self.case.stabilisation.hourglass))
         return Survey(float(dt), float(sums[0]), float(sums[1]), sums[2: 2 + s.dim].copy(),

@@ -75,7 +75,6 @@ ARTIFICIAL_STRESS = 0.0
 ARTIFICIAL_STRESS_EXPONENT = 4.0
 REFERENCE_Q = 1.0
 PLANE_STRESS = False
-AXISYMMETRIC = False
 JIT = nb.njit
 EOS_PARAMS = STRENGTH_PARAMS = DAMAGE_PARAMS = STATE_WIDTH = 6
 STRENGTH_STATE = DAMAGE_STATE = 4
@@ -87,17 +86,7 @@ eos_pressure = strength_return = damage_update = pair_viscosity = viscosity_corr
 FASTMATH = {"contract", "arcp", "nsz"}
 
 _COLUMNS = record_columns(DIM, correction_matrix=FORCE_CORRECTION,
-                          artificial_stress=ARTIFICIAL_STRESS > 0.0, axisymmetric=AXISYMMETRIC)
-#: the columns of the hoop stress over the density and of the radius (AXISYMMETRIC only)
-HOOP = _COLUMNS.get("hoop", 0)
-RADIUS = _COLUMNS.get("radius", 0)
-#: the density array is the mass per unit area of a layer of varying thickness (plane
-#: stress: t / t0; axisymmetry: the radius r, the ring's length per radian), which the
-#: thickness column of the common material state holds
-THICK = PLANE_STRESS or AXISYMMETRIC
-#: axisymmetry: the radius below which a particle's hoop terms take this many smoothing
-#: lengths instead (a particle pushed onto the axis would otherwise divide by zero)
-AXIS_FLOOR = 0.1
+                          artificial_stress=ARTIFICIAL_STRESS > 0.0)
 X, V, H, M, VOL, RHO, C, PC, BODY, A0, U = (_COLUMNS[k] for k in (
     "x", "v", "h", "m", "volume", "rho", "c", "pc", "body", "A", "u"))
 RECORD_WIDTH = _COLUMNS["width"]
@@ -301,18 +290,16 @@ def particle_record(p, i, x, v, m, rho, e, S, carried, h, body, material, table,
     In plane stress ``rho`` is the mass per unit area over the initial thickness ``t0`` and
     the material's density is ``rho / tau`` with ``tau = t / t0``: the EOS and the wave speed
     take that, and the forces the stress resultant per unit initial thickness ``tau sigma``
-    (``rho dv/dt = div(tau sigma)``, the thickness varying from particle to particle).  In
-    axisymmetry the same with ``tau = r`` (``rho`` the mass per radian and unit area of the
-    r-z plane), and the record also holds ``sigma_tt / rho`` and ``r`` for the hoop terms."""
+    (``rho dv/dt = div(tau sigma)``, the thickness varying from particle to particle)."""
     k = material[i]
-    tau = carried[i, THICKNESS_RATIO] if THICK else 1.0
-    rho_m = rho[i] / tau if THICK else rho[i]
+    tau = carried[i, THICKNESS_RATIO] if PLANE_STRESS else 1.0
+    rho_m = rho[i] / tau if PLANE_STRESS else rho[i]
     pr = material_pressure(table, k, rho_m, e[i])
     intact = 1.0 - carried[i, DAMAGE]
     if pr < 0.0:
         pr *= intact
     c = math.sqrt(table[k, WAVE_MODULUS] / rho_m)
-    inv_rho2 = tau / (rho[i] * rho[i]) if THICK else 1.0 / (rho[i] * rho[i])
+    inv_rho2 = tau / (rho[i] * rho[i]) if PLANE_STRESS else 1.0 / (rho[i] * rho[i])
     for a in range(DIM):
         P[p, X + a] = x[i, a]
         P[p, V + a] = v[i, a]
@@ -326,9 +313,6 @@ def particle_record(p, i, x, v, m, rho, e, S, carried, h, body, material, table,
     P[p, C] = c
     P[p, PC] = pr * inv_rho2
     P[p, BODY] = body[i]
-    if AXISYMMETRIC:  # the hoop stress sigma_tt (the carried one) over rho = rho_m r
-        P[p, HOOP] = (intact * S[i, 2, 2] - pr) / rho[i]
-        P[p, RADIUS] = tau
     if ARTIFICIAL_STRESS > 0.0:
         artificial_stress_record(P, p)
 
@@ -498,21 +482,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     is kept exactly, and AS-4 is its power shared equally by the pair, so the semi-discrete
     equations keep the total energy.  With the kernel gradient correction of the forces it
     stays on the uncorrected ``grad W_ij``: a repulsion between neighbours, which needs no
-    consistency, and its antisymmetry and energy balance need no correction matrix.
-
-    Axisymmetry (``AXISYMMETRIC``; x the radius r, y the axis z; docs/modelling.md): the
-    momentum equation in cylindrical coordinates times r,
-    ``rho_m r dv/dt = div_rz(r sigma) - sigma_tt e_r``, is the 2D SPH equation for the density
-    ``rho = rho_m r`` (mass per radian and unit area, which the 2D continuity equation keeps)
-    and the stress resultant ``r sigma`` (:func:`particle_record`), plus the hoop terms
-
-        dv_r/dt -= sigma_tt / rho,     de/dt += sigma_tt v_r / rho,
-        dS/dt   += 2 mu (v_r / r) (e_t e_t - I/3)
-
-    (the hoop strain rate ``v_r / r`` in the Jaumann rate; ``S_zz`` of the 2D layout is
-    ``S_tt``).  The pair terms and the hoop terms each keep their share of the energy, so the
-    total (per radian) is kept as in plane strain; the axis is a symmetry plane whose ghosts
-    complete the supports of the particles next to it."""
+    consistency, and its antisymmetry and energy balance need no correction matrix."""
     shear = table[material[i], SHEAR]
     Pi_ = P[p]
     xi0 = Pi_[X]
@@ -732,19 +702,10 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
             for b in range(DIM):
                 L_sorted[p, a, b] = L[a, b]
     drho[i] = rhoi * cont
-    if AXISYMMETRIC:  # the hoop terms: rho dv_r/dt -= sigma_tt, rho de/dt += sigma_tt v_r
-        hoop = Pi_[HOOP]
-        dv[i, 0] -= hoop
-        de_s += hoop * vi0
     de[i] = de_s + de_v
     de_visc[i] = de_v
     pair_count[i] = count
     jaumann_stress_rate(L, S[i], shear, dS[i])
-    if AXISYMMETRIC:  # the hoop strain rate v_r / r in the deviatoric rate
-        g = 2.0 * shear * vi0 / Pi_[RADIUS]
-        dS[i, 0, 0] -= g / 3.0
-        dS[i, 1, 1] -= g / 3.0
-        dS[i, 2, 2] += 2.0 * g / 3.0
 
 
 #: plane stress: the out-of-plane stress ``sigma_zz`` is zeroed to ``PLANE_STRESS_TOLERANCE``
@@ -911,11 +872,7 @@ def advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, 
     if PLANE_STRESS:
         pr, rho_m, work = plane_stress_stage(i, dt, rho, e, S, state0, state, row)
     else:
-        if AXISYMMETRIC:  # rho is the mass per radian and area: rho_m = rho / r
-            st[THICKNESS_RATIO] = max(x[i, 0], AXIS_FLOOR * h[i])
-            rho_m = rho[i] / st[THICKNESS_RATIO]
-        else:
-            rho_m = rho[i]
+        rho_m = rho[i]
         pr = eos_pressure(int(row[EOS_KIND]), rho_m, e[i], row[RHO0], row[BULK],
                           row[EOS_PARAMS:])
         work = strength_return(int(row[STRENGTH_KIND]), S[i], rho_m, pr, row[SHEAR],
