@@ -111,7 +111,9 @@ def stable_time_step(state: ParticleState, table: np.ndarray, courant: float,
     """CFL step of eq 26 (with the hourglass control's coefficient ``hourglass``, if on)."""
     survey = _survey_kernel(state.dim)
     n = state.n if n_active is None else n_active
-    dt, _, _ = survey(n, state.position, state.velocity, state.density, state.specific_energy,
+    # the material's density (in plane stress ``density`` is a mass per area over t0)
+    dt, _, _ = survey(n, state.position, state.velocity, state.material_density,
+                      state.specific_energy,
                       state.deviatoric_stress, state.mass, state.smoothing_length,
                       state.material, table, courant, float(hourglass))
     return float(dt)

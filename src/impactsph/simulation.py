@@ -144,7 +144,8 @@ class Simulation:
         """CFL step, energies, momentum and the first bad value of the state, in one pass."""
         s = self.state
         dt, sums, bad = self.integrator.survey_kernel(
-            s.n, s.position, s.velocity, s.density, s.specific_energy, s.deviatoric_stress,
+            s.n, s.position, s.velocity, s.material_density, s.specific_energy,
+            s.deviatoric_stress,
             s.mass, s.smoothing_length, s.material, self.problem.table, self.case.time.courant,
             float(self.case.stabilisation.hourglass))
         return Survey(float(dt), float(sums[0]), float(sums[1]), sums[2: 2 + s.dim].copy(),
