@@ -401,6 +401,20 @@ def corrected(record, w0, w1, w2):
 
 
 @JIT(inline="always", cache=True)
+def pair_separation(Pi_, Pj):
+    """``(d0, d1, d2, r2, h_ij, inv_h, q2)`` of a pair of packed records: ``r_ij = x_i - x_j``
+    (its components beyond DIM zero), ``|r_ij|^2``, the mean smoothing length, its inverse
+    and ``(r_ij / h_ij)^2`` (the pair is within the kernel's support while ``q2 < 4``)."""
+    d0 = Pi_[X] - Pj[X]
+    d1 = Pi_[X + 1] - Pj[X + 1] if DIM > 1 else 0.0
+    d2 = Pi_[X + 2] - Pj[X + 2] if DIM > 2 else 0.0
+    r2 = d0 * d0 + d1 * d1 + d2 * d2
+    h_ij = 0.5 * (Pi_[H] + Pj[H])
+    inv_h = 1.0 / h_ij
+    return d0, d1, d2, r2, h_ij, inv_h, r2 * inv_h * inv_h
+
+
+@JIT(inline="always", cache=True)
 def moment_correction(p, P, offsets, indices):
     """The correction matrix of the particle at sorted position ``p`` into its record:
     ``C = B^-T`` with the moment matrix ``B = -sum_j V_j r_ij (x) grad W_ij`` over the
@@ -408,19 +422,13 @@ def moment_correction(p, P, offsets, indices):
     W_ij`` is the corrected kernel gradient; blended to the identity where ``det B`` is small
     (:func:`moment_inverse`)."""
     Pi_ = P[p]
-    hi = Pi_[H]
     bi = Pi_[BODY]
     B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
     for k in range(offsets[p], offsets[p + 1]):
         Pj = P[indices[k]]
         if Pj[BODY] != bi:
             continue
-        d0 = Pi_[X] - Pj[X]
-        d1 = Pi_[X + 1] - Pj[X + 1] if DIM > 1 else 0.0
-        d2 = Pi_[X + 2] - Pj[X + 2] if DIM > 2 else 0.0
-        r2 = d0 * d0 + d1 * d1 + d2 * d2
-        inv_h = 1.0 / (0.5 * (hi + Pj[H]))
-        q2 = r2 * inv_h * inv_h
+        d0, d1, d2, r2, _, inv_h, q2 = pair_separation(Pi_, Pj)
         if q2 >= 4.0 or r2 == 0.0:
             continue
         w = -Pj[VOL] * cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM)
@@ -793,7 +801,7 @@ def friction_particle(p, i, P, offsets, indices, visc_kind, visc_params, mu, rea
     or the pressures) and the artificial viscosity of an approaching pair, as a wall's
     friction takes the whole push of its ghosts."""
     Pi_ = P[p]
-    bi, hi, ci = Pi_[BODY], Pi_[H], Pi_[C]
+    bi, ci = Pi_[BODY], Pi_[C]
     a0 = a1 = a2 = 0.0
     heat = 0.0
     for k in range(offsets[p], offsets[p + 1]):
@@ -801,13 +809,7 @@ def friction_particle(p, i, P, offsets, indices, visc_kind, visc_params, mu, rea
         bj = Pj[BODY]
         if bj == bi or bj >= real_bodies:
             continue
-        d0 = Pi_[X] - Pj[X]
-        d1 = Pi_[X + 1] - Pj[X + 1] if DIM > 1 else 0.0
-        d2 = Pi_[X + 2] - Pj[X + 2] if DIM > 2 else 0.0
-        r2 = d0 * d0 + d1 * d1 + d2 * d2
-        h_ij = 0.5 * (hi + Pj[H])
-        inv_h = 1.0 / h_ij
-        q2 = r2 * inv_h * inv_h
+        d0, d1, d2, r2, h_ij, inv_h, q2 = pair_separation(Pi_, Pj)
         if q2 >= 4.0 or r2 == 0.0:
             continue
         if normal_stress:
@@ -918,7 +920,6 @@ def hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zet
     of one material, so momentum is kept too.  A material without shear stiffness gets no
     control (``dhg`` and the push stay zero)."""
     Pi_ = P[p]
-    hi = Pi_[H]
     bi = Pi_[BODY]
     shear = table[material[i], SHEAR]
     if shear <= 0.0:  # a material without shear stiffness (the 1D bar, a fluid): no control
@@ -932,13 +933,7 @@ def hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zet
         Pj = P[q]
         if Pj[BODY] != bi:
             continue
-        d0 = Pi_[X] - Pj[X]
-        d1 = Pi_[X + 1] - Pj[X + 1] if DIM > 1 else 0.0
-        d2 = Pi_[X + 2] - Pj[X + 2] if DIM > 2 else 0.0
-        r2 = d0 * d0 + d1 * d1 + d2 * d2
-        h_ij = 0.5 * (hi + Pj[H])
-        inv_h = 1.0 / h_ij
-        q2 = r2 * inv_h * inv_h
+        d0, d1, d2, r2, h_ij, inv_h, q2 = pair_separation(Pi_, Pj)
         if q2 >= 4.0 or r2 == 0.0:
             continue
         fq = cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM)  # grad W = fq r_ij
