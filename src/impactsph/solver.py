@@ -212,8 +212,7 @@ class Solver:
             b = self.buffers
         extra = ({"after_pairs": self._mirror, "after_moments": self._mirror_moments}
                  if self._symmetric else {})
-        if self.n_bodies > 1 or self._symmetric:  # the friction between bodies needs them
-            extra["n_bodies"] = self.n_bodies
+        extra["n_bodies"] = self.n_bodies  # rows of a larger body index are walls' ghosts
         if self.hourglass > 0.0:
             self.backend.evaluate(self.n_active, self._arrays(state), self.table,
                                   self.neighbours, self.viscosity, b, self.hourglass,

@@ -463,6 +463,16 @@ def stress_along(record, d0, d1, d2):
 
 
 @JIT(inline="always", cache=True)
+def contact_traction(Pi_, Pj, d0, d1, d2, r2, normal_stress):
+    """``(s_i, s_j)``: each particle's share of the contact push of a pair of different bodies
+    (over rho^2): the compressive normal stress along ``r_ij`` with ``normal_stress``, else
+    the pressure (``P/rho^2``; docs/modelling.md, "Contact between bodies")."""
+    if normal_stress:
+        return -stress_along(Pi_, d0, d1, d2) / r2, -stress_along(Pj, d0, d1, d2) / r2
+    return Pi_[PC], Pj[PC]
+
+
+@JIT(inline="always", cache=True)
 def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_stress, S, material,
                    table, drho, dv, de, de_visc, contact_force, pair_count, dS, L, L_sorted):
     """Pass 2 for the active particle ``i`` at sorted position ``p``: the sums over its
@@ -499,7 +509,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     vi1 = Pi_[V + 1] if DIM > 1 else 0.0
     xi2 = Pi_[X + 2] if DIM > 2 else 0.0
     vi2 = Pi_[V + 2] if DIM > 2 else 0.0
-    hi, ci, rhoi, pci, bi = Pi_[H], Pi_[C], Pi_[RHO], Pi_[PC], Pi_[BODY]
+    hi, ci, rhoi, bi = Pi_[H], Pi_[C], Pi_[RHO], Pi_[BODY]
     inv_hi = 1.0 / hi
     # accumulators: continuity / rho_i; sum m_j grad W (same body); sum m_j A_j . grad W;
     # contact and viscous accelerations; L; T = sum m_j v_ij (x) grad W; energies
@@ -643,12 +653,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
                 T21 += m_j * u2 * g1
                 T22 += m_j * u2 * g2
         else:  # another body or a wall ghost: compression-only contact
-            if normal_stress:  # the compressive normal stresses along r_ij (/rho^2)
-                sn_i = -stress_along(Pi_, d0, d1, d2) / r2
-                sn_j = -stress_along(Pj, d0, d1, d2) / r2
-            else:
-                sn_i = pci
-                sn_j = Pj[PC]
+            sn_i, sn_j = contact_traction(Pi_, Pj, d0, d1, d2, r2, normal_stress)
             s_ij = sn_i + sn_j
             if in_contact(s_ij, vg):
                 cont += continuity_pair(1.0, volume_j, vg)
@@ -812,10 +817,8 @@ def friction_particle(p, i, P, offsets, indices, visc_kind, visc_params, mu, rea
         d0, d1, d2, r2, h_ij, inv_h, q2 = pair_separation(Pi_, Pj)
         if q2 >= 4.0 or r2 == 0.0:
             continue
-        if normal_stress:
-            s_ij = -(stress_along(Pi_, d0, d1, d2) + stress_along(Pj, d0, d1, d2)) / r2
-        else:
-            s_ij = Pi_[PC] + Pj[PC]
+        sn_i, sn_j = contact_traction(Pi_, Pj, d0, d1, d2, r2, normal_stress)
+        s_ij = sn_i + sn_j
         u0 = Pi_[V] - Pj[V]
         u1 = Pi_[V + 1] - Pj[V + 1] if DIM > 1 else 0.0
         u2 = Pi_[V + 2] - Pj[V + 2] if DIM > 2 else 0.0
