@@ -73,7 +73,21 @@ CASES = {
     # plane stress (a compile-time variant: the particle pass reads the thickness ratio)
     "taylor-2d-plane-stress": ("taylor", ["bodies.0.geometry.count=[6, 10]",
                                           'two_dimensional="plane_stress"']),
+    # viscosity switches (a compile-time variant: the records carry each particle's factor,
+    # and the switch kernel sets the next one): Balsara's in 2D, the pairwise AC in 3D
+    "taylor-2d-balsara": ("taylor", ["bodies.0.geometry.count=[6, 10]",
+                                     'viscosity.scheme="balsara"']),
+    "block-3d-ac-pairwise": ("taylor", ["dimension=3", "analysis=none",
+                                        "bodies.0.velocity=[0.0, 0.0, -200.0]",
+                                        "bodies.0.geometry.origin=[-0.0015, -0.0015, 0.0]",
+                                        "bodies.0.geometry.size=[0.003, 0.003, 0.003]",
+                                        "bodies.0.geometry.count=[4, 4, 4]",
+                                        "boundaries.0.point=[0.0, 0.0, 0.0]",
+                                        "boundaries.0.normal=[0.0, 0.0, 1.0]",
+                                        'viscosity.scheme="ac_pairwise"']),
 }
+#: Cases with a viscosity switch: their buffers have a row per particle for the factor.
+SWITCHED = {"taylor-2d-balsara", "block-3d-ac-pairwise"}
 #: Cases evaluated into buffers without rows for the contact force and AC, as the solver makes
 #: for runs without them (the bars have no AC; their contact force is then not recorded).
 LEAN = {"bars-1d"}
@@ -90,7 +104,7 @@ STEPS = 100
 
 # -- shared by the parent and the worker ------------------------------------------------------
 def _prefilled_buffers(n: int, dim: int, seed: int, lean: bool = False,
-                       hourglass: bool = False):
+                       hourglass: bool = False, switched: bool = False):
     """Rate buffers filled with noise: rows a backend leaves alone must stay as they were.
     ``lean``: the buffers the solver makes for a run without contact or AC (no rows for the
     contact force and the correction), where ``RateBuffers`` has such."""
@@ -101,6 +115,8 @@ def _prefilled_buffers(n: int, dim: int, seed: int, lean: bool = False,
     options = {"contact": False, "corrected": False} if lean else {}
     if hourglass:
         options["hourglass"] = True
+    if switched:
+        options["switched"] = True
     b = RateBuffers(n, dim, **{k: v for k, v in options.items()
                                if k in inspect.signature(RateBuffers).parameters})
     rng = np.random.default_rng(seed)
@@ -171,7 +187,8 @@ def _worker(task: str, folder: Path) -> int:
             meta = json.loads((case_dir / "meta.json").read_text())
             backend = GpuRates(meta["dim"], PassOptions(**meta["options"]))
             b = _prefilled_buffers(meta["n_rows"], meta["dim"], meta["seed"], meta["lean"],
-                                   meta.get("hourglass", False))
+                                   meta.get("hourglass", False),
+                                   meta.get("switched", False))
             previous = None
             uploads = []
             for k in range(meta["calls"]):
@@ -273,6 +290,7 @@ def _perturb(state, rng) -> None:
     from impactsph.models.columns import THICKNESS_RATIO
 
     state.material_state[:, THICKNESS_RATIO] = rng.uniform(0.8, 1.2, n)
+    state.viscosity_factor[:] = rng.uniform(0.0, 1.0, n)  # read by a switch's passes only
     if state.hourglass_acceleration.shape[1]:  # the hourglass control's state
         state.hourglass_acceleration[:] = rng.normal(0.0, 1e3, state.hourglass_acceleration.shape)
 
@@ -350,9 +368,10 @@ def rate_comparison(request, tmp_path_factory):
         (case_dir / "meta.json").write_text(json.dumps(
             {"dim": dim, "n_rows": n_rows, "seed": seed, "calls": len(calls),
              "lean": case in LEAN, "options": options,
-             "hourglass": bool(calls[0]["extra"])}))
+             "hourglass": bool(calls[0]["extra"]), "switched": case in SWITCHED}))
         cpu = CpuRates(dim, PassOptions(**options))
-        b = _prefilled_buffers(n_rows, dim, seed, case in LEAN, bool(calls[0]["extra"]))
+        b = _prefilled_buffers(n_rows, dim, seed, case in LEAN, bool(calls[0]["extra"]),
+                               case in SWITCHED)
         references[case] = []
         previous = None
         for k, call in enumerate(calls):

@@ -29,7 +29,9 @@ from ._version import __version__
 from .atomic import atomic_path
 from .errors import CaseError
 from .loading import validate_case
+from .models.columns import COMMON_STATE, THICKNESS_RATIO
 from .neighbours import NeighbourList
+from .problem import build_problem
 from .simulation import Simulation, Snapshot
 from .state import ParticleState
 
@@ -80,6 +82,7 @@ def write_checkpoint(sim: Simulation, path: Path | str) -> Path:
         f.attrs["time"] = sim.state.time
         f.attrs["step"] = sim.state.step
         g = f.create_group("state")
+        g.attrs["common_state"] = json.dumps(list(COMMON_STATE))
         for name, arr in sim.state.arrays().items():
             g.create_dataset(name, data=arr)
         nl = sim.solver.neighbours
@@ -189,6 +192,20 @@ def accumulators(sim: Simulation) -> dict[str, Any]:
     }
 
 
+def _material_state_now(path: Path, stored: np.ndarray, width: int,
+                        common: str | None) -> np.ndarray:
+    """The stored material state in today's column layout.  Checkpoints of 0.2.0 written
+    before the thickness ratio joined the common state (no ``common_state`` attribute, one
+    column short) get the ratio 1 inserted; any other difference is refused."""
+    if stored.shape[1] == width:
+        return stored
+    if common is None and stored.shape[1] == width - 1:
+        return np.insert(stored, THICKNESS_RATIO, 1.0, axis=1)
+    raise CaseError(f"--restart {path}: its material state has {stored.shape[1]} columns, "
+                    f"this version's case needs {width}; continue it with the version that "
+                    "wrote it")
+
+
 def load_checkpoint(path: Path | str, case: Any = None, *, verify: bool = True
                     ) -> Simulation:
     """A :class:`Simulation` continued from a checkpoint.  ``case`` (validated) may differ
@@ -210,9 +227,13 @@ def load_checkpoint(path: Path | str, case: Any = None, *, verify: bool = True
         else:
             _check_same_case(path, case, stored)
         arrays = {name: f["state"][name][()] for name in f["state"]}
+        problem = build_problem(case)
+        arrays["material_state"] = _material_state_now(
+            path, arrays["material_state"], problem.state.material_state.shape[1],
+            f["state"].attrs.get("common_state"))
         state = ParticleState(**arrays, time=float(f.attrs["time"]),
                               step=int(f.attrs["step"]))
-        sim = Simulation(case, state=state)
+        sim = Simulation(case, problem=problem, state=state)
         g = f["neighbours"]
         nl = NeighbourList(g["offsets"][()], g["indices"][()], float(g.attrs["radius"]),
                            float(g.attrs["skin"]), g["reference_positions"][()],

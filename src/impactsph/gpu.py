@@ -83,8 +83,8 @@ def gpu_kernels(dim: int, simulated: bool, version: int = 0,
                 options: PassOptions | str | None = None):
     """The CUDA kernels for dimension ``dim`` and the registered models (``version``: the
     registries' version, so that a newly registered model gets new kernels):
-    ``(particle_kernel, pair_kernel, correction_kernel)``.  ``simulated``: built for the CUDA
-    simulator."""
+    the seven kernels of :func:`impactsph.physics.passes.cuda_kernels`, whether the forces
+    are corrected and the record width.  ``simulated``: built for the CUDA simulator."""
     passes = compiled_passes(dim, simulated, PassOptions.coerce(options))
     return (*passes.cuda_kernels(), passes.FORCE_CORRECTION, passes.RECORD_WIDTH)
 
@@ -93,6 +93,7 @@ def gpu_kernels(dim: int, simulated: bool, version: int = 0,
 #: (a buffer without rows, e.g. no contact or no AC, is skipped).
 _ACTIVE_OUT = ("drho", "dv", "de", "de_visc", "contact_force", "pair_count", "dS")
 _CORRECTION_OUT = ("dv_corr", "de_corr")
+_SWITCH_OUT = ("factor",)
 
 
 class GpuRates:
@@ -164,7 +165,7 @@ class GpuRates:
                                       "GPU passes do not mirror the pair results onto ghosts")
         x, v, rho, e, S, m, h, material, body, carried = arrays
         (particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
-         friction_kernel, force_correction, record_width) = self._kernels
+         friction_kernel, switch_kernel, force_correction, record_width) = self._kernels
         n_rows, dim = rho.shape[0], self.dim
         stream, tpb = self._stream, self.threads_per_block
         up = self._upload
@@ -182,17 +183,19 @@ class GpuRates:
         buf = self._buffer
         packed = buf("packed", (n_rows, record_width), np.float64)
         shapes = {"drho": (n_rows,), "de": (n_rows,), "de_visc": (n_rows,),
-                  "de_corr": (n_rows,), "pair_count": (n_rows,), "dS": (n_rows, 3, 3)}
+                  "de_corr": (n_rows,), "pair_count": (n_rows,), "dS": (n_rows, 3, 3),
+                  "factor": (n_rows,)}
         count_type = getattr(b.pair_count, "dtype", np.int64)
         out = {name: buf("out_" + name, shapes.get(name, (n_rows, dim)),
                          count_type if name == "pair_count" else np.float64)
-               for name in (*_ACTIVE_OUT, *_CORRECTION_OUT)}
+               for name in (*_ACTIVE_OUT, *_CORRECTION_OUT, *_SWITCH_OUT)}
         with_hourglass = hourglass > 0.0
         gradients = buf("gradients", (n_rows if with_hourglass else 0, dim, dim), np.float64)
         out["dhg"] = buf("out_dhg", (n_rows if with_hourglass else 0, dim), np.float64)
         if b.contact_force.shape[0] == 0:  # no contact in this run: the kernel writes none
             out["contact_force"] = buf("out_no_contact", (0, dim), np.float64)
         corrected = viscosity.correction is not None
+        switched = viscosity.switch is not None
         if n_rows:
             blocks = (n_rows + tpb - 1) // tpb
             particle_kernel[blocks, tpb, stream](
@@ -218,6 +221,10 @@ class GpuRates:
                         n_rows, n_active, dorder, packed, doff, dind, int(viscosity.kind),
                         viscosity.correction, out["dv_corr"], out["de_corr"], out["dv"],
                         out["de"])
+                if switched:
+                    switch_kernel[blocks, tpb, stream](
+                        n_rows, n_active, dorder, packed, doff, dind, int(viscosity.kind),
+                        viscosity.switch, out["factor"])
                 if with_hourglass:
                     dhg_state = up("hourglass_acceleration", hourglass_acceleration)
                     hourglass_kernel[blocks, tpb, stream](
@@ -225,6 +232,7 @@ class GpuRates:
                         float(hourglass), dhg_state, out["dv"], out["de"], out["dhg"])
         # results into the host buffers
         for names in (_ACTIVE_OUT, _CORRECTION_OUT if corrected else (),
+                      _SWITCH_OUT if switched else (),
                       ("dhg",) if with_hourglass else ()):
             for name in names:
                 if hasattr(b, name):

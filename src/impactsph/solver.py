@@ -18,7 +18,7 @@ from .boundaries import (
 )
 from .kernels import SUPPORT_RADIUS
 from .materials import carried_pressure
-from .models.columns import CARRIED, DAMAGE
+from .models.columns import CARRIED, DAMAGE, PASS_CARRIED, VISCOSITY_FACTOR
 from .neighbours import NeighbourList
 from .physics.rates import CpuRates, RateBuffers, ViscositySettings, pressures
 from .state import ParticleState
@@ -90,6 +90,7 @@ class Solver:
         self.pair_evaluations = 0
         self.rate_evaluations = 0
         self.corrected = viscosity.correction is not None
+        self.switched = viscosity.switch is not None
         self.powers = (0.0, 0.0, 0.0)
         self.wall_force = np.zeros(state.dim)
         self.neighbours: NeighbourList | None = None
@@ -135,7 +136,7 @@ class Solver:
         if self.walls is not None:
             ext = {"x": np.zeros((n_ext, self.dim)), "v": np.zeros((n_ext, self.dim)),
                    "rho": np.zeros(n_ext), "e": np.zeros(n_ext), "S": np.zeros((n_ext, 3, 3)),
-                   "carried": np.zeros((n_ext, CARRIED)), "m": np.zeros(n_ext),
+                   "carried": np.zeros((n_ext, PASS_CARRIED)), "m": np.zeros(n_ext),
                    "h": np.zeros(n_ext),
                    "material": np.zeros(n_ext, np.int32), "body": np.zeros(n_ext, np.int32)}
             ext["m"][:n], ext["h"][:n] = state.mass, state.smoothing_length
@@ -150,7 +151,8 @@ class Solver:
             self.buffers = RateBuffers(n_ext, self.dim,
                                        contact=self.walls is not None or self.n_bodies > 1,
                                        corrected=self.corrected,
-                                       hourglass=self.hourglass > 0.0)
+                                       hourglass=self.hourglass > 0.0,
+                                       switched=self.switched)
         return positions
 
     def _fill(self, state: ParticleState) -> None:
@@ -159,7 +161,8 @@ class Solver:
         ext["x"][:n], ext["v"][:n] = state.position, state.velocity
         ext["rho"][:n], ext["e"][:n] = state.density, state.specific_energy
         ext["S"][:n] = state.deviatoric_stress
-        ext["carried"][:n] = state.material_state[:, :CARRIED]
+        ext["carried"][:n, :CARRIED] = state.material_state[:, :CARRIED]
+        ext["carried"][:n, VISCOSITY_FACTOR] = state.viscosity_factor
         w = self.walls
         fill_ghosts(self._ghost_src, self._ghost_wall, w.points, w.normals, w.kinds, n,
                     ext["x"], ext["v"], ext["rho"], ext["e"], ext["S"], ext["carried"], ext["m"],
@@ -191,8 +194,9 @@ class Solver:
         included (``carried``: the common material state, :mod:`impactsph.models.columns`)."""
         if self._ext is None:
             if self._carried is None or self._carried.shape[0] != state.n:
-                self._carried = np.empty((state.n, CARRIED))
-            np.copyto(self._carried, state.material_state[:, :CARRIED])
+                self._carried = np.empty((state.n, PASS_CARRIED))
+            np.copyto(self._carried[:, :CARRIED], state.material_state[:, :CARRIED])
+            self._carried[:, VISCOSITY_FACTOR] = state.viscosity_factor
             return (state.position, state.velocity, state.density, state.specific_energy,
                     state.deviatoric_stress, state.mass, state.smoothing_length, state.material,
                     state.body, self._carried)
@@ -221,6 +225,8 @@ class Solver:
             self.backend.evaluate(self.n_active, self._arrays(state), self.table,
                                   self.neighbours, self.viscosity, b, **extra)
         n = self.n_active
+        if self.switched:  # the factors for the next evaluation (a half step later)
+            state.viscosity_factor[:] = b.factor[:n]
         totals = rate_totals(n, state.mass, state.velocity, b.de_visc, b.dv_corr, b.de_corr,
                              b.contact_force, b.pair_count, self.corrected)
         # powers at the evaluated state (W): the artificial viscosity's heating, the work rate

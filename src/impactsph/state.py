@@ -37,6 +37,9 @@ class ParticleState:
     #: (n, dim) m/s^2, the hourglass control's acceleration (docs/stabilisation.md); (n, 0)
     #: when the control is off
     hourglass_acceleration: np.ndarray = field(default=None)
+    #: (n,) the factor on each particle's artificial viscosity that a viscosity switch sets
+    #: (docs/dissipation.md): ``Pi_ij`` is multiplied by ``(f_i + f_j) / 2``; 1 without a switch
+    viscosity_factor: np.ndarray = field(default=None)
     time: float = 0.0
     step: int = 0
 
@@ -53,6 +56,8 @@ class ParticleState:
             self.material_state[:, THICKNESS_RATIO] = 1.0
         if self.hourglass_acceleration is None:
             self.hourglass_acceleration = np.zeros((self.n, 0))
+        if self.viscosity_factor is None:
+            self.viscosity_factor = np.ones(self.n)
 
     @property
     def n(self) -> int:

@@ -44,6 +44,7 @@ def particle_fields(sim: Any) -> dict[str, np.ndarray]:
         "body": s.body.astype(np.int32),
         "plastic_work": s.plastic_work.copy(),
         **{name: s.material_state[:, k].copy() for k, name in enumerate(COMMON_STATE)},
+        "viscosity_factor": s.viscosity_factor.copy(),
     }
 
 

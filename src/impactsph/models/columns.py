@@ -32,8 +32,13 @@ COMMON_COLUMNS = ("density", "bulk_modulus", "shear_modulus", "wave_modulus", "e
 EQUIVALENT_PLASTIC_STRAIN, PLASTIC_STRAIN_RATE, TEMPERATURE, DAMAGE, THICKNESS_RATIO = range(5)
 COMMON_STATE = ("equivalent_plastic_strain", "plastic_strain_rate", "temperature", "damage",
                 "thickness_ratio")
-#: the number of common columns: the rate passes carry these (as ``carried``) for every row
+#: the number of common columns
 CARRIED = len(COMMON_STATE)
+#: the rate passes' ``carried`` array (every row, ghosts included): the common columns, then
+#: the particle's viscosity factor (``ParticleState.viscosity_factor``: 1 unless the viscosity
+#: scheme has a switch; it is not a material state and the integrator does not touch it)
+VISCOSITY_FACTOR = CARRIED
+PASS_CARRIED = CARRIED + 1
 #: units of the common state, for outputs
 COMMON_STATE_UNITS = {"equivalent_plastic_strain": "", "plastic_strain_rate": "1/s",
                       "temperature": "K", "damage": "", "thickness_ratio": ""}

@@ -151,7 +151,16 @@ class ViscosityScheme:
     dim, params, dv_corr, de_corr, dv, de)`` for the active particle ``i`` at sorted position
     ``p``, reading the packed records ``P`` (``layout``: the tuple of their column indices,
     see :func:`impactsph.physics.passes.record_columns`) and adding its terms to ``dv``,
-    ``de``; ``correction_parameters(viscosity)`` gives its four floats."""
+    ``de``; ``correction_parameters(viscosity)`` gives its four floats.
+
+    ``switch`` (compiled, optional): ``switch(p, i, P, offsets, indices, layout, dim, params)
+    -> f_i``, the particle's viscosity factor for the next rate evaluation (a float in
+    ``[0, 1]``), read from the packed records after the pair pass (``layout``: the columns
+    ``(x, v, h, volume, body, u, c)``, ``u`` the viscous acceleration of the unscaled
+    ``Pi_ij``); ``switch_parameters(viscosity)`` gives its four floats.  A scheme with a switch
+    has every pair's ``Pi_ij`` multiplied by the mean ``(f_i + f_j) / 2`` of the two
+    particles' factors (docs/dissipation.md): a symmetric factor, so momentum and the energy
+    balance are kept exactly."""
 
     name: str
     pair_viscosity: Any
@@ -161,6 +170,8 @@ class ViscosityScheme:
     correction: Any = None
     correction_parameters: Callable[[Any], tuple[float, float, float, float]] | None = None
     source: str = ""
+    switch: Any = None
+    switch_parameters: Callable[[Any], tuple[float, float, float, float]] | None = None
 
 
 M = TypeVar("M", EquationOfState, StrengthModel, DamageModel, ViscosityScheme)

@@ -11,6 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any
 
+from ..models.registry import VISCOSITY
+
 #: ``gradient_correction`` modes and the file-name tag of their generated modules
 GRADIENT_CORRECTIONS = {"none": "", "velocity_gradient": "_kgc",
                         "velocity_gradient_and_forces": "_kgcf"}
@@ -35,7 +37,10 @@ class PassOptions:
     - ``contact_friction``: the Coulomb coefficient between bodies (0: frictionless); a
       run-time argument of the friction pass, which runs only where it is > 0;
     - ``plane_stress``: a 2D run in plane stress (``sigma_zz = 0``, each particle's thickness
-      changing; :func:`impactsph.physics.passes.plane_stress_return`) instead of plane strain.
+      changing; :func:`impactsph.physics.passes.plane_stress_return`) instead of plane strain;
+    - ``viscosity_factor``: the viscosity scheme has a switch (a per-particle factor on
+      ``Pi_ij``, :class:`impactsph.models.registry.ViscosityScheme`): the records carry the
+      factor and the pair pass also sums the unscaled viscous acceleration for the switch.
     """
 
     gradient_correction: str = "none"
@@ -45,6 +50,7 @@ class PassOptions:
     reference_q: float = 1.0 / 1.3
     plane_stress: bool = False
     contact_friction: float = 0.0
+    viscosity_factor: bool = False
 
     def __post_init__(self) -> None:
         if self.gradient_correction not in GRADIENT_CORRECTIONS:
@@ -74,7 +80,8 @@ class PassOptions:
                    artificial_stress_exponent=float(stab.artificial_stress_exponent),
                    reference_q=1.0 / float(case.kernel.h_over_dx),
                    plane_stress=getattr(case, "two_dimensional", "") == "plane_stress",
-                   contact_friction=float(case.contact.friction))
+                   contact_friction=float(case.contact.friction),
+                   viscosity_factor=VISCOSITY[case.viscosity.scheme].switch is not None)
 
     @property
     def normal_stress(self) -> bool:
@@ -95,6 +102,8 @@ class PassOptions:
             tag += "_as"
         if self.plane_stress:
             tag += "_ps"
+        if self.viscosity_factor:
+            tag += "_vf"
         return tag
 
     def constants(self) -> list[str]:
@@ -109,4 +118,5 @@ class PassOptions:
             f"{float(self.artificial_stress_exponent) if on else 4.0!r}",
             f"REFERENCE_Q = {float(self.reference_q) if on else 1.0!r}",
             f"PLANE_STRESS = {bool(self.plane_stress)}",
+            f"VISCOSITY_FACTOR = {bool(self.viscosity_factor)}",
         ]

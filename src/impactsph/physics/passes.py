@@ -54,6 +54,9 @@ from impactsph.models.columns import (
     TEMPERATURE,
     THICKNESS_RATIO,
 )
+from impactsph.models.columns import (
+    VISCOSITY_FACTOR as CARRIED_FACTOR,
+)
 from impactsph.physics.contact import (
     FRICTION_REGULARISATION,
     contact_acceleration_pair,
@@ -75,10 +78,12 @@ ARTIFICIAL_STRESS = 0.0
 ARTIFICIAL_STRESS_EXPONENT = 4.0
 REFERENCE_Q = 1.0
 PLANE_STRESS = False
+VISCOSITY_FACTOR = False
 JIT = nb.njit
 EOS_PARAMS = STRENGTH_PARAMS = DAMAGE_PARAMS = STATE_WIDTH = 6
 STRENGTH_STATE = DAMAGE_STATE = 4
 eos_pressure = strength_return = damage_update = pair_viscosity = viscosity_correction = None
+viscosity_switch = None
 # <<< binding
 
 #: LLVM may fuse multiply-adds and use reciprocals in the pair pass (deterministic on one
@@ -86,7 +91,8 @@ eos_pressure = strength_return = damage_update = pair_viscosity = viscosity_corr
 FASTMATH = {"contract", "arcp", "nsz"}
 
 _COLUMNS = record_columns(DIM, correction_matrix=FORCE_CORRECTION,
-                          artificial_stress=ARTIFICIAL_STRESS > 0.0)
+                          artificial_stress=ARTIFICIAL_STRESS > 0.0,
+                          viscosity_factor=VISCOSITY_FACTOR)
 X, V, H, M, VOL, RHO, C, PC, BODY, A0, U = (_COLUMNS[k] for k in (
     "x", "v", "h", "m", "volume", "rho", "c", "pc", "body", "A", "u"))
 RECORD_WIDTH = _COLUMNS["width"]
@@ -121,6 +127,10 @@ MOMENT_FULL = 0.15 ** DIM
 MOMENT_NONE = 0.05 ** DIM
 #: the record columns a correction reads: (x, v, h, volume, body, u)
 CORRECTION_COLUMNS = (X, V, H, VOL, BODY, U)
+#: the viscosity factor's column (VISCOSITY_FACTOR only)
+VF = _COLUMNS.get("f", 0)
+#: the record columns a viscosity switch reads: (x, v, h, volume, body, u, c)
+SWITCH_COLUMNS = (X, V, H, VOL, BODY, U, C)
 
 
 @JIT(inline="always", cache=True)
@@ -315,6 +325,8 @@ def particle_record(p, i, x, v, m, rho, e, S, carried, h, body, material, table,
     P[p, BODY] = body[i]
     if ARTIFICIAL_STRESS > 0.0:
         artificial_stress_record(P, p)
+    if VISCOSITY_FACTOR:
+        P[p, VF] = carried[i, CARRIED_FACTOR]
 
 
 @JIT(inline="always", cache=True)
@@ -519,6 +531,10 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     k0 = k1 = k2 = 0.0
     w0 = w1 = w2 = 0.0
     f0 = f1 = f2 = 0.0  # viscous push across bodies (part of the contact force)
+    # a scheme with a switch (VISCOSITY_FACTOR): the particle's factor f_i, and the viscous
+    # acceleration of the unscaled Pi_ij, which the switch reads
+    fi = Pi_[VF] if VISCOSITY_FACTOR else 1.0
+    wr0 = wr1 = wr2 = 0.0
     L00 = L01 = L02 = L10 = L11 = L12 = L20 = L21 = L22 = 0.0
     T00 = T01 = T02 = T10 = T11 = T12 = T20 = T21 = T22 = 0.0
     # the kernel gradient correction's moment matrix B = -sum_j V_j r_ij (x) grad W_ij
@@ -664,6 +680,12 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
                 de_contact += contact_work_pair(m_j, sn_i, s_ij, vg)
         pi_ij = pair_viscosity(visc_kind, vr, r2, h_ij, 0.5 * (ci + Pj[C]),
                                0.5 * (rhoi + Pj[RHO]), visc_params)
+        if VISCOSITY_FACTOR:  # the switch: Pi_ij (f_i + f_j) / 2, symmetric in i, j
+            raw = viscous_acceleration_pair(m_j, pi_ij, 1.0)
+            wr0 += raw * g0
+            wr1 += raw * g1
+            wr2 += raw * g2
+            pi_ij *= 0.5 * (fi + Pj[VF])
         visc = viscous_acceleration_pair(m_j, pi_ij, 1.0)  # 0 if receding
         w0 += visc * g0
         w1 += visc * g1
@@ -686,6 +708,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     acc = (a0, a1, a2)
     kc = (k0, k1, k2)
     wv = (w0, w1, w2)
+    wr = (wr0, wr1, wr2) if VISCOSITY_FACTOR else wv
     fv = (f0, f1, f2)
     Lt = ((L00, L01, L02), (L10, L11, L12), (L20, L21, L22))
     Tt = ((T00, T01, T02), (T10, T11, T12), (T20, T21, T22))
@@ -705,7 +728,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
         if ARTIFICIAL_STRESS > 0.0:
             s += xs[a]
         dv[i, a] = s + wv[a]
-        P[p, U + a] = wv[a]
+        P[p, U + a] = wr[a]
         if track_contact:
             contact_force[i, a] = m_i * (kc[a] + fv[a])
     if GRADIENT_CORRECTION:
@@ -825,6 +848,8 @@ def friction_particle(p, i, P, offsets, indices, visc_kind, visc_params, mu, rea
         vr = u0 * d0 + u1 * d1 + u2 * d2
         pi_ij = pair_viscosity(visc_kind, vr, r2, h_ij, 0.5 * (ci + Pj[C]),
                                0.5 * (Pi_[RHO] + Pj[RHO]), visc_params)  # 0 if receding
+        if VISCOSITY_FACTOR:  # as the pair pass applies it
+            pi_ij *= 0.5 * (Pi_[VF] + Pj[VF])
         normal = max(s_ij, 0.0) + pi_ij
         if normal <= 0.0:
             continue
@@ -1023,6 +1048,21 @@ def correction_pass(n_active, order, P, offsets, indices, visc_kind, correction_
 
 
 @JIT(parallel=True, cache=True)
+def switch_pass(n_active, order, P, offsets, indices, visc_kind, switch_params, factor,
+                chunk_size):
+    """The viscosity switch (a scheme with one) over the active particles, after the pair
+    pass: ``factor[i]``, the particle's factor for the next rate evaluation."""
+    n = order.shape[0]
+    n_chunks = (n + chunk_size - 1) // chunk_size
+    for chunk in nb.prange(n_chunks):
+        for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
+            i = order[p]
+            if i < n_active:
+                factor[i] = viscosity_switch(visc_kind, p, i, P, offsets, indices,
+                                             SWITCH_COLUMNS, DIM, switch_params)
+
+
+@JIT(parallel=True, cache=True)
 def friction_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, mu, real_bodies,
                   normal_stress, dv, de, contact_force, chunk_size):
     """Friction between bodies (a case with ``[contact] friction > 0`` only) over the active
@@ -1076,7 +1116,7 @@ def pressures(rho, e, material, table, out):
 def cuda_kernels():
     """The same bodies as CUDA kernels, one thread per sorted position ``p``:
     ``(particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
-    friction_kernel)``.
+    friction_kernel, switch_kernel)``.
     They launch and
     state no physics; :class:`impactsph.gpu.GpuRates` moves the data."""
     global cuda  # a module global, as numba's CUDA simulator expects to find it
@@ -1117,6 +1157,14 @@ def cuda_kernels():
                                  dv, de)
 
     @cuda.jit
+    def switch_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind, switch_params,
+                      factor):
+        p = cuda.grid(1)
+        if p < n_rows and order[p] < n_active:
+            factor[order[p]] = viscosity_switch(visc_kind, p, order[p], P, offsets, indices,
+                                                SWITCH_COLUMNS, DIM, switch_params)
+
+    @cuda.jit
     def moment_kernel(n_rows, P, offsets, indices):
         p = cuda.grid(1)
         if p < n_rows:
@@ -1139,4 +1187,4 @@ def cuda_kernels():
                               real_bodies, normal_stress, dv, de, contact_force)
 
     return (particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
-            friction_kernel)
+            friction_kernel, switch_kernel)

@@ -46,6 +46,7 @@ class ViscositySettings:
     kind: int
     pair: tuple[float, float, float, float]
     correction: tuple[float, float, float, float] | None = None
+    switch: tuple[float, float, float, float] | None = None
 
     @classmethod
     def of(cls, viscosity: Any) -> ViscositySettings:
@@ -54,8 +55,11 @@ class ViscositySettings:
         scheme = VISCOSITY[viscosity.scheme]
         correction = (tuple(float(c) for c in scheme.correction_parameters(viscosity))
                       if scheme.correction is not None else None)
+        switch = (tuple(float(c) for c in scheme.switch_parameters(viscosity))
+                  if scheme.switch is not None else None)
         return cls(VISCOSITY.index(scheme.name),
-                   tuple(float(c) for c in scheme.pair_parameters(viscosity)), correction)
+                   tuple(float(c) for c in scheme.pair_parameters(viscosity)), correction,
+                   switch)
 
 
 class RateBuffers:
@@ -64,7 +68,7 @@ class RateBuffers:
     correction terms only with a correcting scheme: otherwise they have no rows."""
 
     def __init__(self, n: int, dim: int, contact: bool = True, corrected: bool = True,
-                 hourglass: bool = False):
+                 hourglass: bool = False, switched: bool = False):
         self.drho = np.zeros(n)
         self.dv = np.zeros((n, dim))
         self.de = np.zeros(n)
@@ -75,6 +79,8 @@ class RateBuffers:
         self.dv_corr = np.zeros((n if corrected else 0, dim))
         self.de_corr = np.zeros(n if corrected else 0)
         self.dhg = np.zeros((n if hourglass else 0, dim))  # the hourglass acceleration's rate
+        #: the viscosity switch's factor of each particle, for the next evaluation
+        self.factor = np.ones(n if switched else 0)
 
 
 class CpuRates:
@@ -100,7 +106,9 @@ class CpuRates:
         ``drho``, the total accelerations ``dv`` and specific-energy rates ``de``, the
         viscous heating ``de_visc``, ``contact_force, pair_count, dS`` and, for a scheme with
         a correction, ``dv_corr, de_corr``; with ``hourglass`` (the coefficient zeta) > 0,
-        ``dhg`` from the particles' ``hourglass_acceleration`` (added to ``dv``).
+        ``dhg`` from the particles' ``hourglass_acceleration`` (added to ``dv``); for a scheme
+        with a switch, ``factor`` (each particle's viscosity factor for the next evaluation;
+        the factors used are the last column of ``carried``).
         ``after_pairs(packed, gradients, u_column)``, if given, runs after the pair pass and
         before the passes that read its per-particle results (the symmetry planes' mirror:
         :func:`impactsph.boundaries.mirror_ghost_results`); ``after_moments(packed, c0)``
@@ -144,6 +152,12 @@ class CpuRates:
             k.correction_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
                               viscosity.kind, viscosity.correction, b.dv_corr, b.de_corr,
                               b.dv, b.de, chunk)
+        if viscosity.switch is not None:
+            if b.factor.shape[0] < n_active or not k.VISCOSITY_FACTOR:
+                raise ValueError("a viscosity switch needs RateBuffers(..., switched=True) and "
+                                 "passes compiled with PassOptions(viscosity_factor=True)")
+            k.switch_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
+                          viscosity.kind, viscosity.switch, b.factor, chunk)
         if hourglass > 0.0:
             k.hourglass_pass(n_active, nl.order, self._packed, self._gradients, nl.offsets,
                              nl.indices, material, table, hourglass, hourglass_acceleration,
@@ -158,13 +172,11 @@ def pressures(rho: np.ndarray, e: np.ndarray, material: np.ndarray, table: np.nd
     return compiled_passes(dim).pressures(rho, e, material, table, out)
 
 
-def correction_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray,
-                    h: np.ndarray, body: np.ndarray, neighbours, u: np.ndarray,
-                    viscosity: Any) -> tuple[np.ndarray, np.ndarray]:
-    """The correction pass alone on given fields: ``(dv_corr, de_corr)`` for viscous
-    accelerations ``u`` (all particles active), for the ``[viscosity]`` table ``viscosity``
-    of a correcting scheme.  For tests and analysis; the solver runs it inside
-    :meth:`CpuRates.evaluate`."""
+def _records_of(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray, h: np.ndarray,
+                body: np.ndarray, neighbours, u: np.ndarray, c: np.ndarray | None = None
+                ) -> np.ndarray:
+    """Packed records (:mod:`.records`) of given fields in the list's order, for running one
+    per-particle pass alone."""
     n, dim = x.shape
     lay = record_columns(dim)
     order = neighbours.order
@@ -177,9 +189,39 @@ def correction_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray
     packed[:, lay["rho"]] = rho[order]
     packed[:, lay["body"]] = body[order]
     packed[:, lay["u"]:lay["u"] + dim] = u[order]
+    if c is not None:
+        packed[:, lay["c"]] = c[order]
+    return packed
+
+
+def correction_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray,
+                    h: np.ndarray, body: np.ndarray, neighbours, u: np.ndarray,
+                    viscosity: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The correction pass alone on given fields: ``(dv_corr, de_corr)`` for viscous
+    accelerations ``u`` (all particles active), for the ``[viscosity]`` table ``viscosity``
+    of a correcting scheme.  For tests and analysis; the solver runs it inside
+    :meth:`CpuRates.evaluate`."""
+    n, dim = x.shape
+    packed = _records_of(x, v, m, rho, h, body, neighbours, u)
     settings = ViscositySettings.of(viscosity)
     dv_corr, de_corr = np.zeros((n, dim)), np.zeros(n)
     compiled_passes(dim).correction_pass(
-        n, order, packed, neighbours.offsets, neighbours.indices, settings.kind,
+        n, neighbours.order, packed, neighbours.offsets, neighbours.indices, settings.kind,
         settings.correction, dv_corr, de_corr, np.zeros((n, dim)), np.zeros(n), chunk_size(n))
     return dv_corr, de_corr
+
+
+def switch_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray, h: np.ndarray,
+                body: np.ndarray, c: np.ndarray, neighbours, u: np.ndarray,
+                viscosity: Any) -> np.ndarray:
+    """The viscosity switch alone on given fields (wave speeds ``c``, unscaled viscous
+    accelerations ``u``; all particles active): each particle's factor, for the
+    ``[viscosity]`` table ``viscosity`` of a scheme with a switch.  For tests and analysis."""
+    n, dim = x.shape
+    packed = _records_of(x, v, m, rho, h, body, neighbours, u, c)
+    settings = ViscositySettings.of(viscosity)
+    factor = np.zeros(n)
+    compiled_passes(dim).switch_pass(
+        n, neighbours.order, packed, neighbours.offsets, neighbours.indices, settings.kind,
+        settings.switch, factor, chunk_size(n))
+    return factor

@@ -1,3 +1,3 @@
 """Viscosity schemes, one module each; importing this package registers them."""
 
-from . import correction, monaghan  # noqa: F401
+from . import correction, monaghan, switches  # noqa: F401

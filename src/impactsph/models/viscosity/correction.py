@@ -139,17 +139,10 @@ def pair_viscosity(vr: float, r2: float, h_ij: float, c_ij: float, rho_ij: float
 
 
 @nb.njit(inline="always", cache=True)
-def correct(p, i, P, offsets, indices, layout, dim, params, dv_corr, de_corr, dv, de):
-    """The correction of the active particle ``i`` at sorted position ``p`` (eqs 33-37):
-    ``-u_corr_i`` and its energy term into ``dv_corr[i]``, ``de_corr[i]``, and added to the
-    totals ``dv[i]``, ``de[i]``.  Reads the packed records ``P`` (columns ``layout = (x, v,
-    h, volume, body, u)``: :func:`impactsph.physics.passes.record_columns`), whose ``u`` the
-    pair pass (evaluated with (1, 1)) has filled; neighbours of the same body within
-    ``2 h_c``, ``h_c = h_ratio h``.  ``params = (h_ratio, variant, energy mode, unused)``."""
-    X, V, H, VOL, BODY, U = layout
-    h_ratio = params[0]
-    variant = int(params[1])
-    energy_mode = int(params[2])
+def correction_sums(p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, h_ratio):
+    """The neighbour sums of eq 34 for the particle at sorted position ``p``, over the
+    neighbours ``j != i`` of the same body within ``2 h_c``, ``h_c = h_ratio h_ij``:
+    ``(w_ii, sum_j w_ij, sum_j w_ij u_j (three components), 1/2 sum_j w_ij v_ij . u_j)``."""
     Pi_ = P[p]
     u0 = u1 = u2 = 0.0
     weight_sum = 0.0
@@ -176,6 +169,23 @@ def correct(p, i, P, offsets, indices, layout, dim, params, dv_corr, de_corr, dv
             u2 += w * Pj[U + 2]
         for a in range(dim):
             paper_energy += 0.5 * w * (Pi_[V + a] - Pj[V + a]) * Pj[U + a]
+    return self_weight, weight_sum, u0, u1, u2, paper_energy
+
+
+@nb.njit(inline="always", cache=True)
+def correct(p, i, P, offsets, indices, layout, dim, params, dv_corr, de_corr, dv, de):
+    """The correction of the active particle ``i`` at sorted position ``p`` (eqs 33-37):
+    ``-u_corr_i`` and its energy term into ``dv_corr[i]``, ``de_corr[i]``, and added to the
+    totals ``dv[i]``, ``de[i]``.  Reads the packed records ``P`` (columns ``layout = (x, v,
+    h, volume, body, u)``: :func:`impactsph.physics.passes.record_columns`), whose ``u`` the
+    pair pass (evaluated with (1, 1)) has filled; neighbours of the same body within
+    ``2 h_c``, ``h_c = h_ratio h``.  ``params = (h_ratio, variant, energy mode, unused)``."""
+    X, V, H, VOL, BODY, U = layout
+    variant = int(params[1])
+    energy_mode = int(params[2])
+    Pi_ = P[p]
+    self_weight, weight_sum, u0, u1, u2, paper_energy = correction_sums(
+        p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, params[0])
     weighted_u = (u0, u1, u2)
     work = 0.0
     for a in range(dim):

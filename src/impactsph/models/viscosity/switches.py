@@ -1,0 +1,142 @@
+"""Viscosity switches: Monaghan's viscosity with each pair's ``Pi_ij`` multiplied by the mean
+``(f_i + f_j) / 2`` of a per-particle factor ``f`` in ``[0, 1]`` (docs/dissipation.md).
+
+A symmetric factor keeps the pair force ``m_i m_j Pi_ij f_ij grad W_ij`` antisymmetric, so
+linear momentum is kept to round-off, and the heating ``1/2 m_j Pi_ij f_ij v_ij . grad W_ij``
+is still the pair force's work, so the total energy is kept; ``Pi_ij f_ij >= 0`` for an
+approaching pair, so a switch never makes the viscosity anti-dissipative.
+
+The factor is set after each rate evaluation from that evaluation's fields and used in the
+next one (half a time step later, with the midpoint integrator); it starts at 1 (the full
+viscosity) and is a per-particle array of the state (``ParticleState.viscosity_factor``,
+written to checkpoints and snapshots).  Two switches are registered:
+
+- ``balsara``: Balsara (1995, J. Comput. Phys. 121:357-372, eq 4.1)::
+
+      f_i = |div v|_i / (|div v|_i + |curl v|_i + eps_B c_i / h_i)
+
+  with the SPH estimates ``div v_i = -sum_j V_j v_ij . grad W_ij`` and ``curl v_i = -sum_j
+  V_j grad W_ij x v_ij`` (neighbours of the same body).  The viscosity stays on in
+  compression and expansion and is switched off in shear and rotation, where Monaghan's
+  ``Pi_ij`` heats a solid that should not be heated (the foot of a Taylor bar).
+  ``eps_B`` = ``balsara_epsilon`` (Balsara's 1e-4) keeps the denominator positive.
+
+- ``ac_pairwise``: the acceleration correction of Shaw & Reid (2009, eqs 31-36) turned into
+  a factor.  From the unscaled viscous acceleration ``u_i`` (eq 32, (1, 1)) and the paper's
+  correction ``u_corr_i`` (eq 34, in the reading and width the case chooses, as for
+  ``scheme = "ac"``), the fraction of ``u_i`` that the correction leaves, along ``u_i``::
+
+      f_i = clip(u_i . (u_i - u_corr_i) / |u_i|^2, 0, 1)      (f_i = 1 where u_i = 0)
+
+  Where AC is a mild correction this is AC's surviving fraction; where AC's correction would
+  exceed the viscosity itself (an anti-viscous net, the cause of the 3D blow-ups in
+  docs/validation.md) the factor stops at 0.  The correction force of ``scheme = "ac"`` is
+  not antisymmetric (its momentum drift: docs/acceleration-correction.md); this one is.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+from pydantic import Field
+
+from ...kernels import cubic_spline_gradient_factor
+from ..registry import VISCOSITY, ViscosityScheme
+from ..types import PositiveFloat
+from .correction import (
+    VARIANTS,
+    CorrectionParameters,
+    corrected_viscous_acceleration,
+    correction_sums,
+)
+from .correction import pair_viscosity as unit_viscosity
+from .monaghan import MonaghanParameters
+from .monaghan import pair_viscosity as monaghan_pair
+
+
+class BalsaraParameters(MonaghanParameters):
+    """The ``[viscosity]`` fields of Monaghan's viscosity with Balsara's switch."""
+
+    balsara_epsilon: PositiveFloat = Field(
+        1e-4, description="eps_B of Balsara's switch: the floor eps_B c/h of its denominator")
+
+
+@nb.njit(inline="always", cache=True)
+def balsara_factor(p, i, P, offsets, indices, layout, dim, params):
+    """Balsara's ``f_i`` for the particle at sorted position ``p`` (``params = (eps_B, unused,
+    unused, unused)``; ``layout = (x, v, h, volume, body, u, c)``)."""
+    X, V, H, VOL, BODY, U, C = layout
+    Pi_ = P[p]
+    div = 0.0
+    curl0 = curl1 = curl2 = 0.0
+    h_i = Pi_[H]
+    for k in range(offsets[p], offsets[p + 1]):
+        Pj = P[indices[k]]
+        if Pj[BODY] != Pi_[BODY]:
+            continue
+        d0 = Pi_[X] - Pj[X]
+        d1 = Pi_[X + 1] - Pj[X + 1] if dim > 1 else 0.0
+        d2 = Pi_[X + 2] - Pj[X + 2] if dim > 2 else 0.0
+        r2 = d0 * d0 + d1 * d1 + d2 * d2
+        inv_h = 2.0 / (h_i + Pj[H])
+        q2 = r2 * inv_h * inv_h
+        if q2 >= 4.0 or r2 == 0.0:
+            continue
+        fq = Pj[VOL] * cubic_spline_gradient_factor(math.sqrt(q2), inv_h, dim)
+        g0, g1, g2 = fq * d0, fq * d1, fq * d2  # V_j grad W_ij
+        u0 = Pi_[V] - Pj[V]
+        u1 = Pi_[V + 1] - Pj[V + 1] if dim > 1 else 0.0
+        u2 = Pi_[V + 2] - Pj[V + 2] if dim > 2 else 0.0
+        div -= u0 * g0 + u1 * g1 + u2 * g2
+        curl0 -= g1 * u2 - g2 * u1
+        curl1 -= g2 * u0 - g0 * u2
+        curl2 -= g0 * u1 - g1 * u0
+    a = abs(div)
+    b = math.sqrt(curl0 * curl0 + curl1 * curl1 + curl2 * curl2)
+    return a / (a + b + params[0] * Pi_[C] / h_i)
+
+
+class PairwiseCorrectionParameters(CorrectionParameters):
+    """The ``[viscosity]`` fields of the pairwise acceleration correction: those of
+    ``scheme = "ac"`` (``energy_correction`` is not used: the pairwise form books its heating
+    exactly)."""
+
+
+@nb.njit(inline="always", cache=True)
+def ac_pairwise_factor(p, i, P, offsets, indices, layout, dim, params):
+    """The pairwise AC's ``f_i`` (``params = (h_ratio, variant, unused, unused)``)."""
+    X, V, H, VOL, BODY, U, C = layout
+    Pi_ = P[p]
+    self_weight, weight_sum, s0, s1, s2, _ = correction_sums(
+        p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, params[0])
+    variant = int(params[1])
+    weighted = (s0, s1, s2)
+    uu = 0.0
+    un = 0.0
+    for a in range(dim):
+        u = Pi_[U + a]
+        uu += u * u
+        un += u * corrected_viscous_acceleration(u, self_weight, weight_sum, weighted[a],
+                                                 variant)
+    if uu == 0.0:
+        return 1.0
+    return min(max(un / uu, 0.0), 1.0)
+
+
+BALSARA = VISCOSITY.register(ViscosityScheme(
+    name="balsara", pair_viscosity=monaghan_pair, parameters=BalsaraParameters,
+    pair_parameters=lambda v: (float(v.alpha1), float(v.alpha2), float(v.epsilon), 0.0),
+    switch=balsara_factor,
+    switch_parameters=lambda v: (float(v.balsara_epsilon), 0.0, 0.0, 0.0),
+    source="Balsara (1995) J Comput Phys 121:357, eq 4.1",
+    description="Monaghan's viscosity with Balsara's shear switch"))
+
+AC_PAIRWISE = VISCOSITY.register(ViscosityScheme(
+    name="ac_pairwise", pair_viscosity=unit_viscosity, parameters=PairwiseCorrectionParameters,
+    pair_parameters=lambda v: (1.0, 1.0, float(v.epsilon), 0.0),
+    switch=ac_pairwise_factor,
+    switch_parameters=lambda v: (float(v.correction_h_ratio), float(VARIANTS[v.correction]),
+                                 0.0, 0.0),
+    source="Shaw & Reid (2009) eqs 31-36, as a symmetric factor (docs/dissipation.md)",
+    description="the acceleration correction as a pairwise, momentum-conserving factor"))
