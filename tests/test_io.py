@@ -17,6 +17,7 @@ from typer.testing import CliRunner
 from impactsph.atomic import atomic_path, write_text
 from impactsph.checkpoint import load_checkpoint, write_checkpoint
 from impactsph.cli import app
+from impactsph.errors import CaseError
 from impactsph.loading import load_case
 from impactsph.runner import run_case
 from impactsph.simulation import Simulation
@@ -84,6 +85,8 @@ def final_arrays(sim):
 @pytest.mark.parametrize("case_name,overrides", [
     ("bars", ["time.end=12e-6"]),
     ("taylor", ["time.end=6e-6"]),  # walls (ghosts), plasticity, AC
+    # a viscosity switch: its factors are state that the next evaluation reads
+    ("taylor", ["time.end=6e-6", 'viscosity.scheme="balsara"']),
 ])
 def test_restart_is_bitwise_identical(tmp_path, case_name, overrides):
     end = float(overrides[0].split("=")[1])
@@ -194,3 +197,33 @@ def test_checkpoint_of_an_older_version_with_more_accumulators_loads(tmp_path):
     sim.run()
     for name, arr in final_arrays(sim).items():
         np.testing.assert_array_equal(again.state.arrays()[name], arr, err_msg=name)
+
+
+def test_checkpoint_before_the_thickness_ratio_loads(tmp_path):
+    """A 0.2.0 checkpoint written before the thickness ratio joined the common material state
+    (one column fewer, no ``common_state`` attribute, no viscosity factors) continues with
+    ratio 1 and factors 1, as the run it came from; a state of another width is refused."""
+    from impactsph.models.columns import THICKNESS_RATIO
+
+    case = load_case("taylor", ["time.end=2e-6"])
+    sim = Simulation(case)
+    sim.run(t_end=1e-6)
+    path = write_checkpoint(sim, tmp_path / "checkpoint.h5")
+    with h5py.File(path, "a") as f:
+        del f.attrs["sha256"]
+        ms = f["state"]["material_state"][()]
+        del f["state"]["material_state"], f["state"]["viscosity_factor"]
+        del f["state"].attrs["common_state"]
+        f["state"].create_dataset("material_state", data=np.delete(ms, THICKNESS_RATIO, 1))
+    again = load_checkpoint(path, case)
+    again.run()
+    sim.run()
+    for name, arr in final_arrays(sim).items():
+        np.testing.assert_array_equal(again.state.arrays()[name], arr, err_msg=name)
+    with h5py.File(path, "a") as f:
+        ms = f["state"]["material_state"][()]
+        del f["state"]["material_state"]
+        f["state"].create_dataset("material_state", data=ms[:, :2])
+    with pytest.raises(CaseError, match=r"material state has 2 columns, this version's case "
+                                        r"needs \d+"):
+        load_checkpoint(path, case)
