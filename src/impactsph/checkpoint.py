@@ -81,6 +81,7 @@ def write_checkpoint(sim: Simulation, path: Path | str) -> Path:
         f.attrs["case"] = json.dumps(sim.case.model_dump(mode="json"))
         f.attrs["time"] = sim.state.time
         f.attrs["step"] = sim.state.step
+        f.attrs["viscosity_factor_time"] = sim.state.viscosity_factor_time
         g = f.create_group("state")
         g.attrs["common_state"] = json.dumps(list(COMMON_STATE))
         for name, arr in sim.state.arrays().items():
@@ -232,7 +233,9 @@ def load_checkpoint(path: Path | str, case: Any = None, *, verify: bool = True
             path, arrays["material_state"], problem.state.material_state.shape[1],
             f["state"].attrs.get("common_state"))
         state = ParticleState(**arrays, time=float(f.attrs["time"]),
-                              step=int(f.attrs["step"]))
+                              step=int(f.attrs["step"]),
+                              viscosity_factor_time=float(f.attrs.get("viscosity_factor_time",
+                                                                      f.attrs["time"])))
         sim = Simulation(case, problem=problem, state=state)
         g = f["neighbours"]
         nl = NeighbourList(g["offsets"][()], g["indices"][()], float(g.attrs["radius"]),

@@ -156,7 +156,7 @@ class GpuRates:
     def evaluate(self, n_active: int, arrays: tuple, table: np.ndarray, neighbours,
                  viscosity, b, hourglass: float = 0.0,
                  hourglass_acceleration: np.ndarray | None = None,
-                 after_pairs=None, n_bodies: int = 1) -> None:
+                 after_pairs=None, n_bodies: int = 1, switch_elapsed: float = 0.0) -> None:
         """As :meth:`impactsph.physics.rates.CpuRates.evaluate`: the rates of the first
         ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h, material, body, carried)`` into the
         host buffers ``b``; rows the CPU backend leaves alone are left alone."""
@@ -224,7 +224,7 @@ class GpuRates:
                 if switched:
                     switch_kernel[blocks, tpb, stream](
                         n_rows, n_active, dorder, packed, doff, dind, int(viscosity.kind),
-                        viscosity.switch, out["factor"])
+                        viscosity.switch, float(switch_elapsed), out["factor"])
                 if with_hourglass:
                     dhg_state = up("hourglass_acceleration", hourglass_acceleration)
                     hourglass_kernel[blocks, tpb, stream](

@@ -185,10 +185,11 @@ class MidpointIntegrator:
             self._any_clamped = bool(state.clamped.any())
         start = self._save_start(state)
         drivers = self.drivers
-        self._stage(state, 0.5 * dt, start, start.velocity, self.rates(state), final=False)
+        self._stage(state, 0.5 * dt, start, start.velocity, self.rates(state, time=state.time),
+                    final=False)
         if drivers is not None:
             drivers.apply(state.velocity, state.time + 0.5 * dt)
-        rates = self.rates(state)
+        rates = self.rates(state, time=state.time + 0.5 * dt)
         # x(t + dt) = x(t) + dt v(t + dt/2): the kernel reads each particle's midpoint
         # velocity before it overwrites it, so the velocity array itself is the position rate
         self._stage(state, dt, start, state.velocity, rates, final=True)

@@ -17,6 +17,7 @@ from .errors import SimulationError
 from .gauges import Gauges
 from .integrate import MidpointIntegrator
 from .materials import carried_von_mises
+from .models import VISCOSITY
 from .models.columns import COMMON_STATE, DAMAGE
 from .physics.options import PassOptions
 from .physics.rates import ViscositySettings
@@ -112,6 +113,10 @@ class Simulation:
                                      PassOptions.of_case(case)),
                                  hourglass=case.stabilisation.hourglass,
                                  wall_layer=case.contact.wall_layer)
+        if state is None:  # a fresh start: the viscosity switch's initial factors
+            scheme = VISCOSITY[case.viscosity.scheme]
+            if scheme.switch is not None:
+                self.state.viscosity_factor[:] = scheme.initial_factor(case.viscosity)
         if case.stabilisation.hourglass > 0.0 and self.state.hourglass_acceleration.shape[1] \
                 != self.state.dim:
             self.state.hourglass_acceleration = np.zeros((self.state.n, self.state.dim))

@@ -205,10 +205,12 @@ class Solver:
         return (e["x"], e["v"], e["rho"], e["e"], e["S"], e["m"], e["h"], e["material"],
                 e["body"], e["carried"])
 
-    def rates(self, state: ParticleState):
+    def rates(self, state: ParticleState, time: float | None = None):
         """Rates at ``state`` (Table 1's subroutine RATES): ``(dv, drho, de, dS, dhg)``, the
         last with no rows unless the hourglass control is on; rows beyond ``state.n`` are
-        ghosts."""
+        ghosts.  ``time``: the time of the evaluated state (the integrator's stages; a
+        viscosity switch sets the factors for that time, None: set them without time passing).
+        """
         b = self.buffers
         support = SUPPORT_RADIUS * float(state.smoothing_length.max())
         if self.neighbours.stale(state.position, support):
@@ -217,6 +219,9 @@ class Solver:
         extra = ({"after_pairs": self._mirror, "after_moments": self._mirror_moments}
                  if self._symmetric else {})
         extra["n_bodies"] = self.n_bodies  # rows of a larger body index are walls' ghosts
+        if self.switched:
+            extra["switch_elapsed"] = (0.0 if time is None
+                                       else max(time - state.viscosity_factor_time, 0.0))
         if self.hourglass > 0.0:
             self.backend.evaluate(self.n_active, self._arrays(state), self.table,
                                   self.neighbours, self.viscosity, b, self.hourglass,
@@ -227,6 +232,8 @@ class Solver:
         n = self.n_active
         if self.switched:  # the factors for the next evaluation (a half step later)
             state.viscosity_factor[:] = b.factor[:n]
+            if time is not None:
+                state.viscosity_factor_time = time
         totals = rate_totals(n, state.mass, state.velocity, b.de_visc, b.dv_corr, b.de_corr,
                              b.contact_force, b.pair_count, self.corrected)
         # powers at the evaluated state (W): the artificial viscosity's heating, the work rate

@@ -42,6 +42,9 @@ class ParticleState:
     viscosity_factor: np.ndarray = field(default=None)
     time: float = 0.0
     step: int = 0
+    #: the time (s) of the rate evaluation that set ``viscosity_factor`` (a switch that evolves
+    #: the factors integrates them over the time since)
+    viscosity_factor_time: float = 0.0
 
     def __post_init__(self) -> None:
         if self.plastic_work is None:

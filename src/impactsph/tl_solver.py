@@ -84,7 +84,7 @@ class TotalLagrangianSolver:
         """Restart from a checkpoint: nothing to take over (the reference configuration is
         ``state.initial_position``, set up already)."""
 
-    def rates(self, state: ParticleState):
+    def rates(self, state: ParticleState, time: float | None = None):
         """Rates at ``state``: ``(dv, drho, de, dS, dhg)``, ``dhg`` with no rows."""
         b, ref, n = self.buffers, self.ref, self.n_active
         self._pressures(state.density, state.specific_energy, state.material, self.table,

@@ -153,11 +153,13 @@ class ViscosityScheme:
     see :func:`impactsph.physics.passes.record_columns`) and adding its terms to ``dv``,
     ``de``; ``correction_parameters(viscosity)`` gives its four floats.
 
-    ``switch`` (compiled, optional): ``switch(p, i, P, offsets, indices, layout, dim, params)
-    -> f_i``, the particle's viscosity factor for the next rate evaluation (a float in
-    ``[0, 1]``), read from the packed records after the pair pass (``layout``: the columns
-    ``(x, v, h, volume, body, u, c)``, ``u`` the viscous acceleration of the unscaled
-    ``Pi_ij``); ``switch_parameters(viscosity)`` gives its four floats.  A scheme with a switch
+    ``switch`` (compiled, optional): ``switch(p, i, P, offsets, indices, layout, dim, params,
+    elapsed) -> f_i``, the particle's viscosity factor for the next rate evaluation (a float
+    in ``[0, 1]``), read from the packed records after the pair pass (``layout``: the columns
+    ``(x, v, h, volume, body, u, c, f)``, ``u`` the viscous acceleration of the unscaled
+    ``Pi_ij``, ``f`` the factor in use); ``elapsed`` is the time (s) since the factors were
+    last set, for a switch that evolves them (0 at the first evaluation);
+    ``switch_parameters(viscosity)`` gives its four floats.  A scheme with a switch
     has every pair's ``Pi_ij`` multiplied by the mean ``(f_i + f_j) / 2`` of the two
     particles' factors (docs/dissipation.md): a symmetric factor, so momentum and the energy
     balance are kept exactly."""
@@ -172,6 +174,8 @@ class ViscosityScheme:
     source: str = ""
     switch: Any = None
     switch_parameters: Callable[[Any], tuple[float, float, float, float]] | None = None
+    #: the factor every particle starts a run with (a scheme with a switch)
+    initial_factor: Callable[[Any], float] = lambda viscosity: 1.0
 
 
 M = TypeVar("M", EquationOfState, StrengthModel, DamageModel, ViscosityScheme)

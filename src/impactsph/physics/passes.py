@@ -129,8 +129,8 @@ MOMENT_NONE = 0.05 ** DIM
 CORRECTION_COLUMNS = (X, V, H, VOL, BODY, U)
 #: the viscosity factor's column (VISCOSITY_FACTOR only)
 VF = _COLUMNS.get("f", 0)
-#: the record columns a viscosity switch reads: (x, v, h, volume, body, u, c)
-SWITCH_COLUMNS = (X, V, H, VOL, BODY, U, C)
+#: the record columns a viscosity switch reads: (x, v, h, volume, body, u, c, f)
+SWITCH_COLUMNS = (X, V, H, VOL, BODY, U, C, VF)
 
 
 @JIT(inline="always", cache=True)
@@ -1048,10 +1048,11 @@ def correction_pass(n_active, order, P, offsets, indices, visc_kind, correction_
 
 
 @JIT(parallel=True, cache=True)
-def switch_pass(n_active, order, P, offsets, indices, visc_kind, switch_params, factor,
-                chunk_size):
+def switch_pass(n_active, order, P, offsets, indices, visc_kind, switch_params, elapsed,
+                factor, chunk_size):
     """The viscosity switch (a scheme with one) over the active particles, after the pair
-    pass: ``factor[i]``, the particle's factor for the next rate evaluation."""
+    pass: ``factor[i]``, the particle's factor for the next rate evaluation (``elapsed``: the
+    time since the factors in the records were set)."""
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
     for chunk in nb.prange(n_chunks):
@@ -1059,7 +1060,7 @@ def switch_pass(n_active, order, P, offsets, indices, visc_kind, switch_params, 
             i = order[p]
             if i < n_active:
                 factor[i] = viscosity_switch(visc_kind, p, i, P, offsets, indices,
-                                             SWITCH_COLUMNS, DIM, switch_params)
+                                             SWITCH_COLUMNS, DIM, switch_params, elapsed)
 
 
 @JIT(parallel=True, cache=True)
@@ -1158,11 +1159,11 @@ def cuda_kernels():
 
     @cuda.jit
     def switch_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind, switch_params,
-                      factor):
+                      elapsed, factor):
         p = cuda.grid(1)
         if p < n_rows and order[p] < n_active:
             factor[order[p]] = viscosity_switch(visc_kind, p, order[p], P, offsets, indices,
-                                                SWITCH_COLUMNS, DIM, switch_params)
+                                                SWITCH_COLUMNS, DIM, switch_params, elapsed)
 
     @cuda.jit
     def moment_kernel(n_rows, P, offsets, indices):

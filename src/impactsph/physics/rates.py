@@ -99,7 +99,8 @@ class CpuRates:
     def evaluate(self, n_active: int, arrays: tuple, table: np.ndarray, neighbours,
                  viscosity: ViscositySettings, b: RateBuffers, hourglass: float = 0.0,
                  hourglass_acceleration: np.ndarray | None = None,
-                 after_pairs=None, after_moments=None, n_bodies: int = 1) -> None:
+                 after_pairs=None, after_moments=None, n_bodies: int = 1,
+                 switch_elapsed: float = 0.0) -> None:
         """Rates of the first ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h,
         material, body, carried)`` (``carried``: the common material state, damage and thickness
         ratio among it; all rows, ghosts included, take part in the sums) into ``b``:
@@ -108,7 +109,8 @@ class CpuRates:
         a correction, ``dv_corr, de_corr``; with ``hourglass`` (the coefficient zeta) > 0,
         ``dhg`` from the particles' ``hourglass_acceleration`` (added to ``dv``); for a scheme
         with a switch, ``factor`` (each particle's viscosity factor for the next evaluation;
-        the factors used are the last column of ``carried``).
+        the factors used are the last column of ``carried``, set ``switch_elapsed`` seconds
+        before).
         ``after_pairs(packed, gradients, u_column)``, if given, runs after the pair pass and
         before the passes that read its per-particle results (the symmetry planes' mirror:
         :func:`impactsph.boundaries.mirror_ghost_results`); ``after_moments(packed, c0)``
@@ -157,7 +159,8 @@ class CpuRates:
                 raise ValueError("a viscosity switch needs RateBuffers(..., switched=True) and "
                                  "passes compiled with PassOptions(viscosity_factor=True)")
             k.switch_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
-                          viscosity.kind, viscosity.switch, b.factor, chunk)
+                          viscosity.kind, viscosity.switch, float(switch_elapsed), b.factor,
+                          chunk)
         if hourglass > 0.0:
             k.hourglass_pass(n_active, nl.order, self._packed, self._gradients, nl.offsets,
                              nl.indices, material, table, hourglass, hourglass_acceleration,
@@ -173,12 +176,12 @@ def pressures(rho: np.ndarray, e: np.ndarray, material: np.ndarray, table: np.nd
 
 
 def _records_of(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray, h: np.ndarray,
-                body: np.ndarray, neighbours, u: np.ndarray, c: np.ndarray | None = None
-                ) -> np.ndarray:
+                body: np.ndarray, neighbours, u: np.ndarray, c: np.ndarray | None = None,
+                factor: np.ndarray | None = None) -> np.ndarray:
     """Packed records (:mod:`.records`) of given fields in the list's order, for running one
     per-particle pass alone."""
     n, dim = x.shape
-    lay = record_columns(dim)
+    lay = record_columns(dim, viscosity_factor=factor is not None)
     order = neighbours.order
     packed = np.zeros((n, lay["width"]))
     packed[:, lay["x"]:lay["x"] + dim] = x[order]
@@ -191,6 +194,8 @@ def _records_of(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray, h:
     packed[:, lay["u"]:lay["u"] + dim] = u[order]
     if c is not None:
         packed[:, lay["c"]] = c[order]
+    if factor is not None:
+        packed[:, lay["f"]] = factor[order]
     return packed
 
 
@@ -213,15 +218,18 @@ def correction_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray
 
 def switch_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray, h: np.ndarray,
                 body: np.ndarray, c: np.ndarray, neighbours, u: np.ndarray,
-                viscosity: Any) -> np.ndarray:
+                viscosity: Any, factor: np.ndarray | None = None, elapsed: float = 0.0
+                ) -> np.ndarray:
     """The viscosity switch alone on given fields (wave speeds ``c``, unscaled viscous
-    accelerations ``u``; all particles active): each particle's factor, for the
-    ``[viscosity]`` table ``viscosity`` of a scheme with a switch.  For tests and analysis."""
+    accelerations ``u``, the factors in use ``factor`` (default 1), set ``elapsed`` seconds
+    before; all particles active): each particle's next factor, for the ``[viscosity]`` table
+    ``viscosity`` of a scheme with a switch.  For tests and analysis."""
     n, dim = x.shape
-    packed = _records_of(x, v, m, rho, h, body, neighbours, u, c)
+    factor = np.ones(n) if factor is None else factor
+    packed = _records_of(x, v, m, rho, h, body, neighbours, u, c, factor)
     settings = ViscositySettings.of(viscosity)
-    factor = np.zeros(n)
-    compiled_passes(dim).switch_pass(
+    out = np.zeros(n)
+    compiled_passes(dim, options=PassOptions(viscosity_factor=True)).switch_pass(
         n, neighbours.order, packed, neighbours.offsets, neighbours.indices, settings.kind,
-        settings.switch, factor, chunk_size(n))
-    return factor
+        settings.switch, float(elapsed), out, chunk_size(n))
+    return out

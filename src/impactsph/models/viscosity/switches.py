@@ -9,7 +9,7 @@ approaching pair, so a switch never makes the viscosity anti-dissipative.
 The factor is set after each rate evaluation from that evaluation's fields and used in the
 next one (half a time step later, with the midpoint integrator); it starts at 1 (the full
 viscosity) and is a per-particle array of the state (``ParticleState.viscosity_factor``,
-written to checkpoints and snapshots).  Two switches are registered:
+written to checkpoints and snapshots).  Three switches are registered:
 
 - ``balsara``: Balsara (1995, J. Comput. Phys. 121:357-372, eq 4.1)::
 
@@ -20,6 +20,18 @@ written to checkpoints and snapshots).  Two switches are registered:
   compression and expansion and is switched off in shear and rotation, where Monaghan's
   ``Pi_ij`` heats a solid that should not be heated (the foot of a Taylor bar).
   ``eps_B`` = ``balsara_epsilon`` (Balsara's 1e-4) keeps the denominator positive.
+
+- ``morris_monaghan``: Morris & Monaghan (1997, J. Comput. Phys. 136:41-50) with the source
+  term of Rosswog et al. (2000, MNRAS 317:443): each particle's linear coefficient
+  ``alpha_i = f_i alpha1`` (and quadratic ``f_i alpha2``) evolves as::
+
+      d alpha_i/dt = -(alpha_i - alpha_min) / tau_i + max(-div v_i, 0) (alpha1 - alpha_i)
+
+  with ``tau_i = h_i / (l c_i)``: it rises towards ``alpha1`` where the flow converges (a
+  shock) and decays to ``alpha_min`` in ``tau`` elsewhere; it starts at ``alpha_min`` (as
+  Morris & Monaghan start it).  Between two rate evaluations the
+  equation is solved exactly with the coefficients of the later one (unconditionally stable,
+  first order in time).
 
 - ``ac_pairwise``: the acceleration correction of Shaw & Reid (2009, eqs 31-36) turned into
   a factor.  From the unscaled viscous acceleration ``u_i`` (eq 32, (1, 1)) and the paper's
@@ -43,7 +55,7 @@ from pydantic import Field
 
 from ...kernels import cubic_spline_gradient_factor
 from ..registry import VISCOSITY, ViscosityScheme
-from ..types import PositiveFloat
+from ..types import NonNegativeFloat, PositiveFloat
 from .correction import (
     VARIANTS,
     CorrectionParameters,
@@ -63,10 +75,10 @@ class BalsaraParameters(MonaghanParameters):
 
 
 @nb.njit(inline="always", cache=True)
-def balsara_factor(p, i, P, offsets, indices, layout, dim, params):
-    """Balsara's ``f_i`` for the particle at sorted position ``p`` (``params = (eps_B, unused,
-    unused, unused)``; ``layout = (x, v, h, volume, body, u, c)``)."""
-    X, V, H, VOL, BODY, U, C = layout
+def divergence_and_curl(p, P, offsets, indices, X, V, H, VOL, BODY, dim):
+    """``(div v, |curl v|)`` of the particle at sorted position ``p``: ``div v_i = -sum_j V_j
+    v_ij . grad W_ij`` and ``curl v_i = -sum_j V_j grad W_ij x v_ij`` over the neighbours of
+    the same body (``grad W`` with the pair's mean smoothing length)."""
     Pi_ = P[p]
     div = 0.0
     curl0 = curl1 = curl2 = 0.0
@@ -92,9 +104,45 @@ def balsara_factor(p, i, P, offsets, indices, layout, dim, params):
         curl0 -= g1 * u2 - g2 * u1
         curl1 -= g2 * u0 - g0 * u2
         curl2 -= g0 * u1 - g1 * u0
+    return div, math.sqrt(curl0 * curl0 + curl1 * curl1 + curl2 * curl2)
+
+
+@nb.njit(inline="always", cache=True)
+def balsara_factor(p, i, P, offsets, indices, layout, dim, params, elapsed):
+    """Balsara's ``f_i`` for the particle at sorted position ``p`` (``params = (eps_B, unused,
+    unused, unused)``; ``layout = (x, v, h, volume, body, u, c, f)``)."""
+    X, V, H, VOL, BODY, U, C, F = layout
+    div, curl = divergence_and_curl(p, P, offsets, indices, X, V, H, VOL, BODY, dim)
     a = abs(div)
-    b = math.sqrt(curl0 * curl0 + curl1 * curl1 + curl2 * curl2)
-    return a / (a + b + params[0] * Pi_[C] / h_i)
+    return a / (a + curl + params[0] * P[p, C] / P[p, H])
+
+
+class MorrisMonaghanParameters(MonaghanParameters):
+    """The ``[viscosity]`` fields of Morris & Monaghan's time-dependent viscosity: ``alpha1``
+    and ``alpha2`` are the coefficients at the largest factor (1)."""
+
+    alpha_min: NonNegativeFloat = Field(
+        0.1, description="the linear coefficient the viscosity decays to away from "
+        "compression (Morris & Monaghan 1997: 0.1); the factor's floor is alpha_min/alpha1")
+    decay: PositiveFloat = Field(
+        0.2, description="l of the decay time tau = h / (l c) (Morris & Monaghan 1997: "
+        "0.1-0.2)")
+
+
+@nb.njit(inline="always", cache=True)
+def morris_monaghan_factor(p, i, P, offsets, indices, layout, dim, params, elapsed):
+    """Morris & Monaghan's ``f_i = alpha_i / alpha1`` after ``elapsed`` seconds (``params =
+    (alpha_min / alpha1, l, unused, unused)``): the factor in use (record column ``f``)
+    advanced by the exact solution of ``df/dt = -(f - f_min) / tau + S (1 - f)`` with this
+    evaluation's ``tau = h / (l c)`` and ``S = max(-div v, 0)``."""
+    X, V, H, VOL, BODY, U, C, F = layout
+    div, _ = divergence_and_curl(p, P, offsets, indices, X, V, H, VOL, BODY, dim)
+    f_min = params[0]
+    rate = params[1] * P[p, C] / P[p, H]  # 1 / tau
+    source = max(-div, 0.0)
+    k = rate + source
+    f_eq = (f_min * rate + source) / k
+    return f_eq + (P[p, F] - f_eq) * math.exp(-k * elapsed)
 
 
 class PairwiseCorrectionParameters(CorrectionParameters):
@@ -104,9 +152,9 @@ class PairwiseCorrectionParameters(CorrectionParameters):
 
 
 @nb.njit(inline="always", cache=True)
-def ac_pairwise_factor(p, i, P, offsets, indices, layout, dim, params):
+def ac_pairwise_factor(p, i, P, offsets, indices, layout, dim, params, elapsed):
     """The pairwise AC's ``f_i`` (``params = (h_ratio, variant, unused, unused)``)."""
-    X, V, H, VOL, BODY, U, C = layout
+    X, V, H, VOL, BODY, U, C, F = layout
     Pi_ = P[p]
     self_weight, weight_sum, s0, s1, s2, _ = correction_sums(
         p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, params[0])
@@ -131,6 +179,22 @@ BALSARA = VISCOSITY.register(ViscosityScheme(
     switch_parameters=lambda v: (float(v.balsara_epsilon), 0.0, 0.0, 0.0),
     source="Balsara (1995) J Comput Phys 121:357, eq 4.1",
     description="Monaghan's viscosity with Balsara's shear switch"))
+
+def _floor(viscosity) -> float:
+    """Morris & Monaghan's ``f_min = alpha_min / alpha1`` (at most 1)."""
+    alpha1 = float(viscosity.alpha1)
+    return min(float(viscosity.alpha_min) / alpha1, 1.0) if alpha1 > 0 else 1.0
+
+
+MORRIS_MONAGHAN = VISCOSITY.register(ViscosityScheme(
+    name="morris_monaghan", pair_viscosity=monaghan_pair, parameters=MorrisMonaghanParameters,
+    pair_parameters=lambda v: (float(v.alpha1), float(v.alpha2), float(v.epsilon), 0.0),
+    switch=morris_monaghan_factor,
+    switch_parameters=lambda v: (_floor(v), float(v.decay), 0.0, 0.0),
+    initial_factor=lambda v: _floor(v),
+    source="Morris & Monaghan (1997) J Comput Phys 136:41; the source term of Rosswog et al. "
+           "(2000) MNRAS 317:443",
+    description="Monaghan's viscosity with Morris & Monaghan's time-dependent coefficient"))
 
 AC_PAIRWISE = VISCOSITY.register(ViscosityScheme(
     name="ac_pairwise", pair_viscosity=unit_viscosity, parameters=PairwiseCorrectionParameters,
