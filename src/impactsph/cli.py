@@ -302,6 +302,39 @@ def sweep(
 
 
 @app.command()
+def lab(
+    out: Annotated[Path, typer.Option(help="output directory")] = Path("runs/lab"),
+    problem: Annotated[list[str] | None, typer.Option(
+        help="a problem to run (repeatable; default: all): bars, taylor, taylor-x2, "
+             "cantilever")] = None,
+    scheme: Annotated[list[str] | None, typer.Option(
+        help="a scheme to run, by its name in the table (repeatable; default: all)")] = None,
+    set_: Annotated[list[str] | None, typer.Option(
+        "--set", help="an override for every run, e.g. time.end=1e-5")] = None,
+    scheduler: Annotated[str | None, typer.Option(
+        help="address of an existing Dask scheduler (default: a local cluster)")] = None,
+    workers: Annotated[int | None, typer.Option(help="local workers (default: cores)")] = None,
+    report_only: Annotated[bool, typer.Option(
+        help="tabulate the runs already in OUT, run nothing")] = False,
+) -> None:
+    """The dissipation lab: every viscosity scheme, with fixed parameters, on every problem
+    (docs/dissipation.md).  Writes OUT/lab.json and OUT/lab.md and prints the tables."""
+    from .lab import run_lab
+
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        rows = run_lab(out, problem, scheme, workers=workers, scheduler=scheduler,
+                       extra=set_ or [], report_only=report_only)
+    except (CaseError, ValueError) as exc:
+        _fail(str(exc).splitlines()[0])
+    typer.echo((out / "lab.md").read_text())
+    failed = [f"{r['problem']} / {r['scheme']}: {r['status']}" for r in rows
+              if r.get("status") not in ("finished", "ok", None)]
+    for line in failed:
+        _say(f"note: {line}")
+
+
+@app.command()
 def paper(
     case: Annotated[str, typer.Argument(
         help="a case of one of the paper's examples: a file, or a built-in case "

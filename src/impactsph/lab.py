@@ -1,0 +1,157 @@
+"""The dissipation lab (docs/dissipation.md): every viscosity scheme, each with one fixed set of
+parameters, on every problem, in one table.
+
+``impactsph lab`` runs the grid on Dask (:func:`impactsph.sweep.run_many`), one run per
+(scheme, problem), into ``OUT/runs/PROBLEM--SCHEME``, and writes ``OUT/lab.json`` (a row per
+run: the problem's measures, the energy error, the momentum drift, the cost per step) and
+``OUT/lab.md`` (a table per problem).  The schemes' parameters are fixed here, the same on
+every problem: the lab compares schemes, it does not tune them.
+
+A scheme that depends on the kernel's width (the correction kernel at ``h_c = dx``) is given
+as a function of the problem's case, so that it means the same on every problem.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from .loading import read_case_dict
+from .output import load_run
+
+Overrides = Callable[[dict[str, Any]], list[str]]
+
+
+def _fixed(*overrides: str) -> Overrides:
+    return lambda case: list(overrides)
+
+
+def _h_c_is_dx(scheme: str) -> Overrides:
+    """AC or its pairwise form with the correction kernel's ``h_c`` one particle spacing."""
+    def overrides(case: dict[str, Any]) -> list[str]:
+        h_over_dx = float(case.get("kernel", {}).get("h_over_dx", 1.2))
+        return [f'viscosity.scheme="{scheme}"', f"viscosity.correction_h_ratio={1 / h_over_dx!r}"]
+    return overrides
+
+
+#: the schemes, by the name the table shows, with their fixed parameters
+SCHEMES: dict[str, Overrides] = {
+    "AV (1, 1)": _fixed('viscosity.scheme="av"', "viscosity.alpha1=1.0", "viscosity.alpha2=1.0"),
+    "AV (0.3, 0.3)": _fixed('viscosity.scheme="av"', "viscosity.alpha1=0.3",
+                            "viscosity.alpha2=0.3"),
+    "AC (paper)": _fixed('viscosity.scheme="ac"'),
+    "AC, h_c = dx": _h_c_is_dx("ac"),
+    "AC pairwise": _fixed('viscosity.scheme="ac_pairwise"'),
+    "AC pairwise, h_c = dx": _h_c_is_dx("ac_pairwise"),
+    "Balsara (1, 1)": _fixed('viscosity.scheme="balsara"', "viscosity.alpha1=1.0",
+                             "viscosity.alpha2=1.0"),
+    "Morris-Monaghan (1, 2)": _fixed('viscosity.scheme="morris_monaghan"',
+                                     "viscosity.alpha1=1.0", "viscosity.alpha2=2.0"),
+}
+
+#: the problems: a built-in case, its overrides, and the measures the table shows
+PROBLEMS: dict[str, tuple[str, list[str], list[str]]] = {
+    "bars": ("bars", [], ["kinetic_energy_ratio_final", "velocity_profile_l1_error",
+                          "velocity_profile_oscillation"]),
+    "taylor": ("taylor", [], ["final_length_ratio", "footprint_half_width_ratio",
+                              "plastic_work"]),
+    "taylor-x2": ("taylor", ["bodies.0.geometry.count=[42, 134]"],
+                  ["final_length_ratio", "footprint_half_width_ratio", "plastic_work"]),
+    "cantilever": ("cantilever", [], ["tip_deflection", "plastic_work",
+                                      "kinetic_energy_ratio_final"]),
+}
+#: what every row shows besides the problem's measures
+COMMON = ["total_energy_relative_error", "momentum_drift", "wall_constraint_events",
+          "ms_per_step"]
+
+
+def plan(problems: list[str], schemes: list[str], extra: list[str] | None = None
+         ) -> list[tuple[str, str, str, list[str]]]:
+    """``(problem, scheme, case, overrides)`` of every run of the grid."""
+    for name in problems:
+        if name not in PROBLEMS:
+            raise ValueError(f"problem {name!r}: one of {', '.join(PROBLEMS)}")
+    for name in schemes:
+        if name not in SCHEMES:
+            raise ValueError(f"scheme {name!r}: one of {', '.join(map(repr, SCHEMES))}")
+    runs = []
+    for problem in problems:
+        case, overrides, _ = PROBLEMS[problem]
+        base = read_case_dict(case)
+        for scheme in schemes:
+            runs.append((problem, scheme, case, [*overrides, *SCHEMES[scheme](base),
+                                                 "output.figures=false", *(extra or [])]))
+    return runs
+
+
+def run_name(problem: str, scheme: str) -> str:
+    """The run directory's name: ``PROBLEM--SCHEME`` in file-name characters."""
+    keep = "".join(c if c.isalnum() or c in "-._" else "_" for c in scheme)
+    return f"{problem}--{keep}".replace("__", "_")
+
+
+def row_of(problem: str, scheme: str, summary: dict[str, Any], status: str | None
+           ) -> dict[str, Any]:
+    """One row of the table from a run's summary."""
+    steps = summary.get("n_steps") or 0
+    row = {"problem": problem, "scheme": scheme, "status": status or summary.get("status"),
+           "ms_per_step": (1e3 * summary["wall_seconds"] / steps
+                           if steps and summary.get("wall_seconds") else None)}
+    for key in [*PROBLEMS[problem][2], *COMMON]:
+        if key != "ms_per_step":
+            row[key] = summary.get(key)
+    return row
+
+
+def run_lab(out: Path | str, problems: list[str] | None = None,
+            schemes: list[str] | None = None, *, workers: int | None = None,
+            scheduler: str | None = None, extra: list[str] | None = None,
+            report_only: bool = False) -> list[dict[str, Any]]:
+    """Run (or, ``report_only``, tabulate) the grid into ``out``; returns the rows."""
+    from .sweep import run_many
+
+    out = Path(out)
+    runs = plan(problems or list(PROBLEMS), schemes or list(SCHEMES), extra)
+    statuses: dict[str, str | None] = {}
+    if not report_only:
+        by_case: dict[str, list[int]] = {}
+        for k, (_, _, case, _) in enumerate(runs):
+            by_case.setdefault(case, []).append(k)
+        for case, ks in by_case.items():
+            names = [run_name(runs[k][0], runs[k][1]) for k in ks]
+            result = run_many(read_case_dict(case), [runs[k][3] for k in ks], out,
+                              workers=workers, scheduler=scheduler, names=names)
+            for k, r in zip(ks, result, strict=True):
+                statuses[run_name(runs[k][0], runs[k][1])] = r.get("status")
+    rows = []
+    for problem, scheme, _, _ in runs:
+        name = run_name(problem, scheme)
+        path = out / "runs" / name
+        summary = load_run(path).get("summary", {}) if (path / "case.json").exists() else {}
+        rows.append(row_of(problem, scheme, summary, statuses.get(name)))
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "lab.json").write_text(json.dumps(rows, indent=2, default=float))
+    (out / "lab.md").write_text(markdown(rows))
+    return rows
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return "" if value is None else str(value)
+
+
+def markdown(rows: list[dict[str, Any]]) -> str:
+    """A table per problem: a row per scheme."""
+    lines = []
+    for problem in dict.fromkeys(r["problem"] for r in rows):
+        cols = ["scheme", *PROBLEMS[problem][2], *COMMON, "status"]
+        lines += [f"### {problem}", "", "| " + " | ".join(cols) + " |",
+                  "|" + "---|" * len(cols)]
+        for r in rows:
+            if r["problem"] == problem:
+                lines.append("| " + " | ".join(_fmt(r.get(c)) for c in cols) + " |")
+        lines.append("")
+    return "\n".join(lines)
