@@ -25,7 +25,7 @@ def lattice(dim: int, n: int) -> np.ndarray:
     return np.stack(np.meshgrid(*[axis] * dim, indexing="ij"), -1).reshape(-1, dim)
 
 
-def apply_correction(x, u, variant, v=None, energy="work"):
+def apply_correction(x, u, variant, v=None, energy="work", h_ratio=0.5):
     """``u - u_corr`` and the energy term from the solver's own correction pass."""
     n, dim = x.shape
     nl = NeighbourList.build(x, 2 * H)
@@ -33,7 +33,7 @@ def apply_correction(x, u, variant, v=None, energy="work"):
     rho = np.full(n, 7800.0)
     v = np.zeros((n, dim)) if v is None else v
     viscosity = SimpleNamespace(scheme="ac", epsilon=0.01, correction=variant,
-                                energy_correction=energy, correction_h_ratio=0.5)
+                                energy_correction=energy, correction_h_ratio=h_ratio)
     dv_corr, de_corr = correction_only(x, v, m, rho, np.full(n, H), np.zeros(n, np.int32), nl,
                                        u, viscosity)
     return u + dv_corr, de_corr
@@ -45,14 +45,19 @@ def interior(x, dim, n, margin=2):
 
 @pytest.mark.parametrize("dim", [1, 2, 3])
 @pytest.mark.parametrize("variant", sorted(VARIANTS))
-def test_uniform_field_keeps_the_surviving_fraction(dim, variant):
+@pytest.mark.parametrize("mode,h_ratio", [("uniform", 0.5), ("2dx", 0.5), ("uniform", 0.8333),
+                                          ("2dx", 0.8333)])
+def test_lattice_modes_keep_the_surviving_fraction(dim, variant, mode, h_ratio):
+    """A uniform and a particle-scale (checkerboard) viscous acceleration through the
+    correction pass keep, inside the lattice, the fraction ``surviving_fraction`` gives."""
     n = {1: 30, 2: 12, 3: 7}[dim]
     x = lattice(dim, n)
     u = np.zeros_like(x)
-    u[:, 0] = 3.0
-    net, _ = apply_correction(x, u, variant)
-    inside = interior(x, dim, n)
-    expected = surviving_fraction(variant, dim) * 3.0
+    sign = (-1.0) ** np.round(x / DX - 0.5).sum(1) if mode == "2dx" else 1.0
+    u[:, 0] = 3.0 * sign
+    net, _ = apply_correction(x, u, variant, h_ratio=h_ratio)
+    inside = interior(x, dim, n, margin=3)
+    expected = surviving_fraction(variant, dim, 1.2, h_ratio, mode) * u[inside, 0]
     np.testing.assert_allclose(net[inside, 0], expected, atol=1e-12)
 
 
@@ -65,6 +70,11 @@ def test_surviving_fractions_by_hand_1d():
     assert surviving_fraction("volume_weighted", 1) == pytest.approx(1 - w0 - 2 * w1)
     assert surviving_fraction("neighbours_only", 1) == pytest.approx(1 - 2 * w1)
     assert surviving_fraction("shepard", 1) == 0.0
+    # the 2 dx mode (u_j = -u_i): the nearest neighbours cancel u_i in eq 34's (u_i + u_j)
+    assert surviving_fraction("neighbours_only", 1, mode="2dx") == pytest.approx(1.0)
+    assert surviving_fraction("volume_weighted", 1, mode="2dx") == pytest.approx(1 - w0)
+    assert surviving_fraction("shepard", 1, mode="2dx") == pytest.approx(
+        1 - w0 / (w0 + 2 * w1))
 
 
 @pytest.mark.parametrize("dim", [1, 2])

@@ -110,24 +110,49 @@ def correction_energy_rate(work: float, paper_sum: float, weight_sum: float,
     return 0.0
 
 
-def surviving_fraction(variant: str, dim: int, h_over_dx: float = 1.2,
-                       h_ratio: float = 0.5) -> float:
-    """``1 - sum of weights``: the fraction of a uniform viscous acceleration that survives
-    the correction in a regular lattice (1 = no correction, 0 = all removed, < 0 = the
-    correction overshoots and the net effect is anti-viscous)."""
+def _lattice_weights(dim: int, h_over_dx: float, h_ratio: float):
+    """The correction's weights ``w_ij = V_j Wc(r_ij, h_c)`` on a unit lattice (``dx = 1``,
+    ``V_j = 1``) around a particle at the origin, with the lattice offsets."""
     h_c = h_over_dx * h_ratio
     reach = int(np.ceil(2 * h_c)) + 1
     axis = np.arange(-reach, reach + 1, dtype=np.float64)
     grid = np.stack(np.meshgrid(*[axis] * dim, indexing="ij"), -1).reshape(-1, dim)
     r = np.linalg.norm(grid, axis=1)
-    w = np.array([cubic_spline(x, h_c, dim) for x in r])  # dx = 1, V_j = 1
-    if variant == "volume_weighted":
-        return float(1.0 - w.sum())
+    w = np.array([cubic_spline(x, h_c, dim) for x in r])
+    return w, grid, r
+
+
+def surviving_fraction(variant: str, dim: int, h_over_dx: float = 1.2,
+                       h_ratio: float = 0.5, mode: str = "uniform") -> float:
+    """The fraction of a viscous acceleration field that survives the correction on a regular
+    lattice: ``(u_i - u_corr_i) / u_i`` for ``u_j = u cos(k . r_j)`` (1 = no correction, 0 =
+    all removed, < 0 = the correction overshoots and the net effect is anti-viscous).
+    ``mode``: ``"uniform"`` (``k = 0``: a smooth field, ``1 - sum of weights`` for the
+    unnormalised readings) or ``"2dx"`` (the particle-scale checkerboard ``u_j = u (-1)^(n_1 +
+    ... + n_dim)``, the shortest mode of the lattice, which the viscosity must damp)."""
+    if variant not in VARIANTS:
+        raise ValueError(f"unknown correction variant {variant!r}; one of {sorted(VARIANTS)}")
+    if mode not in ("uniform", "2dx"):
+        raise ValueError(f"mode = {mode!r}: 'uniform' or '2dx'")
+    w, grid, r = _lattice_weights(dim, h_over_dx, h_ratio)
+    sign = np.ones_like(r) if mode == "uniform" else (-1.0) ** np.abs(grid).sum(1)
+    own = r == 0
+    neighbours = w[~own].sum()
+    weighted = (w[~own] * sign[~own]).sum()  # sum_j w_ij u_j / u_i
+    self_weight = float(w[own].sum())
     if variant == "neighbours_only":
-        return float(1.0 - w[r > 0].sum())
+        return float(1.0 - 0.5 * (neighbours + weighted))
+    total = neighbours + self_weight
+    corr = 0.5 * (total + weighted + self_weight)
     if variant == "shepard":
-        return 0.0
-    raise ValueError(f"unknown correction variant {variant!r}; one of {sorted(VARIANTS)}")
+        corr /= total
+    return float(1.0 - corr)
+
+
+def weight_sum(dim: int, h_over_dx: float = 1.2, h_ratio: float = 0.5) -> tuple[float, float]:
+    """``(w_ii, sum_{j != i} w_ij)`` of the correction on a regular lattice."""
+    w, _, r = _lattice_weights(dim, h_over_dx, h_ratio)
+    return float(w[r == 0].sum()), float(w[r > 0].sum())
 
 
 @nb.njit(inline="always", cache=True)
