@@ -48,6 +48,7 @@ SCHEMES: dict[str, Overrides] = {
     "AC pairwise, h_c = dx": _h_c_is_dx("ac_pairwise"),
     "AC pairwise, h_c = h": _fixed('viscosity.scheme="ac_pairwise"',
                                    "viscosity.correction_h_ratio=1.0"),
+    "AC optimised": _fixed('viscosity.scheme="ac_optimised"'),
     "Balsara (1, 1)": _fixed('viscosity.scheme="balsara"', "viscosity.alpha1=1.0",
                              "viscosity.alpha2=1.0"),
     "Morris-Monaghan (1, 2)": _fixed('viscosity.scheme="morris_monaghan"',

@@ -49,14 +49,16 @@ written to checkpoints and snapshots).  Three switches are registered:
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 import numba as nb
 from pydantic import Field
 
-from ...kernels import cubic_spline_gradient_factor
-from ..registry import VISCOSITY, ViscosityScheme
+from ...kernels import cubic_spline, cubic_spline_gradient_factor
+from ..registry import VISCOSITY, Parameters, ViscosityScheme
 from ..types import NonNegativeFloat, PositiveFloat
 from .correction import (
+    DEFAULT_VARIANT,
     VARIANTS,
     CorrectionParameters,
     corrected_viscous_acceleration,
@@ -172,6 +174,83 @@ def ac_pairwise_factor(p, i, P, offsets, indices, layout, dim, params, elapsed):
     return min(max(un / uu, 0.0), 1.0)
 
 
+class OptimisedCorrectionParameters(Parameters):
+    """The ``[viscosity]`` fields of the optimised correction."""
+
+    alpha1: NonNegativeFloat = Field(1.0, description="not used (always 1)")
+    alpha2: NonNegativeFloat = Field(1.0, description="not used (always 1)")
+    epsilon: PositiveFloat = Field(0.01, description="epsilon of eq 30")
+    correction: Literal["volume_weighted", "shepard", "neighbours_only"] = Field(
+        DEFAULT_VARIANT, description="the reading of eq 34 of the bounding correction")
+    bound_h_ratio: float = Field(
+        1.0, gt=0.0, le=1.0, description="ac_optimised: h_c / h of the correction that bounds "
+        "the factor from below (1: h_c = h, docs/dissipation.md)")
+
+
+#: bisection steps of the optimised correction's factor (its precision: 2^-12 of the range)
+OPTIMISED_BISECTIONS = 12
+
+
+@nb.njit(inline="always", cache=True)
+def _variation_slope(p, P, offsets, indices, X, V, H, VOL, BODY, U, F, dim, f, step):
+    """``d TV_i / d f`` at ``f``: the slope of the local total variation of the velocity after
+    ``step`` seconds of viscous acceleration, ``TV_i(f) = sum_j V_j W_ij |v_ij + step (f u_i -
+    f_j u_j)|`` (neighbours of the same body, ``f_j`` their factors in use)."""
+    Pi_ = P[p]
+    slope = 0.0
+    h_i = Pi_[H]
+    for k in range(offsets[p], offsets[p + 1]):
+        Pj = P[indices[k]]
+        if Pj[BODY] != Pi_[BODY]:
+            continue
+        r2 = 0.0
+        for a in range(dim):
+            d = Pi_[X + a] - Pj[X + a]
+            r2 += d * d
+        h_ij = 0.5 * (h_i + Pj[H])
+        if r2 >= 4.0 * h_ij * h_ij or r2 == 0.0:
+            continue
+        w = Pj[VOL] * cubic_spline(math.sqrt(r2), h_ij, dim)
+        n2 = 0.0
+        dot = 0.0
+        for a in range(dim):
+            e = Pi_[V + a] - Pj[V + a] + step * (f * Pi_[U + a] - Pj[F] * Pj[U + a])
+            n2 += e * e
+            dot += e * step * Pi_[U + a]
+        if n2 > 0.0:
+            slope += w * dot / math.sqrt(n2)
+    return slope
+
+
+@nb.njit(inline="always", cache=True)
+def ac_optimised_factor(p, i, P, offsets, indices, layout, dim, params, elapsed):
+    """The optimised correction's ``f_i`` (``params = (h_ratio, variant, unused, unused)``):
+    the smallest ``f`` in ``[f_AC, 1]`` that minimises ``TV_i(f)`` (see
+    :func:`_variation_slope`) over the next ``elapsed`` seconds, ``f_AC`` the pairwise AC's
+    factor (:func:`ac_pairwise_factor`).  ``TV_i`` is convex in ``f`` (a sum of norms of
+    affine functions), so its slope rises with ``f``: ``f_AC`` where the slope there is not
+    negative, 1 where it is negative at 1, else the root of the slope by bisection."""
+    X, V, H, VOL, BODY, U, C, F = layout
+    low = ac_pairwise_factor(p, i, P, offsets, indices, layout, dim, params, elapsed)
+    if elapsed <= 0.0 or low >= 1.0:
+        return low
+    if _variation_slope(p, P, offsets, indices, X, V, H, VOL, BODY, U, F, dim, low,
+                        elapsed) >= 0.0:
+        return low
+    if _variation_slope(p, P, offsets, indices, X, V, H, VOL, BODY, U, F, dim, 1.0,
+                        elapsed) <= 0.0:
+        return 1.0
+    a, b = low, 1.0
+    for _ in range(OPTIMISED_BISECTIONS):
+        mid = 0.5 * (a + b)
+        if _variation_slope(p, P, offsets, indices, X, V, H, VOL, BODY, U, F, dim, mid,
+                            elapsed) < 0.0:
+            a = mid
+        else:
+            b = mid
+    return b
+
+
 BALSARA = VISCOSITY.register(ViscosityScheme(
     name="balsara", pair_viscosity=monaghan_pair, parameters=BalsaraParameters,
     pair_parameters=lambda v: (float(v.alpha1), float(v.alpha2), float(v.epsilon), 0.0),
@@ -204,3 +283,15 @@ AC_PAIRWISE = VISCOSITY.register(ViscosityScheme(
                                  0.0, 0.0),
     source="Shaw & Reid (2009) eqs 31-36, as a symmetric factor (docs/dissipation.md)",
     description="the acceleration correction as a pairwise, momentum-conserving factor"))
+
+AC_OPTIMISED = VISCOSITY.register(ViscosityScheme(
+    name="ac_optimised", pair_viscosity=unit_viscosity,
+    parameters=OptimisedCorrectionParameters,
+    pair_parameters=lambda v: (1.0, 1.0, float(v.epsilon), 0.0),
+    switch=ac_optimised_factor,
+    switch_parameters=lambda v: (float(v.bound_h_ratio), float(VARIANTS[v.correction]),
+                                 0.0, 0.0),
+    source="ours (docs/dissipation.md), in the spirit of Shaw, Roy & Reid (2011) IJSS "
+           "48:3484: the correction's strength by a local total variation",
+    description="the pairwise correction, each particle's factor chosen to minimise the "
+                "local total variation of the velocity"))
