@@ -55,6 +55,6 @@ def test_lab_runs_and_tabulates(tmp_path):
     rows_again = json.loads((out / "lab.json").read_text())
     assert [r["kinetic_energy_ratio_final"] for r in rows_again] == \
         [r["kinetic_energy_ratio_final"] for r in rows]
-    bad = runner.invoke(app, ["lab", "--problem", "plates", "--out", str(tmp_path / "x")])
+    bad = runner.invoke(app, ["lab", "--problem", "slabs", "--out", str(tmp_path / "x")])
     assert bad.exit_code == 2
-    assert "problem 'plates': one of bars, taylor" in bad.output
+    assert "problem 'slabs': one of bars, plates, taylor" in bad.output

@@ -305,7 +305,7 @@ def sweep(
 def lab(
     out: Annotated[Path, typer.Option(help="output directory")] = Path("runs/lab"),
     problem: Annotated[list[str] | None, typer.Option(
-        help="a problem to run (repeatable; default: all): bars, taylor, taylor-x2, "
+        help="a problem to run (repeatable; default: all): bars, plates, taylor, taylor-x2, "
              "cantilever")] = None,
     scheme: Annotated[list[str] | None, typer.Option(
         help="a scheme to run, by its name in the table (repeatable; default: all)")] = None,

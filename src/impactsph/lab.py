@@ -59,6 +59,9 @@ SCHEMES: dict[str, Overrides] = {
 PROBLEMS: dict[str, tuple[str, list[str], list[str]]] = {
     "bars": ("bars", [], ["kinetic_energy_ratio_final", "velocity_profile_l1_error",
                           "velocity_profile_oscillation"]),
+    "plates": ("plates", [], ["velocity_profile_l1_error", "velocity_profile_oscillation",
+                              "plateau_velocity_error", "precursor_speed_error",
+                              "plastic_speed_error"]),
     "taylor": ("taylor", [], ["final_length_ratio", "footprint_half_width_ratio",
                               "plastic_work"]),
     "taylor-x2": ("taylor", ["bodies.0.geometry.count=[42, 134]"],

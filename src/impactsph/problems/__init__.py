@@ -10,6 +10,8 @@ examples (section 5), one module each:
 - ``taylor`` (:mod:`.taylor`): Example 2, the Taylor bar on a rigid wall (section 5.2);
 - ``cantilever`` (:mod:`.cantilever`): Example 3, the Parkes cantilever (section 5.3);
 - ``perforation`` (:mod:`.perforation`): a projectile into a plate (residual velocity, hole);
+- ``plates`` (:mod:`.plates`): symmetric plate impact in uniaxial strain against the exact
+  elastic precursor and plastic shock;
 
 and ``none``, no problem-specific analysis (the default).
 
@@ -39,6 +41,7 @@ from .bars import BarsProblem
 from .base import GeometryNeeds, ProblemKind, SweepCriterion
 from .cantilever import CantileverProblem
 from .perforation import PerforationProblem
+from .plates import PlatesProblem
 from .registry import (
     NoAnalysis,
     analyse,
@@ -52,5 +55,6 @@ from .taylor import TaylorProblem
 __all__ = ["GeometryNeeds", "ProblemKind", "SweepCriterion", "analyse", "get_problem",
            "problem_names", "register_problem", "unregister_problem"]
 
-for _kind in (NoAnalysis, BarsProblem, TaylorProblem, CantileverProblem, PerforationProblem):
+for _kind in (NoAnalysis, BarsProblem, TaylorProblem, CantileverProblem, PerforationProblem,
+              PlatesProblem):
     register_problem(_kind)
