@@ -346,3 +346,59 @@ def test_optimised_factor_minimises_the_local_total_variation(dim):
     if dim == 2:
         assert checked > 0  # some factors are interior minimisers
     assert np.all((got >= low) & (got <= 1.0))
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_cullen_dehnen_factor_against_hand_computation(dim):
+    """``cullen_dehnen``: the factor and the kept divergence against numpy pair sums (the
+    velocity gradient, its traceless symmetric part, R from the kept divergences' signs, the
+    signal speed, the target f_loc and the decay towards it), to round-off; no time elapsed
+    keeps the factor in use."""
+    from impactsph.kernels import cubic_spline
+
+    n_side = {1: 20, 2: 8, 3: 5}[dim]
+    x = jittered(dim, n_side, 50 + dim)
+    n = x.shape[0]
+    rng = np.random.default_rng(60 + dim)
+    v = velocity_field(x, dim) * 30.0 + rng.normal(0.0, 2.0, (n, dim))
+    m = np.full(n, RHO * DX**dim)
+    rho = RHO * (1 + 0.01 * rng.random(n))
+    c = rng.uniform(4000.0, 6000.0, n)
+    h = np.full(n, H)
+    body = np.zeros(n, np.int32)
+    f_now = rng.uniform(0.0, 1.0, n)
+    kept = rng.normal(0.0, 1e4, n)  # the divergences of the last evaluation
+    dt = 3e-8
+    nl = NeighbourList.build(x, 2 * H)
+    cd = SimpleNamespace(scheme="cullen_dehnen", alpha1=1.0, alpha2=2.0, epsilon=0.01,
+                         cd_decay=0.05)
+    got, div_got = switch_only(x, v, m, rho, h, body, c, nl, np.zeros((n, dim)), cd, f_now,
+                               dt, kept, with_memory=True)
+    i, j, d, g = pairs(x, H)
+    vol = (m / rho)[j][:, None]
+    u = v[i] - v[j]
+    L = -np.stack([np.stack([np.bincount(i, vol[:, 0] * u[:, a] * g[:, b], n)
+                             for b in range(dim)], -1) for a in range(dim)], 1)
+    div = np.trace(L, axis1=1, axis2=2)
+    np.testing.assert_allclose(div_got, div, rtol=1e-10, atol=1e-8 * np.abs(div).max())
+    S = 0.5 * (L + L.transpose(0, 2, 1)) - np.einsum("i,ab->iab", div / dim, np.eye(dim))
+    shear = np.einsum("iab,iab->i", S, S)
+    r = np.linalg.norm(d, axis=1)
+    W = np.array([cubic_spline(q, H, dim) for q in r])
+    R = (np.sign(kept) * m * cubic_spline(0.0, H, dim)
+         + np.bincount(i, np.sign(kept[j]) * m[j] * W, n)) / rho
+    approach = (u * d).sum(1) / r
+    v_sig = np.maximum(c, [np.max(0.5 * (c[k] + c[j[i == k]]) - np.minimum(0, approach[i == k]))
+                           for k in range(n)])
+    rate = (div - kept) / dt
+    lim = (2 * (1 - R) ** 4 * div) ** 2
+    xi = lim / (lim + shear)
+    a = xi * np.maximum(-rate, 0) * (2 * H) ** 2
+    f_loc = a / (v_sig**2 + a)
+    want = np.where(f_now <= f_loc, f_loc,
+                    f_loc + (f_now - f_loc) * np.exp(-dt * 2 * 0.05 * v_sig / (2 * H)))
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+    assert 0.05 < np.mean(f_now <= f_loc) < 0.95  # both branches taken
+    same = switch_only(x, v, m, rho, h, body, c, nl, np.zeros((n, dim)), cd, f_now, 0.0,
+                       kept)
+    np.testing.assert_array_equal(same, f_now)

@@ -195,8 +195,8 @@ def binding(dim: int, options: PassOptions | str | None = None) -> tuple[str, di
         _dispatch("viscosity_correction", "p, i, P, offsets, indices, columns, dim, params, "
                   "dv_corr, de_corr, dv, de", "_correction_", corrections, "return None"),
         "",
-        _dispatch("viscosity_switch", "p, i, P, offsets, indices, columns, dim, params, elapsed",
-                  "_switch_", switches, "return 1.0"),
+        _dispatch("viscosity_switch", "p, i, P, offsets, indices, columns, dim, params, elapsed, "
+                  "memory", "_switch_", switches, "return 1.0"),
         END,
     ])
     return source, inject

@@ -93,7 +93,7 @@ def gpu_kernels(dim: int, simulated: bool, version: int = 0,
 #: (a buffer without rows, e.g. no contact or no AC, is skipped).
 _ACTIVE_OUT = ("drho", "dv", "de", "de_visc", "contact_force", "pair_count", "dS")
 _CORRECTION_OUT = ("dv_corr", "de_corr")
-_SWITCH_OUT = ("factor",)
+_SWITCH_OUT = ("factor", "memory")
 
 
 class GpuRates:
@@ -184,7 +184,7 @@ class GpuRates:
         packed = buf("packed", (n_rows, record_width), np.float64)
         shapes = {"drho": (n_rows,), "de": (n_rows,), "de_visc": (n_rows,),
                   "de_corr": (n_rows,), "pair_count": (n_rows,), "dS": (n_rows, 3, 3),
-                  "factor": (n_rows,)}
+                  "factor": (n_rows,), "memory": (n_rows,)}
         count_type = getattr(b.pair_count, "dtype", np.int64)
         out = {name: buf("out_" + name, shapes.get(name, (n_rows, dim)),
                          count_type if name == "pair_count" else np.float64)
@@ -224,7 +224,8 @@ class GpuRates:
                 if switched:
                     switch_kernel[blocks, tpb, stream](
                         n_rows, n_active, dorder, packed, doff, dind, int(viscosity.kind),
-                        viscosity.switch, float(switch_elapsed), out["factor"])
+                        viscosity.switch, float(switch_elapsed), out["factor"],
+                        out["memory"])
                 if with_hourglass:
                     dhg_state = up("hourglass_acceleration", hourglass_acceleration)
                     hourglass_kernel[blocks, tpb, stream](

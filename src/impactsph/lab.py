@@ -53,6 +53,8 @@ SCHEMES: dict[str, Overrides] = {
                              "viscosity.alpha2=1.0"),
     "Morris-Monaghan (1, 2)": _fixed('viscosity.scheme="morris_monaghan"',
                                      "viscosity.alpha1=1.0", "viscosity.alpha2=2.0"),
+    "Cullen-Dehnen (1, 2)": _fixed('viscosity.scheme="cullen_dehnen"', "viscosity.alpha1=1.0",
+                                   "viscosity.alpha2=2.0"),
 }
 
 #: the wall of the Taylor bars: the normal-stress contact and the penalty layer that hold a

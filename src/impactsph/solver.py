@@ -18,7 +18,13 @@ from .boundaries import (
 )
 from .kernels import SUPPORT_RADIUS
 from .materials import carried_pressure
-from .models.columns import CARRIED, DAMAGE, PASS_CARRIED, VISCOSITY_FACTOR
+from .models.columns import (
+    CARRIED,
+    DAMAGE,
+    PASS_CARRIED,
+    VISCOSITY_FACTOR,
+    VISCOSITY_MEMORY,
+)
 from .neighbours import NeighbourList
 from .physics.rates import CpuRates, RateBuffers, ViscositySettings, pressures
 from .state import ParticleState
@@ -163,6 +169,7 @@ class Solver:
         ext["S"][:n] = state.deviatoric_stress
         ext["carried"][:n, :CARRIED] = state.material_state[:, :CARRIED]
         ext["carried"][:n, VISCOSITY_FACTOR] = state.viscosity_factor
+        ext["carried"][:n, VISCOSITY_MEMORY] = state.viscosity_memory
         w = self.walls
         fill_ghosts(self._ghost_src, self._ghost_wall, w.points, w.normals, w.kinds, n,
                     ext["x"], ext["v"], ext["rho"], ext["e"], ext["S"], ext["carried"], ext["m"],
@@ -197,6 +204,7 @@ class Solver:
                 self._carried = np.empty((state.n, PASS_CARRIED))
             np.copyto(self._carried[:, :CARRIED], state.material_state[:, :CARRIED])
             self._carried[:, VISCOSITY_FACTOR] = state.viscosity_factor
+            self._carried[:, VISCOSITY_MEMORY] = state.viscosity_memory
             return (state.position, state.velocity, state.density, state.specific_energy,
                     state.deviatoric_stress, state.mass, state.smoothing_length, state.material,
                     state.body, self._carried)
@@ -232,6 +240,7 @@ class Solver:
         n = self.n_active
         if self.switched:  # the factors for the next evaluation (a half step later)
             state.viscosity_factor[:] = b.factor[:n]
+            state.viscosity_memory[:] = b.memory[:n]
             if time is not None:
                 state.viscosity_factor_time = time
         totals = rate_totals(n, state.mass, state.velocity, b.de_visc, b.dv_corr, b.de_corr,

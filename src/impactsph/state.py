@@ -40,6 +40,9 @@ class ParticleState:
     #: (n,) the factor on each particle's artificial viscosity that a viscosity switch sets
     #: (docs/dissipation.md): ``Pi_ij`` is multiplied by ``(f_i + f_j) / 2``; 1 without a switch
     viscosity_factor: np.ndarray = field(default=None)
+    #: (n,) what a viscosity switch keeps of a particle from one evaluation to the next (e.g.
+    #: Cullen & Dehnen's: the velocity divergence, 1/s); 0 without a switch that keeps one
+    viscosity_memory: np.ndarray = field(default=None)
     time: float = 0.0
     step: int = 0
     #: the time (s) of the rate evaluation that set ``viscosity_factor`` (a switch that evolves
@@ -61,6 +64,8 @@ class ParticleState:
             self.hourglass_acceleration = np.zeros((self.n, 0))
         if self.viscosity_factor is None:
             self.viscosity_factor = np.ones(self.n)
+        if self.viscosity_memory is None:
+            self.viscosity_memory = np.zeros(self.n)
 
     @property
     def n(self) -> int:

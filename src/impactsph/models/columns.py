@@ -35,10 +35,12 @@ COMMON_STATE = ("equivalent_plastic_strain", "plastic_strain_rate", "temperature
 #: the number of common columns
 CARRIED = len(COMMON_STATE)
 #: the rate passes' ``carried`` array (every row, ghosts included): the common columns, then
-#: the particle's viscosity factor (``ParticleState.viscosity_factor``: 1 unless the viscosity
-#: scheme has a switch; it is not a material state and the integrator does not touch it)
+#: the particle's viscosity factor and its switch's memory (``ParticleState.viscosity_factor``:
+#: 1 unless the viscosity scheme has a switch, ``ParticleState.viscosity_memory``; neither is
+#: a material state, and the integrator touches neither)
 VISCOSITY_FACTOR = CARRIED
-PASS_CARRIED = CARRIED + 1
+VISCOSITY_MEMORY = CARRIED + 1
+PASS_CARRIED = CARRIED + 2
 #: units of the common state, for outputs
 COMMON_STATE_UNITS = {"equivalent_plastic_strain": "", "plastic_strain_rate": "1/s",
                       "temperature": "K", "damage": "", "thickness_ratio": ""}

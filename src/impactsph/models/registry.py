@@ -154,12 +154,14 @@ class ViscosityScheme:
     ``de``; ``correction_parameters(viscosity)`` gives its four floats.
 
     ``switch`` (compiled, optional): ``switch(p, i, P, offsets, indices, layout, dim, params,
-    elapsed) -> f_i``, the particle's viscosity factor for the next rate evaluation (a float
-    in ``[0, 1]``), read from the packed records after the pair pass (``layout``: the columns
-    ``(x, v, h, volume, body, u, c, f)``, ``u`` the viscous acceleration of the unscaled
-    ``Pi_ij``, ``f`` the factor in use); ``elapsed`` is the time (s) since the factors were
-    last set, for a switch that evolves them (0 at the first evaluation);
-    ``switch_parameters(viscosity)`` gives its four floats.  A scheme with a switch
+    elapsed, memory) -> f_i``, the particle's viscosity factor for the next rate evaluation (a
+    float in ``[0, 1]``), read from the packed records after the pair pass (``layout``: the
+    columns ``(x, v, h, volume, body, u, c, f, memory, rho, m)``, ``u`` the viscous
+    acceleration of the unscaled ``Pi_ij``, ``f`` the factor in use, ``memory`` what the switch
+    kept at the last evaluation); ``elapsed`` is the time (s) since the factors were last set,
+    for a switch that evolves them (0 at the first evaluation); the switch writes what it keeps
+    for the next evaluation into ``memory[i]`` (it must write it: the array is not
+    initialised); ``switch_parameters(viscosity)`` gives its four floats.  A scheme with a switch
     has every pair's ``Pi_ij`` multiplied by the mean ``(f_i + f_j) / 2`` of the two
     particles' factors (docs/dissipation.md): a symmetric factor, so momentum and the energy
     balance are kept exactly."""

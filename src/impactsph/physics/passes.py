@@ -57,6 +57,9 @@ from impactsph.models.columns import (
 from impactsph.models.columns import (
     VISCOSITY_FACTOR as CARRIED_FACTOR,
 )
+from impactsph.models.columns import (
+    VISCOSITY_MEMORY as CARRIED_MEMORY,
+)
 from impactsph.physics.contact import (
     FRICTION_REGULARISATION,
     contact_acceleration_pair,
@@ -129,8 +132,9 @@ MOMENT_NONE = 0.05 ** DIM
 CORRECTION_COLUMNS = (X, V, H, VOL, BODY, U)
 #: the viscosity factor's column (VISCOSITY_FACTOR only)
 VF = _COLUMNS.get("f", 0)
-#: the record columns a viscosity switch reads: (x, v, h, volume, body, u, c, f)
-SWITCH_COLUMNS = (X, V, H, VOL, BODY, U, C, VF)
+#: the record columns a viscosity switch reads: (x, v, h, volume, body, u, c, f, memory, rho,
+#: m)
+SWITCH_COLUMNS = (X, V, H, VOL, BODY, U, C, VF, VF + 1, RHO, M)
 
 
 @JIT(inline="always", cache=True)
@@ -327,6 +331,7 @@ def particle_record(p, i, x, v, m, rho, e, S, carried, h, body, material, table,
         artificial_stress_record(P, p)
     if VISCOSITY_FACTOR:
         P[p, VF] = carried[i, CARRIED_FACTOR]
+        P[p, VF + 1] = carried[i, CARRIED_MEMORY]
 
 
 @JIT(inline="always", cache=True)
@@ -1049,7 +1054,7 @@ def correction_pass(n_active, order, P, offsets, indices, visc_kind, correction_
 
 @JIT(parallel=True, cache=True)
 def switch_pass(n_active, order, P, offsets, indices, visc_kind, switch_params, elapsed,
-                factor, chunk_size):
+                factor, memory, chunk_size):
     """The viscosity switch (a scheme with one) over the active particles, after the pair
     pass: ``factor[i]``, the particle's factor for the next rate evaluation (``elapsed``: the
     time since the factors in the records were set)."""
@@ -1060,7 +1065,8 @@ def switch_pass(n_active, order, P, offsets, indices, visc_kind, switch_params, 
             i = order[p]
             if i < n_active:
                 factor[i] = viscosity_switch(visc_kind, p, i, P, offsets, indices,
-                                             SWITCH_COLUMNS, DIM, switch_params, elapsed)
+                                             SWITCH_COLUMNS, DIM, switch_params, elapsed,
+                                             memory)
 
 
 @JIT(parallel=True, cache=True)
@@ -1159,11 +1165,12 @@ def cuda_kernels():
 
     @cuda.jit
     def switch_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind, switch_params,
-                      elapsed, factor):
+                      elapsed, factor, memory):
         p = cuda.grid(1)
         if p < n_rows and order[p] < n_active:
             factor[order[p]] = viscosity_switch(visc_kind, p, order[p], P, offsets, indices,
-                                                SWITCH_COLUMNS, DIM, switch_params, elapsed)
+                                                SWITCH_COLUMNS, DIM, switch_params, elapsed,
+                                                memory)
 
     @cuda.jit
     def moment_kernel(n_rows, P, offsets, indices):

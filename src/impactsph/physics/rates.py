@@ -81,6 +81,8 @@ class RateBuffers:
         self.dhg = np.zeros((n if hourglass else 0, dim))  # the hourglass acceleration's rate
         #: the viscosity switch's factor of each particle, for the next evaluation
         self.factor = np.ones(n if switched else 0)
+        #: the switch's memory of each particle, for the next evaluation
+        self.memory = np.zeros(n if switched else 0)
 
 
 class CpuRates:
@@ -160,7 +162,7 @@ class CpuRates:
                                  "passes compiled with PassOptions(viscosity_factor=True)")
             k.switch_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
                           viscosity.kind, viscosity.switch, float(switch_elapsed), b.factor,
-                          chunk)
+                          b.memory, chunk)
         if hourglass > 0.0:
             k.hourglass_pass(n_active, nl.order, self._packed, self._gradients, nl.offsets,
                              nl.indices, material, table, hourglass, hourglass_acceleration,
@@ -177,7 +179,8 @@ def pressures(rho: np.ndarray, e: np.ndarray, material: np.ndarray, table: np.nd
 
 def _records_of(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray, h: np.ndarray,
                 body: np.ndarray, neighbours, u: np.ndarray, c: np.ndarray | None = None,
-                factor: np.ndarray | None = None) -> np.ndarray:
+                factor: np.ndarray | None = None, memory: np.ndarray | None = None
+                ) -> np.ndarray:
     """Packed records (:mod:`.records`) of given fields in the list's order, for running one
     per-particle pass alone."""
     n, dim = x.shape
@@ -196,6 +199,7 @@ def _records_of(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray, h:
         packed[:, lay["c"]] = c[order]
     if factor is not None:
         packed[:, lay["f"]] = factor[order]
+        packed[:, lay["f"] + 1] = (np.zeros(n) if memory is None else memory)[order]
     return packed
 
 
@@ -218,18 +222,19 @@ def correction_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray
 
 def switch_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray, h: np.ndarray,
                 body: np.ndarray, c: np.ndarray, neighbours, u: np.ndarray,
-                viscosity: Any, factor: np.ndarray | None = None, elapsed: float = 0.0
-                ) -> np.ndarray:
+                viscosity: Any, factor: np.ndarray | None = None, elapsed: float = 0.0,
+                memory: np.ndarray | None = None, with_memory: bool = False):
     """The viscosity switch alone on given fields (wave speeds ``c``, unscaled viscous
-    accelerations ``u``, the factors in use ``factor`` (default 1), set ``elapsed`` seconds
-    before; all particles active): each particle's next factor, for the ``[viscosity]`` table
-    ``viscosity`` of a scheme with a switch.  For tests and analysis."""
+    accelerations ``u``, the factors in use ``factor`` (default 1) and the switch's memory
+    ``memory`` (default 0), set ``elapsed`` seconds before; all particles active): each
+    particle's next factor (and, ``with_memory``, its next memory), for the ``[viscosity]``
+    table ``viscosity`` of a scheme with a switch.  For tests and analysis."""
     n, dim = x.shape
     factor = np.ones(n) if factor is None else factor
-    packed = _records_of(x, v, m, rho, h, body, neighbours, u, c, factor)
+    packed = _records_of(x, v, m, rho, h, body, neighbours, u, c, factor, memory)
     settings = ViscositySettings.of(viscosity)
-    out = np.zeros(n)
+    out, new_memory = np.zeros(n), np.zeros(n)
     compiled_passes(dim, options=PassOptions(viscosity_factor=True)).switch_pass(
         n, neighbours.order, packed, neighbours.offsets, neighbours.indices, settings.kind,
-        settings.switch, float(elapsed), out, chunk_size(n))
-    return out
+        settings.switch, float(elapsed), out, new_memory, chunk_size(n))
+    return (out, new_memory) if with_memory else out

@@ -29,9 +29,9 @@ def record_columns(dim: int, correction_matrix: bool = False,
     if artificial_stress:
         cols["R"] = end
         end += n_sym
-    if viscosity_factor:
+    if viscosity_factor:  # the factor, then the switch's memory
         cols["f"] = end
-        end += 1
+        end += 2
     cols["width"] = (end + 7) // 8 * 8
     return cols
 

@@ -9,7 +9,7 @@ approaching pair, so a switch never makes the viscosity anti-dissipative.
 The factor is set after each rate evaluation from that evaluation's fields and used in the
 next one (half a time step later, with the midpoint integrator); it starts at 1 (the full
 viscosity) and is a per-particle array of the state (``ParticleState.viscosity_factor``,
-written to checkpoints and snapshots).  Three switches are registered:
+written to checkpoints and snapshots).  Five switches are registered:
 
 - ``balsara``: Balsara (1995, J. Comput. Phys. 121:357-372, eq 4.1)::
 
@@ -32,6 +32,17 @@ written to checkpoints and snapshots).  Three switches are registered:
   Morris & Monaghan start it).  Between two rate evaluations the
   equation is solved exactly with the coefficients of the later one (unconditionally stable,
   first order in time).
+
+- ``cullen_dehnen``: Cullen & Dehnen (2010, MNRAS 408:669, section 3): a target
+  ``f_loc = H^2 A / (v_sig^2 + H^2 A)`` from the shock indicator ``A = xi max(-dD/dt, 0)`` (the
+  rate at which the flow *starts* to converge, ``D = div v``), limited in shear by ``xi =
+  |2 (1 - R)^4 D|^2 / (|2 (1 - R)^4 D|^2 + tr(S S^T))`` (``S`` the traceless symmetric
+  velocity gradient, ``R`` the kernel-weighted sign of the neighbours' divergence); the
+  factor jumps up to ``f_loc`` and decays to it in ``H / (2 l v_sig)``, ``l = 0.05``.  ``H`` is
+  their smoothing length, the kernel's support: ``2 h`` here.  Where they compute ``dD/dt``
+  from the gradient of the acceleration, this takes the change of ``D`` since the last rate
+  evaluation (kept in the switch's memory), as SWIFT and GADGET-4 do; ``R`` uses the
+  neighbours' kept divergences.  The factor starts at 1.
 
 - ``ac_pairwise``: the acceleration correction of Shaw & Reid (2009, eqs 31-36) turned into
   a factor.  From the unscaled viscous acceleration ``u_i`` (eq 32, (1, 1)) and the paper's
@@ -110,10 +121,11 @@ def divergence_and_curl(p, P, offsets, indices, X, V, H, VOL, BODY, dim):
 
 
 @nb.njit(inline="always", cache=True)
-def balsara_factor(p, i, P, offsets, indices, layout, dim, params, elapsed):
+def balsara_factor(p, i, P, offsets, indices, layout, dim, params, elapsed, memory):
     """Balsara's ``f_i`` for the particle at sorted position ``p`` (``params = (eps_B, unused,
-    unused, unused)``; ``layout = (x, v, h, volume, body, u, c, f)``)."""
-    X, V, H, VOL, BODY, U, C, F = layout
+    unused, unused)``; ``layout``: :class:`~impactsph.models.registry.ViscosityScheme`)."""
+    X, V, H, VOL, BODY, U, C, F, MEMORY, RHO, M = layout
+    memory[i] = 0.0  # nothing kept
     div, curl = divergence_and_curl(p, P, offsets, indices, X, V, H, VOL, BODY, dim)
     a = abs(div)
     return a / (a + curl + params[0] * P[p, C] / P[p, H])
@@ -132,12 +144,13 @@ class MorrisMonaghanParameters(MonaghanParameters):
 
 
 @nb.njit(inline="always", cache=True)
-def morris_monaghan_factor(p, i, P, offsets, indices, layout, dim, params, elapsed):
+def morris_monaghan_factor(p, i, P, offsets, indices, layout, dim, params, elapsed, memory):
     """Morris & Monaghan's ``f_i = alpha_i / alpha1`` after ``elapsed`` seconds (``params =
     (alpha_min / alpha1, l, unused, unused)``): the factor in use (record column ``f``)
     advanced by the exact solution of ``df/dt = -(f - f_min) / tau + S (1 - f)`` with this
     evaluation's ``tau = h / (l c)`` and ``S = max(-div v, 0)``."""
-    X, V, H, VOL, BODY, U, C, F = layout
+    X, V, H, VOL, BODY, U, C, F, MEMORY, RHO, M = layout
+    memory[i] = 0.0  # nothing kept
     div, _ = divergence_and_curl(p, P, offsets, indices, X, V, H, VOL, BODY, dim)
     f_min = params[0]
     rate = params[1] * P[p, C] / P[p, H]  # 1 / tau
@@ -154,9 +167,10 @@ class PairwiseCorrectionParameters(CorrectionParameters):
 
 
 @nb.njit(inline="always", cache=True)
-def ac_pairwise_factor(p, i, P, offsets, indices, layout, dim, params, elapsed):
+def ac_pairwise_factor(p, i, P, offsets, indices, layout, dim, params, elapsed, memory):
     """The pairwise AC's ``f_i`` (``params = (h_ratio, variant, unused, unused)``)."""
-    X, V, H, VOL, BODY, U, C, F = layout
+    X, V, H, VOL, BODY, U, C, F, MEMORY, RHO, M = layout
+    memory[i] = 0.0  # nothing kept
     Pi_ = P[p]
     self_weight, weight_sum, s0, s1, s2, _ = correction_sums(
         p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, params[0])
@@ -223,15 +237,17 @@ def _variation_slope(p, P, offsets, indices, X, V, H, VOL, BODY, U, F, dim, f, s
 
 
 @nb.njit(inline="always", cache=True)
-def ac_optimised_factor(p, i, P, offsets, indices, layout, dim, params, elapsed):
+def ac_optimised_factor(p, i, P, offsets, indices, layout, dim, params, elapsed, memory):
     """The optimised correction's ``f_i`` (``params = (h_ratio, variant, unused, unused)``):
     the smallest ``f`` in ``[f_AC, 1]`` that minimises ``TV_i(f)`` (see
     :func:`_variation_slope`) over the next ``elapsed`` seconds, ``f_AC`` the pairwise AC's
     factor (:func:`ac_pairwise_factor`).  ``TV_i`` is convex in ``f`` (a sum of norms of
     affine functions), so its slope rises with ``f``: ``f_AC`` where the slope there is not
     negative, 1 where it is negative at 1, else the root of the slope by bisection."""
-    X, V, H, VOL, BODY, U, C, F = layout
-    low = ac_pairwise_factor(p, i, P, offsets, indices, layout, dim, params, elapsed)
+    X, V, H, VOL, BODY, U, C, F, MEMORY, RHO, M = layout
+    memory[i] = 0.0  # nothing kept
+    low = ac_pairwise_factor(p, i, P, offsets, indices, layout, dim, params, elapsed,
+                             memory)
     if elapsed <= 0.0 or low >= 1.0:
         return low
     if _variation_slope(p, P, offsets, indices, X, V, H, VOL, BODY, U, F, dim, low,
@@ -249,6 +265,103 @@ def ac_optimised_factor(p, i, P, offsets, indices, layout, dim, params, elapsed)
         else:
             b = mid
     return b
+
+
+class CullenDehnenParameters(MonaghanParameters):
+    """The ``[viscosity]`` fields of Cullen & Dehnen's switch: ``alpha1`` and ``alpha2`` are
+    the coefficients at the largest factor (1)."""
+
+    cd_decay: PositiveFloat = Field(
+        0.05, description="cullen_dehnen: l of the decay time 2h / (2 l v_sig) (Cullen & "
+        "Dehnen 2010: 0.05)")
+
+
+@nb.njit(inline="always", cache=True)
+def cullen_dehnen_fields(p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, RHO, M, dim):
+    """``(div v, tr(S S^T), R, v_sig)`` of the particle at sorted position ``p``: the SPH
+    velocity gradient ``dv_a/dx_b = -sum_j V_j v_ij,a dW_ij/dx_b`` (neighbours of the same
+    body), its divergence, the squared norm of its traceless symmetric part ``S``; ``R =
+    (1/rho_i) sum_j sign(D_j) m_j W_ij`` (``j = i`` included, ``D_j`` the divergences kept at
+    the last evaluation) and ``v_sig = max_j (c_ij - min(0, v_ij . r_ij / |r_ij|))`` (``c_i``
+    at least)."""
+    Pi_ = P[p]
+    h_i = Pi_[H]
+    L00 = L01 = L02 = L10 = L11 = L12 = L20 = L21 = L22 = 0.0
+    sign_i = 1.0 if Pi_[MEMORY] > 0.0 else (-1.0 if Pi_[MEMORY] < 0.0 else 0.0)
+    R = sign_i * Pi_[M] * cubic_spline(0.0, h_i, dim)
+    v_sig = Pi_[C]
+    for k in range(offsets[p], offsets[p + 1]):
+        Pj = P[indices[k]]
+        if Pj[BODY] != Pi_[BODY]:
+            continue
+        d0 = Pi_[X] - Pj[X]
+        d1 = Pi_[X + 1] - Pj[X + 1] if dim > 1 else 0.0
+        d2 = Pi_[X + 2] - Pj[X + 2] if dim > 2 else 0.0
+        r2 = d0 * d0 + d1 * d1 + d2 * d2
+        h_ij = 0.5 * (h_i + Pj[H])
+        inv_h = 1.0 / h_ij
+        q2 = r2 * inv_h * inv_h
+        if q2 >= 4.0 or r2 == 0.0:
+            continue
+        r = math.sqrt(r2)
+        fq = Pj[VOL] * cubic_spline_gradient_factor(math.sqrt(q2), inv_h, dim)
+        g0, g1, g2 = fq * d0, fq * d1, fq * d2
+        u0 = Pi_[V] - Pj[V]
+        u1 = Pi_[V + 1] - Pj[V + 1] if dim > 1 else 0.0
+        u2 = Pi_[V + 2] - Pj[V + 2] if dim > 2 else 0.0
+        L00 -= u0 * g0
+        L01 -= u0 * g1
+        L02 -= u0 * g2
+        L10 -= u1 * g0
+        L11 -= u1 * g1
+        L12 -= u1 * g2
+        L20 -= u2 * g0
+        L21 -= u2 * g1
+        L22 -= u2 * g2
+        mj = Pj[MEMORY]
+        sign_j = 1.0 if mj > 0.0 else (-1.0 if mj < 0.0 else 0.0)
+        R += sign_j * Pj[M] * cubic_spline(r, h_ij, dim)
+        approach = (u0 * d0 + u1 * d1 + u2 * d2) / r
+        v_sig = max(v_sig, 0.5 * (Pi_[C] + Pj[C]) - min(0.0, approach))
+    div = L00 + L11 + L22
+    third = div / dim
+    s00, s11, s22 = L00 - third, L11 - third, L22 - third
+    if dim < 3:
+        s22 = 0.0
+    if dim < 2:
+        s11 = 0.0
+    s01, s02, s12 = 0.5 * (L01 + L10), 0.5 * (L02 + L20), 0.5 * (L12 + L21)
+    shear = s00 * s00 + s11 * s11 + s22 * s22 + 2.0 * (s01 * s01 + s02 * s02 + s12 * s12)
+    return div, shear, R / Pi_[RHO], v_sig
+
+
+@nb.njit(inline="always", cache=True)
+def cullen_dehnen_factor(p, i, P, offsets, indices, layout, dim, params, elapsed, memory):
+    """Cullen & Dehnen's ``f_i = alpha_i / alpha1`` (``params = (l, unused, unused,
+    unused)``): the local target ``f_loc = H^2 A / (v_sig^2 + H^2 A)`` with ``A = xi
+    max(-dD/dt, 0)``, ``dD/dt`` the change of the divergence since the last evaluation over
+    ``elapsed``, ``xi = |2 (1 - R)^4 D|^2 / (|2 (1 - R)^4 D|^2 + tr(S S^T))`` and ``H = 2 h``
+    (their smoothing length is the kernel's support); ``f = f_loc`` where the factor in use
+    is below it, else it decays towards it, ``f_loc + (f - f_loc) exp(-elapsed 2 l v_sig /
+    H)``.  Keeps ``D`` in ``memory[i]``."""
+    X, V, H, VOL, BODY, U, C, F, MEMORY, RHO, M = layout
+    div, shear, R, v_sig = cullen_dehnen_fields(p, P, offsets, indices, X, V, H, VOL, BODY, C,
+                                                MEMORY, RHO, M, dim)
+    memory[i] = div
+    if elapsed <= 0.0:
+        return P[p, F]
+    rate = (div - P[p, MEMORY]) / elapsed
+    one_r = 1.0 - R
+    limiter = 2.0 * one_r * one_r * one_r * one_r * div
+    limiter *= limiter
+    xi = limiter / (limiter + shear) if limiter + shear > 0.0 else 0.0
+    support = 2.0 * P[p, H]
+    a = xi * max(-rate, 0.0) * support * support
+    f_loc = a / (v_sig * v_sig + a)
+    f_old = P[p, F]
+    if f_old <= f_loc:
+        return f_loc
+    return f_loc + (f_old - f_loc) * math.exp(-elapsed * 2.0 * params[0] * v_sig / support)
 
 
 BALSARA = VISCOSITY.register(ViscosityScheme(
@@ -274,6 +387,15 @@ MORRIS_MONAGHAN = VISCOSITY.register(ViscosityScheme(
     source="Morris & Monaghan (1997) J Comput Phys 136:41; the source term of Rosswog et al. "
            "(2000) MNRAS 317:443",
     description="Monaghan's viscosity with Morris & Monaghan's time-dependent coefficient"))
+
+CULLEN_DEHNEN = VISCOSITY.register(ViscosityScheme(
+    name="cullen_dehnen", pair_viscosity=monaghan_pair, parameters=CullenDehnenParameters,
+    pair_parameters=lambda v: (float(v.alpha1), float(v.alpha2), float(v.epsilon), 0.0),
+    switch=cullen_dehnen_factor,
+    switch_parameters=lambda v: (float(v.cd_decay), 0.0, 0.0, 0.0),
+    source="Cullen & Dehnen (2010) MNRAS 408:669, section 3 (the time derivative of the "
+           "divergence by differences between evaluations)",
+    description="Monaghan's viscosity with Cullen & Dehnen's shock indicator and limiter"))
 
 AC_PAIRWISE = VISCOSITY.register(ViscosityScheme(
     name="ac_pairwise", pair_viscosity=unit_viscosity, parameters=PairwiseCorrectionParameters,
