@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -364,7 +365,9 @@ class Simulation:
                                             else 0.0),
             "momentum_drift": float(np.max(np.linalg.norm(p - p[0], axis=1))
                                     / self._abs_momentum0) if self._abs_momentum0 else 0.0,
-            "plastic_work": float(np.dot(self.state.mass, self.state.plastic_work)),
+            # correctly rounded (math.fsum): a BLAS dot's rounding depends on the arrays'
+            # alignment in memory, so two runs of the same case could differ in the last bit
+            "plastic_work": math.fsum(self.state.mass * self.state.plastic_work),
             "failure": self.record.failure,
             "probes": {name: {"index": i,
                               "initial_position": self.state.initial_position[i].tolist()}

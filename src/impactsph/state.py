@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -101,11 +102,11 @@ class ParticleState:
 
     def kinetic_energy(self) -> float:
         """``sum 1/2 m |v|^2`` (J; J/m per unit depth in 2D, J/m^2 per unit section in 1D)."""
-        return float(0.5 * np.dot(self.mass, np.einsum("ia,ia->i", self.velocity, self.velocity)))
+        return 0.5 * math.fsum(self.mass * np.einsum("ia,ia->i", self.velocity, self.velocity))
 
     def internal_energy(self) -> float:
         """``sum m e``."""
-        return float(np.dot(self.mass, self.specific_energy))
+        return math.fsum(self.mass * self.specific_energy)
 
     def momentum(self) -> np.ndarray:
         """``sum m v`` (vector)."""
