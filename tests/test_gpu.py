@@ -73,21 +73,13 @@ CASES = {
     # plane stress (a compile-time variant: the particle pass reads the thickness ratio)
     "taylor-2d-plane-stress": ("taylor", ["bodies.0.geometry.count=[6, 10]",
                                           'two_dimensional="plane_stress"']),
-    # viscosity switches (a compile-time variant: the records carry each particle's factor,
-    # and the switch kernel sets the next one): Balsara's in 2D, the pairwise AC in 3D
+    # a viscosity switch (a compile-time variant: the records carry each particle's factor
+    # and memory, and the switch kernel sets the next ones; every switch is the same kernel)
     "taylor-2d-balsara": ("taylor", ["bodies.0.geometry.count=[6, 10]",
                                      'viscosity.scheme="balsara"']),
-    "block-3d-ac-pairwise": ("taylor", ["dimension=3", "analysis=none",
-                                        "bodies.0.velocity=[0.0, 0.0, -200.0]",
-                                        "bodies.0.geometry.origin=[-0.0015, -0.0015, 0.0]",
-                                        "bodies.0.geometry.size=[0.003, 0.003, 0.003]",
-                                        "bodies.0.geometry.count=[4, 4, 4]",
-                                        "boundaries.0.point=[0.0, 0.0, 0.0]",
-                                        "boundaries.0.normal=[0.0, 0.0, 1.0]",
-                                        'viscosity.scheme="ac_pairwise"']),
 }
 #: Cases with a viscosity switch: their buffers have a row per particle for the factor.
-SWITCHED = {"taylor-2d-balsara", "block-3d-ac-pairwise"}
+SWITCHED = {"taylor-2d-balsara"}
 #: Cases evaluated into buffers without rows for the contact force and AC, as the solver makes
 #: for runs without them (the bars have no AC; their contact force is then not recorded).
 LEAN = {"bars-1d"}
