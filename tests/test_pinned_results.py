@@ -7,10 +7,10 @@ A number that measures round-off itself (the momentum drift, of the order of 1e-
 to stay at round-off instead (below 1e-13), since any reordering of a sum changes its digits.
 The two energy balances that net the correction's work against its heating (the scheme's
 imbalance, 0 in exact arithmetic, and the budget's residual: fractions of the initial energy
-that are small differences of accumulated totals) are held to 1e-12 of that energy, the standard the energies themselves are held
-to; relative to their own small size they carry the energies' round-off magnified (the
-residual of the shortened Taylor bar, 3e-5 of the energy, moved by 1.4e-11 of itself when
-the correction pass was regrouped)."""
+that are small differences of accumulated totals) are held to 1e-12 of that energy, the
+standard the energies themselves are held to; relative to their own small size they carry
+the energies' round-off magnified (the residual of the shortened Taylor bar, 3e-5 of the
+energy, moved by 1.4e-11 of itself when the correction pass was regrouped)."""
 
 from __future__ import annotations
 
