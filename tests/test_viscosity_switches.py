@@ -1,6 +1,11 @@
 """Viscosity switches (:mod:`impactsph.models.viscosity.switches`): each factor against a hand
 computation, the pair term with the factors against a pair-by-pair sum, and conservation in
-runs (momentum to round-off: the scaled pair force stays antisymmetric)."""
+runs (momentum to round-off: the scaled pair force stays antisymmetric).
+
+In 1D and 2D only: the switch pass inlines every registered switch and takes about 40 s to
+compile cold per dimension, and the suite's time is limited.  The bodies are written for any
+dimension (their 3D terms run in `validation/taylor3d.py` and `validation/taylor_measured.py`
+with `ac_pairwise` and `balsara`)."""
 
 from __future__ import annotations
 
@@ -58,7 +63,7 @@ def velocity_field(x: np.ndarray, seed: int) -> np.ndarray:
     return v + rng.normal(0.0, 0.05, x.shape)
 
 
-@pytest.mark.parametrize("dim", [1, 2, 3])
+@pytest.mark.parametrize("dim", [1, 2])
 def test_balsara_factor_against_hand_computation(dim):
     """f_i = |div v| / (|div v| + |curl v| + eps c/h) with div and curl summed pair by pair
     (numpy, brute force), to round-off; rotation off and compression on give 0 and 1."""
@@ -99,7 +104,7 @@ def test_balsara_factor_against_hand_computation(dim):
     assert f_squeeze.min() > 0.99
 
 
-@pytest.mark.parametrize("dim", [1, 2, 3])
+@pytest.mark.parametrize("dim", [1, 2])
 @pytest.mark.parametrize("variant", ["neighbours_only", "shepard", "volume_weighted"])
 @pytest.mark.parametrize("h_ratio", [0.5, 0.833])
 def test_pairwise_ac_factor_is_the_fraction_that_ac_leaves(dim, variant, h_ratio):
@@ -129,7 +134,7 @@ def test_pairwise_ac_factor_is_the_fraction_that_ac_leaves(dim, variant, h_ratio
     assert np.all(got[::7] == 1.0)
 
 
-@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("dim", [2])
 def test_pair_term_takes_the_mean_of_the_two_factors(dim):
     """The pair pass with a switch: the viscous acceleration and heating are Monaghan's
     ``Pi_ij`` times ``(f_i + f_j) / 2`` summed pair by pair (numpy), for random factors; the
@@ -348,7 +353,7 @@ def test_optimised_factor_minimises_the_local_total_variation(dim):
     assert np.all((got >= low) & (got <= 1.0))
 
 
-@pytest.mark.parametrize("dim", [1, 2, 3])
+@pytest.mark.parametrize("dim", [1, 2])
 def test_cullen_dehnen_factor_against_hand_computation(dim):
     """``cullen_dehnen``: the factor and the kept divergence against numpy pair sums (the
     velocity gradient, its traceless symmetric part, R from the kept divergences' signs, the

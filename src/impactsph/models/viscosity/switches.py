@@ -250,20 +250,22 @@ def ac_optimised_factor(p, i, P, offsets, indices, layout, dim, params, elapsed,
                              memory)
     if elapsed <= 0.0 or low >= 1.0:
         return low
-    if _variation_slope(p, P, offsets, indices, X, V, H, VOL, BODY, U, F, dim, low,
-                        elapsed) >= 0.0:
-        return low
-    if _variation_slope(p, P, offsets, indices, X, V, H, VOL, BODY, U, F, dim, 1.0,
-                        elapsed) <= 0.0:
-        return 1.0
+    # one call site of the slope (inlined once): f_AC, then 1, then the bisection
     a, b = low, 1.0
-    for _ in range(OPTIMISED_BISECTIONS):
-        mid = 0.5 * (a + b)
-        if _variation_slope(p, P, offsets, indices, X, V, H, VOL, BODY, U, F, dim, mid,
-                            elapsed) < 0.0:
-            a = mid
+    for step in range(OPTIMISED_BISECTIONS + 2):
+        f = low if step == 0 else (1.0 if step == 1 else 0.5 * (a + b))
+        slope = _variation_slope(p, P, offsets, indices, X, V, H, VOL, BODY, U, F, dim, f,
+                                 elapsed)
+        if step == 0:
+            if slope >= 0.0:
+                return low
+        elif step == 1:
+            if slope <= 0.0:
+                return 1.0
+        elif slope < 0.0:
+            a = f
         else:
-            b = mid
+            b = f
     return b
 
 
