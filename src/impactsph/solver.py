@@ -168,8 +168,9 @@ class Solver:
         ext["rho"][:n], ext["e"][:n] = state.density, state.specific_energy
         ext["S"][:n] = state.deviatoric_stress
         ext["carried"][:n, :CARRIED] = state.material_state[:, :CARRIED]
-        ext["carried"][:n, VISCOSITY_FACTOR] = state.viscosity_factor
-        ext["carried"][:n, VISCOSITY_MEMORY] = state.viscosity_memory
+        if self.switched:  # read only by the passes of a scheme with a switch
+            ext["carried"][:n, VISCOSITY_FACTOR] = state.viscosity_factor
+            ext["carried"][:n, VISCOSITY_MEMORY] = state.viscosity_memory
         w = self.walls
         fill_ghosts(self._ghost_src, self._ghost_wall, w.points, w.normals, w.kinds, n,
                     ext["x"], ext["v"], ext["rho"], ext["e"], ext["S"], ext["carried"], ext["m"],
@@ -201,10 +202,11 @@ class Solver:
         included (``carried``: the common material state, :mod:`impactsph.models.columns`)."""
         if self._ext is None:
             if self._carried is None or self._carried.shape[0] != state.n:
-                self._carried = np.empty((state.n, PASS_CARRIED))
+                self._carried = np.zeros((state.n, PASS_CARRIED))
             np.copyto(self._carried[:, :CARRIED], state.material_state[:, :CARRIED])
-            self._carried[:, VISCOSITY_FACTOR] = state.viscosity_factor
-            self._carried[:, VISCOSITY_MEMORY] = state.viscosity_memory
+            if self.switched:
+                self._carried[:, VISCOSITY_FACTOR] = state.viscosity_factor
+                self._carried[:, VISCOSITY_MEMORY] = state.viscosity_memory
             return (state.position, state.velocity, state.density, state.specific_energy,
                     state.deviatoric_stress, state.mass, state.smoothing_length, state.material,
                     state.body, self._carried)

@@ -88,14 +88,19 @@ class BalsaraParameters(MonaghanParameters):
 
 
 @nb.njit(inline="always", cache=True)
-def divergence_and_curl(p, P, offsets, indices, X, V, H, VOL, BODY, dim):
-    """``(div v, |curl v|)`` of the particle at sorted position ``p``: ``div v_i = -sum_j V_j
-    v_ij . grad W_ij`` and ``curl v_i = -sum_j V_j grad W_ij x v_ij`` over the neighbours of
-    the same body (``grad W`` with the pair's mean smoothing length)."""
+def neighbour_fields(p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, M, dim):
+    """One loop over the neighbours of the same body of the particle at sorted position
+    ``p``: the SPH velocity gradient ``L_ab = dv_a/dx_b = -sum_j V_j v_ij,a dW_ij/dx_b``
+    (``grad W`` with the pair's mean smoothing length; nine components, row by row), ``rho_i
+    R = sum_j sign(D_j) m_j W_ij`` (``j = i`` included, ``D_j`` the divergences the switch kept
+    at the last evaluation) and ``v_sig = max_j (c_ij - min(0, v_ij . r_ij / |r_ij|))`` (``c_i``
+    at least)."""
     Pi_ = P[p]
-    div = 0.0
-    curl0 = curl1 = curl2 = 0.0
     h_i = Pi_[H]
+    L00 = L01 = L02 = L10 = L11 = L12 = L20 = L21 = L22 = 0.0
+    sign_i = 1.0 if Pi_[MEMORY] > 0.0 else (-1.0 if Pi_[MEMORY] < 0.0 else 0.0)
+    R = sign_i * Pi_[M] * cubic_spline(0.0, h_i, dim)
+    v_sig = Pi_[C]
     for k in range(offsets[p], offsets[p + 1]):
         Pj = P[indices[k]]
         if Pj[BODY] != Pi_[BODY]:
@@ -104,20 +109,62 @@ def divergence_and_curl(p, P, offsets, indices, X, V, H, VOL, BODY, dim):
         d1 = Pi_[X + 1] - Pj[X + 1] if dim > 1 else 0.0
         d2 = Pi_[X + 2] - Pj[X + 2] if dim > 2 else 0.0
         r2 = d0 * d0 + d1 * d1 + d2 * d2
-        inv_h = 2.0 / (h_i + Pj[H])
+        h_ij = 0.5 * (h_i + Pj[H])
+        inv_h = 1.0 / h_ij
         q2 = r2 * inv_h * inv_h
         if q2 >= 4.0 or r2 == 0.0:
             continue
+        r = math.sqrt(r2)
         fq = Pj[VOL] * cubic_spline_gradient_factor(math.sqrt(q2), inv_h, dim)
-        g0, g1, g2 = fq * d0, fq * d1, fq * d2  # V_j grad W_ij
+        g0, g1, g2 = fq * d0, fq * d1, fq * d2
         u0 = Pi_[V] - Pj[V]
         u1 = Pi_[V + 1] - Pj[V + 1] if dim > 1 else 0.0
         u2 = Pi_[V + 2] - Pj[V + 2] if dim > 2 else 0.0
-        div -= u0 * g0 + u1 * g1 + u2 * g2
-        curl0 -= g1 * u2 - g2 * u1
-        curl1 -= g2 * u0 - g0 * u2
-        curl2 -= g0 * u1 - g1 * u0
-    return div, math.sqrt(curl0 * curl0 + curl1 * curl1 + curl2 * curl2)
+        L00 -= u0 * g0
+        L01 -= u0 * g1
+        L02 -= u0 * g2
+        L10 -= u1 * g0
+        L11 -= u1 * g1
+        L12 -= u1 * g2
+        L20 -= u2 * g0
+        L21 -= u2 * g1
+        L22 -= u2 * g2
+        mj = Pj[MEMORY]
+        sign_j = 1.0 if mj > 0.0 else (-1.0 if mj < 0.0 else 0.0)
+        R += sign_j * Pj[M] * cubic_spline(r, h_ij, dim)
+        approach = (u0 * d0 + u1 * d1 + u2 * d2) / r
+        v_sig = max(v_sig, 0.5 * (Pi_[C] + Pj[C]) - min(0.0, approach))
+    return L00, L01, L02, L10, L11, L12, L20, L21, L22, R, v_sig
+
+
+@nb.njit(inline="always", cache=True)
+def cullen_dehnen_fields(p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, RHO, M, dim):
+    """``(div v, tr(S S^T), R, v_sig)`` of the particle at sorted position ``p`` from
+    :func:`neighbour_fields`: the divergence, the squared norm of the velocity gradient's
+    traceless symmetric part ``S`` and ``R`` divided by ``rho_i``."""
+    L00, L01, L02, L10, L11, L12, L20, L21, L22, R, v_sig = neighbour_fields(
+        p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, M, dim)
+    div = L00 + L11 + L22
+    third = div / dim
+    s00, s11, s22 = L00 - third, L11 - third, L22 - third
+    if dim < 3:
+        s22 = 0.0
+    if dim < 2:
+        s11 = 0.0
+    s01, s02, s12 = 0.5 * (L01 + L10), 0.5 * (L02 + L20), 0.5 * (L12 + L21)
+    shear = s00 * s00 + s11 * s11 + s22 * s22 + 2.0 * (s01 * s01 + s02 * s02 + s12 * s12)
+    return div, shear, R / P[p, RHO], v_sig
+
+
+@nb.njit(inline="always", cache=True)
+def divergence_and_curl(p, P, offsets, indices, layout, dim):
+    """``(div v, |curl v|)`` of the particle at sorted position ``p``, from the velocity
+    gradient of :func:`neighbour_fields`."""
+    X, V, H, VOL, BODY, U, C, F, MEMORY, RHO, M = layout
+    L00, L01, L02, L10, L11, L12, L20, L21, L22, _, _ = neighbour_fields(
+        p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, M, dim)
+    c0, c1, c2 = L21 - L12, L02 - L20, L10 - L01
+    return L00 + L11 + L22, math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
 
 
 @nb.njit(inline="always", cache=True)
@@ -126,7 +173,7 @@ def balsara_factor(p, i, P, offsets, indices, layout, dim, params, elapsed, memo
     unused, unused)``; ``layout``: :class:`~impactsph.models.registry.ViscosityScheme`)."""
     X, V, H, VOL, BODY, U, C, F, MEMORY, RHO, M = layout
     memory[i] = 0.0  # nothing kept
-    div, curl = divergence_and_curl(p, P, offsets, indices, X, V, H, VOL, BODY, dim)
+    div, curl = divergence_and_curl(p, P, offsets, indices, layout, dim)
     a = abs(div)
     return a / (a + curl + params[0] * P[p, C] / P[p, H])
 
@@ -151,7 +198,7 @@ def morris_monaghan_factor(p, i, P, offsets, indices, layout, dim, params, elaps
     evaluation's ``tau = h / (l c)`` and ``S = max(-div v, 0)``."""
     X, V, H, VOL, BODY, U, C, F, MEMORY, RHO, M = layout
     memory[i] = 0.0  # nothing kept
-    div, _ = divergence_and_curl(p, P, offsets, indices, X, V, H, VOL, BODY, dim)
+    div, _ = divergence_and_curl(p, P, offsets, indices, layout, dim)
     f_min = params[0]
     rate = params[1] * P[p, C] / P[p, H]  # 1 / tau
     source = max(-div, 0.0)
@@ -276,65 +323,6 @@ class CullenDehnenParameters(MonaghanParameters):
     cd_decay: PositiveFloat = Field(
         0.05, description="cullen_dehnen: l of the decay time 2h / (2 l v_sig) (Cullen & "
         "Dehnen 2010: 0.05)")
-
-
-@nb.njit(inline="always", cache=True)
-def cullen_dehnen_fields(p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, RHO, M, dim):
-    """``(div v, tr(S S^T), R, v_sig)`` of the particle at sorted position ``p``: the SPH
-    velocity gradient ``dv_a/dx_b = -sum_j V_j v_ij,a dW_ij/dx_b`` (neighbours of the same
-    body), its divergence, the squared norm of its traceless symmetric part ``S``; ``R =
-    (1/rho_i) sum_j sign(D_j) m_j W_ij`` (``j = i`` included, ``D_j`` the divergences kept at
-    the last evaluation) and ``v_sig = max_j (c_ij - min(0, v_ij . r_ij / |r_ij|))`` (``c_i``
-    at least)."""
-    Pi_ = P[p]
-    h_i = Pi_[H]
-    L00 = L01 = L02 = L10 = L11 = L12 = L20 = L21 = L22 = 0.0
-    sign_i = 1.0 if Pi_[MEMORY] > 0.0 else (-1.0 if Pi_[MEMORY] < 0.0 else 0.0)
-    R = sign_i * Pi_[M] * cubic_spline(0.0, h_i, dim)
-    v_sig = Pi_[C]
-    for k in range(offsets[p], offsets[p + 1]):
-        Pj = P[indices[k]]
-        if Pj[BODY] != Pi_[BODY]:
-            continue
-        d0 = Pi_[X] - Pj[X]
-        d1 = Pi_[X + 1] - Pj[X + 1] if dim > 1 else 0.0
-        d2 = Pi_[X + 2] - Pj[X + 2] if dim > 2 else 0.0
-        r2 = d0 * d0 + d1 * d1 + d2 * d2
-        h_ij = 0.5 * (h_i + Pj[H])
-        inv_h = 1.0 / h_ij
-        q2 = r2 * inv_h * inv_h
-        if q2 >= 4.0 or r2 == 0.0:
-            continue
-        r = math.sqrt(r2)
-        fq = Pj[VOL] * cubic_spline_gradient_factor(math.sqrt(q2), inv_h, dim)
-        g0, g1, g2 = fq * d0, fq * d1, fq * d2
-        u0 = Pi_[V] - Pj[V]
-        u1 = Pi_[V + 1] - Pj[V + 1] if dim > 1 else 0.0
-        u2 = Pi_[V + 2] - Pj[V + 2] if dim > 2 else 0.0
-        L00 -= u0 * g0
-        L01 -= u0 * g1
-        L02 -= u0 * g2
-        L10 -= u1 * g0
-        L11 -= u1 * g1
-        L12 -= u1 * g2
-        L20 -= u2 * g0
-        L21 -= u2 * g1
-        L22 -= u2 * g2
-        mj = Pj[MEMORY]
-        sign_j = 1.0 if mj > 0.0 else (-1.0 if mj < 0.0 else 0.0)
-        R += sign_j * Pj[M] * cubic_spline(r, h_ij, dim)
-        approach = (u0 * d0 + u1 * d1 + u2 * d2) / r
-        v_sig = max(v_sig, 0.5 * (Pi_[C] + Pj[C]) - min(0.0, approach))
-    div = L00 + L11 + L22
-    third = div / dim
-    s00, s11, s22 = L00 - third, L11 - third, L22 - third
-    if dim < 3:
-        s22 = 0.0
-    if dim < 2:
-        s11 = 0.0
-    s01, s02, s12 = 0.5 * (L01 + L10), 0.5 * (L02 + L20), 0.5 * (L12 + L21)
-    shear = s00 * s00 + s11 * s11 + s22 * s22 + 2.0 * (s01 * s01 + s02 * s02 + s12 * s12)
-    return div, shear, R / Pi_[RHO], v_sig
 
 
 @nb.njit(inline="always", cache=True)
