@@ -222,10 +222,9 @@ def test_plugin_registers_the_models_for_the_command_line(toy_models, tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     # the same case run here, in this process, where the fixture registered the models
     here = run_case(load_case(path), tmp_path / "here", figures=False)
-    # the same physics: equal to the last bits that compilation may change (with cold
-    # caches the two processes compile the generated passes separately, and the results
-    # have differed in the 16th digit: 1570.8887968739919 against ...916; not explained)
-    assert summary["plastic_work"] == pytest.approx(here["plastic_work"], rel=1e-13)
+    # the same physics, to the last bit: the two processes compile the generated passes
+    # separately (cold caches) or one serves the other's (warm), and both give one answer
+    assert summary["plastic_work"] == here["plastic_work"]
     assert here["plastic_work"] > 0
     case = json.loads((out / "case.json").read_text())["case"]
     assert case["plugins"] == [str(plugin)]

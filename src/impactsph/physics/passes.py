@@ -89,9 +89,13 @@ eos_pressure = strength_return = damage_update = pair_viscosity = viscosity_corr
 viscosity_switch = None
 # <<< binding
 
-#: LLVM may fuse multiply-adds and use reciprocals in the pair pass (deterministic on one
-#: machine; no reassociation, so sums keep their order).
-FASTMATH = {"contract", "arcp", "nsz"}
+#: LLVM may use reciprocals in the pair pass; no reassociation, so sums keep their order.  Not
+#: "contract" (fused multiply-adds): with it, passes compiled cold in a process and the same
+#: passes served from numba's cache gave results differing at 1e-12 relative (the AC bars),
+#: so a run's last digits depended on the cache's state; without it they agree bitwise
+#: (``test_plugin_registers_the_models_for_the_command_line``, cold caches), at 6% of the step
+#: time (benchmarks/README.md).
+FASTMATH = {"arcp", "nsz"}
 
 _COLUMNS = record_columns(DIM, correction_matrix=FORCE_CORRECTION,
                           artificial_stress=ARTIFICIAL_STRESS > 0.0,
