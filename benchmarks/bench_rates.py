@@ -95,9 +95,17 @@ def lattice_side(n: int, dim: int) -> int:
     return max(1, round(n ** (1.0 / dim)))
 
 
+#: what the lattices run: "paper" (the paper's scheme, the equations of the naive yardstick
+#: ``../shared/bench/naive_pairs.py``) or "defaults" (the case defaults: for this elastic
+#: block the stabilisation 'auto' turns on the corrected forces and the hourglass control)
+SCHEME_ENV = "IMPACTSPH_BENCH_SCHEME"
+
+
 def make_case(n: int, dim: int) -> dict:
-    """A case dict: one steel block of about ``n`` particles, at rest."""
+    """A case dict: one steel block of about ``n`` particles, at rest, with the scheme that
+    ``$IMPACTSPH_BENCH_SCHEME`` names (:data:`SCHEME_ENV`)."""
     side = lattice_side(n, dim)
+    paper = os.environ.get(SCHEME_ENV, "paper") == "paper"
     return {
         "name": f"bench_{dim}d_{n}",
         "dimension": dim,
@@ -111,6 +119,8 @@ def make_case(n: int, dim: int) -> dict:
         "kernel": {"h_over_dx": H_OVER_DX},
         "time": {"end": 1e-6},
         "output": {"figures": False},
+        **({"stabilisation": {"gradient_correction": "none", "hourglass": 0.0}}
+           if paper else {}),
     }
 
 
@@ -305,6 +315,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="neighbour skins (fractions of the support) at which the taylor case "
                          "also runs, to show what reusing the list saves (default: 0 0.05 0.1 "
                          "0.2; none to skip)")
+    ap.add_argument("--scheme", choices=("paper", "defaults"), default="paper",
+                    help="the lattices' scheme: the paper's (default; the naive yardstick's "
+                    "equations) or the case defaults (an elastic block: corrected forces and "
+                    "hourglass control)")
     ap.add_argument("--no-compile", action="store_true",
                     help="skip timing numba's compilation with an empty cache")
     args = ap.parse_args(argv)
@@ -314,6 +328,7 @@ def main(argv: list[str] | None = None) -> int:
     if sizes[0] < 1:
         ap.error("--sizes must be >= 1")
 
+    os.environ[SCHEME_ENV] = args.scheme  # the children inherit it
     info = machine_info()
     start, busy0, own0 = time.perf_counter(), cpu_busy_seconds(), own_cpu_seconds()
     print(f"impactsph rate benchmark  {info['date']}  {info['source']}")
@@ -325,11 +340,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"WARNING: other processes keep {info['other_load_at_start']:.2f} cores busy; "
               "competition for the cores slows numba's parallel regions a lot")
     print(f"lattice dx = {DX:g} m, h = {H_OVER_DX} dx, steel (7850 kg/m^3, E = 2e11 Pa, "
-          f"nu = 0.3), random v ~ N(0, 1 m/s), AV, best of {args.repeat}; each size in a "
+          f"nu = 0.3), random v ~ N(0, 1 m/s), AV, scheme: {args.scheme}, best of "
+          f"{args.repeat}; each size in a "
           "fresh process")
     print()
 
-    results: dict = {"machine": info, "repeat": args.repeat, "sizes": [], "fits": {}}
+    results: dict = {"machine": info, "scheme": args.scheme, "repeat": args.repeat,
+                     "sizes": [], "fits": {}}
     header = (f"{'dim':>3} {'N':>9} {'pairs/i':>7} {'rates s':>9} {'pairs/s':>9} "
               f"{'1-thr x':>7} {'rebuild s':>9} {'step s':>9} {'step/2r':>7} {'B/part':>7} "
               f"{'RSS MiB':>8}")
