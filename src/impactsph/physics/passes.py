@@ -321,10 +321,9 @@ def particle_record(p, i, x, v, m, rho, e, S, carried, h, body, material, table,
     take that, and the forces the stress resultant per unit initial thickness ``tau sigma``
     (``rho dv/dt = div(tau sigma)``, the thickness varying from particle to particle).  In
     axisymmetry ``rho`` is the mass per radian and unit area of the r-z plane, ``rho_m r``
-    (``tau = r``), the stress columns hold ``r sigma / rho`` and ``P r / rho`` with the signed
-    radius ``r = x`` (a mirror ghost across the axis has ``r < 0``, so that ``r sigma`` is
-    continued smoothly across the axis), and the record also holds ``sigma_tt / rho`` and
-    ``r`` (floored, > 0) for the hoop terms (:func:`particle_rates`)."""
+    (``tau = r``), the stress columns hold ``|r| sigma / rho`` and ``P |r| / rho`` (``r = x``;
+    a mirror ghost across the axis has ``x < 0``), and the record also holds
+    ``sigma_tt / rho`` and ``r`` (floored, > 0) for the hoop terms (:func:`particle_rates`)."""
     k = material[i]
     tau = carried[i, THICKNESS_RATIO] if THICK else 1.0
     rho_m = rho[i] / tau if THICK else rho[i]
@@ -547,9 +546,8 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     Axisymmetry (``AXISYMMETRIC``; x the radius r, y the axis z; docs/modelling.md): with
     ``rho = rho_m r`` (the mass per radian and unit area of the r-z plane, which the 2D
     continuity equation keeps exactly), ``V_j = m_j / rho_j`` (particle j's area in the r-z
-    plane) and ``Q = r sigma`` (the signed radius: smooth across the axis), the momentum
-    equation in cylindrical coordinates times r, ``rho dv/dt = div_rz(Q) - sigma_tt e_r``,
-    is discretised in the symmetric form
+    plane) and ``Q = |r| sigma``, the momentum equation in cylindrical coordinates times r,
+    ``rho dv/dt = div_rz(Q) - sigma_tt e_r``, is discretised in the symmetric form
 
         dv_i/dt = 1/rho_i sum_j V_j (Q_i + Q_j) . grad W_ij  -  sigma_tt,i M_i / rho_i e_r
         de_i/dt = 1/rho_i Q_i : sum_j V_j v_ji (x) grad W_ij + sigma_tt,i M_i v_r,i / rho_i
@@ -557,17 +555,18 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
 
     (``v_r / r`` in place of ``M_i v_r / r_i`` in ``dS`` with the velocity-gradient
     correction, which makes the rest of the strain rate exact for a linear field), with
-    ``M_i = sum_j V_j (r_j - r_i) dW_ij/dr_i``, the same sum's estimate of
-    ``dr/dr = 1``: the pair term gives ``sigma M_i / rho_i e_r`` for a uniform stress where
-    the kernel's support is full, so the hoop term cancels it exactly for ``sigma_rr =
-    sigma_tt`` (with 1 in its place a uniform pressure pushed the particles next to the axis
-    by ``P (M_i - 1) / rho_i``).  The pair force ``V_i V_j (Q_i + Q_j) grad W_ij`` is
-    antisymmetric (axial momentum kept) and the energy rate is its adjoint, the hoop power
-    likewise, so the total energy per radian is kept; only areas ``V_j`` and ``Q``, both
-    smooth across the axis, enter the sums, where the form with ``Q / rho^2`` (the plane
-    form for the density ``rho``) meets the kink of ``rho = rho_m |r|`` at the axis (hoop
-    stress 17% low within 2 dx of it, and unstable: docs/modelling.md).  Contact between
-    bodies takes the same form with the normal stress (or pressure) for ``sigma``."""
+    ``M_i = sum_j V_j (|r_j| - r_i) dW_ij/dr_i`` over the same neighbours, the sums' own
+    estimate of ``dr/dr``: the pair term gives ``sigma M_i / rho_i e_r`` for a uniform stress
+    where the support is full, so the hoop term cancels it exactly for ``sigma_rr =
+    sigma_tt``, next to the axis too (with 1 in its place a uniform pressure pushed the
+    particles there by ``P (M_i - 1) / rho_i``).  The pair force ``V_i V_j (Q_i + Q_j)
+    grad W_ij`` is antisymmetric (axial momentum kept), the energy rate is its adjoint and
+    the hoop power likewise, so the total energy per radian is kept exactly.  A ghost across
+    the axis (``r < 0``) carries its source's stress mirrored, so ``|r|`` makes its pair with
+    a particle the mirror of the pair of their sources, and the energy stays exact; the
+    signed ``r``, which continues ``r sigma`` smoothly across the axis, broke that (a rod's
+    energy error 4e-3 against 6e-5, docs/modelling.md).  Contact between bodies takes the
+    same form with the normal stress (or pressure) for ``sigma``."""
     shear = table[material[i], SHEAR]
     Pi_ = P[p]
     xi0 = Pi_[X]
