@@ -358,11 +358,11 @@ def layer_push(n, x, v, m, material, table, points, normals, layer, dv, de, soft
     held in the particle's internal energy while it is compressed and given back as it
     leaves; the dashpot's work stays there as heat.
 
-    ``per_radian``: an axisymmetric run, whose masses are per radian (the spacing is then
-    ``(m_i / (rho0_i r_i))^(1/2)``).  ``soft``: the layer of a total-Lagrangian body, which has no wall
+    ``per_radian``: an axisymmetric run, whose masses are per radian (the spacing is then ``(m_i /
+    (rho0_i r_i))^(1/2)``).  ``soft``: the layer of a total-Lagrangian body, which has no wall
     ghosts, so the layer carries the whole load.  The spring is a quarter of one spacing's bulk
-    stiffness and the dashpot grows with the penetration (Hunt & Crossley 1975), so the push
-    starts from zero at the layer's edge::
+    stiffness and the dashpot grows with the penetration (Hunt & Crossley 1975), so the push starts
+    from zero at the layer's edge::
 
         omega = c_K / (2 dx_i),   c_K^2 = K / rho0
         dv_i/dt += max(0, omega^2 delta - 2 zeta omega v_n delta / r0) n

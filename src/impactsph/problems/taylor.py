@@ -12,14 +12,13 @@ this bar (the band of ``docs/validation.md``, Example 2).
 
 In axisymmetry (x the radius) the half-width is the footprint's radius, also given as
 ``footprint_radius_ratio``.  In 3D (a cylinder, ``examples/taylor3d.toml``) the footprint is a
-radius, measured the same way: the largest distance from the bar's axis among the particles
-within one spacing of the wall, plus half a spacing, over the same measure of the whole bar
-at t = 0 (``footprint_radius_ratio``; 1 at t = 0, as the 2D ratio).  The axis is the line through the
-initial centroid along the cylinder's ``axis``.  The footprint is also split into eight 45-degree
-sectors about the axis, centred on the lateral coordinate axes and their diagonals;
+radius, measured the same way: the largest distance from the bar's axis among the particles within
+one spacing of the wall, plus half a spacing, over the same measure of the whole bar at t = 0
+(``footprint_radius_ratio``; 1 at t = 0, as the 2D ratio).  The axis is the line through the initial
+centroid along the cylinder's ``axis``.  The footprint is also split into eight 45-degree sectors
+about the axis, centred on the lateral coordinate axes and their diagonals;
 ``footprint_radius_ratio_min_sector`` is the smallest of their radii, so it equals
-``footprint_radius_ratio`` for a round footprint and falls below it where the foot spreads
-unevenly.
+``footprint_radius_ratio`` for a round footprint and falls below it where the foot spreads unevenly.
 
 ``profile``: the mushroom, ``[height, half-width or radius]`` in 20 slices of the final bar
 (:func:`bar_profile`), to set beside a measured outline (``validation/taylor_measured.py``).
