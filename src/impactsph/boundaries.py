@@ -339,7 +339,8 @@ LAYER_DAMPING = 0.5
 
 
 @nb.njit(parallel=True, cache=True)
-def layer_push(n, x, v, m, material, table, points, normals, layer, dv, de, soft=False):
+def layer_push(n, x, v, m, material, table, points, normals, layer, dv, de, soft=False,
+               per_radian=False):
     """The wall layer's push on the first ``n`` particles, added to ``dv`` and ``de``; returns
     the total force on them (N, or N per metre of depth in 2D).
 
@@ -357,10 +358,11 @@ def layer_push(n, x, v, m, material, table, points, normals, layer, dv, de, soft
     held in the particle's internal energy while it is compressed and given back as it
     leaves; the dashpot's work stays there as heat.
 
-    ``soft``: the layer of a total-Lagrangian body, which has no wall ghosts, so the layer
-    carries the whole load.  The spring is a quarter of one spacing's bulk stiffness and the
-    dashpot grows with the penetration (Hunt & Crossley 1975), so the push starts from zero
-    at the layer's edge::
+    ``per_radian``: an axisymmetric run, whose masses are per radian (the spacing is then ``(m_i /
+    (rho0_i r_i))^(1/2)``).  ``soft``: the layer of a total-Lagrangian body, which has no wall
+    ghosts, so the layer carries the whole load.  The spring is a quarter of one spacing's bulk
+    stiffness and the dashpot grows with the penetration (Hunt & Crossley 1975), so the push starts
+    from zero at the layer's edge::
 
         omega = c_K / (2 dx_i),   c_K^2 = K / rho0
         dv_i/dt += max(0, omega^2 delta - 2 zeta omega v_n delta / r0) n
@@ -377,7 +379,9 @@ def layer_push(n, x, v, m, material, table, points, normals, layer, dv, de, soft
         for i in range(c * chunk, min((c + 1) * chunk, n)):
             k = material[i]
             rho0 = table[k, RHO0]
-            dx = (m[i] / rho0) ** (1.0 / dim)
+            # axisymmetry (per_radian): the mass is per radian, the particle's area m / (rho0 r)
+            area = m[i] / (rho0 * max(x[i, 0], 1e-300)) if per_radian else m[i] / rho0
+            dx = area ** (1.0 / dim)
             r0 = layer * dx
             for w in range(points.shape[0]):
                 d = 0.0

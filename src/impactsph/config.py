@@ -595,10 +595,13 @@ class Case(_Model):
         "(relative to the case file) imported before the case is validated: where models, "
         "problems or boundaries of your own are registered")
     dimension: Literal[1, 2, 3]
-    two_dimensional: Literal["plane_strain", "plane_stress"] = Field(
+    two_dimensional: Literal["plane_strain", "plane_stress", "axisymmetric"] = Field(
         "plane_strain", description="what a 2D case models: 'plane_strain' (eps_zz = 0: a "
-        "long body, the paper's choice) or 'plane_stress' (sigma_zz = 0: a thin plate loaded "
-        "in its plane, each particle's thickness changing; docs/modelling.md)")
+        "long body, the paper's choice), 'plane_stress' (sigma_zz = 0: a thin plate loaded "
+        "in its plane, each particle's thickness changing) or 'axisymmetric' (a body of "
+        "revolution about the y axis: x is the radius r >= 0, y the axis z; masses, energies "
+        "and forces per radian; the axis is a symmetry plane, added if the case has none; "
+        "docs/modelling.md)")
     formulation: Literal["updated_lagrangian", "total_lagrangian"] = Field(
         "updated_lagrangian", description="'updated_lagrangian': kernel and neighbours of the "
         "current configuration (the paper's SPH); 'total_lagrangian': kernel and neighbours of "
@@ -641,6 +644,8 @@ class Case(_Model):
                 raise ValueError(f"two_dimensional = {self.two_dimensional!r} is not available "
                                  f"with formulation = 'total_lagrangian' (its passes are "
                                  f"plane strain)")
+            if self.two_dimensional == "axisymmetric":
+                self._axisymmetric_limits()
         names = set()
         for k, body in enumerate(self.bodies):
             where = f"bodies.{k}"
@@ -747,6 +752,44 @@ class Case(_Model):
         self._resolve_stabilisation()
         return self
 
+    def _axisymmetric_limits(self) -> None:
+        """Axisymmetry: the axis x = 0 is a symmetry plane (added when missing); no other
+        symmetry plane normal to r; no tip mass (its depth is a plane model's)."""
+        axis = False
+        for k, boundary in enumerate(self.boundaries):
+            if boundary.type != "symmetry" or abs(boundary.normal[0]) == 0.0:
+                continue
+            if boundary.normal[1] != 0.0 or boundary.point[0] != 0.0 or boundary.normal[0] < 0:
+                raise ValueError(f"boundaries.{k}: in axisymmetry a symmetry plane across r is "
+                                 f"the axis only (point x = 0, normal [1, 0])")
+            axis = True
+        for k, boundary in enumerate(self.boundaries):
+            if boundary.type == "wall" and boundary.normal[0] != 0.0:
+                raise ValueError(f"boundaries.{k}: in axisymmetry a wall is normal to the axis "
+                                 f"(normal [0, 1] or [0, -1]), not {list(boundary.normal)} (a "
+                                 f"wall parallel to it is not validated: docs/modelling.md)")
+        if not axis:
+            self.boundaries.append(Symmetry(point=[0.0, 0.0], normal=[1.0, 0.0]))
+        for k, body in enumerate(self.bodies):
+            if body.tip_mass is not None:
+                raise ValueError(f"bodies.{k}.tip_mass is not available with two_dimensional = "
+                                 f"'axisymmetric' (its depth is a plane model's)")
+        # the remedies whose sums are mass-weighted in the plane form (docs/modelling.md)
+        axi = "with two_dimensional = 'axisymmetric'"
+        stab = self.stabilisation
+        if stab.gradient_correction == "velocity_gradient_and_forces":
+            raise ValueError(f"stabilisation.gradient_correction = 'velocity_gradient_and_"
+                             f"forces' is not available {axi}; 'velocity_gradient' or 'none'")
+        if stab.hourglass != "auto" and stab.hourglass > 0.0:
+            raise ValueError(f"stabilisation.hourglass = {stab.hourglass!r} is not available "
+                             f"{axi}; 0")
+        if stab.artificial_stress > 0.0:
+            raise ValueError(f"stabilisation.artificial_stress = {stab.artificial_stress!r} "
+                             f"is not available {axi}; 0")
+        if self.contact.friction > 0.0:
+            raise ValueError(f"contact.friction = {self.contact.friction!r} (between bodies) "
+                             f"is not available {axi}; 0 (walls may have friction)")
+
     def _total_lagrangian_limits(self) -> None:
         """Refuse what the total-Lagrangian formulation does not do, in one line each."""
         tl = "with formulation = 'total_lagrangian'"
@@ -792,10 +835,12 @@ class Case(_Model):
             stab.hourglass = 0.0
             return
         elastic = all(STRENGTH[m.model].return_map is None for m in self.materials.values())
-        if stab.gradient_correction == "auto":
-            stab.gradient_correction = "velocity_gradient_and_forces" if elastic else "none"
+        axisymmetric = self.two_dimensional == "axisymmetric"  # neither corrected forces nor
+        corrected = "velocity_gradient" if axisymmetric else "velocity_gradient_and_forces"
+        if stab.gradient_correction == "auto":  # hourglass control there (docs/modelling.md)
+            stab.gradient_correction = corrected if elastic else "none"
         if stab.hourglass == "auto":
-            stab.hourglass = AUTO_HOURGLASS if elastic else 0.0
+            stab.hourglass = AUTO_HOURGLASS if elastic and not axisymmetric else 0.0
 
 
 def _optional(info: Any) -> tuple[Any, Any]:

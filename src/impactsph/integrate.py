@@ -111,7 +111,7 @@ def stable_time_step(state: ParticleState, table: np.ndarray, courant: float,
     """CFL step of eq 26 (with the hourglass control's coefficient ``hourglass``, if on)."""
     survey = _survey_kernel(state.dim)
     n = state.n if n_active is None else n_active
-    # the material's density (in plane stress ``density`` is a mass per area over t0)
+    # the material's density (plane stress and axisymmetry keep a mass per area in density)
     dt, _, _ = survey(n, state.position, state.velocity, state.material_density,
                       state.specific_energy,
                       state.deviatoric_stress, state.mass, state.smoothing_length,
@@ -124,7 +124,7 @@ class MidpointIntegrator:
     ``(dv, drho, de, dS, dhg)`` for the active particles; see :class:`~impactsph.solver.Solver`."""
 
     def __init__(self, rates, table: np.ndarray, n_active: int, dim: int, constraint=None,
-                 drivers=None, plane_stress: bool = False):
+                 drivers=None, plane_stress: bool = False, axisymmetric: bool = False):
         self.rates = rates
         #: the driven regions (:class:`impactsph.driven.Drivers`), or None
         self.drivers = drivers
@@ -137,10 +137,10 @@ class MidpointIntegrator:
         self.clamp_impulse = np.zeros(dim)
         self.table = table
         self.n_active = n_active
-        # the stage depends on no option of the pair passes but plane stress: one module serves
-        # every run of that kind
-        self._advance = compiled_passes(dim, options=PassOptions(plane_stress=plane_stress)
-                                        ).advance
+        # the stage depends on no option of the pair passes but the 2D model: one module
+        # serves every run of that kind
+        self._advance = compiled_passes(dim, options=PassOptions(
+            plane_stress=plane_stress, axisymmetric=axisymmetric)).advance
         self.survey_kernel = _survey_kernel(dim)
         self._any_clamped: bool | None = None
         self._start: SimpleNamespace | None = None

@@ -106,6 +106,23 @@ def stressed_state(stress: np.ndarray, k: int, table: np.ndarray, dim: int,
     return rho, deviator
 
 
+def axisymmetric_masses(state: ParticleState, body_names: list[str]) -> None:
+    """Axisymmetry: each particle is a ring about the y axis at the radius ``r = x``; its mass
+    is per radian, ``rho r V``, and ``density`` is the mass per radian and unit area of the
+    r-z plane, ``rho r``, the thickness column holding ``r`` (docs/modelling.md).  A particle
+    at ``x <= 0`` is a :class:`CaseError`."""
+    r = state.position[:, 0]
+    bad = np.flatnonzero(~(r > 0.0))
+    if bad.size:
+        i = int(bad[0])
+        raise CaseError(f"bodies.{int(state.body[i])}: a particle of body "
+                        f"{body_names[int(state.body[i])]!r} is at x = {float(r[i])!r}; with "
+                        f"two_dimensional = 'axisymmetric' x is the radius, > 0")
+    state.mass *= r
+    state.density *= r
+    state.material_state[:, THICKNESS_RATIO] = r
+
+
 def build_problem(case: Case) -> Problem:
     """Place the particles of every body (:func:`~impactsph.geometry.body_particles`), set
     masses ``rho0 V`` from their volumes V (``dx^dim`` on a lattice; plus any tip mass),
@@ -182,6 +199,8 @@ def build_problem(case: Case) -> Problem:
         clamped=cat["clamped"], material_state=np.zeros((n, layout.state_width)),
     )
     initialise_material_state(state, materials, layout)
+    if case.two_dimensional == "axisymmetric":
+        axisymmetric_masses(state, body_names=[b.name for b in case.bodies])
     from_file = np.isfinite(cat["temperature"])  # a particle file's temperature column
     state.material_state[from_file, TEMPERATURE] = cat["temperature"][from_file]
     body_names = [b.name for b in case.bodies]

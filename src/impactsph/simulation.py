@@ -125,7 +125,8 @@ class Simulation:
             self.solver.rates, self.problem.table, self.state.n, self.state.dim,
             constraint=self.walls.enforce if len(self.walls) else None,
             drivers=Drivers.of(case, self.state),
-            plane_stress=case.two_dimensional == "plane_stress")
+            plane_stress=case.two_dimensional == "plane_stress",
+            axisymmetric=case.two_dimensional == "axisymmetric")
         self.record = RunRecord(probes={name: [] for name in self.problem.probes})
         self.gauges = Gauges.of(case, self.problem)
         #: per body, the largest displacement |x - x0| of a particle at the history's rows (m)

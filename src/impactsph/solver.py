@@ -104,6 +104,8 @@ class Solver:
         #: symmetry planes: their ghosts get the mirror of their sources' pair results
         self._symmetric = self.walls is not None and bool((self.walls.kinds == SYMMETRY).any())
         self._friction = self.walls is not None and bool((self.walls.friction > 0.0).any())
+        options = getattr(self.backend, "options", None)
+        self._axisymmetric = bool(getattr(options, "axisymmetric", False))
         self._positions: np.ndarray | None = None  # row -> place in the packed records
         rigid = np.zeros(0, dtype=np.int64) if self.walls is None else self.walls.walls_only
         self._rigid = rigid
@@ -261,7 +263,8 @@ class Solver:
             if self.wall_layer > 0.0 and self._rigid.size:  # rigid walls, not symmetry planes
                 self.wall_force += layer_push(n, state.position, state.velocity, state.mass,
                                               state.material, self.table, self._rigid_points,
-                                              self._rigid_normals, self.wall_layer, b.dv, b.de)
+                                              self._rigid_normals, self.wall_layer, b.dv, b.de,
+                                              False, self._axisymmetric)
         self.pair_evaluations += int(totals[3])
         self.rate_evaluations += 1
         return b.dv, b.drho, b.de, b.dS, b.dhg

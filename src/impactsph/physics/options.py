@@ -36,6 +36,8 @@ class PassOptions:
       which ``f_ij = W(r_ij) / W(dx)`` is 1;
     - ``contact_friction``: the Coulomb coefficient between bodies (0: frictionless); a
       run-time argument of the friction pass, which runs only where it is > 0;
+    - ``axisymmetric``: a 2D run in axisymmetry (``x`` the radius, ``y`` the axis; the hoop
+      terms of :func:`impactsph.physics.passes.particle_rates`);
     - ``plane_stress``: a 2D run in plane stress (``sigma_zz = 0``, each particle's thickness
       changing; :func:`impactsph.physics.passes.plane_stress_return`) instead of plane strain;
     - ``viscosity_factor``: the viscosity scheme has a switch (a per-particle factor on
@@ -49,6 +51,7 @@ class PassOptions:
     artificial_stress_exponent: float = 4.0
     reference_q: float = 1.0 / 1.3
     plane_stress: bool = False
+    axisymmetric: bool = False
     contact_friction: float = 0.0
     viscosity_factor: bool = False
 
@@ -80,6 +83,7 @@ class PassOptions:
                    artificial_stress_exponent=float(stab.artificial_stress_exponent),
                    reference_q=1.0 / float(case.kernel.h_over_dx),
                    plane_stress=getattr(case, "two_dimensional", "") == "plane_stress",
+                   axisymmetric=getattr(case, "two_dimensional", "") == "axisymmetric",
                    contact_friction=float(case.contact.friction),
                    viscosity_factor=VISCOSITY[case.viscosity.scheme].switch is not None)
 
@@ -104,6 +108,8 @@ class PassOptions:
             tag += "_ps"
         if self.viscosity_factor:
             tag += "_vf"
+        if self.axisymmetric:
+            tag += "_ax"
         return tag
 
     def constants(self) -> list[str]:
@@ -119,4 +125,5 @@ class PassOptions:
             f"REFERENCE_Q = {float(self.reference_q) if on else 1.0!r}",
             f"PLANE_STRESS = {bool(self.plane_stress)}",
             f"VISCOSITY_FACTOR = {bool(self.viscosity_factor)}",
+            f"AXISYMMETRIC = {bool(self.axisymmetric)}",
         ]

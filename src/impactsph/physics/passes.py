@@ -82,6 +82,7 @@ ARTIFICIAL_STRESS_EXPONENT = 4.0
 REFERENCE_Q = 1.0
 PLANE_STRESS = False
 VISCOSITY_FACTOR = False
+AXISYMMETRIC = False
 JIT = nb.njit
 EOS_PARAMS = STRENGTH_PARAMS = DAMAGE_PARAMS = STATE_WIDTH = 6
 STRENGTH_STATE = DAMAGE_STATE = 4
@@ -99,7 +100,17 @@ FASTMATH = {"arcp", "nsz"}
 
 _COLUMNS = record_columns(DIM, correction_matrix=FORCE_CORRECTION,
                           artificial_stress=ARTIFICIAL_STRESS > 0.0,
-                          viscosity_factor=VISCOSITY_FACTOR)
+                          viscosity_factor=VISCOSITY_FACTOR, axisymmetric=AXISYMMETRIC)
+#: the columns of the hoop stress over the density and of the radius (AXISYMMETRIC only)
+HOOP = _COLUMNS.get("hoop", 0)
+RADIUS = _COLUMNS.get("radius", 0)
+#: the density array is the mass per unit area of a layer of varying thickness (plane
+#: stress: t / t0; axisymmetry: the radius r, the ring's length per radian), which the
+#: thickness column of the common material state holds
+THICK = PLANE_STRESS or AXISYMMETRIC
+#: axisymmetry: the radius below which a particle's hoop terms take this many smoothing
+#: lengths instead (a particle pushed onto the axis would otherwise divide by zero)
+AXIS_FLOOR = 0.1
 X, V, H, M, VOL, RHO, C, PC, BODY, A0, U = (_COLUMNS[k] for k in (
     "x", "v", "h", "m", "volume", "rho", "c", "pc", "body", "A", "u"))
 RECORD_WIDTH = _COLUMNS["width"]
@@ -308,16 +319,22 @@ def particle_record(p, i, x, v, m, rho, e, S, carried, h, body, material, table,
     In plane stress ``rho`` is the mass per unit area over the initial thickness ``t0`` and
     the material's density is ``rho / tau`` with ``tau = t / t0``: the EOS and the wave speed
     take that, and the forces the stress resultant per unit initial thickness ``tau sigma``
-    (``rho dv/dt = div(tau sigma)``, the thickness varying from particle to particle)."""
+    (``rho dv/dt = div(tau sigma)``, the thickness varying from particle to particle).  In
+    axisymmetry ``rho`` is the mass per radian and unit area of the r-z plane, ``rho_m r``
+    (``tau = r``), the stress columns hold ``|r| sigma / rho`` and ``P |r| / rho`` (``r = x``;
+    a mirror ghost across the axis has ``x < 0``), and the record also holds
+    ``sigma_tt / rho`` and ``r`` (floored, > 0) for the hoop terms (:func:`particle_rates`)."""
     k = material[i]
-    tau = carried[i, THICKNESS_RATIO] if PLANE_STRESS else 1.0
-    rho_m = rho[i] / tau if PLANE_STRESS else rho[i]
+    tau = carried[i, THICKNESS_RATIO] if THICK else 1.0
+    rho_m = rho[i] / tau if THICK else rho[i]
     pr = material_pressure(table, k, rho_m, e[i])
     intact = 1.0 - carried[i, DAMAGE]
     if pr < 0.0:
         pr *= intact
     c = math.sqrt(table[k, WAVE_MODULUS] / rho_m)
-    inv_rho2 = tau / (rho[i] * rho[i]) if PLANE_STRESS else 1.0 / (rho[i] * rho[i])
+    inv_rho2 = tau / (rho[i] * rho[i]) if THICK else 1.0 / (rho[i] * rho[i])
+    if AXISYMMETRIC:  # A = r sigma / rho, r = |x| (docs/modelling.md)
+        inv_rho2 = abs(x[i, 0]) / rho[i]
     for a in range(DIM):
         P[p, X + a] = x[i, a]
         P[p, V + a] = v[i, a]
@@ -331,6 +348,9 @@ def particle_record(p, i, x, v, m, rho, e, S, carried, h, body, material, table,
     P[p, C] = c
     P[p, PC] = pr * inv_rho2
     P[p, BODY] = body[i]
+    if AXISYMMETRIC:  # the hoop stress sigma_tt (the carried one) over rho = rho_m r
+        P[p, HOOP] = (intact * S[i, 2, 2] - pr) / rho[i]
+        P[p, RADIUS] = tau
     if ARTIFICIAL_STRESS > 0.0:
         artificial_stress_record(P, p)
     if VISCOSITY_FACTOR:
@@ -521,7 +541,32 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     is kept exactly, and AS-4 is its power shared equally by the pair, so the semi-discrete
     equations keep the total energy.  With the kernel gradient correction of the forces it
     stays on the uncorrected ``grad W_ij``: a repulsion between neighbours, which needs no
-    consistency, and its antisymmetry and energy balance need no correction matrix."""
+    consistency, and its antisymmetry and energy balance need no correction matrix.
+
+    Axisymmetry (``AXISYMMETRIC``; x the radius r, y the axis z; docs/modelling.md): with
+    ``rho = rho_m r`` (the mass per radian and unit area of the r-z plane, which the 2D
+    continuity equation keeps exactly), ``V_j = m_j / rho_j`` (particle j's area in the r-z
+    plane) and ``Q = |r| sigma``, the momentum equation in cylindrical coordinates times r,
+    ``rho dv/dt = div_rz(Q) - sigma_tt e_r``, is discretised in the symmetric form
+
+        dv_i/dt = 1/rho_i sum_j V_j (Q_i + Q_j) . grad W_ij  -  sigma_tt,i M_i / rho_i e_r
+        de_i/dt = 1/rho_i Q_i : sum_j V_j v_ji (x) grad W_ij + sigma_tt,i M_i v_r,i / rho_i
+        dS_i/dt += 2 mu (M_i v_r,i / r_i) (e_t e_t - I/3)
+
+    (``v_r / r`` in place of ``M_i v_r / r_i`` in ``dS`` with the velocity-gradient
+    correction, which makes the rest of the strain rate exact for a linear field), with
+    ``M_i = sum_j V_j (|r_j| - r_i) dW_ij/dr_i`` over the same neighbours, the sums' own
+    estimate of ``dr/dr``: the pair term gives ``sigma M_i / rho_i e_r`` for a uniform stress
+    where the support is full, so the hoop term cancels it exactly for ``sigma_rr =
+    sigma_tt``, next to the axis too (with 1 in its place a uniform pressure pushed the
+    particles there by ``P (M_i - 1) / rho_i``).  The pair force ``V_i V_j (Q_i + Q_j)
+    grad W_ij`` is antisymmetric (axial momentum kept), the energy rate is its adjoint and
+    the hoop power likewise, so the total energy per radian is kept exactly.  A ghost across
+    the axis (``r < 0``) carries its source's stress mirrored, so ``|r|`` makes its pair with
+    a particle the mirror of the pair of their sources, and the energy stays exact; the
+    signed ``r``, which continues ``r sigma`` smoothly across the axis, broke that (a rod's
+    energy error 4e-3 against 6e-5, docs/modelling.md).  Contact between bodies takes the
+    same form with the normal stress (or pressure) for ``sigma``."""
     shear = table[material[i], SHEAR]
     Pi_ = P[p]
     xi0 = Pi_[X]
@@ -563,6 +608,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
             ri22 = Pi_[R22]
     x0 = x1 = x2 = 0.0
     xe = 0.0
+    mr = 0.0  # axisymmetry: -M_i = sum_j V_j (r_i - r_j) dW_ij/dr_i (same body)
     de_contact = 0.0
     de_v = 0.0
     count = 0
@@ -648,20 +694,25 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
                 x1 += mf * s1
                 x2 += mf * s2
                 xe += mf * (u0 * s0 + u1 * s1 + u2 * s2)
-            G0 += m_j * g0
+            # the weight of the particle's own A_i: m_j (A_i = sigma_i / rho_i^2), or in
+            # axisymmetry V_j (A_i = Q_i / rho_i)
+            w_j = volume_j if AXISYMMETRIC else m_j
+            if AXISYMMETRIC:
+                mr += volume_j * (xi0 - abs(Pj[X])) * g0
+            G0 += w_j * g0
             a0 += m_j * Pj[A00] * t0
             L00 += velocity_gradient_pair(volume_j, u0, g0)
-            T00 += m_j * u0 * g0
+            T00 += w_j * u0 * g0
             if DIM > 1:
-                G1 += m_j * g1
+                G1 += w_j * g1
                 a0 += m_j * Pj[A01] * t1
                 a1 += m_j * (Pj[A01] * t0 + Pj[A11] * t1)
                 L01 += velocity_gradient_pair(volume_j, u0, g1)
                 L10 += velocity_gradient_pair(volume_j, u1, g0)
                 L11 += velocity_gradient_pair(volume_j, u1, g1)
-                T01 += m_j * u0 * g1
-                T10 += m_j * u1 * g0
-                T11 += m_j * u1 * g1
+                T01 += w_j * u0 * g1
+                T10 += w_j * u1 * g0
+                T11 += w_j * u1 * g1
             if DIM > 2:
                 G2 += m_j * g2
                 a0 += m_j * Pj[A02] * t2
@@ -679,14 +730,20 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
                 T22 += m_j * u2 * g2
         else:  # another body or a wall ghost: compression-only contact
             sn_i, sn_j = contact_traction(Pi_, Pj, d0, d1, d2, r2, normal_stress)
-            s_ij = sn_i + sn_j
+            if AXISYMMETRIC:  # V_i V_j (Q_i + Q_j) with Q = rho sn: per unit mass of i
+                s_ij = rhoi * sn_i + Pj[RHO] * sn_j
+                weight_j = volume_j / rhoi
+                own_j = volume_j
+            else:
+                s_ij = sn_i + sn_j
+                weight_j = own_j = m_j
             if in_contact(s_ij, vg):
                 cont += continuity_pair(1.0, volume_j, vg)
-                push = contact_acceleration_pair(m_j, s_ij, 1.0)
+                push = contact_acceleration_pair(weight_j, s_ij, 1.0)
                 k0 += push * g0
                 k1 += push * g1
                 k2 += push * g2
-                de_contact += contact_work_pair(m_j, sn_i, s_ij, vg)
+                de_contact += contact_work_pair(own_j, sn_i, s_ij, vg)
         pi_ij = pair_viscosity(visc_kind, vr, r2, h_ij, 0.5 * (ci + Pj[C]),
                                0.5 * (rhoi + Pj[RHO]), visc_params)
         if VISCOSITY_FACTOR:  # the switch: Pi_ij (f_i + f_j) / 2, symmetric in i, j
@@ -727,8 +784,9 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     if ARTIFICIAL_STRESS > 0.0:
         de_s -= 0.5 * xe
     track_contact = contact_force.shape[0] > 0
+    inv_own = 1.0 / rhoi if AXISYMMETRIC else 1.0  # sum m_j A_j grad W_ij over rho_i
     for a in range(DIM):
-        s = acc[a] + kc[a]
+        s = acc[a] * inv_own + kc[a]
         for b in range(DIM):
             A_ab = Pi_[SYM[a][b]]
             s += A_ab * G[b]
@@ -747,10 +805,23 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
             for b in range(DIM):
                 L_sorted[p, a, b] = L[a, b]
     drho[i] = rhoi * cont
+    if AXISYMMETRIC:  # the hoop terms: rho dv_r/dt -= sigma_tt M, rho de/dt += sigma_tt M v_r
+        hoop = Pi_[HOOP] * -mr
+        dv[i, 0] -= hoop
+        de_s += hoop * vi0
     de[i] = de_s + de_v
     de_visc[i] = de_v
     pair_count[i] = count
     jaumann_stress_rate(L, S[i], shear, dS[i])
+    if AXISYMMETRIC:  # the hoop strain rate in the deviatoric rate: v_r / r where the
+        # velocity gradient is corrected (exact for a linear field), else M v_r / r, the
+        # same sums' estimate
+        g = 2.0 * shear * vi0 / Pi_[RADIUS]
+        if not GRADIENT_CORRECTION:
+            g *= -mr
+        dS[i, 0, 0] -= g / 3.0
+        dS[i, 1, 1] -= g / 3.0
+        dS[i, 2, 2] += 2.0 * g / 3.0
 
 
 #: plane stress: the out-of-plane stress ``sigma_zz`` is zeroed to ``PLANE_STRESS_TOLERANCE``
@@ -911,7 +982,11 @@ def advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, 
     if PLANE_STRESS:
         pr, rho_m, work = plane_stress_stage(i, dt, rho, e, S, state0, state, row)
     else:
-        rho_m = rho[i]
+        if AXISYMMETRIC:  # rho is the mass per radian and area: rho_m = rho / r
+            st[THICKNESS_RATIO] = max(x[i, 0], AXIS_FLOOR * h[i])
+            rho_m = rho[i] / st[THICKNESS_RATIO]
+        else:
+            rho_m = rho[i]
         pr = eos_pressure(int(row[EOS_KIND]), rho_m, e[i], row[RHO0], row[BULK],
                           row[EOS_PARAMS:])
         work = strength_return(int(row[STRENGTH_KIND]), S[i], rho_m, pr, row[SHEAR],

@@ -10,15 +10,15 @@ within one spacing of the wall, plus half a spacing); plastic work and kinetic e
 One-dimensional theories (Taylor; Wilkins & Guinan) put ``L_f / L_0`` at about 0.75-0.87 for
 this bar (the band of ``docs/validation.md``, Example 2).
 
-In 3D (a cylinder, ``examples/taylor3d.toml``) the footprint is a radius, measured the same
-way: the largest distance from the bar's axis among the particles within one spacing of the
-wall, plus half a spacing, over the same measure of the whole bar at t = 0
-(``footprint_radius_ratio``; 1 at t = 0, as the 2D ratio).  The axis is the line through the
-initial centroid along the cylinder's ``axis``.  The footprint is also split into eight 45-degree
-sectors about the axis, centred on the lateral coordinate axes and their diagonals;
+In axisymmetry (x the radius) the half-width is the footprint's radius, also given as
+``footprint_radius_ratio``.  In 3D (a cylinder, ``examples/taylor3d.toml``) the footprint is a
+radius, measured the same way: the largest distance from the bar's axis among the particles within
+one spacing of the wall, plus half a spacing, over the same measure of the whole bar at t = 0
+(``footprint_radius_ratio``; 1 at t = 0, as the 2D ratio).  The axis is the line through the initial
+centroid along the cylinder's ``axis``.  The footprint is also split into eight 45-degree sectors
+about the axis, centred on the lateral coordinate axes and their diagonals;
 ``footprint_radius_ratio_min_sector`` is the smallest of their radii, so it equals
-``footprint_radius_ratio`` for a round footprint and falls below it where the foot spreads
-unevenly.
+``footprint_radius_ratio`` for a round footprint and falls below it where the foot spreads unevenly.
 
 ``profile``: the mushroom, ``[height, half-width or radius]`` in 20 slices of the final bar
 (:func:`bar_profile`), to set beside a measured outline (``validation/taylor_measured.py``).
@@ -188,6 +188,9 @@ def taylor_metrics(sim: Any) -> dict[str, Any]:
     centre = bar_centre(sim.case, x0, axis)
     out.update(attempt(notes, "final_length_ratio and footprint", lambda: measures(
         x0, x, axis, spacing, wall, centre), {}))
+    if getattr(sim.case, "two_dimensional", "") == "axisymmetric" \
+            and "footprint_half_width_ratio" in out:  # the half-width is the radius
+        out["footprint_radius_ratio"] = out["footprint_half_width_ratio"]
     out.update(attempt(notes, "profile", lambda: {"profile": bar_profile(
         x, axis, spacing, centre)}, {}))
     if "final_length_ratio" in out:
