@@ -2,7 +2,16 @@
 
 from __future__ import annotations
 
-from functools import cache
+import os
+
+if os.environ.get("PYTEST_XDIST_WORKER"):  # one of pytest-xdist's workers (-n): numba gets
+    # this worker's share of the cores, so the workers' threads do not contend for them
+    # (OpenMP's barriers collapse when they do: benchmarks/README.md)
+    _workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    _cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    os.environ["NUMBA_NUM_THREADS"] = str(max(1, (_cores or 1) // _workers))
+
+from functools import cache  # noqa: E402
 
 import pytest
 
