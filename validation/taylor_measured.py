@@ -8,6 +8,7 @@ two resolutions (particles across the diameter).  Writes
     .venv/bin/python validation/taylor_measured.py                      # the default tests
     .venv/bin/python validation/taylor_measured.py --across 10 20 --all --workers 2
     .venv/bin/python validation/taylor_measured.py --across 20 30 --quarter   # 2 symmetry planes
+    .venv/bin/python validation/taylor_measured.py --across 20 40 80 --axisymmetric  # 2D r-z
 
 Default tests: OFHC copper at 190 m/s (Johnson & Cook 1983, as read by Zerilli & Armstrong
 1987) and 4340 steel at 208 m/s (Johnson & Cook 1983).  Johnson-Cook damage is switched off
@@ -61,6 +62,23 @@ def quarter(case: dict, folder: Path) -> dict:
     return case
 
 
+def axisymmetric(case: dict) -> dict:
+    """The case's cylinder as its half-section in 2D axisymmetry (x the radius, y the axis;
+    docs/modelling.md, "Axisymmetry"): ``across / 2`` particles across the radius, the same
+    layers, the wall at y = 0."""
+    g = case["bodies"][0]["geometry"]
+    layers = round(g["length"] / g["spacing"])
+    across = round(2.0 * g["radius"] / g["spacing"])
+    case["dimension"] = 2
+    case["two_dimensional"] = "axisymmetric"
+    case["bodies"][0]["geometry"] = {"origin": [0.0, 0.0], "size": [g["radius"], g["length"]],
+                                     "count": [max(1, across // 2), layers]}
+    case["bodies"][0]["velocity"] = case["bodies"][0]["velocity"][1:]
+    case["boundaries"] = [{"type": "wall", "point": [0.0, 0.0], "normal": [0.0, 1.0],
+                           "slip": "free"}]
+    return case
+
+
 def case_of(test: dict, across: int, end: float) -> dict:
     base = read_case_dict(HERE.parent / "examples" / "taylor3d.toml")
     base["name"] = f"taylor-{test['material']}-{test['velocity']:.0f}"
@@ -94,6 +112,8 @@ def main() -> None:
                         "'viscosity.scheme=\"av\"'")
     parser.add_argument("--quarter", action="store_true",
                         help="run the quarter with two symmetry planes (4x cheaper)")
+    parser.add_argument("--axisymmetric", action="store_true",
+                        help="run the half-section in 2D axisymmetry instead of the 3D cylinder")
     parser.add_argument("--report-only", action="store_true",
                         help="tabulate the runs already in --out, run nothing")
     args = parser.parse_args()
@@ -105,11 +125,14 @@ def main() -> None:
         for across in args.across:
             labels.append((test, across))
             case = case_of(test, across, args.end)
-            if args.quarter:
+            if args.axisymmetric:
+                case = axisymmetric(case)
+            elif args.quarter:
                 case = quarter(case, args.out / "particles")
             cases.append(case)
             names.append(f"{test['material']}-{test['velocity']:.0f}-x{across}"
-                         + ("-quarter" if args.quarter else ""))
+                         + ("-quarter" if args.quarter else "")
+                         + ("-axisymmetric" if args.axisymmetric else ""))
     # one base per test: run_many takes one base and override lists, so each case is its own
     rows = []
     for case, name in zip(cases, names, strict=True):
@@ -127,7 +150,7 @@ def main() -> None:
         foot = summary.get("footprint_radius_ratio", math.nan) * D0
         bar = summary.get("bodies", {}).get("bar", {})
         outline = {}
-        if test.get("outline") and summary.get("profile"):
+        if test.get("outline") and summary.get("profile") and "initial_radius" in summary:
             # the computed radius at the measured outline's heights, each over the measured
             # one less 1 (the profile's radius is over its initial measure, times R0)
             profile = np.array(summary["profile"])
