@@ -122,13 +122,12 @@ def test_the_wall_layer_holds_the_spreading_foot_off_the_wall(tmp_path):
 
 
 def test_axisymmetric_bar_has_the_cylinders_length(run, tmp_path):
-    """The same bar in 2D axisymmetry (examples/taylor_axisymmetric.toml) at this spacing
+    """The same bar in 2D axisymmetry (the built-in case taylor_axisymmetric) at this spacing
     (4 x 27 particles: R = 4 dx) to the same time: L_f / L_0 within 2% of the cylinder's
     (measured 0.90666 against 0.90676; the full runs at two resolutions are in
     docs/validation.md)."""
     _, summary = run
-    axi = EXAMPLE.parent / "taylor_axisymmetric.toml"
-    case = load_case(axi, ["bodies.0.geometry.count=[4, 27]", f"time.end={END}",
+    case = load_case("taylor_axisymmetric", ["bodies.0.geometry.count=[4, 27]", f"time.end={END}",
                            f"output.snapshot_times=[{END}]"])
     got = run_case(case, tmp_path / "axi", figures=False)
     assert got["final_length_ratio"] == pytest.approx(summary["final_length_ratio"], rel=0.02)

@@ -1,4 +1,4 @@
-"""The Taylor bar in 2D axisymmetry (``examples/taylor_axisymmetric.toml``) at several
+"""The Taylor bar in 2D axisymmetry (the built-in case ``taylor_axisymmetric``) at several
 resolutions, beside the 3D cylinder of ``examples/taylor3d.toml`` (docs/validation.md,
 "Taylor bar in axisymmetry").  Prints a Markdown table and writes
 ``runs/validation/taylor_axisymmetric/taylor_axisymmetric.json``.
@@ -19,7 +19,6 @@ from pathlib import Path
 from impactsph.loading import load_case
 from impactsph.runner import run_case
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "taylor_axisymmetric.toml"
 KEYS = ["n_particles", "n_steps", "final_length_ratio", "footprint_radius_ratio",
         "plastic_work", "kinetic_energy_ratio_final", "total_energy_relative_error",
         "momentum_drift", "wall_seconds"]
@@ -34,7 +33,7 @@ def main() -> None:
     args = parser.parse_args()
     rows = {}
     for k in args.factors:
-        case = load_case(EXAMPLE, [f"bodies.0.geometry.count=[{10 * k}, {69 * k}]",
+        case = load_case("taylor_axisymmetric", [f"bodies.0.geometry.count=[{10 * k}, {69 * k}]",
                                    "output.snapshot_times=[50e-6]", *args.sets])
         summary = run_case(case, args.out / f"x{k}", figures=False, if_exists="overwrite")
         rows[f"x{k}"] = {key: summary.get(key) for key in KEYS}

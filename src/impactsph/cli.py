@@ -306,7 +306,7 @@ def lab(
     out: Annotated[Path, typer.Option(help="output directory")] = Path("runs/lab"),
     problem: Annotated[list[str] | None, typer.Option(
         help="a problem to run (repeatable; default: all): bars, plates, taylor, taylor-x2, "
-             "cantilever")] = None,
+             "taylor-axi, taylor-axi-x2, cantilever")] = None,
     scheme: Annotated[list[str] | None, typer.Option(
         help="a scheme to run, by its name in the table (repeatable; default: all)")] = None,
     set_: Annotated[list[str] | None, typer.Option(
