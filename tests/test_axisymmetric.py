@@ -185,3 +185,24 @@ def test_axisymmetric_defaults_leave_out_what_is_not_available():
     assert case.stabilisation.hourglass == 0.0
     axis = [b for b in case.boundaries if b.type == "symmetry"]
     assert len(axis) == 1 and list(axis[0].normal) == [1.0, 0.0]
+
+
+def test_gpu_device_runs_axisymmetry_on_the_cpu_with_a_warning(caplog):
+    """The axis is a symmetry plane, which the GPU passes do not mirror: with
+    ``compute.device = "gpu"`` the run goes to the CPU and says why, before any work (on any
+    machine, with a GPU or not)."""
+    from impactsph.devices import select_backend
+    from impactsph.physics.rates import CpuRates
+    from impactsph.simulation import _cpu_only
+
+    case = validate_case(axisymmetric_case([0.003, 0.01], 0.001, [0.0, -1.0], [], 1e-6,
+                                           compute={"device": "gpu"}))
+    reason = _cpu_only(case)
+    assert reason == "the axis of axisymmetry is a symmetry plane, which runs on the CPU only"
+    with caplog.at_level("WARNING"):
+        backend = select_backend("gpu", 2, cpu_only=reason)
+    assert isinstance(backend, CpuRates)
+    assert "running on the CPU" in caplog.text and "axis of axisymmetry" in caplog.text
+    assert _cpu_only(validate_case(axisymmetric_case(
+        [0.003, 0.01], 0.001, [0.0, -1.0], [], 1e-6) | {"two_dimensional": "plane_strain",
+                                                        "boundaries": []})) is None

@@ -152,7 +152,7 @@ def _gpu_run(name: str, overrides: list[str], steps: int):
     from impactsph.gpu import GpuRates
     from impactsph.loading import load_case
 
-    simulation.select_backend = lambda device, dim, *options: GpuRates(dim, *options)
+    simulation.select_backend = lambda device, dim, *options, cpu_only=None: GpuRates(dim, *options)
     sim = simulation.Simulation(load_case(name, [*overrides, f"time.max_steps={steps}"]))
     sim.run()
     return sim

@@ -10,17 +10,22 @@ from .physics.rates import CpuRates
 log = logging.getLogger(__name__)
 
 
-def select_backend(device: str, dim: int, options: PassOptions | str | None = None):
+def select_backend(device: str, dim: int, options: PassOptions | str | None = None,
+                   cpu_only: str | None = None):
     """A rate backend for ``device`` (``"cpu"`` or ``"gpu"``), its passes compiled with the
     compile-time ``options`` (:class:`~impactsph.physics.options.PassOptions`: the
     ``[stabilisation]`` and ``[contact]`` tables, docs/stabilisation.md).
 
-    ``"gpu"`` without a usable GPU (no CUDA driver, no device, or numba-cuda missing) logs a
-    warning that says why and returns the CPU backend: a case written for a GPU still runs."""
+    ``"gpu"`` without a usable GPU (no CUDA driver, no device, or numba-cuda missing), or for a
+    case with something that runs on the CPU only (``cpu_only`` says what), logs a warning
+    that says why and returns the CPU backend: a case written for a GPU still runs."""
     if device == "cpu":
         return CpuRates(dim, options)
     if device != "gpu":
         raise ValueError(f"compute.device = {device!r}: allowed are 'cpu' and 'gpu'")
+    if cpu_only is not None:
+        log.warning("compute.device = 'gpu' but %s; running on the CPU", cpu_only)
+        return CpuRates(dim, options)
     from . import gpu
 
     reason = gpu.unavailable_reason()

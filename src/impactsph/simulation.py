@@ -111,7 +111,7 @@ class Simulation:
                                  skin_fraction=case.time.neighbour_skin,
                                  backend=select_backend(
                                      case.compute.device, case.dimension,
-                                     PassOptions.of_case(case)),
+                                     PassOptions.of_case(case), cpu_only=_cpu_only(case)),
                                  hourglass=case.stabilisation.hourglass,
                                  wall_layer=case.contact.wall_layer)
         if state is None:  # a fresh start: the viscosity switch's initial factors
@@ -374,6 +374,16 @@ class Simulation:
                               "initial_position": self.state.initial_position[i].tolist()}
                        for name, i in self.problem.probes.items()},
         }
+
+
+def _cpu_only(case: Case) -> str | None:
+    """What in ``case`` runs on the CPU only (the GPU passes do not mirror the pair results
+    onto a symmetry plane's ghosts), or None."""
+    if any(b.type == "symmetry" for b in case.boundaries):
+        what = ("the axis of axisymmetry is a symmetry plane"
+                if case.two_dimensional == "axisymmetric" else "the case has symmetry planes")
+        return f"{what}, which runs on the CPU only"
+    return None
 
 
 def compile_kernels(dim: int, like: Case | None = None) -> None:
