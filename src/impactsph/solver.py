@@ -134,6 +134,7 @@ class Solver:
         """Take over a stored neighbour list and set of ghosts (restart from a checkpoint)."""
         self._allocate(state, ghost_src.astype(np.int64), ghost_wall.astype(np.int64))
         self.neighbours = neighbours
+        self._positions = None  # the records' places follow this list's order, as after a build
 
     def _allocate(self, state: ParticleState, ghost_src: np.ndarray, ghost_wall: np.ndarray
                   ) -> np.ndarray:
