@@ -205,7 +205,8 @@ def check(case: Annotated[str, typer.Argument(help="case file or built-in name")
         report = check_case(c)  # CaseError on a refusal
     except CaseError as exc:
         _fail(str(exc))
-    typer.echo(f"{c.name}: valid ({c.dimension}D, {len(c.bodies)} bodies)")
+    model = f" {c.two_dimensional.replace('_', ' ')}" if c.dimension == 2 else ""
+    typer.echo(f"{c.name}: valid ({c.dimension}D{model}, {len(c.bodies)} bodies)")
     typer.echo("\n".join(report.lines()))
 
 

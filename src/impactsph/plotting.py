@@ -107,15 +107,21 @@ def shapes_figure(runs: list[dict[str, Any]], path: Path, title: str, *,
     else:
         fig, ax = plt.subplots(figsize=(6, 5))
         axes = [ax] * n
+    axisymmetric = False
     for k, (ax, r) in enumerate(zip(axes, runs, strict=True)):
         x = np.asarray(r["x"])
         ax.scatter(x[:, 0] * 1e3, x[:, 1] * 1e3, s=3, color=f"C{k}", label=r["label"])
+        if getattr(r.get("case"), "two_dimensional", None) == "axisymmetric":
+            # the half-section's mirror across the axis, pale: the body's whole section
+            axisymmetric = True
+            ax.scatter(-x[:, 0] * 1e3, x[:, 1] * 1e3, s=3, color=f"C{k}", alpha=0.25)
         ax.set_aspect("equal")
-        ax.set_xlabel("x (mm)")
         ax.grid(alpha=0.3)
         if separate:
             ax.set_title(r["label"], fontsize=9)
-    axes[0].set_ylabel("y (mm)")
+    for ax in axes:
+        ax.set_xlabel("r (mm)" if axisymmetric else "x (mm)")
+    axes[0].set_ylabel("z (mm)" if axisymmetric else "y (mm)")
     if not separate:
         axes[0].legend(markerscale=4)
         axes[0].set_title(title)
