@@ -754,20 +754,22 @@ class Case(_Model):
 
     def _axisymmetric_limits(self) -> None:
         """Axisymmetry: the axis x = 0 is a symmetry plane (added when missing); no other
-        symmetry plane normal to r; no tip mass (its depth is a plane model's)."""
+        symmetry plane across r, no wall parallel to the axis, no tip mass (its depth is a
+        plane model's), and none of the remedies whose sums are the plane form's."""
         axis = False
         for k, boundary in enumerate(self.boundaries):
-            if boundary.type != "symmetry" or abs(boundary.normal[0]) == 0.0:
+            if boundary.normal[0] == 0.0:  # normal to the axis: any kind
                 continue
-            if boundary.normal[1] != 0.0 or boundary.point[0] != 0.0 or boundary.normal[0] < 0:
-                raise ValueError(f"boundaries.{k}: in axisymmetry a symmetry plane across r is "
-                                 f"the axis only (point x = 0, normal [1, 0])")
-            axis = True
-        for k, boundary in enumerate(self.boundaries):
-            if boundary.type == "wall" and boundary.normal[0] != 0.0:
-                raise ValueError(f"boundaries.{k}: in axisymmetry a wall is normal to the axis "
-                                 f"(normal [0, 1] or [0, -1]), not {list(boundary.normal)} (a "
-                                 f"wall parallel to it is not validated: docs/modelling.md)")
+            if boundary.type == "symmetry":
+                if boundary.normal[1] != 0.0 or boundary.point[0] != 0.0 \
+                        or boundary.normal[0] < 0:
+                    raise ValueError(f"boundaries.{k}: in axisymmetry a symmetry plane across r "
+                                     f"is the axis only (point x = 0, normal [1, 0])")
+                axis = True
+            elif boundary.type == "wall":
+                raise ValueError(f"boundaries.{k}: in axisymmetry a wall is normal to the "
+                                 f"axis (normal [0, 1] or [0, -1]), not {list(boundary.normal)} "
+                                 f"(a wall parallel to it is not validated: docs/modelling.md)")
         if not axis:
             self.boundaries.append(Symmetry(point=[0.0, 0.0], normal=[1.0, 0.0]))
         for k, body in enumerate(self.bodies):

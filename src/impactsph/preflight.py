@@ -45,6 +45,7 @@ from .config import Block, Case, Cylinder, Disk, ParticleFile, Ring, Sphere
 from .errors import CaseError
 from .initial import max_speed
 from .kernels import SUPPORT_RADIUS
+from .models.columns import PASS_CARRIED
 
 # -- thresholds (documented in docs/case-files.md, "Preflight checks") ----------------------
 
@@ -313,9 +314,12 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
         + (8 * d + 8 * d * d if hourglass else 0)
     width = {1: 16, 2: 16, 3: 24}[d] + (8 if force_correction and d > 1 else 0)
     records = 8 * width
-    ghost_arrays = (16 * d + 144) if walls else 0  # with the carried common state (5 columns)
+    ghost_arrays = (16 * d + 104) if walls else 0  # x, v, rho, e, S, m, h, material, body
+    # the carried columns the passes read (the common material state and a switch's factor
+    # and memory), for the particles or, with walls, the extended rows
+    carried = 8 * PASS_CARRIED
     neighbour_list = 12 + 4 * d + 32 + 8 * d  # offsets, order, reference; build temporaries
-    per_row = buffers + records + ghost_arrays + neighbour_list + 4 * neighbours
+    per_row = buffers + records + ghost_arrays + carried + neighbour_list + 4 * neighbours
     total = n * per_particle + (n + ghosts) * per_row + history_values * HISTORY_VALUE_BYTES
     return BASE_MEMORY + MEMORY_SAFETY * total
 

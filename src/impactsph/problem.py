@@ -199,11 +199,11 @@ def build_problem(case: Case) -> Problem:
         clamped=cat["clamped"], material_state=np.zeros((n, layout.state_width)),
     )
     initialise_material_state(state, materials, layout)
+    body_names = [b.name for b in case.bodies]
     if case.two_dimensional == "axisymmetric":
-        axisymmetric_masses(state, body_names=[b.name for b in case.bodies])
+        axisymmetric_masses(state, body_names)
     from_file = np.isfinite(cat["temperature"])  # a particle file's temperature column
     state.material_state[from_file, TEMPERATURE] = cat["temperature"][from_file]
-    body_names = [b.name for b in case.bodies]
     probes = {p.name: nearest_particle(state, body_names.index(p.body), p.position)
               for p in case.output.probes}
     gauges = {g.name: nearest_particle(state, body_names.index(g.body), g.position)

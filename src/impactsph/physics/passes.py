@@ -332,9 +332,10 @@ def particle_record(p, i, x, v, m, rho, e, S, carried, h, body, material, table,
     if pr < 0.0:
         pr *= intact
     c = math.sqrt(table[k, WAVE_MODULUS] / rho_m)
-    inv_rho2 = tau / (rho[i] * rho[i]) if THICK else 1.0 / (rho[i] * rho[i])
     if AXISYMMETRIC:  # A = r sigma / rho, r = |x| (docs/modelling.md)
         inv_rho2 = abs(x[i, 0]) / rho[i]
+    else:  # A = tau sigma / rho^2 (tau = 1 but in plane stress)
+        inv_rho2 = tau / (rho[i] * rho[i])
     for a in range(DIM):
         P[p, X + a] = x[i, a]
         P[p, V + a] = v[i, a]
