@@ -583,6 +583,12 @@ class Compute(_Model):
     device: Literal["cpu", "gpu"] = Field(
         "cpu", description="'gpu' runs the rate passes on an NVIDIA GPU (numba-cuda); where "
         "none is present the run falls back to the CPU and says so")
+    threads: Annotated[int, Field(ge=1)] | Literal["auto"] = Field(
+        "auto", description="CPU threads of the compiled passes: 'auto' samples about once a "
+        "second how many cores other processes hold and runs on the cores left (at most "
+        "numba's thread count, NUMBA_NUM_THREADS), saying so in the log when the count "
+        "changes; a number fixes it (capped at NUMBA_NUM_THREADS); the results do not depend "
+        "on it (impactsph.threads)")
 
 
 class Case(_Model):

@@ -25,6 +25,7 @@ from .physics.rates import ViscositySettings
 from .problem import Problem, build_problem
 from .solver import Solver
 from .state import ParticleState
+from .threads import ThreadGovernor
 from .tl_solver import TotalLagrangianSolver
 
 
@@ -48,6 +49,9 @@ class RunRecord:
     wall_seconds: float = 0.0
     setup_seconds: float = 0.0
     failure: str | None = None
+    #: the thread count's changes: (wall seconds into the run, cores other processes held,
+    #: new count) (:class:`~.threads.ThreadGovernor`)
+    thread_changes: list[tuple[float, float, int]] = field(default_factory=list)
 
 
 @nb.njit(cache=True)
@@ -279,9 +283,11 @@ class Simulation:
         every = self.case.output.history_every
         survey = self._survey()
         dt0 = survey.dt
+        governor = ThreadGovernor(self.case.compute.threads)
         start = _time.perf_counter()
         try:
             while self.state.time < t_end * (1 - 1e-12):
+                governor.tick()
                 if max_steps is not None and self.state.step >= max_steps:
                     break
                 dt = survey.dt
@@ -314,6 +320,8 @@ class Simulation:
             raise
         finally:
             self.record.wall_seconds += _time.perf_counter() - start
+            self.record.thread_changes.extend(governor.changes)
+            governor.close()
         return self.record
 
     # -- summary -------------------------------------------------------------------------
@@ -347,6 +355,7 @@ class Simulation:
             "pair_evaluations_per_second": self.solver.pair_evaluations / wall if wall else 0.0,
             "neighbour_list_builds": self.solver.neighbours.builds,
             "device": self.solver.backend.device,
+            "thread_changes": [list(c) for c in self.record.thread_changes],
             "wall_constraint_events": self.integrator.constraint_events,
             "kinetic_energy_initial": float(ke[0]),
             "kinetic_energy_final": float(ke[-1]),
