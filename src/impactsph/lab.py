@@ -80,6 +80,9 @@ PROBLEMS: dict[str, tuple[str, list[str], list[str]]] = {
                       ["final_length_ratio", "footprint_radius_ratio", "plastic_work"]),
     "cantilever": ("cantilever", [], ["tip_deflection", "plastic_work",
                                       "kinetic_energy_ratio_final"]),
+    # Gray, Monaghan & Swift's rubber rings (elastic; the artificial stress keeps them whole)
+    "rings": ("rings", [], ["restitution", "max_neighbour_gap_over_h", "min_distance_over_dx",
+                            "kinetic_energy_ratio_final"]),
 }
 #: what every row shows besides the problem's measures
 COMMON = ["total_energy_relative_error", "momentum_drift", "wall_constraint_events",

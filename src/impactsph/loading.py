@@ -25,7 +25,7 @@ from .config import GEOMETRY_TYPES, Case, ParticleFile, schema
 from .errors import CaseError
 from .library import expand
 
-BUILTIN_CASES = ("bars", "taylor", "cantilever", "plates", "taylor_axisymmetric")
+BUILTIN_CASES = ("bars", "taylor", "cantilever", "plates", "taylor_axisymmetric", "rings")
 
 
 def builtin_case_path(name: str) -> Path:

@@ -12,6 +12,8 @@ examples (section 5), one module each:
 - ``perforation`` (:mod:`.perforation`): a projectile into a plate (residual velocity, hole);
 - ``plates`` (:mod:`.plates`): symmetric plate impact in uniaxial strain against the exact
   elastic precursor and plastic shock;
+- ``rings`` (:mod:`.rings`): two elastic rubber rings in collision (Gray, Monaghan & Swift
+  2001): rebound, tears and clumps;
 
 and ``none``, no problem-specific analysis (the default).
 
@@ -50,11 +52,12 @@ from .registry import (
     register_problem,
     unregister_problem,
 )
+from .rings import RingsProblem
 from .taylor import TaylorProblem
 
 __all__ = ["GeometryNeeds", "ProblemKind", "SweepCriterion", "analyse", "get_problem",
            "problem_names", "register_problem", "unregister_problem"]
 
 for _kind in (NoAnalysis, BarsProblem, TaylorProblem, CantileverProblem, PerforationProblem,
-              PlatesProblem):
+              PlatesProblem, RingsProblem):
     register_problem(_kind)
