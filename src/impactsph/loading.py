@@ -25,7 +25,8 @@ from .config import GEOMETRY_TYPES, Case, ParticleFile, schema
 from .errors import CaseError
 from .library import expand
 
-BUILTIN_CASES = ("bars", "taylor", "cantilever", "plates", "taylor_axisymmetric", "rings")
+BUILTIN_CASES = ("bars", "taylor", "cantilever", "plates", "taylor_axisymmetric", "taylor3d",
+                 "rings")
 
 
 def builtin_case_path(name: str) -> Path:
