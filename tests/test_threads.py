@@ -142,3 +142,18 @@ def test_results_do_not_depend_on_the_thread_count():
                             text=True, timeout=600)
     assert result.returncode == 0, result.stderr[-2000:]
     assert result.stdout.strip().splitlines()[-1] == "True"
+
+
+def test_auto_keeps_within_the_callers_count(monkeypatch):
+    """A caller who set one thread before the run (``numba.set_num_threads(1)``) keeps one:
+    "auto" never goes above the count at the start, even on an idle machine."""
+    import numba
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", 2)
+    m = Machine()
+    g = ThreadGovernor("auto", interval=1.0, set_threads=m.calls.append,
+                       get_threads=lambda: 1, busy=lambda: m.busy, own=lambda: m.own,
+                       clock=lambda: m.now, usable=2)
+    for _ in range(5):
+        m.advance(1.0, own_cores=1, other_cores=0)
+        g.tick()
+    assert m.calls == [] and g.threads == 1

@@ -586,7 +586,8 @@ class Compute(_Model):
     threads: Annotated[int, Field(ge=1)] | Literal["auto"] = Field(
         "auto", description="CPU threads of the compiled passes: 'auto' samples about once a "
         "second how many cores other processes hold and runs on the cores left (at most "
-        "numba's thread count, NUMBA_NUM_THREADS), saying so in the log when the count "
+        "numba's thread count at the start, NUMBA_NUM_THREADS unless set lower), saying so in "
+        "the log when the count "
         "changes; a number fixes it (capped at NUMBA_NUM_THREADS); the results do not depend "
         "on it (impactsph.threads)")
 

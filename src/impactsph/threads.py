@@ -10,7 +10,8 @@ time.  It then runs the passes on the cores left,
 
     threads = clamp(usable - round(other), 1, most)
 
-(``usable``: the cores this process may run on; ``most``: numba's thread count), through
+(``usable``: the cores this process may run on; ``most``: the count numba had when the run
+started, ``NUMBA_NUM_THREADS`` unless the caller set fewer with ``numba.set_num_threads``), through
 ``numba.set_num_threads``, and says so in the log when the count changes.  Two runs started
 side by side each settle on their share, and a run takes its threads back when the other
 ends.  A fixed ``compute.threads = N`` sets N threads once and samples nothing.
@@ -83,7 +84,6 @@ class ThreadGovernor:
         import numba
 
         self._set = set_threads or numba.set_num_threads
-        self.most = int(numba.config.NUMBA_NUM_THREADS)
         self.usable = usable_cores() if usable is None else usable
         self.interval = interval
         self._busy, self._own, self._clock = busy, own, clock
@@ -91,11 +91,14 @@ class ThreadGovernor:
         #: the thread count the passes use now
         self.threads = (get_threads or numba.get_num_threads)()
         self._initial = self.threads
+        #: the most threads "auto" gives the passes: the count at the start
+        self.most = self.threads
         #: (wall seconds into the run, other processes' cores, new count) at each change
         self.changes: list[tuple[float, float, int]] = []
         self._start = clock()
         if not self.auto:
-            self._apply(min(int(setting), self.most), other=float("nan"))
+            self._apply(min(int(setting), int(numba.config.NUMBA_NUM_THREADS)),
+                        other=float("nan"))
             self._next = float("inf")
             return
         self._last = (clock(), busy(), own())
