@@ -157,3 +157,14 @@ def test_auto_keeps_within_the_callers_count(monkeypatch):
         m.advance(1.0, own_cores=1, other_cores=0)
         g.tick()
     assert m.calls == [] and g.threads == 1
+
+
+def test_busy_seconds_counts_only_the_given_cpus(tmp_path):
+    """The load is read for the CPUs the process may run on: one CPU's busy time is at most
+    the two's, and a CPU that is not there gives nothing."""
+    both = busy_seconds({0, 1})
+    if both is None:
+        pytest.skip("no /proc/stat here")
+    one = busy_seconds({0})
+    assert one is not None and 0.0 < one <= both
+    assert busy_seconds({100000}) is None

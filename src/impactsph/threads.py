@@ -5,8 +5,9 @@ holds cores, OpenMP's barriers wait for a thread the operating system has desche
 run with as many threads as cores slows by 3-40 times (benchmarks/README.md, "Steady on a
 shared machine").  With ``compute.threads = "auto"`` (the default) a :class:`ThreadGovernor`
 samples, about once a second of wall time, how much of the machine other processes used
-since the last sample: the busy time of all cores (``/proc/stat``) less this process's own CPU
-time.  It then runs the passes on the cores left,
+since the last sample: the busy time of the cores it may run on (``/proc/stat``, the CPUs of
+its affinity, so that a container pinned to a few cores of a large host counts only those)
+less this process's own CPU time.  It then runs the passes on the cores left,
 
     threads = clamp(usable - round(other), 1, most)
 
@@ -42,18 +43,34 @@ def usable_cores() -> int:
         return os.cpu_count() or 1
 
 
-def busy_seconds() -> float | None:
-    """CPU seconds all cores have spent busy since boot (``/proc/stat``: every field but
-    idle and iowait), or None where it cannot be read."""
+def busy_seconds(cpus: set[int] | None = None) -> float | None:
+    """CPU seconds spent busy since boot (``/proc/stat``: every field but idle and iowait) by
+    the CPUs this process may run on (``cpus``, default its affinity), so that a container
+    pinned to a few cores of a large host counts only those; None where it cannot be read."""
+    if cpus is None:
+        try:
+            cpus = os.sched_getaffinity(0)
+        except AttributeError:  # not Linux
+            return None
     try:
         with open("/proc/stat") as f:
-            fields = f.readline().split()
-        ticks = [int(v) for v in fields[1:]]
-    except (OSError, ValueError, IndexError):
+            lines = [line.split() for line in f if line.startswith("cpu")]
+    except OSError:
         return None
     hertz = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
-    busy = sum(ticks[:8]) - ticks[3] - (ticks[4] if len(ticks) > 4 else 0)
-    return busy / hertz
+    busy = 0
+    counted = 0
+    try:
+        for fields in lines:
+            name = fields[0]
+            if name == "cpu" or int(name[3:]) not in cpus:
+                continue
+            ticks = [int(v) for v in fields[1:9]]
+            busy += sum(ticks) - ticks[3] - ticks[4]
+            counted += 1
+    except (ValueError, IndexError):
+        return None
+    return busy / hertz if counted else None
 
 
 def own_seconds() -> float:
