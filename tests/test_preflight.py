@@ -310,6 +310,9 @@ def test_pair_rate_is_kept_for_later_estimates(tmp_path, monkeypatch):
     assert "measured on this machine by a run of 'big'" in source
     pf.record_pair_rate({**summary, "pair_evaluations": 1e5, "wall_seconds": 1.0}, "small")
     assert pf.pair_rate("cpu", 2)[0] == rate  # too few pairs to be a rate
+    pf.record_pair_rate({**summary, "wall_seconds": 100.0,
+                         "thread_changes": [[1.0, 1.0, 1]]}, "loaded")
+    assert pf.pair_rate("cpu", 2)[0] == rate  # it gave up cores: a loaded machine's rate
     # through after_run: not from a restarted run (pairs since t = 0, wall time since the
     # restart)
     case, summary3 = validate_case(block_case(name="rates")), {**summary, "dimension": 3}

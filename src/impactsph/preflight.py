@@ -382,10 +382,12 @@ def pair_rate(device: str, dim: int) -> tuple[float, str]:
 def record_pair_rate(summary: dict[str, Any], name: str) -> None:
     """Keep the pair rate a finished run measured (its summary's ``pair_evaluations`` over
     its ``wall_seconds`` less :data:`STEP_SECONDS` a step) for later estimates, if it
-    evaluated at least :data:`MIN_PAIRS_TO_RECORD` pairs.  Never fails a run."""
+    evaluated at least :data:`MIN_PAIRS_TO_RECORD` pairs and kept its thread count (a run
+    whose thread governor gave up cores to other processes, ``thread_changes``, measured a
+    loaded machine, not this one: :mod:`impactsph.threads`).  Never fails a run."""
     pairs = summary.get("pair_evaluations") or 0
     wall = summary.get("wall_seconds") or 0.0
-    if pairs < MIN_PAIRS_TO_RECORD or not wall > 0:
+    if pairs < MIN_PAIRS_TO_RECORD or not wall > 0 or summary.get("thread_changes"):
         return
     # the pairs' own rate: the fixed cost of the steps (STEP_SECONDS) taken out, at most half
     rate = pairs / max(wall - (summary.get("n_steps") or 0) * STEP_SECONDS, 0.5 * wall)
