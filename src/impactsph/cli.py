@@ -15,6 +15,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from .config import CaseError
 from .errors import RunInterrupted
 from .interrupt import StopRequest
+from .lab import PROBLEMS as LAB_PROBLEMS
 from .loading import BUILTIN_CASES, load_case
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
@@ -306,8 +307,7 @@ def sweep(
 def lab(
     out: Annotated[Path, typer.Option(help="output directory")] = Path("runs/lab"),
     problem: Annotated[list[str] | None, typer.Option(
-        help="a problem to run (repeatable; default: all): bars, plates, taylor, taylor-x2, "
-             "taylor-axi, taylor-axi-x2, cantilever")] = None,
+        help=f"a problem to run (repeatable; default: all): {', '.join(LAB_PROBLEMS)}")] = None,
     scheme: Annotated[list[str] | None, typer.Option(
         help="a scheme to run, by its name in the table (repeatable; default: all)")] = None,
     set_: Annotated[list[str] | None, typer.Option(

@@ -587,9 +587,8 @@ class Compute(_Model):
         "auto", description="CPU threads of the compiled passes: 'auto' samples about once a "
         "second how many cores other processes hold and runs on the cores left (at most "
         "numba's thread count at the start, NUMBA_NUM_THREADS unless set lower), saying so in "
-        "the log when the count "
-        "changes; a number fixes it (capped at NUMBA_NUM_THREADS); the results do not depend "
-        "on it (impactsph.threads)")
+        "the log when the count changes; a number fixes it (capped at NUMBA_NUM_THREADS); the "
+        "results do not depend on it (impactsph.threads)")
 
 
 class Case(_Model):

@@ -69,18 +69,26 @@ def connected_pieces(n: int, i: np.ndarray, j: np.ndarray) -> np.ndarray:
             label = up
 
 
+def pairs_within(x: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """The ordered pairs ``(i, j)``, ``i != j``, of the points ``x`` closer than ``radius``
+    (particle numbers, from a neighbour list built for them)."""
+    from .neighbours import NeighbourList
+
+    nl = NeighbourList.build(np.ascontiguousarray(x), radius)
+    p = np.repeat(np.arange(x.shape[0]), np.diff(nl.offsets))
+    # the list is in cell order: sorted positions to particles
+    i, j = nl.order[p], nl.order[nl.indices]
+    other = i != j
+    return i[other], j[other]
+
+
 def pieces_of(x: np.ndarray, support: float) -> np.ndarray:
     """A label per particle at ``x``, the same for the particles of one piece: two particles
     closer than ``support`` are of one piece (the label is a piece's smallest index)."""
-    from .neighbours import NeighbourList
-
     n = x.shape[0]
     if n <= 1:
         return np.zeros(n, dtype=np.int64)
-    nl = NeighbourList.build(np.ascontiguousarray(x), support)
-    p = np.repeat(np.arange(n), np.diff(nl.offsets))
-    # the list is in cell order: sorted positions to particles
-    return connected_pieces(n, nl.order[p], nl.order[nl.indices])
+    return connected_pieces(n, *pairs_within(x, support))
 
 
 def largest_piece(x: np.ndarray, mass: np.ndarray, support: float

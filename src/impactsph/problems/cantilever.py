@@ -24,19 +24,12 @@ if TYPE_CHECKING:
     from ..config import Case
 
 
-def initial_neighbour_pairs(x0: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """Ordered pairs (i, j) of particles closer than 2h at t = 0."""
-    from ..neighbours import NeighbourList
-
-    nl = NeighbourList.build(x0, 2.0 * h)
-    p = np.repeat(np.arange(x0.shape[0]), np.diff(nl.offsets))
-    # the list is in cell order: its sorted positions are mapped back to the particles
-    return nl.order[p], nl.order[nl.indices]
-
-
 def max_neighbour_gap_over_h(x0: np.ndarray, x: np.ndarray, h: float) -> float:
-    """Largest current distance between initial neighbours, over h."""
-    i, j = initial_neighbour_pairs(x0, h)
+    """Largest current distance between initial neighbours (closer than 2h at t = 0), over
+    h."""
+    from ..measures import pairs_within
+
+    i, j = pairs_within(x0, 2.0 * h)
     return float(np.max(np.linalg.norm(x[i] - x[j], axis=1)) / h)
 
 

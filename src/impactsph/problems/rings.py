@@ -44,20 +44,11 @@ TORN_GAP_OVER_H = 2.5
 CLUMPED_DISTANCE_OVER_DX = 0.3
 
 
-def pairs_within(x: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """The pairs ``(i, j)``, ``i != j``, of the points ``x`` closer than ``radius``."""
-    from ..neighbours import NeighbourList
-
-    nl = NeighbourList.build(x, radius)
-    p = np.repeat(np.arange(x.shape[0]), np.diff(nl.offsets))
-    i, j = nl.order[p], nl.order[nl.indices]
-    near = (i != j) & (np.linalg.norm(x[i] - x[j], axis=1) < radius)
-    return i[near], j[near]
-
-
 def min_distance_over_dx(x: np.ndarray, h: float, dx: float) -> float:
     """The smallest distance between two of the particles ``x``, over ``dx`` (pairs closer
     than 2h; 2h / dx if there are none)."""
+    from ..measures import pairs_within
+
     i, j = pairs_within(x, 2.0 * h)
     d = np.linalg.norm(x[i] - x[j], axis=1)
     return float(d.min() / dx) if d.size else 2.0 * h / dx
@@ -65,7 +56,7 @@ def min_distance_over_dx(x: np.ndarray, h: float, dx: float) -> float:
 
 def rings_metrics(sim: Any) -> dict[str, Any]:
     """The measures of the module docstring (a note where the rings tore or clumped)."""
-    from ..measures import attempt
+    from ..measures import attempt, pairs_within
 
     s = sim.state
     notes: list[str] = []
