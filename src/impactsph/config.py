@@ -340,6 +340,12 @@ class TipMass(_Model):
         "the model carries G / depth per unit depth")
     velocity: list[FiniteFloat] = Field(description="velocity V0 given to the mass (m/s)")
     region: Region
+    carried_as: Literal["added_inertia", "particle_mass"] = Field(
+        "added_inertia", description="how the particles carry G: \"added_inertia\" (a rigid "
+        "mass moving with them: it enters their accelerations, momentum and kinetic energy, "
+        "not their volumes m / rho) or \"particle_mass\" (the paper's: their masses grow by "
+        "G, so their volumes and every kernel sum over them grow too; docs/validation.md, "
+        "Example 3)")
 
 
 class Driven(Region):

@@ -77,7 +77,7 @@ class Drivers:
                 sel = inside(state.initial_position[members], drive.origin, drive.size)
                 rows = members[sel]
                 regions.append(DrivenRegion(drive.name, rows, list(drive.velocity),
-                                            float(state.mass[rows].sum())))
+                                            float(state.inertial_mass[rows].sum())))
         if not regions:
             return None
         return cls(regions, impulse=np.zeros(state.dim))

@@ -38,11 +38,11 @@ HOURGLASS_SPEED = 0.25
 @cache
 def _survey_kernel(dim: int):
     @nb.njit(parallel=True, cache=True)
-    def survey(n_active, x, v, rho, e, S, m, h, material, table, courant, hourglass):
+    def survey(n_active, x, v, rho, e, S, m, added, h, material, table, courant, hourglass):
         """One pass over the state: the CFL step (eq 26, with the hourglass control's
         signal speed added where ``hourglass`` (zeta) > 0: :data:`HOURGLASS_SPEED`), kinetic
-        and internal energy,
-        momentum, and the first bad value.  Returns ``(dt, sums, bad)``: ``sums = (KE, IE,
+        energy and momentum (of the mass ``m`` plus the added mass ``added``), internal
+        energy (of ``m``), and the first bad value.  Returns ``(dt, sums, bad)``: ``sums = (KE, IE,
         p_x, p_y, p_z)``; ``bad = field * n + i`` for the first particle ``i`` of the first
         field (0 position, 1 velocity, 2 density, 3 specific energy, 4 deviatoric stress:
         non-finite; 5 density: not positive) that is bad, or -1.  Partial sums per chunk of
@@ -78,13 +78,14 @@ def _survey_kernel(dim: int):
                     c += HOURGLASS_SPEED * hourglass * math.sqrt(table[material[i], SHEAR]
                                                                 / rho[i])
                 local_dt = min(local_dt, h[i] / (c + math.sqrt(speed2)))
-                ke += 0.5 * m[i] * speed2
+                inertia = m[i] + added[i]
+                ke += 0.5 * inertia * speed2
                 ie += m[i] * e[i]
-                p0 += m[i] * v[i, 0]
+                p0 += inertia * v[i, 0]
                 if dim > 1:
-                    p1 += m[i] * v[i, 1]
+                    p1 += inertia * v[i, 1]
                 if dim > 2:
-                    p2 += m[i] * v[i, 2]
+                    p2 += inertia * v[i, 2]
             part[chunk, 0] = local_dt
             part[chunk, 1] = ke
             part[chunk, 2] = ie
@@ -114,7 +115,8 @@ def stable_time_step(state: ParticleState, table: np.ndarray, courant: float,
     # the material's density (plane stress and axisymmetry keep a mass per area in density)
     dt, _, _ = survey(n, state.position, state.velocity, state.material_density,
                       state.specific_energy,
-                      state.deviatoric_stress, state.mass, state.smoothing_length,
+                      state.deviatoric_stress, state.mass, state.added_mass,
+                      state.smoothing_length,
                       state.material, table, courant, float(hourglass))
     return float(dt)
 
@@ -143,6 +145,7 @@ class MidpointIntegrator:
             plane_stress=plane_stress, axisymmetric=axisymmetric)).advance
         self.survey_kernel = _survey_kernel(dim)
         self._any_clamped: bool | None = None
+        self._inertia: np.ndarray | None = None
         self._start: SimpleNamespace | None = None
 
     #: the fields the integrator advances (the rest of the state is constant within a step)
@@ -174,7 +177,7 @@ class MidpointIntegrator:
                       state.deviatoric_stress, state.plastic_work, state.material_state,
                       state.hourglass_acceleration)
         if self.constraint is not None:
-            count, impulse = self.constraint(state.position, state.velocity, state.mass)
+            count, impulse = self.constraint(state.position, state.velocity, self._inertia)
             if final:  # the predictor's state is discarded; only the step's own counts
                 self.constraint_events += count
                 self.constraint_impulse += impulse
@@ -183,6 +186,7 @@ class MidpointIntegrator:
         """Advance ``state`` by ``dt`` in place."""
         if self._any_clamped is None:
             self._any_clamped = bool(state.clamped.any())
+            self._inertia = state.inertial_mass  # mass + added mass: impulses = inertia dv
         start = self._save_start(state)
         drivers = self.drivers
         self._stage(state, 0.5 * dt, start, start.velocity, self.rates(state, time=state.time),
@@ -195,10 +199,10 @@ class MidpointIntegrator:
         self._stage(state, dt, start, state.velocity, rates, final=True)
         if drivers is not None:
             drivers.apply(state.velocity, state.time + dt)
-            drivers.account(state.mass, rates[0][: state.n], state.time, dt)
+            drivers.account(self._inertia, rates[0][: state.n], state.time, dt)
         if self._any_clamped:
             clamped = state.clamped
-            self.clamp_impulse -= dt * (state.mass[clamped] @ rates[0][: state.n][clamped])
+            self.clamp_impulse -= dt * (self._inertia[clamped] @ rates[0][: state.n][clamped])
         state.time += dt
         state.step += 1
 

@@ -112,7 +112,7 @@ def body_measures(sim: Any, notes: list[str]) -> dict[str, dict[str, Any]]:
     max_disp = getattr(sim, "max_displacement", None)
     for b, name in enumerate(sim.problem.body_names):
         members = np.flatnonzero(s.body == b)
-        m = s.mass[members]
+        m = s.inertial_mass[members]  # a tip mass carried as inertia moves with the body
         M = float(m.sum())
         x, x0, v = s.position[members], s.initial_position[members], s.velocity[members]
         u = np.linalg.norm(x - x0, axis=1)

@@ -119,13 +119,15 @@ def axisymmetric_masses(state: ParticleState, body_names: list[str]) -> None:
                         f"{body_names[int(state.body[i])]!r} is at x = {float(r[i])!r}; with "
                         f"two_dimensional = 'axisymmetric' x is the radius, > 0")
     state.mass *= r
+    state.added_mass *= r  # a tip mass is spread as the particles' own masses are
     state.density *= r
     state.material_state[:, THICKNESS_RATIO] = r
 
 
 def build_problem(case: Case) -> Problem:
     """Place the particles of every body (:func:`~impactsph.geometry.body_particles`), set
-    masses ``rho0 V`` from their volumes V (``dx^dim`` on a lattice; plus any tip mass),
+    masses ``rho0 V`` from their volumes V (``dx^dim`` on a lattice), a tip mass as added
+    inertia (or, ``carried_as = "particle_mass"``, in the masses),
     smoothing lengths ``h = (h/dx) dx``, initial velocities and clamped particles."""
     info: dict[str, float] = {}
     layout = TableLayout.registered()
@@ -135,7 +137,7 @@ def build_problem(case: Case) -> Problem:
     table = material_table(materials, case.time.wave_speed, layout)
     parts: dict[str, list[np.ndarray]] = {k: [] for k in
                                           ("x", "v", "rho", "m", "h", "body", "mat", "clamped",
-                                           "temperature", "S")}
+                                           "added", "temperature", "S")}
     for b, body in enumerate(case.bodies):
         particles = body_particles(body.geometry, dim, where=f"bodies.{b}.geometry")
         x = particles.position
@@ -153,6 +155,7 @@ def build_problem(case: Case) -> Problem:
         if particles.velocity is not None:  # a particle file's velocity columns
             velocity += particles.velocity
         clamped = np.zeros(n, dtype=bool)
+        added = np.zeros(n)
         clamps = body.clamped if isinstance(body.clamped, list) else [body.clamped]
         for region in clamps:
             if region is not None:
@@ -174,7 +177,10 @@ def build_problem(case: Case) -> Problem:
                                 f"{body.name!r}")
             extra = tip.mass / (tip.depth if dim == 2 else 1.0)
             own = float(mass[sel].sum())
-            mass[sel] += extra / sel.sum()
+            if tip.carried_as == "particle_mass":  # the paper's: heavier, larger particles
+                mass[sel] += extra / sel.sum()
+            else:  # a rigid mass moving with the particles: inertia, not volume
+                added[sel] += extra / sel.sum()
             velocity[sel] = np.asarray(tip.velocity) * extra / (extra + own)
             info["tip_initial_speed"] = float(np.linalg.norm(tip.velocity) * extra
                                               / (extra + own))
@@ -188,6 +194,7 @@ def build_problem(case: Case) -> Problem:
         parts["body"].append(np.full(n, b, dtype=np.int32))
         parts["mat"].append(np.full(n, k, dtype=np.int32))
         parts["clamped"].append(clamped)
+        parts["added"].append(added)
         parts["temperature"].append(particles.temperature if particles.temperature is not None
                                     else np.full(n, np.nan))
     cat = {k: np.concatenate(v) for k, v in parts.items()}
@@ -197,6 +204,7 @@ def build_problem(case: Case) -> Problem:
         density=cat["rho"], specific_energy=np.zeros(n), deviatoric_stress=cat["S"],
         mass=cat["m"], smoothing_length=cat["h"], body=cat["body"], material=cat["mat"],
         clamped=cat["clamped"], material_state=np.zeros((n, layout.state_width)),
+        added_mass=cat["added"],
     )
     initialise_material_state(state, materials, layout)
     body_names = [b.name for b in case.bodies]

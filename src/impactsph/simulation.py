@@ -55,9 +55,10 @@ class RunRecord:
 
 
 @nb.njit(cache=True)
-def body_totals(body, mass, velocity, specific_energy, plastic_work, position,
+def body_totals(body, mass, added_mass, velocity, specific_energy, plastic_work, position,
                 initial_position, n_bodies):  # pragma: no cover (compiled)
-    """Per body, in one compiled pass over the particles: kinetic energy, internal energy,
+    """Per body, in one compiled pass over the particles: kinetic energy (of the mass and
+    the added mass), internal energy,
     plastic work (J) and the largest squared displacement ``|x - x0|^2`` (m^2), as the
     columns of an ``(n_bodies, 4)`` array."""
     out = np.zeros((n_bodies, 4))
@@ -69,7 +70,7 @@ def body_totals(body, mass, velocity, specific_energy, plastic_work, position,
             v2 += velocity[i, a] * velocity[i, a]
             d = position[i, a] - initial_position[i, a]
             u2 += d * d
-        out[b, 0] += 0.5 * mass[i] * v2
+        out[b, 0] += 0.5 * (mass[i] + added_mass[i]) * v2
         out[b, 1] += mass[i] * specific_energy[i]
         out[b, 2] += mass[i] * plastic_work[i]
         if u2 > out[b, 3]:
@@ -140,7 +141,7 @@ class Simulation:
         self.correction_heating = 0.0  # J, internal energy the AC energy term added
         self.wall_impulse = np.zeros(self.state.dim)  # N s, time integral of the walls' push
         self._supported: bool | None = None  # walls or clamped particles (see _record_row)
-        self._abs_momentum0 = float(np.sum(self.state.mass *
+        self._abs_momentum0 = float(np.sum(self.state.inertial_mass *
                                            np.linalg.norm(self.state.velocity, axis=1)))
         self.solver.rates(self.state.copy())  # compile (or load from cache) before timing
         self.solver.pair_evaluations = 0
@@ -156,9 +157,8 @@ class Simulation:
         s = self.state
         dt, sums, bad = self.integrator.survey_kernel(
             s.n, s.position, s.velocity, s.material_density, s.specific_energy,
-            s.deviatoric_stress,
-            s.mass, s.smoothing_length, s.material, self.problem.table, self.case.time.courant,
-            float(self.case.stabilisation.hourglass))
+            s.deviatoric_stress, s.mass, s.added_mass, s.smoothing_length, s.material,
+            self.problem.table, self.case.time.courant, float(self.case.stabilisation.hourglass))
         return Survey(float(dt), float(sums[0]), float(sums[1]), sums[2: 2 + s.dim].copy(),
                       int(bad))
 
@@ -199,8 +199,8 @@ class Simulation:
                 per_body = np.bincount(s.body, weights=force[:, a], minlength=n_bodies)
                 for b, body in enumerate(self.problem.body_names):
                     row[f"contact_force_{body}_{name}"] = float(per_body[b])
-        totals = body_totals(s.body, s.mass, s.velocity, s.specific_energy, s.plastic_work,
-                             s.position, s.initial_position, n_bodies)
+        totals = body_totals(s.body, s.mass, s.added_mass, s.velocity, s.specific_energy,
+                             s.plastic_work, s.position, s.initial_position, n_bodies)
         row["plastic_work"] = float(totals[:, 2].sum())
         if n_bodies > 1:  # the energies of each body
             for b, body in enumerate(self.problem.body_names):

@@ -112,6 +112,9 @@ class Solver:
         if self.walls is not None:  # the rigid walls' planes, for the penalty layer
             self._rigid_points = np.ascontiguousarray(self.walls.points[rigid])
             self._rigid_normals = np.ascontiguousarray(self.walls.normals[rigid])
+        #: m / (m + added mass) of each particle, None without added mass: the forces per own
+        #: mass the passes return become accelerations (a tip mass carried as inertia)
+        self._inertia = state.inertia_fraction()
         self._build(state)
 
     def _build(self, state: ParticleState) -> None:
@@ -266,6 +269,8 @@ class Solver:
                                               state.material, self.table, self._rigid_points,
                                               self._rigid_normals, self.wall_layer, b.dv, b.de,
                                               False, self._axisymmetric)
+        if self._inertia is not None:  # forces per own mass -> accelerations
+            b.dv[:n] *= self._inertia[:, None]
         self.pair_evaluations += int(totals[3])
         self.rate_evaluations += 1
         return b.dv, b.drho, b.de, b.dS, b.dhg

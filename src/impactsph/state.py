@@ -44,6 +44,11 @@ class ParticleState:
     #: (n,) what a viscosity switch keeps of a particle from one evaluation to the next (e.g.
     #: Cullen & Dehnen's: the velocity divergence, 1/s); 0 without a switch that keeps one
     viscosity_memory: np.ndarray = field(default=None)
+    #: (n,) kg: inertia carried by a particle beyond its own mass, e.g. a rigid tip mass
+    #: (``bodies.tip_mass``, ``carried_as = "added_inertia"``).  It enters the particle's
+    #: acceleration, ``F_i / (m_i + added_i)``, its kinetic energy and its momentum, but not
+    #: its volume ``m_i / rho_i`` nor its internal energy; zeros by default
+    added_mass: np.ndarray = field(default=None)
     time: float = 0.0
     step: int = 0
     #: the time (s) of the rate evaluation that set ``viscosity_factor`` (a switch that evolves
@@ -67,6 +72,8 @@ class ParticleState:
             self.viscosity_factor = np.ones(self.n)
         if self.viscosity_memory is None:
             self.viscosity_memory = np.zeros(self.n)
+        if self.added_mass is None:
+            self.added_mass = np.zeros(self.n)
 
     @property
     def n(self) -> int:
@@ -100,14 +107,28 @@ class ParticleState:
         return {f.name: getattr(self, f.name) for f in fields(self)
                 if isinstance(getattr(self, f.name), np.ndarray)}
 
+    @property
+    def inertial_mass(self) -> np.ndarray:
+        """``mass + added_mass`` (kg): what the particle's momentum and kinetic energy count."""
+        return self.mass + self.added_mass
+
+    def inertia_fraction(self) -> np.ndarray | None:
+        """``m_i / (m_i + added_i)``, the factor that turns a particle's force per own mass
+        into its acceleration; None where no particle carries added mass."""
+        if not self.added_mass.any():
+            return None
+        return self.mass / self.inertial_mass
+
     def kinetic_energy(self) -> float:
-        """``sum 1/2 m |v|^2`` (J; J/m per unit depth in 2D, J/m^2 per unit section in 1D)."""
-        return 0.5 * math.fsum(self.mass * np.einsum("ia,ia->i", self.velocity, self.velocity))
+        """``sum 1/2 (m + added) |v|^2`` (J; J/m per unit depth in 2D, J/m^2 per unit section
+        in 1D)."""
+        return 0.5 * math.fsum(self.inertial_mass * np.einsum("ia,ia->i", self.velocity,
+                                                              self.velocity))
 
     def internal_energy(self) -> float:
         """``sum m e``."""
         return math.fsum(self.mass * self.specific_energy)
 
     def momentum(self) -> np.ndarray:
-        """``sum m v`` (vector)."""
-        return self.mass @ self.velocity
+        """``sum (m + added) v`` (vector)."""
+        return self.inertial_mass @ self.velocity

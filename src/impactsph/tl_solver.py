@@ -78,6 +78,8 @@ class TotalLagrangianSolver:
         self._ghost_src = np.zeros(0, dtype=np.int64)
         self._ghost_wall = np.zeros(0, dtype=np.int64)
         self._pairs = int(self.ref.neighbours.shape[0])
+        #: m / (m + added mass), None without added mass (see :class:`~impactsph.solver.Solver`)
+        self._inertia = state.inertia_fraction()
 
     def restore(self, state: ParticleState, neighbours: NeighbourList, ghost_src: np.ndarray,
                 ghost_wall: np.ndarray) -> None:
@@ -105,6 +107,8 @@ class TotalLagrangianSolver:
             self.wall_force = layer_push(n, state.position, state.velocity, state.mass,
                                          state.material, self.table, w.points, w.normals,
                                          self.wall_layer, b.dv, b.de, True)
+        if self._inertia is not None:  # forces per own mass -> accelerations
+            b.dv[:n] *= self._inertia[:, None]
         self.pair_evaluations += self._pairs
         self.rate_evaluations += 1
         return b.dv, b.drho, b.de, b.dS, b.dhg
