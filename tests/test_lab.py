@@ -59,3 +59,24 @@ def test_lab_runs_and_tabulates(tmp_path):
     bad = runner.invoke(app, ["lab", "--problem", "slabs", "--out", str(tmp_path / "x")])
     assert bad.exit_code == 2
     assert "problem 'slabs': one of bars, plates, taylor" in bad.output
+
+
+def test_the_long_problems_are_twice_the_resolution_and_run_only_when_named():
+    """``cantilever-x2`` and ``taylor3d-x2`` are the x1 problems at half the spacing (4 and 8
+    times the particles); a plain ``impactsph lab`` leaves them out."""
+    from impactsph.lab import DEFAULT_PROBLEMS, LONG
+    from impactsph.loading import load_case
+    from impactsph.problem import build_problem
+
+    assert set(LONG) <= set(PROBLEMS) and not set(LONG) & set(DEFAULT_PROBLEMS)
+    assert {p for p, *_ in plan(DEFAULT_PROBLEMS, ["AV (1, 1)"])} == set(DEFAULT_PROBLEMS)
+    counts = {}
+    for problem in ("cantilever", "cantilever-x2"):
+        (_, _, case, overrides), = plan([problem], ["AV (1, 1)"])
+        counts[problem] = build_problem(load_case(case, overrides)).state.n
+    assert counts["cantilever-x2"] == 4 * counts["cantilever"] == 4 * 1020
+    spacing = {}
+    for problem in ("taylor3d", "taylor3d-x2"):
+        (_, _, case, overrides), = plan([problem], ["AV (1, 1)"])
+        spacing[problem] = load_case(case, overrides).bodies[0].geometry.spacing
+    assert spacing["taylor3d-x2"] == pytest.approx(spacing["taylor3d"] / 2)

@@ -15,6 +15,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from .config import CaseError
 from .errors import RunInterrupted
 from .interrupt import StopRequest
+from .lab import LONG as LAB_LONG
 from .lab import PROBLEMS as LAB_PROBLEMS
 from .loading import BUILTIN_CASES, load_case
 
@@ -307,7 +308,8 @@ def sweep(
 def lab(
     out: Annotated[Path, typer.Option(help="output directory")] = Path("runs/lab"),
     problem: Annotated[list[str] | None, typer.Option(
-        help=f"a problem to run (repeatable; default: all): {', '.join(LAB_PROBLEMS)}")] = None,
+        help=f"a problem to run (repeatable; default: all but {', '.join(LAB_LONG)}, which "
+        f"take hours a run): {', '.join(LAB_PROBLEMS)}")] = None,
     scheme: Annotated[list[str] | None, typer.Option(
         help="a scheme to run, by its name in the table (repeatable; default: all)")] = None,
     set_: Annotated[list[str] | None, typer.Option(

@@ -84,10 +84,22 @@ PROBLEMS: dict[str, tuple[str, list[str], list[str]]] = {
                                     "plastic_work"]),
     "cantilever": ("cantilever", [], ["tip_deflection", "plastic_work",
                                       "kinetic_energy_ratio_final"]),
+    # twice the particles each way and twice the steps: 30-70 min a run on one core of this
+    # machine (docs/dissipation.md); run when named, not by default
+    "cantilever-x2": ("cantilever", ["bodies.0.geometry.count=[408, 10]"],
+                      ["tip_deflection", "plastic_work", "kinetic_energy_ratio_final"]),
+    # the cylinder at half the spacing: 180,000 particles, hours a run here; run when named
+    "taylor3d-x2": ("taylor3d", [*WALL, f"bodies.0.geometry.spacing={25.4e-3 / 138!r}"],
+                    ["final_length_ratio", "footprint_radius_ratio", "plastic_work"]),
     # Gray, Monaghan & Swift's rubber rings (elastic; the artificial stress keeps them whole)
     "rings": ("rings", [], ["restitution", "max_neighbour_gap_over_h", "min_distance_over_dx",
                             "kinetic_energy_ratio_final"]),
 }
+#: the problems a plain ``impactsph lab`` leaves out (each run hours on this machine): they
+#: run when named with ``--problem``
+LONG = ("cantilever-x2", "taylor3d-x2")
+#: the problems a plain ``impactsph lab`` runs
+DEFAULT_PROBLEMS = [p for p in PROBLEMS if p not in LONG]
 #: what every row shows besides the problem's measures
 COMMON = ["total_energy_relative_error", "momentum_drift", "wall_constraint_events",
           "ms_per_step"]
@@ -139,7 +151,7 @@ def run_lab(out: Path | str, problems: list[str] | None = None,
     from .sweep import run_many
 
     out = Path(out)
-    runs = plan(problems or list(PROBLEMS), schemes or list(SCHEMES), extra)
+    runs = plan(problems or DEFAULT_PROBLEMS, schemes or list(SCHEMES), extra)
     statuses: dict[str, str | None] = {}
     if not report_only:
         by_case: dict[str, list[int]] = {}
