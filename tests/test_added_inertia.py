@@ -11,6 +11,7 @@ import pytest
 
 from impactsph.checkpoint import load_checkpoint, write_checkpoint
 from impactsph.loading import validate_case
+from impactsph.measures import body_measures
 from impactsph.problem import build_problem
 from impactsph.simulation import Simulation
 
@@ -156,3 +157,41 @@ def test_added_mass_survives_a_checkpoint(tmp_path):
     restarted = load_checkpoint(path)
     np.testing.assert_array_equal(restarted.state.added_mass, sim.state.added_mass)
     assert restarted.state.added_mass.sum() == pytest.approx(G)
+    # the body's measures: its material mass, the added mass apart, velocities with both
+    notes: list[str] = []
+    bar = body_measures(sim, notes)["bar"]
+    assert not notes
+    assert bar["mass"] == pytest.approx(RHO * LENGTH)
+    assert bar["added_mass"] == pytest.approx(G)
+    momentum = sim.state.momentum()[0]
+    assert bar["final_velocity"][0] == pytest.approx(momentum / (RHO * LENGTH + G))
+
+
+def test_a_checkpoint_of_an_older_version_keeps_its_tip_mass_in_the_masses(tmp_path):
+    """A checkpoint written before 0.3 has no ``added_mass`` and its case no ``carried_as``:
+    that version carried a tip mass in the particle masses, so it continues that way, and a
+    case asking for added inertia is refused in one line naming the field."""
+    import json
+
+    import h5py
+
+    from impactsph.errors import CaseError
+
+    data = struck_bar(50, "particle_mass") | {"time": {"end": 2e-6}}
+    # a tip mass of one particle's (G itself, 83 volumes on one particle, tears the bar's end)
+    data["bodies"][0]["tip_mass"]["mass"] = RHO * LENGTH / 50
+    sim = Simulation(validate_case(data))
+    sim.run()
+    path = write_checkpoint(sim, tmp_path / "old.h5")
+    with h5py.File(path, "r+") as f:  # what 0.2 wrote
+        del f["state"]["added_mass"]
+        case = json.loads(f.attrs["case"])
+        del case["bodies"][0]["tip_mass"]["carried_as"]
+        f.attrs["case"] = json.dumps(case)
+    old = load_checkpoint(path, verify=False)
+    assert old.case.bodies[0].tip_mass.carried_as == "particle_mass"
+    np.testing.assert_array_equal(old.state.mass, sim.state.mass)
+    assert not old.state.added_mass.any()
+    data["bodies"][0]["tip_mass"]["carried_as"] = "added_inertia"
+    with pytest.raises(CaseError, match=r"bodies\.0\.tip_mass\.carried_as"):
+        load_checkpoint(path, validate_case(data | {"time": {"end": 4e-6}}), verify=False)

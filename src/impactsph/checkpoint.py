@@ -156,10 +156,22 @@ def verify_checkpoint(path: Path | str, case: Any = None) -> None:
                             f"{str(stored)[:12]}...); it cannot be used")
         if case is not None:
             try:
-                stored_case = validate_case(json.loads(f.attrs["case"]))
+                stored_case = _stored_case(f)
             except (KeyError, ValueError) as exc:
                 raise CaseError(f"--restart {path}: its case cannot be read ({exc})") from None
             _check_same_case(path, case, stored_case)
+
+
+def _stored_case(f: h5py.File) -> Any:
+    """The checkpoint's case, validated.  A checkpoint written before 0.3 has no
+    ``added_mass``: that version carried a tip mass in the particle masses, so its tip masses
+    read as ``carried_as = "particle_mass"``."""
+    data = json.loads(f.attrs["case"])
+    if "state" in f and "added_mass" not in f["state"]:
+        for body in data.get("bodies", []):
+            if body.get("tip_mass") is not None:
+                body["tip_mass"].setdefault("carried_as", "particle_mass")
+    return validate_case(data)
 
 
 def _check_same_case(path: Path, case: Any, stored: Any) -> None:
@@ -222,10 +234,18 @@ def load_checkpoint(path: Path | str, case: Any = None, *, verify: bool = True
     with f:
         if f.attrs.get("format") != FORMAT:
             raise CaseError(f"--restart {path}: not an impactsph checkpoint")
-        stored = validate_case(json.loads(f.attrs["case"]))
+        stored = _stored_case(f)
+        old_masses = "added_mass" not in f["state"]
         if case is None:
             case = stored
         else:
+            for k, (given, kept) in enumerate(zip(case.bodies, stored.bodies, strict=False)):
+                if (old_masses and given.tip_mass is not None and kept.tip_mass is not None
+                        and given.tip_mass.carried_as != kept.tip_mass.carried_as):
+                    raise CaseError(
+                        f"--restart {path}: this checkpoint carries bodies.{k}.tip_mass in "
+                        f"the particle masses (written before 0.3); set bodies.{k}.tip_mass."
+                        f"carried_as = \"particle_mass\" in the case to continue it")
             _check_same_case(path, case, stored)
         arrays = {name: f["state"][name][()] for name in f["state"]}
         problem = build_problem(case)

@@ -112,11 +112,15 @@ def body_measures(sim: Any, notes: list[str]) -> dict[str, dict[str, Any]]:
     max_disp = getattr(sim, "max_displacement", None)
     for b, name in enumerate(sim.problem.body_names):
         members = np.flatnonzero(s.body == b)
-        m = s.inertial_mass[members]  # a tip mass carried as inertia moves with the body
+        own = s.mass[members]  # the material: its amount, its plastic work, its pieces
+        m = s.inertial_mass[members]  # what moves: a tip mass carried as inertia counts
         M = float(m.sum())
+        material_mass = float(own.sum())
         x, x0, v = s.position[members], s.initial_position[members], s.velocity[members]
         u = np.linalg.norm(x - x0, axis=1)
-        entry: dict[str, Any] = {"particles": int(members.size), "mass": M}
+        entry: dict[str, Any] = {"particles": int(members.size), "mass": material_mass}
+        if M != material_mass:
+            entry["added_mass"] = M - material_mass
         entry["max_displacement"] = float(max(max_disp[b], u.max())) if (
             max_disp is not None and b < len(max_disp)) else float(u.max())
         entry["final_max_displacement"] = float(u.max())
@@ -126,7 +130,7 @@ def body_measures(sim: Any, notes: list[str]) -> dict[str, dict[str, Any]]:
         entry["final_speed"] = float(np.linalg.norm(vc))
         entry["kinetic_energy_final"] = float(0.5 * np.dot(m, np.einsum("ia,ia->i", v, v)))
         wp = s.plastic_work[members]
-        entry["plastic_work"] = float(np.dot(m, wp))
+        entry["plastic_work"] = float(np.dot(own, wp))
         entry["max_plastic_work_per_mass"] = float(wp.max())
         materials = sim.problem.materials
         layout = TableLayout.registered()
@@ -137,9 +141,9 @@ def body_measures(sim: Any, notes: list[str]) -> dict[str, dict[str, Any]]:
                 key = f"max_{state_name}"
                 entry[key] = max(entry.get(key, value), value)
         entry["failed_mass_fraction"] = float(
-            m[s.material_state[members, DAMAGE] >= 1.0].sum() / M)
+            own[s.material_state[members, DAMAGE] >= 1.0].sum() / material_mass)
 
-        def pieces(x: np.ndarray = x, m: np.ndarray = m, members: np.ndarray = members
+        def pieces(x: np.ndarray = x, m: np.ndarray = own, members: np.ndarray = members
                    ) -> dict[str, Any]:
             support = 2.0 * float(s.smoothing_length[members].max())
             count, _, share = largest_piece(x, m, support)

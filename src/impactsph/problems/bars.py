@@ -170,7 +170,8 @@ def bars_metrics(sim: Any) -> dict[str, Any]:
         for b, name in enumerate(sim.problem.body_names):
             members = s.body == b
             res[f"final_velocity_{name}"] = float(
-                np.dot(s.mass[members], s.velocity[members, 0]) / s.mass[members].sum())
+                np.dot(s.inertial_mass[members], s.velocity[members, 0])
+                / s.inertial_mass[members].sum())
         if theory.speed > 0:
             res["separation_speed_ratio"] = float(
                 np.mean([abs(res[f"final_velocity_{n}"] - theory.frame_velocity)

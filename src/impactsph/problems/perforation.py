@@ -51,9 +51,12 @@ def impact_geometry(x0: np.ndarray, v0: np.ndarray, mass: np.ndarray, body: np.n
 
 def perforation_measures(x0: np.ndarray, x: np.ndarray, v0: np.ndarray, v: np.ndarray,
                          mass: np.ndarray, body: np.ndarray, spacing: float,
-                         planes: list[tuple[np.ndarray, np.ndarray]] = ()) -> dict[str, Any]:
+                         planes: list[tuple[np.ndarray, np.ndarray]] = (),
+                         material_mass: np.ndarray | None = None) -> dict[str, Any]:
     """The measures of the module docstring (``spacing``: the plate's particle spacing;
-    ``planes`` as :func:`impact_geometry`'s)."""
+    ``planes`` as :func:`impact_geometry`'s; ``mass``: the inertia that weighs the velocities,
+    ``material_mass``: the particles' own masses, which the ejected fraction counts, default
+    ``mass``)."""
     g = impact_geometry(x0, v0, mass, body, planes)
     d, c = g["direction"], g["centre"]
     proj, plate = body == 0, body == 1
@@ -62,7 +65,7 @@ def perforation_measures(x0: np.ndarray, x: np.ndarray, v0: np.ndarray, v: np.nd
     residual = float(((m @ v[proj]) / m.sum()) @ d)
     moved = (x[plate] - x0[plate]) @ d
     ejected = moved > thickness
-    mp = mass[plate]
+    mp = (mass if material_mass is None else material_mass)[plate]
     rel = x[plate] - c
     radial = np.linalg.norm(rel - np.outer(rel @ d, d), axis=1)
     remaining = radial[~ejected]
@@ -96,7 +99,8 @@ class PerforationProblem(ProblemKind):
                    / np.linalg.norm(b.normal)) for b in sim.case.boundaries
                   if b.type == "symmetry"]
         return perforation_measures(s.initial_position, s.position, initial_velocity,
-                                    s.velocity, s.mass, s.body, spacing, planes)
+                                    s.velocity, s.inertial_mass, s.body, spacing, planes,
+                                    material_mass=s.mass)
 
     def summary_keys(self, case: Any) -> tuple[str, ...]:
         return ("residual_velocity", "residual_velocity_ratio", "hole_diameter",

@@ -62,7 +62,7 @@ def rings_metrics(sim: Any) -> dict[str, Any]:
     notes: list[str] = []
     out: dict[str, Any] = {}
     first, second = s.body == 0, s.body == 1
-    m = s.mass
+    m = s.inertial_mass  # centre-of-mass velocities: any added mass moves with the ring
 
     def centre(sel: np.ndarray, field: np.ndarray) -> np.ndarray:
         return (m[sel] @ field[sel]) / m[sel].sum()
