@@ -16,7 +16,11 @@ letting LLVM fuse multiply-adds (``FASTMATH`` in :mod:`impactsph.physics.passes`
 fusion, passes compiled cold and the same passes served from numba's cache differed at
 1e-12 relative, so the last digits of a run depended on the cache; the re-recorded values
 differ from 3d5868e's by at most 3e-12 relative (the bars' AC profile oscillation, a small
-difference), 5e-11 for the shortened cantilever's energy error (3e-5 of the energy)."""
+difference), 5e-11 for the shortened cantilever's energy error (3e-5 of the energy).  They
+were re-recorded again when the pair pass began to vectorise its neighbour sums (which
+reassociates them, ``PAIR_FASTMATH``; issue 16): the new values differ from the previous ones
+by at most 2.6e-11 relative (the shortened cantilever's energy error and budget residual),
+1.0e-11 (the bars' AC profile oscillation) and 6e-8 for a momentum drift of 1.6e-14."""
 
 from __future__ import annotations
 

@@ -19,7 +19,9 @@ momentum (eq 27), energy (eq 28) and Jaumann stress-rate (eq 14) equations:
 2. :func:`particle_rates` (every active particle; gather, so threads never write the same
    memory and the result does not depend on their number): the sums over its neighbours of
    continuity, velocity gradient, stress and viscous accelerations, stress work and viscous
-   heating, contact terms; then its Jaumann stress rate;
+   heating (:func:`neighbour_sums`: one loop without branches, which LLVM vectorises), the
+   contact terms (a second loop, only where another body is within reach); then
+   (:func:`particle_finish`) its rates and its Jaumann stress rate;
 3. ``viscosity_correction`` (a scheme with a correction, e.g. AC): per particle again, after
    every particle's viscous acceleration is known;
 4. :func:`advance_particle`: one integrator stage of one particle, and its strength model's
@@ -97,6 +99,13 @@ viscosity_switch = None
 #: (``test_plugin_registers_the_models_for_the_command_line``, cold caches), at 6% of the step
 #: time (benchmarks/README.md).
 FASTMATH = {"arcp", "nsz"}
+#: the pair pass also reassociates, so that LLVM can vectorise its first loop over the neighbours
+#: (:func:`particle_rates`: the sums run as several partial sums, one per vector lane, added at
+#: the end); still no "contract", for the reason above.  The order is fixed by the compiled
+#: code, so the results do not depend on the thread count or on the cache's state.  With
+#: ``error_model="numpy"`` (no zero-division checks, which are branches) this is what lets
+#: the loop vectorise: 2.3x on the 2D pair loop alone (benchmarks/README.md).
+PAIR_FASTMATH = {"reassoc", "arcp", "nsz"}
 
 _COLUMNS = record_columns(DIM, correction_matrix=FORCE_CORRECTION,
                           artificial_stress=ARTIFICIAL_STRESS > 0.0,
@@ -514,11 +523,252 @@ def contact_traction(Pi_, Pj, d0, d1, d2, r2, normal_stress):
     return Pi_[PC], Pj[PC]
 
 
+@JIT(cache=True, fastmath=FASTMATH)
+def stress_rate(L, S_i, shear, dS_i):
+    """:func:`impactsph.physics.stress_rate.jaumann_stress_rate` as a call of its own, not
+    inlined into the pair pass: with the pass's reassociating flags (PAIR_FASTMATH) on it, a
+    process that compiled the passes and one that loaded them from numba's cache gave stress
+    rates that differed in the last bit."""
+    jaumann_stress_rate(L, S_i, shear, dS_i)
+
+
+@JIT(inline="always", cache=True)
+def neighbour_sums(p, P, offsets, indices, visc_kind, visc_params, normal_stress):
+    """The sums over the neighbours of the particle at sorted position ``p`` that
+    :func:`particle_rates` turns into its rates (see there for the equations), as a tuple:
+    ``(cont, G, a, k, w, f, wr, L, T, B, x, xe, mr, de_contact, de_v, count)`` with the vectors
+    and 3 x 3 matrices flattened (components beyond DIM zero).
+
+    Inlined into :func:`pair_pass`, whose flags (PAIR_FASTMATH, no zero-division checks) let
+    LLVM vectorise its first loop."""
+    Pi_ = P[p]
+    xi0 = Pi_[X]
+    vi0 = Pi_[V]
+    xi1 = Pi_[X + 1] if DIM > 1 else 0.0
+    vi1 = Pi_[V + 1] if DIM > 1 else 0.0
+    xi2 = Pi_[X + 2] if DIM > 2 else 0.0
+    vi2 = Pi_[V + 2] if DIM > 2 else 0.0
+    hi, ci, rhoi, bi = Pi_[H], Pi_[C], Pi_[RHO], Pi_[BODY]
+    # accumulators: continuity / rho_i; sum m_j grad W (same body); sum m_j A_j . grad W;
+    # contact and viscous accelerations; L; T = sum m_j v_ij (x) grad W; energies
+    cont = 0.0
+    G0 = G1 = G2 = 0.0
+    a0 = a1 = a2 = 0.0
+    k0 = k1 = k2 = 0.0
+    w0 = w1 = w2 = 0.0
+    f0 = f1 = f2 = 0.0  # viscous push across bodies (part of the contact force)
+    # a scheme with a switch (VISCOSITY_FACTOR): the particle's factor f_i, and the viscous
+    # acceleration of the unscaled Pi_ij, which the switch reads
+    fi = Pi_[VF] if VISCOSITY_FACTOR else 1.0
+    wr0 = wr1 = wr2 = 0.0
+    L00 = L01 = L02 = L10 = L11 = L12 = L20 = L21 = L22 = 0.0
+    T00 = T01 = T02 = T10 = T11 = T12 = T20 = T21 = T22 = 0.0
+    # the kernel gradient correction's moment matrix B = -sum_j V_j r_ij (x) grad W_ij
+    # (GRADIENT_CORRECTION only; see correct_velocity_gradient)
+    B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
+    # the artificial stress (ARTIFICIAL_STRESS > 0 only): the particle's own R_i, the sums
+    # sum m_j f_ij^n (R_i + R_j) . grad W_ij and sum m_j f_ij^n v_ij . (R_i + R_j) . grad W_ij
+    ri00 = ri01 = ri02 = ri11 = ri12 = ri22 = 0.0
+    if ARTIFICIAL_STRESS > 0.0:
+        ri00 = Pi_[R00]
+        if DIM > 1:
+            ri01 = Pi_[R01]
+            ri11 = Pi_[R11]
+        if DIM > 2:
+            ri02 = Pi_[R02]
+            ri12 = Pi_[R12]
+            ri22 = Pi_[R22]
+    x0 = x1 = x2 = 0.0
+    xe = 0.0
+    mr = 0.0  # axisymmetry: -M_i = sum_j V_j (r_i - r_j) dW_ij/dr_i (same body)
+    de_contact = 0.0
+    de_v = 0.0
+    count = 0
+    n_other = 0  # pairs within the support with another body or a wall ghost
+    # First loop, every pair: no branch (the support and the body are masks), so that LLVM
+    # vectorises it over the neighbours (PAIR_FASTMATH).  ``fq`` is 0 outside the support,
+    # ``fs`` also for a neighbour of another body: every same-body term is linear in the
+    # kernel gradient, so weighting it by ``fs`` drops the pair exactly.
+    for k in range(offsets[p], offsets[p + 1]):
+        j = indices[k]  # P[j, col], not a row view: the view stops the vectoriser
+        d0 = xi0 - P[j, X]
+        r2 = d0 * d0
+        d1 = d2 = 0.0
+        if DIM > 1:
+            d1 = xi1 - P[j, X + 1]
+            r2 += d1 * d1
+        if DIM > 2:
+            d2 = xi2 - P[j, X + 2]
+            r2 += d2 * d2
+        h_ij = 0.5 * (hi + P[j, H])
+        inv_h = 1.0 / h_ij
+        q2 = r2 * inv_h * inv_h
+        inside = (q2 < 4.0) & (r2 > 0.0)
+        q = math.sqrt(q2)
+        fq = cubic_spline_gradient_factor(q, inv_h, DIM) if inside else 0.0
+        same_body = P[j, BODY] == bi
+        fs = fq if same_body else 0.0
+        count += 1 if inside else 0
+        n_other += 0 if same_body or not inside else 1
+        g0 = fq * d0
+        g1 = fq * d1
+        g2 = fq * d2
+        s0 = fs * d0  # the same-body kernel gradient
+        s1 = fs * d1
+        s2 = fs * d2
+        u0 = vi0 - P[j, V]
+        u1 = vi1 - P[j, V + 1] if DIM > 1 else 0.0
+        u2 = vi2 - P[j, V + 2] if DIM > 2 else 0.0
+        vg = u0 * g0 + u1 * g1 + u2 * g2
+        vs = u0 * s0 + u1 * s1 + u2 * s2
+        vr = u0 * d0 + u1 * d1 + u2 * d2
+        m_j = P[j, M]
+        volume_j = P[j, VOL]
+        cont += continuity_pair(1.0, volume_j, vs)
+        if GRADIENT_CORRECTION:
+            B00 -= volume_j * d0 * s0
+            if DIM > 1:
+                B01 -= volume_j * d0 * s1
+                B10 -= volume_j * d1 * s0
+                B11 -= volume_j * d1 * s1
+            if DIM > 2:
+                B02 -= volume_j * d0 * s2
+                B12 -= volume_j * d1 * s2
+                B20 -= volume_j * d2 * s0
+                B21 -= volume_j * d2 * s1
+                B22 -= volume_j * d2 * s2
+        # the kernel gradient that the neighbour's stress A_j meets: C_j grad W_ij with the
+        # correction of the forces, grad W_ij otherwise
+        if FORCE_CORRECTION:
+            t0 = P[j, CM0] * s0
+            t1 = 0.0
+            t2 = 0.0
+            if DIM > 1:
+                t0 += P[j, CM0 + 1] * s1
+                t1 = P[j, CM0 + DIM] * s0 + P[j, CM0 + DIM + 1] * s1
+            if DIM > 2:
+                t0 += P[j, CM0 + 2] * s2
+                t1 += P[j, CM0 + DIM + 2] * s2
+                t2 = (P[j, CM0 + 2 * DIM] * s0 + P[j, CM0 + 2 * DIM + 1] * s1
+                      + P[j, CM0 + 2 * DIM + 2] * s2)
+        else:
+            t0, t1, t2 = s0, s1, s2
+        if ARTIFICIAL_STRESS > 0.0:  # on the uncorrected grad W_ij (docs/stabilisation.md)
+            mf = m_j * artificial_stress_weight(q)
+            e0 = (ri00 + P[j, R00]) * s0
+            e1 = e2 = 0.0
+            if DIM > 1:
+                r01 = ri01 + P[j, R01]
+                e0 += r01 * s1
+                e1 = r01 * s0 + (ri11 + P[j, R11]) * s1
+            if DIM > 2:
+                r02 = ri02 + P[j, R02]
+                r12 = ri12 + P[j, R12]
+                e0 += r02 * s2
+                e1 += r12 * s2
+                e2 = r02 * s0 + r12 * s1 + (ri22 + P[j, R22]) * s2
+            x0 += mf * e0
+            x1 += mf * e1
+            x2 += mf * e2
+            xe += mf * (u0 * e0 + u1 * e1 + u2 * e2)
+        # the weight of the particle's own A_i: m_j (A_i = sigma_i / rho_i^2), or in
+        # axisymmetry V_j (A_i = Q_i / rho_i)
+        w_j = volume_j if AXISYMMETRIC else m_j
+        if AXISYMMETRIC:
+            mr += volume_j * (xi0 - abs(P[j, X])) * s0
+        G0 += w_j * s0
+        a0 += m_j * P[j, A00] * t0
+        L00 += velocity_gradient_pair(volume_j, u0, s0)
+        T00 += w_j * u0 * s0
+        if DIM > 1:
+            G1 += w_j * s1
+            a0 += m_j * P[j, A01] * t1
+            a1 += m_j * (P[j, A01] * t0 + P[j, A11] * t1)
+            L01 += velocity_gradient_pair(volume_j, u0, s1)
+            L10 += velocity_gradient_pair(volume_j, u1, s0)
+            L11 += velocity_gradient_pair(volume_j, u1, s1)
+            T01 += w_j * u0 * s1
+            T10 += w_j * u1 * s0
+            T11 += w_j * u1 * s1
+        if DIM > 2:
+            G2 += m_j * s2
+            a0 += m_j * P[j, A02] * t2
+            a1 += m_j * P[j, A12] * t2
+            a2 += m_j * (P[j, A02] * t0 + P[j, A12] * t1 + P[j, A22] * t2)
+            L02 += velocity_gradient_pair(volume_j, u0, s2)
+            L12 += velocity_gradient_pair(volume_j, u1, s2)
+            L20 += velocity_gradient_pair(volume_j, u2, s0)
+            L21 += velocity_gradient_pair(volume_j, u2, s1)
+            L22 += velocity_gradient_pair(volume_j, u2, s2)
+            T02 += m_j * u0 * s2
+            T12 += m_j * u1 * s2
+            T20 += m_j * u2 * s0
+            T21 += m_j * u2 * s1
+            T22 += m_j * u2 * s2
+        pi_ij = pair_viscosity(visc_kind, vr, r2, h_ij, 0.5 * (ci + P[j, C]),
+                               0.5 * (rhoi + P[j, RHO]), visc_params)
+        if VISCOSITY_FACTOR:  # the switch: Pi_ij (f_i + f_j) / 2, symmetric in i, j
+            raw = viscous_acceleration_pair(m_j, pi_ij, 1.0)
+            wr0 += raw * g0
+            wr1 += raw * g1
+            wr2 += raw * g2
+            pi_ij *= 0.5 * (fi + P[j, VF])
+        visc = viscous_acceleration_pair(m_j, pi_ij, 1.0)  # 0 if receding
+        w0 += visc * g0
+        w1 += visc * g1
+        w2 += visc * g2
+        other = 0.0 if same_body else visc  # the viscous push across bodies
+        f0 += other * g0
+        f1 += other * g1
+        f2 += other * g2
+        de_v += viscous_heating_pair(m_j, pi_ij, vg)
+    # Second loop, only where the particle has neighbours of another body or wall ghosts
+    # within the support (a few particles at a contact surface): compression-only contact.
+    # Its names are its own (c_): a name shared with the first loop would carry that loop's
+    # last value past it, which stops the vectoriser.
+    for c_k in range(offsets[p], offsets[p + 1] if n_other > 0 else offsets[p]):
+        c_Pj = P[indices[c_k]]
+        if c_Pj[BODY] == bi:
+            continue
+        c_d0, c_d1, c_d2, c_r2, _, c_inv_h, c_q2 = pair_separation(Pi_, c_Pj)
+        if c_q2 >= 4.0 or c_r2 == 0.0:
+            continue
+        c_fq = cubic_spline_gradient_factor(math.sqrt(c_q2), c_inv_h, DIM)
+        c_g0 = c_fq * c_d0
+        c_g1 = c_fq * c_d1
+        c_g2 = c_fq * c_d2
+        c_u0 = vi0 - c_Pj[V]
+        c_u1 = vi1 - c_Pj[V + 1] if DIM > 1 else 0.0
+        c_u2 = vi2 - c_Pj[V + 2] if DIM > 2 else 0.0
+        c_vg = c_u0 * c_g0 + c_u1 * c_g1 + c_u2 * c_g2
+        c_volume_j = c_Pj[VOL]
+        c_sn_i, c_sn_j = contact_traction(Pi_, c_Pj, c_d0, c_d1, c_d2, c_r2, normal_stress)
+        if AXISYMMETRIC:  # V_i V_j (Q_i + Q_j) with Q = rho sn: per unit mass of i
+            c_s_ij = rhoi * c_sn_i + c_Pj[RHO] * c_sn_j
+            c_weight_j = c_volume_j / rhoi
+            c_own_j = c_volume_j
+        else:
+            c_s_ij = c_sn_i + c_sn_j
+            c_weight_j = c_own_j = c_Pj[M]
+        if in_contact(c_s_ij, c_vg):
+            cont += continuity_pair(1.0, c_volume_j, c_vg)
+            c_push = contact_acceleration_pair(c_weight_j, c_s_ij, 1.0)
+            k0 += c_push * c_g0
+            k1 += c_push * c_g1
+            k2 += c_push * c_g2
+            de_contact += contact_work_pair(c_own_j, c_sn_i, c_s_ij, c_vg)
+    return (cont, G0, G1, G2, a0, a1, a2, k0, k1, k2, w0, w1, w2, f0, f1, f2, wr0, wr1, wr2,
+            L00, L01, L02, L10, L11, L12, L20, L21, L22,
+            T00, T01, T02, T10, T11, T12, T20, T21, T22,
+            B00, B01, B02, B10, B11, B12, B20, B21, B22,
+            x0, x1, x2, xe, mr, de_contact, de_v, count)
+
+
 @JIT(inline="always", cache=True)
 def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_stress, S, material,
                    table, drho, dv, de, de_visc, contact_force, pair_count, dS, L, L_sorted):
     """Pass 2 for the active particle ``i`` at sorted position ``p``: the sums over its
-    neighbours (eqs 22, 27, 28) in scalar accumulators (kept in registers) and its stress rate
+    neighbours (eqs 22, 27, 28; :func:`neighbour_sums`) and its stress rate
     (eq 14, into ``dS[i]``, with ``L`` as scratch for the velocity gradient); its viscous
     acceleration is also stored in its packed record, for a correction pass.
     ``contact_force`` is written only if it has a row per particle (several bodies or walls),
@@ -568,200 +818,26 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     signed ``r``, which continues ``r sigma`` smoothly across the axis, broke that (a rod's
     energy error 4e-3 against 6e-5, docs/modelling.md).  Contact between bodies takes the
     same form with the normal stress (or pressure) for ``sigma``."""
+    sums = neighbour_sums(p, P, offsets, indices, visc_kind, visc_params, normal_stress)
+    particle_finish(p, i, sums, P, S, material, table, drho, dv, de, de_visc, contact_force,
+                    pair_count, dS, L, L_sorted)
+
+
+@JIT(inline="always", cache=True)
+def particle_finish(p, i, sums, P, S, material, table, drho, dv, de, de_visc, contact_force,
+                    pair_count, dS, L, L_sorted):
+    """The rates of the active particle ``i`` at sorted position ``p`` from its neighbour
+    sums (:func:`neighbour_sums`; the equations are those of :func:`particle_rates`).  The
+    stress rate is a call (:func:`stress_rate`) with flags of its own."""
     shear = table[material[i], SHEAR]
     Pi_ = P[p]
-    xi0 = Pi_[X]
     vi0 = Pi_[V]
-    xi1 = Pi_[X + 1] if DIM > 1 else 0.0
-    vi1 = Pi_[V + 1] if DIM > 1 else 0.0
-    xi2 = Pi_[X + 2] if DIM > 2 else 0.0
-    vi2 = Pi_[V + 2] if DIM > 2 else 0.0
-    hi, ci, rhoi, bi = Pi_[H], Pi_[C], Pi_[RHO], Pi_[BODY]
-    inv_hi = 1.0 / hi
-    # accumulators: continuity / rho_i; sum m_j grad W (same body); sum m_j A_j . grad W;
-    # contact and viscous accelerations; L; T = sum m_j v_ij (x) grad W; energies
-    cont = 0.0
-    G0 = G1 = G2 = 0.0
-    a0 = a1 = a2 = 0.0
-    k0 = k1 = k2 = 0.0
-    w0 = w1 = w2 = 0.0
-    f0 = f1 = f2 = 0.0  # viscous push across bodies (part of the contact force)
-    # a scheme with a switch (VISCOSITY_FACTOR): the particle's factor f_i, and the viscous
-    # acceleration of the unscaled Pi_ij, which the switch reads
-    fi = Pi_[VF] if VISCOSITY_FACTOR else 1.0
-    wr0 = wr1 = wr2 = 0.0
-    L00 = L01 = L02 = L10 = L11 = L12 = L20 = L21 = L22 = 0.0
-    T00 = T01 = T02 = T10 = T11 = T12 = T20 = T21 = T22 = 0.0
-    # the kernel gradient correction's moment matrix B = -sum_j V_j r_ij (x) grad W_ij
-    # (GRADIENT_CORRECTION only; see correct_velocity_gradient)
-    B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
-    # the artificial stress (ARTIFICIAL_STRESS > 0 only): the particle's own R_i, the sums
-    # sum m_j f_ij^n (R_i + R_j) . grad W_ij and sum m_j f_ij^n v_ij . (R_i + R_j) . grad W_ij
-    ri00 = ri01 = ri02 = ri11 = ri12 = ri22 = 0.0
-    if ARTIFICIAL_STRESS > 0.0:
-        ri00 = Pi_[R00]
-        if DIM > 1:
-            ri01 = Pi_[R01]
-            ri11 = Pi_[R11]
-        if DIM > 2:
-            ri02 = Pi_[R02]
-            ri12 = Pi_[R12]
-            ri22 = Pi_[R22]
-    x0 = x1 = x2 = 0.0
-    xe = 0.0
-    mr = 0.0  # axisymmetry: -M_i = sum_j V_j (r_i - r_j) dW_ij/dr_i (same body)
-    de_contact = 0.0
-    de_v = 0.0
-    count = 0
-    for k in range(offsets[p], offsets[p + 1]):
-        Pj = P[indices[k]]
-        d0 = xi0 - Pj[X]
-        r2 = d0 * d0
-        d1 = d2 = 0.0
-        if DIM > 1:
-            d1 = xi1 - Pj[X + 1]
-            r2 += d1 * d1
-        if DIM > 2:
-            d2 = xi2 - Pj[X + 2]
-            r2 += d2 * d2
-        h_j = Pj[H]
-        if h_j == hi:  # equal smoothing lengths (the common case): no division
-            h_ij = hi
-            inv_h = inv_hi
-        else:
-            h_ij = 0.5 * (hi + h_j)
-            inv_h = 1.0 / h_ij
-        q2 = r2 * inv_h * inv_h
-        if q2 >= 4.0 or r2 == 0.0:
-            continue
-        count += 1
-        fq = cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM)
-        g0 = fq * d0
-        g1 = fq * d1
-        g2 = fq * d2
-        u0 = vi0 - Pj[V]
-        u1 = vi1 - Pj[V + 1] if DIM > 1 else 0.0
-        u2 = vi2 - Pj[V + 2] if DIM > 2 else 0.0
-        vg = u0 * g0 + u1 * g1 + u2 * g2
-        vr = u0 * d0 + u1 * d1 + u2 * d2
-        m_j = Pj[M]
-        volume_j = Pj[VOL]
-        same_body = Pj[BODY] == bi
-        if same_body:
-            cont += continuity_pair(1.0, volume_j, vg)
-            if GRADIENT_CORRECTION:
-                B00 -= volume_j * d0 * g0
-                if DIM > 1:
-                    B01 -= volume_j * d0 * g1
-                    B10 -= volume_j * d1 * g0
-                    B11 -= volume_j * d1 * g1
-                if DIM > 2:
-                    B02 -= volume_j * d0 * g2
-                    B12 -= volume_j * d1 * g2
-                    B20 -= volume_j * d2 * g0
-                    B21 -= volume_j * d2 * g1
-                    B22 -= volume_j * d2 * g2
-            # the kernel gradient that the neighbour's stress A_j meets: C_j grad W_ij with the
-            # correction of the forces, grad W_ij otherwise
-            if FORCE_CORRECTION:
-                t0 = Pj[CM0] * g0
-                t1 = 0.0
-                t2 = 0.0
-                if DIM > 1:
-                    t0 += Pj[CM0 + 1] * g1
-                    t1 = Pj[CM0 + DIM] * g0 + Pj[CM0 + DIM + 1] * g1
-                if DIM > 2:
-                    t0 += Pj[CM0 + 2] * g2
-                    t1 += Pj[CM0 + DIM + 2] * g2
-                    t2 = (Pj[CM0 + 2 * DIM] * g0 + Pj[CM0 + 2 * DIM + 1] * g1
-                          + Pj[CM0 + 2 * DIM + 2] * g2)
-            else:
-                t0, t1, t2 = g0, g1, g2
-            if ARTIFICIAL_STRESS > 0.0:  # on the uncorrected grad W_ij (docs/stabilisation.md)
-                mf = m_j * artificial_stress_weight(math.sqrt(q2))
-                s0 = (ri00 + Pj[R00]) * g0
-                s1 = s2 = 0.0
-                if DIM > 1:
-                    r01 = ri01 + Pj[R01]
-                    s0 += r01 * g1
-                    s1 = r01 * g0 + (ri11 + Pj[R11]) * g1
-                if DIM > 2:
-                    r02 = ri02 + Pj[R02]
-                    r12 = ri12 + Pj[R12]
-                    s0 += r02 * g2
-                    s1 += r12 * g2
-                    s2 = r02 * g0 + r12 * g1 + (ri22 + Pj[R22]) * g2
-                x0 += mf * s0
-                x1 += mf * s1
-                x2 += mf * s2
-                xe += mf * (u0 * s0 + u1 * s1 + u2 * s2)
-            # the weight of the particle's own A_i: m_j (A_i = sigma_i / rho_i^2), or in
-            # axisymmetry V_j (A_i = Q_i / rho_i)
-            w_j = volume_j if AXISYMMETRIC else m_j
-            if AXISYMMETRIC:
-                mr += volume_j * (xi0 - abs(Pj[X])) * g0
-            G0 += w_j * g0
-            a0 += m_j * Pj[A00] * t0
-            L00 += velocity_gradient_pair(volume_j, u0, g0)
-            T00 += w_j * u0 * g0
-            if DIM > 1:
-                G1 += w_j * g1
-                a0 += m_j * Pj[A01] * t1
-                a1 += m_j * (Pj[A01] * t0 + Pj[A11] * t1)
-                L01 += velocity_gradient_pair(volume_j, u0, g1)
-                L10 += velocity_gradient_pair(volume_j, u1, g0)
-                L11 += velocity_gradient_pair(volume_j, u1, g1)
-                T01 += w_j * u0 * g1
-                T10 += w_j * u1 * g0
-                T11 += w_j * u1 * g1
-            if DIM > 2:
-                G2 += m_j * g2
-                a0 += m_j * Pj[A02] * t2
-                a1 += m_j * Pj[A12] * t2
-                a2 += m_j * (Pj[A02] * t0 + Pj[A12] * t1 + Pj[A22] * t2)
-                L02 += velocity_gradient_pair(volume_j, u0, g2)
-                L12 += velocity_gradient_pair(volume_j, u1, g2)
-                L20 += velocity_gradient_pair(volume_j, u2, g0)
-                L21 += velocity_gradient_pair(volume_j, u2, g1)
-                L22 += velocity_gradient_pair(volume_j, u2, g2)
-                T02 += m_j * u0 * g2
-                T12 += m_j * u1 * g2
-                T20 += m_j * u2 * g0
-                T21 += m_j * u2 * g1
-                T22 += m_j * u2 * g2
-        else:  # another body or a wall ghost: compression-only contact
-            sn_i, sn_j = contact_traction(Pi_, Pj, d0, d1, d2, r2, normal_stress)
-            if AXISYMMETRIC:  # V_i V_j (Q_i + Q_j) with Q = rho sn: per unit mass of i
-                s_ij = rhoi * sn_i + Pj[RHO] * sn_j
-                weight_j = volume_j / rhoi
-                own_j = volume_j
-            else:
-                s_ij = sn_i + sn_j
-                weight_j = own_j = m_j
-            if in_contact(s_ij, vg):
-                cont += continuity_pair(1.0, volume_j, vg)
-                push = contact_acceleration_pair(weight_j, s_ij, 1.0)
-                k0 += push * g0
-                k1 += push * g1
-                k2 += push * g2
-                de_contact += contact_work_pair(own_j, sn_i, s_ij, vg)
-        pi_ij = pair_viscosity(visc_kind, vr, r2, h_ij, 0.5 * (ci + Pj[C]),
-                               0.5 * (rhoi + Pj[RHO]), visc_params)
-        if VISCOSITY_FACTOR:  # the switch: Pi_ij (f_i + f_j) / 2, symmetric in i, j
-            raw = viscous_acceleration_pair(m_j, pi_ij, 1.0)
-            wr0 += raw * g0
-            wr1 += raw * g1
-            wr2 += raw * g2
-            pi_ij *= 0.5 * (fi + Pj[VF])
-        visc = viscous_acceleration_pair(m_j, pi_ij, 1.0)  # 0 if receding
-        w0 += visc * g0
-        w1 += visc * g1
-        w2 += visc * g2
-        if not same_body:
-            f0 += visc * g0
-            f1 += visc * g1
-            f2 += visc * g2
-        de_v += viscous_heating_pair(m_j, pi_ij, vg)
+    rhoi = Pi_[RHO]
+    (cont, G0, G1, G2, a0, a1, a2, k0, k1, k2, w0, w1, w2, f0, f1, f2, wr0, wr1, wr2,
+     L00, L01, L02, L10, L11, L12, L20, L21, L22,
+     T00, T01, T02, T10, T11, T12, T20, T21, T22,
+     B00, B01, B02, B10, B11, B12, B20, B21, B22,
+     x0, x1, x2, xe, mr, de_contact, de_v, count) = sums
     # A_i applied to the regrouped sums
     if FORCE_CORRECTION:  # the particle's own C_i: G <- C_i G, T <- T C_i^T, L <- L C_i^T
         G0, G1, G2 = corrected(Pi_, G0, G1, G2)
@@ -813,7 +889,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     de[i] = de_s + de_v
     de_visc[i] = de_v
     pair_count[i] = count
-    jaumann_stress_rate(L, S[i], shear, dS[i])
+    stress_rate(L, S[i], shear, dS[i])
     if AXISYMMETRIC:  # the hoop strain rate in the deviatoric rate: v_r / r where the
         # velocity gradient is corrected (exact for a linear field), else M v_r / r, the
         # same sums' estimate
@@ -1097,12 +1173,14 @@ def moment_pass(order, P, offsets, indices, chunk_size):
             moment_correction(p, P, offsets, indices)
 
 
-@JIT(parallel=True, cache=True, fastmath=FASTMATH)
+@JIT(parallel=True, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
 def pair_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, normal_stress, S,
               material, table, drho, dv, de, de_visc, contact_force, pair_count, dS, L_sorted,
               chunk_size):
     """Pass 2 over the active particles, in parallel chunks of sorted positions; ghosts
-    (``order[p] >= n_active``) only take part as neighbours."""
+    (``order[p] >= n_active``) only take part as neighbours.  Compiled with PAIR_FASTMATH and
+    without zero-division checks (branches), so that LLVM vectorises the neighbour loop of
+    :func:`neighbour_sums`."""
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
     for chunk in nb.prange(n_chunks):
