@@ -540,7 +540,15 @@ def neighbour_sums(p, P, offsets, indices, visc_kind, visc_params, normal_stress
     and 3 x 3 matrices flattened (components beyond DIM zero).
 
     Inlined into :func:`pair_pass`, whose flags (PAIR_FASTMATH, no zero-division checks) let
-    LLVM vectorise its first loop."""
+    LLVM vectorise its first loop over the neighbours (4 pairs at a time with AVX2; issue 16,
+    benchmarks/README.md).  What that loop needs, each found by measurement: no branch (the
+    support and the body are masks: ``fq`` is zero outside the support and ``fs`` also for a
+    neighbour of another body, and every same-body term is linear in the kernel gradient, so
+    the mask drops the pair exactly; pairs of the list's skin cost a masked evaluation); no
+    zero-division check (numba's default ``error_model="python"`` puts one, a branch, on each
+    division); the neighbour's columns read as ``P[j, col]`` (a row view ``P[j]`` stops the
+    vectoriser); and reassociation on the sums, which then run as one partial sum per vector
+    lane (the results move at round-off: tests/test_pinned_results.py)."""
     Pi_ = P[p]
     xi0 = Pi_[X]
     vi0 = Pi_[V]
@@ -724,8 +732,7 @@ def neighbour_sums(p, P, offsets, indices, visc_kind, visc_params, normal_stress
         de_v += viscous_heating_pair(m_j, pi_ij, vg)
     # Second loop, only where the particle has neighbours of another body or wall ghosts
     # within the support (a few particles at a contact surface): compression-only contact.
-    # Its names are its own (c_): a name shared with the first loop would carry that loop's
-    # last value past it, which stops the vectoriser.
+    # (its names carry c_, to keep them apart from the first loop's)
     for c_k in range(offsets[p], offsets[p + 1] if n_other > 0 else offsets[p]):
         c_Pj = P[indices[c_k]]
         if c_Pj[BODY] == bi:
