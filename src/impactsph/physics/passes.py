@@ -19,9 +19,8 @@ momentum (eq 27), energy (eq 28) and Jaumann stress-rate (eq 14) equations:
 2. :func:`particle_rates` (every active particle; gather, so threads never write the same
    memory and the result does not depend on their number): the sums over its neighbours of
    continuity, velocity gradient, stress and viscous accelerations, stress work and viscous
-   heating (:func:`neighbour_sums`: one loop without branches, which LLVM vectorises), the
-   contact terms (a second loop, only where another body is within reach); then
-   (:func:`particle_finish`) its rates and its Jaumann stress rate;
+   heating (one loop without branches, which LLVM vectorises), the contact terms (a second
+   loop, only where another body is within reach); then its Jaumann stress rate;
 3. ``viscosity_correction`` (a scheme with a correction, e.g. AC): per particle again, after
    every particle's viscous acceleration is known;
 4. :func:`advance_particle`: one integrator stage of one particle, and its strength model's
@@ -533,22 +532,60 @@ def stress_rate(L, S_i, shear, dS_i):
 
 
 @JIT(inline="always", cache=True)
-def neighbour_sums(p, P, offsets, indices, visc_kind, visc_params, normal_stress):
-    """The sums over the neighbours of the particle at sorted position ``p`` that
-    :func:`particle_rates` turns into its rates (see there for the equations), as a tuple:
-    ``(cont, G, a, k, w, f, wr, L, T, B, x, xe, mr, de_contact, de_v, count)`` with the vectors
-    and 3 x 3 matrices flattened (components beyond DIM zero).
+def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_stress, S, material,
+                   table, drho, dv, de, de_visc, contact_force, pair_count, dS, L, L_sorted):
+    """Pass 2 for the active particle ``i`` at sorted position ``p``: the sums over its
+    neighbours (eqs 22, 27, 28) and its stress rate
+    (eq 14, into ``dS[i]``, with ``L`` as scratch for the velocity gradient); its viscous
+    acceleration is also stored in its packed record, for a correction pass.
+    ``contact_force`` is written only if it has a row per particle (several bodies or walls),
+    ``L_sorted[p]`` (the velocity gradient, for the hourglass control) only if it has rows.
 
-    Inlined into :func:`pair_pass`, whose flags (PAIR_FASTMATH, no zero-division checks) let
-    LLVM vectorise its first loop over the neighbours (4 pairs at a time with AVX2; issue 16,
-    benchmarks/README.md).  What that loop needs, each found by measurement: no branch (the
-    support and the body are masks: ``fq`` is zero outside the support and ``fs`` also for a
-    neighbour of another body, and every same-body term is linear in the kernel gradient, so
-    the mask drops the pair exactly; pairs of the list's skin cost a masked evaluation); no
-    zero-division check (numba's default ``error_model="python"`` puts one, a branch, on each
-    division); the neighbour's columns read as ``P[j, col]`` (a row view ``P[j]`` stops the
-    vectoriser); and reassociation on the sums, which then run as one partial sum per vector
-    lane (the results move at round-off: tests/test_pinned_results.py)."""
+    The stress terms are regrouped, exactly in arithmetic: ``sum_j m_j A_i . grad W_ij =
+    A_i . (sum_j m_j grad W_ij)`` and ``sum_j m_j A_i : (v_ij (x) grad W_ij) = A_i : (sum_j
+    m_j v_ij (x) grad W_ij)``, so ``A_i`` is applied once per particle
+    (``tests/test_rates_reference.py`` checks the whole against the term functions summed pair
+    by pair).
+
+    With the artificial stress (``ARTIFICIAL_STRESS`` = epsilon > 0; Monaghan 2000, Gray,
+    Monaghan & Swift 2001, section 2) each pair of the same body also adds
+
+        (AS-3)  dv_i/dt += m_j f_ij^n (R_i + R_j) . grad W_ij                     (m/s^2)
+        (AS-4)  de_i/dt -= 1/2 m_j f_ij^n v_ij . (R_i + R_j) . grad W_ij          (W/kg)
+
+    with ``R`` of :func:`artificial_stress_record` (eq AS-1, negative in tension, so the pair
+    repels) and ``f_ij^n`` of :func:`artificial_stress_weight` (eq AS-2): the same form as the
+    stress term ``m_j (A_i + A_j) . grad W_ij``.  The pair force is antisymmetric, so momentum
+    is kept exactly, and AS-4 is its power shared equally by the pair, so the semi-discrete
+    equations keep the total energy.  With the kernel gradient correction of the forces it
+    stays on the uncorrected ``grad W_ij``: a repulsion between neighbours, which needs no
+    consistency, and its antisymmetry and energy balance need no correction matrix.
+
+    Axisymmetry (``AXISYMMETRIC``; x the radius r, y the axis z; docs/modelling.md): with
+    ``rho = rho_m r`` (the mass per radian and unit area of the r-z plane, which the 2D
+    continuity equation keeps exactly), ``V_j = m_j / rho_j`` (particle j's area in the r-z
+    plane) and ``Q = |r| sigma``, the momentum equation in cylindrical coordinates times r,
+    ``rho dv/dt = div_rz(Q) - sigma_tt e_r``, is discretised in the symmetric form
+
+        dv_i/dt = 1/rho_i sum_j V_j (Q_i + Q_j) . grad W_ij  -  sigma_tt,i M_i / rho_i e_r
+        de_i/dt = 1/rho_i Q_i : sum_j V_j v_ji (x) grad W_ij + sigma_tt,i M_i v_r,i / rho_i
+        dS_i/dt += 2 mu (M_i v_r,i / r_i) (e_t e_t - I/3)
+
+    (``v_r / r`` in place of ``M_i v_r / r_i`` in ``dS`` with the velocity-gradient
+    correction, which makes the rest of the strain rate exact for a linear field), with
+    ``M_i = sum_j V_j (|r_j| - r_i) dW_ij/dr_i`` over the same neighbours, the sums' own
+    estimate of ``dr/dr``: the pair term gives ``sigma M_i / rho_i e_r`` for a uniform stress
+    where the support is full, so the hoop term cancels it exactly for ``sigma_rr =
+    sigma_tt``, next to the axis too (with 1 in its place a uniform pressure pushed the
+    particles there by ``P (M_i - 1) / rho_i``).  The pair force ``V_i V_j (Q_i + Q_j)
+    grad W_ij`` is antisymmetric (axial momentum kept), the energy rate is its adjoint and
+    the hoop power likewise, so the total energy per radian is kept exactly.  A ghost across
+    the axis (``r < 0``) carries its source's stress mirrored, so ``|r|`` makes its pair with
+    a particle the mirror of the pair of their sources, and the energy stays exact; the
+    signed ``r``, which continues ``r sigma`` smoothly across the axis, broke that (a rod's
+    energy error 4e-3 against 6e-5, docs/modelling.md).  Contact between bodies takes the
+    same form with the normal stress (or pressure) for ``sigma``."""
+    shear = table[material[i], SHEAR]
     Pi_ = P[p]
     xi0 = Pi_[X]
     vi0 = Pi_[V]
@@ -593,10 +630,16 @@ def neighbour_sums(p, P, offsets, indices, visc_kind, visc_params, normal_stress
     de_v = 0.0
     count = 0
     n_other = 0  # pairs within the support with another body or a wall ghost
-    # First loop, every pair: no branch (the support and the body are masks), so that LLVM
-    # vectorises it over the neighbours (PAIR_FASTMATH).  ``fq`` is 0 outside the support,
-    # ``fs`` also for a neighbour of another body: every same-body term is linear in the
-    # kernel gradient, so weighting it by ``fs`` drops the pair exactly.
+    # First loop, every pair, which LLVM vectorises over the neighbours (4 pairs at a time
+    # with AVX2; issue 16, benchmarks/README.md) under pair_pass's flags (PAIR_FASTMATH, no
+    # zero-division checks).  What it needs, each found by measurement: no branch (the
+    # support and the body are masks: ``fq`` is 0 outside the support, ``fs`` also for a
+    # neighbour of another body, and every same-body term is linear in the kernel gradient,
+    # so weighting it by ``fs`` drops the pair exactly; pairs of the list's skin cost a masked
+    # evaluation); no zero-division check (numba's default error model puts a branch on each
+    # division); the neighbour's columns read as ``P[j, col]`` (a row view ``P[j]`` stops the
+    # vectoriser); and reassociation on the sums, which then run as one partial sum per
+    # vector lane (results move at round-off: tests/test_pinned_results.py).
     for k in range(offsets[p], offsets[p + 1]):
         j = indices[k]  # P[j, col], not a row view: the view stops the vectoriser
         d0 = xi0 - P[j, X]
@@ -764,87 +807,6 @@ def neighbour_sums(p, P, offsets, indices, visc_kind, visc_params, normal_stress
             k1 += c_push * c_g1
             k2 += c_push * c_g2
             de_contact += contact_work_pair(c_own_j, c_sn_i, c_s_ij, c_vg)
-    return (cont, G0, G1, G2, a0, a1, a2, k0, k1, k2, w0, w1, w2, f0, f1, f2, wr0, wr1, wr2,
-            L00, L01, L02, L10, L11, L12, L20, L21, L22,
-            T00, T01, T02, T10, T11, T12, T20, T21, T22,
-            B00, B01, B02, B10, B11, B12, B20, B21, B22,
-            x0, x1, x2, xe, mr, de_contact, de_v, count)
-
-
-@JIT(inline="always", cache=True)
-def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_stress, S, material,
-                   table, drho, dv, de, de_visc, contact_force, pair_count, dS, L, L_sorted):
-    """Pass 2 for the active particle ``i`` at sorted position ``p``: the sums over its
-    neighbours (eqs 22, 27, 28; :func:`neighbour_sums`) and its stress rate
-    (eq 14, into ``dS[i]``, with ``L`` as scratch for the velocity gradient); its viscous
-    acceleration is also stored in its packed record, for a correction pass.
-    ``contact_force`` is written only if it has a row per particle (several bodies or walls),
-    ``L_sorted[p]`` (the velocity gradient, for the hourglass control) only if it has rows.
-
-    The stress terms are regrouped, exactly in arithmetic: ``sum_j m_j A_i . grad W_ij =
-    A_i . (sum_j m_j grad W_ij)`` and ``sum_j m_j A_i : (v_ij (x) grad W_ij) = A_i : (sum_j
-    m_j v_ij (x) grad W_ij)``, so ``A_i`` is applied once per particle
-    (``tests/test_rates_reference.py`` checks the whole against the term functions summed pair
-    by pair).
-
-    With the artificial stress (``ARTIFICIAL_STRESS`` = epsilon > 0; Monaghan 2000, Gray,
-    Monaghan & Swift 2001, section 2) each pair of the same body also adds
-
-        (AS-3)  dv_i/dt += m_j f_ij^n (R_i + R_j) . grad W_ij                     (m/s^2)
-        (AS-4)  de_i/dt -= 1/2 m_j f_ij^n v_ij . (R_i + R_j) . grad W_ij          (W/kg)
-
-    with ``R`` of :func:`artificial_stress_record` (eq AS-1, negative in tension, so the pair
-    repels) and ``f_ij^n`` of :func:`artificial_stress_weight` (eq AS-2): the same form as the
-    stress term ``m_j (A_i + A_j) . grad W_ij``.  The pair force is antisymmetric, so momentum
-    is kept exactly, and AS-4 is its power shared equally by the pair, so the semi-discrete
-    equations keep the total energy.  With the kernel gradient correction of the forces it
-    stays on the uncorrected ``grad W_ij``: a repulsion between neighbours, which needs no
-    consistency, and its antisymmetry and energy balance need no correction matrix.
-
-    Axisymmetry (``AXISYMMETRIC``; x the radius r, y the axis z; docs/modelling.md): with
-    ``rho = rho_m r`` (the mass per radian and unit area of the r-z plane, which the 2D
-    continuity equation keeps exactly), ``V_j = m_j / rho_j`` (particle j's area in the r-z
-    plane) and ``Q = |r| sigma``, the momentum equation in cylindrical coordinates times r,
-    ``rho dv/dt = div_rz(Q) - sigma_tt e_r``, is discretised in the symmetric form
-
-        dv_i/dt = 1/rho_i sum_j V_j (Q_i + Q_j) . grad W_ij  -  sigma_tt,i M_i / rho_i e_r
-        de_i/dt = 1/rho_i Q_i : sum_j V_j v_ji (x) grad W_ij + sigma_tt,i M_i v_r,i / rho_i
-        dS_i/dt += 2 mu (M_i v_r,i / r_i) (e_t e_t - I/3)
-
-    (``v_r / r`` in place of ``M_i v_r / r_i`` in ``dS`` with the velocity-gradient
-    correction, which makes the rest of the strain rate exact for a linear field), with
-    ``M_i = sum_j V_j (|r_j| - r_i) dW_ij/dr_i`` over the same neighbours, the sums' own
-    estimate of ``dr/dr``: the pair term gives ``sigma M_i / rho_i e_r`` for a uniform stress
-    where the support is full, so the hoop term cancels it exactly for ``sigma_rr =
-    sigma_tt``, next to the axis too (with 1 in its place a uniform pressure pushed the
-    particles there by ``P (M_i - 1) / rho_i``).  The pair force ``V_i V_j (Q_i + Q_j)
-    grad W_ij`` is antisymmetric (axial momentum kept), the energy rate is its adjoint and
-    the hoop power likewise, so the total energy per radian is kept exactly.  A ghost across
-    the axis (``r < 0``) carries its source's stress mirrored, so ``|r|`` makes its pair with
-    a particle the mirror of the pair of their sources, and the energy stays exact; the
-    signed ``r``, which continues ``r sigma`` smoothly across the axis, broke that (a rod's
-    energy error 4e-3 against 6e-5, docs/modelling.md).  Contact between bodies takes the
-    same form with the normal stress (or pressure) for ``sigma``."""
-    sums = neighbour_sums(p, P, offsets, indices, visc_kind, visc_params, normal_stress)
-    particle_finish(p, i, sums, P, S, material, table, drho, dv, de, de_visc, contact_force,
-                    pair_count, dS, L, L_sorted)
-
-
-@JIT(inline="always", cache=True)
-def particle_finish(p, i, sums, P, S, material, table, drho, dv, de, de_visc, contact_force,
-                    pair_count, dS, L, L_sorted):
-    """The rates of the active particle ``i`` at sorted position ``p`` from its neighbour
-    sums (:func:`neighbour_sums`; the equations are those of :func:`particle_rates`).  The
-    stress rate is a call (:func:`stress_rate`) with flags of its own."""
-    shear = table[material[i], SHEAR]
-    Pi_ = P[p]
-    vi0 = Pi_[V]
-    rhoi = Pi_[RHO]
-    (cont, G0, G1, G2, a0, a1, a2, k0, k1, k2, w0, w1, w2, f0, f1, f2, wr0, wr1, wr2,
-     L00, L01, L02, L10, L11, L12, L20, L21, L22,
-     T00, T01, T02, T10, T11, T12, T20, T21, T22,
-     B00, B01, B02, B10, B11, B12, B20, B21, B22,
-     x0, x1, x2, xe, mr, de_contact, de_v, count) = sums
     # A_i applied to the regrouped sums
     if FORCE_CORRECTION:  # the particle's own C_i: G <- C_i G, T <- T C_i^T, L <- L C_i^T
         G0, G1, G2 = corrected(Pi_, G0, G1, G2)
@@ -1187,7 +1149,7 @@ def pair_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, norm
     """Pass 2 over the active particles, in parallel chunks of sorted positions; ghosts
     (``order[p] >= n_active``) only take part as neighbours.  Compiled with PAIR_FASTMATH and
     without zero-division checks (branches), so that LLVM vectorises the neighbour loop of
-    :func:`neighbour_sums`."""
+    :func:`particle_rates`."""
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
     for chunk in nb.prange(n_chunks):
