@@ -473,15 +473,29 @@ def moment_correction(p, P, offsets, indices):
     (:func:`moment_inverse`)."""
     Pi_ = P[p]
     bi = Pi_[BODY]
+    xi0 = Pi_[X]
+    xi1 = Pi_[X + 1] if DIM > 1 else 0.0
+    xi2 = Pi_[X + 2] if DIM > 2 else 0.0
+    hi = Pi_[H]
     B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
+    # one loop without branches, vectorised as particle_rates' first loop (the support and
+    # the body as a mask on the weight; moment_pass's flags)
     for k in range(offsets[p], offsets[p + 1]):
-        Pj = P[indices[k]]
-        if Pj[BODY] != bi:
-            continue
-        d0, d1, d2, r2, _, inv_h, q2 = pair_separation(Pi_, Pj)
-        if q2 >= 4.0 or r2 == 0.0:
-            continue
-        w = -Pj[VOL] * cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM)
+        j = indices[k]
+        d0 = xi0 - P[j, X]
+        r2 = d0 * d0
+        d1 = d2 = 0.0
+        if DIM > 1:
+            d1 = xi1 - P[j, X + 1]
+            r2 += d1 * d1
+        if DIM > 2:
+            d2 = xi2 - P[j, X + 2]
+            r2 += d2 * d2
+        inv_h = 1.0 / (0.5 * (hi + P[j, H]))
+        q2 = r2 * inv_h * inv_h
+        inside = (q2 < 4.0) & (r2 > 0.0) & (P[j, BODY] == bi)
+        fq = cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM) if inside else 0.0
+        w = -P[j, VOL] * fq
         B00 += w * d0 * d0
         if DIM > 1:
             B01 += w * d0 * d1
@@ -1084,29 +1098,50 @@ def hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zet
         for a in range(DIM):
             dhg[i, a] = 0.0
         return
+    xi0 = Pi_[X]
+    xi1 = Pi_[X + 1] if DIM > 1 else 0.0
+    xi2 = Pi_[X + 2] if DIM > 2 else 0.0
+    hi, rhoi = Pi_[H], Pi_[RHO]
+    half_over_shear = 0.5 / shear
     a0 = a1 = a2 = 0.0  # the Laplacian of e
     b0 = b1 = b2 = 0.0  # the Laplacian of tau e
+    # one loop without branches, vectorised as particle_rates' first loop (the support and
+    # the body as a mask on the pair's coefficient; hourglass_pass's flags)
     for k in range(offsets[p], offsets[p + 1]):
         q = indices[k]
-        Pj = P[q]
-        if Pj[BODY] != bi:
-            continue
-        d0, d1, d2, r2, h_ij, inv_h, q2 = pair_separation(Pi_, Pj)
-        if q2 >= 4.0 or r2 == 0.0:
-            continue
-        fq = cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM)  # grad W = fq r_ij
-        coef = 2.0 * Pj[VOL] * fq * r2 / (r2 + 0.01 * h_ij * h_ij)
+        d0 = xi0 - P[q, X]
+        r2 = d0 * d0
+        d1 = d2 = 0.0
+        if DIM > 1:
+            d1 = xi1 - P[q, X + 1]
+            r2 += d1 * d1
+        if DIM > 2:
+            d2 = xi2 - P[q, X + 2]
+            r2 += d2 * d2
+        h_ij = 0.5 * (hi + P[q, H])
+        inv_h = 1.0 / h_ij
+        q2 = r2 * inv_h * inv_h
+        inside = (q2 < 4.0) & (r2 > 0.0) & (P[q, BODY] == bi)
+        fq = cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM) if inside else 0.0
+        coef = 2.0 * P[q, VOL] * fq * r2 / (r2 + 0.01 * h_ij * h_ij)  # grad W = fq r_ij
         # the viscous part's time scale tau_ij = h_ij / c_shear, c_shear^2 = mu / rho_ij
-        tau = h_ij * math.sqrt(0.5 * (Pi_[RHO] + Pj[RHO]) / shear)
+        tau = h_ij * math.sqrt((rhoi + P[q, RHO]) * half_over_shear)
+        tau = tau if inside else 0.0
+        # a select after the loads, not a product with the mask (a ghost's velocity gradient
+        # may be unset, not finite, and 0 * NaN is NaN), nor a load under a condition (which
+        # stops the vectoriser)
         e0 = unexplained_velocity(0, p, q, P, L_sorted, d0, d1, d2)
+        e0 = e0 if inside else 0.0
         a0 += coef * e0
         b0 += coef * tau * e0
         if DIM > 1:
             e1 = unexplained_velocity(1, p, q, P, L_sorted, d0, d1, d2)
+            e1 = e1 if inside else 0.0
             a1 += coef * e1
             b1 += coef * tau * e1
         if DIM > 2:
             e2 = unexplained_velocity(2, p, q, P, L_sorted, d0, d1, d2)
+            e2 = e2 if inside else 0.0
             a2 += coef * e2
             b2 += coef * tau * e2
     rate = zeta * shear / Pi_[RHO]
@@ -1132,9 +1167,12 @@ def particle_pass(order, x, v, m, rho, e, S, carried, h, body, material, table, 
         particle_record(p, order[p], x, v, m, rho, e, S, carried, h, body, material, table, P)
 
 
-@JIT(parallel=True, cache=True)
+@JIT(parallel=True, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
 def moment_pass(order, P, offsets, indices, chunk_size):
-    """The correction matrices of every row (FORCE_CORRECTION only), after the records."""
+    """The correction matrices of every row (FORCE_CORRECTION only), after the records.
+    Compiled as :func:`pair_pass`, so that the neighbour loop of :func:`moment_correction`
+    vectorises (one thread at 1e5 particles: 2D 23.2 -> 12.3 ms, 3D 100 -> 48 ms;
+    benchmarks/README.md)."""
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
     for chunk in nb.prange(n_chunks):
@@ -1211,11 +1249,16 @@ def friction_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, 
                                   real_bodies, normal_stress, dv, de, contact_force)
 
 
-@JIT(parallel=True, cache=True)
+@JIT(parallel=True, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
 def hourglass_pass(n_active, order, P, L_sorted, offsets, indices, material, table, zeta, hg,
                    dv, de, dhg, chunk_size):
     """The hourglass control over the active particles (after the pair pass, whose velocity
-    gradients it reads)."""
+    gradients it reads).  Compiled as :func:`pair_pass`, so that the neighbour loop of
+    :func:`hourglass_particle` vectorises (one thread at 1e5 particles: 2D 40.6 -> 20.9 ms,
+    3D 163 -> 94 ms; benchmarks/README.md).  The AC correction pass is not: most of its
+    neighbour list lies beyond the correction kernel's reach (``2 h_c = h``), which the scalar
+    loop skips after the distance, and the masked loop was slower (2D 14.0 -> 16.5 ms, 3D
+    35 -> 56 ms)."""
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
     for chunk in nb.prange(n_chunks):

@@ -1,0 +1,112 @@
+"""Time each compiled pass of a rate evaluation on its own (ms, best of ``--repeat`` steps),
+here and, side by side in the same run, in other source trees.
+
+    .venv/bin/python benchmarks/bench_passes.py [--trees /tmp/head] [--dims 2 3] [--n 1e5]
+        [--threads 1] [--rounds 2] [--repeat 10]
+
+The case is ``bench_ac_cost.py``'s lattice (dx = 1 mm, h = 1.2 dx, elastic steel, random
+velocities of about 1 m/s) with AC and the stabilisation of an elastic case's defaults, set
+explicitly (the kernel gradient correction of the velocity gradient and the forces, the
+hourglass control), so that every pass runs: particle, moment, pair, correction,
+hourglass.  Each tree and dimension runs in a new process (``PYTHONPATH=TREE/src``), the
+trees alternating within each round, so that a busy spell of a shared machine falls on
+both.  Each pass is timed by a
+wrapper around the compiled function that the solver calls.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+TIMED = ("particle_pass", "moment_pass", "pair_pass", "correction_pass", "hourglass_pass")
+STABILISATION = {"gradient_correction": "velocity_gradient_and_forces", "hourglass": 2.0}
+
+
+def _timer(function, name: str, times: dict[str, list[float]]):
+    def timed(*args):
+        t0 = time.perf_counter()
+        function(*args)
+        times.setdefault(name, []).append(time.perf_counter() - t0)
+    return timed
+
+
+def measure(dim: int, n: int, repeat: int) -> dict[str, float]:
+    """The best time of each pass (s) in this process's impactsph."""
+    import numpy as np
+
+    sys.path.insert(0, str(HERE))
+    from bench_ac_cost import lattice_case
+
+    from impactsph.integrate import stable_time_step
+    from impactsph.loading import validate_case
+    from impactsph.simulation import Simulation
+
+    case = lattice_case(dim, n, "ac")
+    case["stabilisation"] = STABILISATION
+    sim = Simulation(validate_case(case))
+    sim.state.velocity[:] = np.random.default_rng(1).normal(size=sim.state.velocity.shape)
+    dt = 0.1 * stable_time_step(sim.state, sim.problem.table, 0.3)
+    passes = sim.solver.backend.passes
+    times: dict[str, list[float]] = {}
+    for pass_name in TIMED:  # (the wrappers stay: this worker process ends after the steps)
+        setattr(passes, pass_name, _timer(getattr(passes, pass_name), pass_name, times))
+    sim.integrator.step(sim.state, dt)  # compiles
+    times.clear()
+    for _ in range(repeat):
+        sim.integrator.step(sim.state, dt)
+    return {pass_name: min(values) for pass_name, values in times.items()}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--trees", nargs="*", default=[], help="other source trees to compare")
+    ap.add_argument("--dims", type=int, nargs="+", default=[2, 3])
+    ap.add_argument("--n", type=float, default=1e5)
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--rounds", type=int, default=2)
+    ap.add_argument("--repeat", type=int, default=10)
+    ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.worker:
+        print(json.dumps(measure(args.dims[0], int(args.n), args.repeat)))
+        return 0
+    trees = [HERE.parent] + [Path(t).resolve() for t in args.trees]
+    results: dict[tuple[str, int], list[dict[str, float]]] = {}
+    for _ in range(args.rounds):
+        for dim in args.dims:
+            for tree in trees:
+                env = dict(os.environ, PYTHONPATH=str(tree / "src"),
+                           NUMBA_NUM_THREADS=str(args.threads))
+                out = subprocess.run([sys.executable, __file__, "--worker", "--dims", str(dim),
+                                      "--n", str(args.n), "--repeat", str(args.repeat)],
+                                     env=env, capture_output=True, text=True, check=True)
+                results.setdefault((str(tree), dim), []).append(
+                    json.loads(out.stdout.strip().splitlines()[-1]))
+    print(f"{args.threads} thread(s), about {args.n:.0e} particles, best of {args.repeat} "
+          f"steps per process, ms (a column per round; trees separated by |)")
+    for dim in args.dims:
+        here = results[(str(trees[0]), dim)]
+        for key in sorted(here[0]):
+            row = [f"{dim}D {key:<16}"]
+            for tree in trees:
+                runs = results[(str(tree), dim)]
+                row.append(" ".join(f"{r[key] * 1e3:8.2f}" if key in r else "       -"
+                                    for r in runs))
+            if len(trees) > 1 and all(key in r for r in results[(str(trees[1]), dim)]):
+                ratio = (min(r[key] for r in here)
+                         / min(r[key] for r in results[(str(trees[1]), dim)]))
+                row.append(f"best here / best {trees[1].name}: {ratio:.2f}")
+            print(" | ".join(row))
+    print("columns: " + " | ".join(str(t) for t in trees))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
