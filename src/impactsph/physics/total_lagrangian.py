@@ -34,6 +34,7 @@ antisymmetric (momentum kept to round-off).
 
 from __future__ import annotations
 
+import functools
 import math
 from types import SimpleNamespace
 
@@ -49,6 +50,8 @@ from impactsph.physics.stress_rate import jaumann_stress_rate
 #: below 0.05: a particle with one or two neighbours) is not inverted: the particle is refused
 #: (:func:`reference_setup` flags it)
 SINGULAR_MOMENT = 0.05
+#: particles per work item of the parallel passes (each item allocates its scratch once)
+CHUNK = 64
 
 
 @nb.njit(inline="always", cache=True)
@@ -89,10 +92,9 @@ def invert(A, out) -> float:
 
 
 @nb.njit(inline="always", cache=True)
-def pair_gradient_sum(field, i, offsets, neighbours, V0, grad, K, raw, out) -> None:
+def pair_gradient_sum(field, i, offsets, neighbours, V0, grad, K, raw, out, dim) -> None:
     """(TL-2)/(TL-3): ``out = (sum_j V0_j (f_j - f_i) (x) grad0 W_ij) K_i`` for the vector
-    field ``f`` (positions: F; velocities: Fdot), ``raw`` scratch."""
-    dim = field.shape[1]
+    field ``f`` (positions: F; velocities: Fdot) of ``dim`` components, ``raw`` scratch."""
     for a in range(dim):
         for b in range(dim):
             raw[a, b] = 0.0
@@ -144,65 +146,57 @@ def reference_setup(X, V0, h, offsets, neighbours, grad, w, dw, K, det):  # prag
                 K[i, a, b] = Ki[a, b] if good else (1.0 if a == b else 0.0)
 
 
-@nb.njit(parallel=True, cache=True)
-def deformation_pass(n_active, x, v, V0, m, rho, pressure, S, damage, material, table,
-                     offsets, neighbours, grad, K, F, Fdot, Q, drho, dS, de):  # pragma: no cover
-    """(TL-2) to (TL-6) for every active particle: ``F``, ``Fdot``, ``Q_i = P_i K_i^T`` (the
-    stress that (TL-7) applies to ``grad0 W_ij``), ``drho``, ``dS`` and the stress power's
-    ``de``; ``pressure`` from the equations of state (undamaged)."""
-    dim = x.shape[1]
-    for i in nb.prange(n_active):
-        raw = np.empty((dim, dim))
-        Fi = np.empty((dim, dim))
-        Fd = np.empty((dim, dim))
-        Finv = np.empty((dim, dim))
-        L = np.empty((dim, dim))
-        Pk = np.empty((dim, dim))
-        pair_gradient_sum(x, i, offsets, neighbours, V0, grad, K, raw, Fi)
-        pair_gradient_sum(v, i, offsets, neighbours, V0, grad, K, raw, Fd)
-        J = invert(Fi, Finv)
-        if J <= 0.0:  # an inverted particle: no stress, no rates; the survey stops the run
-            J = 0.0
-            for a in range(dim):
-                for b in range(dim):
-                    Finv[a, b] = 0.0
-        trace = 0.0
+@nb.njit(inline="always", cache=True)
+def deform_particle(i, x, v, V0, m, rho, pressure, S, damage, material, table, offsets,
+                    neighbours, grad, K, F, Fdot, Q, drho, dS, de, raw, Fi, Fd, Finv, L, Pk,
+                    dim):
+    """:func:`deformation_pass` for particle ``i`` (``raw`` to ``Pk``: scratch; ``dim`` a
+    compile-time constant of the caller, so that the small loops unroll)."""
+    pair_gradient_sum(x, i, offsets, neighbours, V0, grad, K, raw, Fi, dim)
+    pair_gradient_sum(v, i, offsets, neighbours, V0, grad, K, raw, Fd, dim)
+    J = invert(Fi, Finv)
+    if J <= 0.0:  # an inverted particle: no stress, no rates; the survey stops the run
+        J = 0.0
         for a in range(dim):
             for b in range(dim):
-                s = 0.0
-                for c in range(dim):
-                    s += Fd[a, c] * Finv[c, b]
-                L[a, b] = s
-            trace += L[a, a]
-        k = material[i]
-        drho[i] = -rho[i] * trace
-        jaumann_stress_rate(L, S[i], table[k, SHEAR], dS[i])
-        intact = 1.0 - damage[i]
-        p = pressure[i] * intact if pressure[i] < 0.0 else pressure[i]
-        # P = J sigma F^-T: Pk[a, b] = J sum_c sigma[a, c] Finv[b, c]
-        power = 0.0
-        for a in range(dim):
-            for b in range(dim):
-                s = 0.0
-                for c in range(dim):
-                    sigma = intact * S[i, a, c] - (p if a == c else 0.0)
-                    s += sigma * Finv[b, c]
-                Pk[a, b] = J * s
-                power += Pk[a, b] * Fd[a, b]
-        rho0 = m[i] / V0[i]
-        de[i] = power / rho0
-        for a in range(dim):
-            for b in range(dim):
-                F[i, a, b] = Fi[a, b]
-                Fdot[i, a, b] = Fd[a, b]
-                s = 0.0
-                for c in range(dim):
-                    s += Pk[a, c] * K[i, b, c]
-                Q[i, a, b] = s
+                Finv[a, b] = 0.0
+    trace = 0.0
+    for a in range(dim):
+        for b in range(dim):
+            s = 0.0
+            for c in range(dim):
+                s += Fd[a, c] * Finv[c, b]
+            L[a, b] = s
+        trace += L[a, a]
+    k = material[i]
+    drho[i] = -rho[i] * trace
+    jaumann_stress_rate(L, S[i], table[k, SHEAR], dS[i])
+    intact = 1.0 - damage[i]
+    p = pressure[i] * intact if pressure[i] < 0.0 else pressure[i]
+    # P = J sigma F^-T: Pk[a, b] = J sum_c sigma[a, c] Finv[b, c]
+    power = 0.0
+    for a in range(dim):
+        for b in range(dim):
+            s = 0.0
+            for c in range(dim):
+                sigma = intact * S[i, a, c] - (p if a == c else 0.0)
+                s += sigma * Finv[b, c]
+            Pk[a, b] = J * s
+            power += Pk[a, b] * Fd[a, b]
+    rho0 = m[i] / V0[i]
+    de[i] = power / rho0
+    for a in range(dim):
+        for b in range(dim):
+            F[i, a, b] = Fi[a, b]
+            Fdot[i, a, b] = Fd[a, b]
+            s = 0.0
+            for c in range(dim):
+                s += Pk[a, c] * K[i, b, c]
+            Q[i, a, b] = s
 
 
 @nb.njit(inline="always", cache=True)
-def hourglass_pair(alpha, youngs, V0i, V0j, w0, X, x, F, i, j, out) -> float:
+def hourglass_pair(alpha, youngs, V0i, V0j, w0, X, x, F, i, j, out, dim) -> float:
     """Ganzenmueller's (2015, section 3) hourglass penalty of the pair ``ij`` on ``i`` into
     ``out``, returns its magnitude: with ``X_ij = X_j - X_i``, ``x_ij = x_j - x_i`` and the
     error of each particle's linear prediction ``eps_ij^i = F_i X_ij - x_ij`` projected on the
@@ -213,8 +207,7 @@ def hourglass_pair(alpha, youngs, V0i, V0j, w0, X, x, F, i, j, out) -> float:
 
     (N, or N/m in 2D).  A linear field gives ``delta = 0`` (no force); a zig-zag mode, which
     the collocated F of (TL-2) cannot see, is pulled back with a spring about ``alpha`` times
-    the material's own stiffness."""
-    dim = x.shape[1]
+    the material's own stiffness.  ``dim``: the caller's compile-time dimension."""
     R2 = 0.0
     r2 = 0.0
     for a in range(dim):
@@ -237,9 +230,101 @@ def hourglass_pair(alpha, youngs, V0i, V0j, w0, X, x, F, i, j, out) -> float:
     return coef
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(inline="always", cache=True)
+def force_particle(i, x, v, X, V0, m, h, rho, material, table, offsets, neighbours, grad, w,
+                   dw, F, Q, visc, alpha, dv, de, de_visc, acc, fh, dim):
+    """:func:`force_pass` for particle ``i`` (``acc``, ``fh``: scratch; ``dim`` as in
+    :func:`deform_particle`)."""
+    a1, a2, eps = visc[0], visc[1], visc[2]
+    for a in range(dim):
+        acc[a] = 0.0
+    heat = 0.0
+    hg_power = 0.0
+    ki = material[i]
+    ci = math.sqrt(table[ki, WAVE_MODULUS] / rho[i])
+    for k in range(offsets[i], offsets[i + 1]):
+        j = neighbours[k]
+        # (TL-7): (Q_i + Q_j) grad0 W_ij, times V0_i V0_j / m_i below
+        for a in range(dim):
+            s = 0.0
+            for b in range(dim):
+                s += (Q[i, a, b] + Q[j, a, b]) * grad[k, b]
+            acc[a] += V0[j] * s * V0[i] / m[i]
+        r2 = 0.0
+        vr = 0.0
+        for a in range(dim):
+            d = x[i, a] - x[j, a]
+            r2 += d * d
+            vr += d * (v[i, a] - v[j, a])
+        if vr < 0.0 and r2 > 0.0:
+            h_ij = 0.5 * (h[i] + h[j])
+            cj = math.sqrt(table[material[j], WAVE_MODULUS] / rho[j])
+            pi_ij = monaghan_viscosity(vr, r2, h_ij, 0.5 * (ci + cj),
+                                       0.5 * (rho[i] + rho[j]), a1, a2, eps)
+            g = dw[k] / math.sqrt(r2)  # g_ij = g r_ij
+            for a in range(dim):
+                acc[a] -= m[j] * pi_ij * g * (x[i, a] - x[j, a])
+            heat += 0.5 * m[j] * pi_ij * g * vr
+        if alpha > 0.0:
+            youngs = 0.5 * (table[ki, YOUNGS] + table[material[j], YOUNGS])
+            hourglass_pair(alpha, youngs, V0[i], V0[j], w[k], X, x, F, i, j, fh, dim)
+            for a in range(dim):
+                acc[a] += fh[a] / m[i]
+                hg_power += fh[a] * (v[i, a] - v[j, a])
+    for a in range(dim):
+        dv[i, a] = acc[a]
+    de_visc[i] = heat
+    de[i] += heat - 0.5 * hg_power / m[i]
+
+
+@functools.cache
+def compiled_passes(dim: int) -> SimpleNamespace:
+    """:func:`deformation_pass` and :func:`force_pass` compiled for ``dim`` (1, 2 or 3), a
+    constant in their code, so that the small ``dim`` x ``dim`` loops unroll (with
+    ``x.shape[1]`` they stayed loops).  Each parallel work item is a chunk of :data:`CHUNK`
+    particles that allocates its scratch once: an allocation per particle cost more than the
+    particle's arithmetic."""
+
+    @nb.njit(parallel=True, cache=True)
+    def deformation(n_active, x, v, V0, m, rho, pressure, S, damage, material, table, offsets,
+                    neighbours, grad, K, F, Fdot, Q, drho, dS, de):  # pragma: no cover
+        for chunk in nb.prange((n_active + CHUNK - 1) // CHUNK):
+            raw = np.empty((dim, dim))
+            Fi = np.empty((dim, dim))
+            Fd = np.empty((dim, dim))
+            Finv = np.empty((dim, dim))
+            L = np.empty((dim, dim))
+            Pk = np.empty((dim, dim))
+            for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n_active)):
+                deform_particle(i, x, v, V0, m, rho, pressure, S, damage, material, table,
+                                offsets, neighbours, grad, K, F, Fdot, Q, drho, dS, de, raw, Fi,
+                                Fd, Finv, L, Pk, dim)
+
+    @nb.njit(parallel=True, cache=True)
+    def force(n_active, x, v, X, V0, m, h, rho, material, table, offsets, neighbours, grad, w,
+              dw, F, Q, visc, alpha, dv, de, de_visc):  # pragma: no cover
+        for chunk in nb.prange((n_active + CHUNK - 1) // CHUNK):
+            acc = np.empty(dim)
+            fh = np.empty(dim)
+            for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n_active)):
+                force_particle(i, x, v, X, V0, m, h, rho, material, table, offsets, neighbours,
+                               grad, w, dw, F, Q, visc, alpha, dv, de, de_visc, acc, fh, dim)
+
+    return SimpleNamespace(deformation_pass=deformation, force_pass=force)
+
+
+def deformation_pass(n_active, x, v, V0, m, rho, pressure, S, damage, material, table,
+                     offsets, neighbours, grad, K, F, Fdot, Q, drho, dS, de) -> None:
+    """(TL-2) to (TL-6) for every active particle: ``F``, ``Fdot``, ``Q_i = P_i K_i^T`` (the
+    stress that (TL-7) applies to ``grad0 W_ij``), ``drho``, ``dS`` and the stress power's
+    ``de``; ``pressure`` from the equations of state (undamaged)."""
+    compiled_passes(x.shape[1]).deformation_pass(
+        n_active, x, v, V0, m, rho, pressure, S, damage, material, table, offsets, neighbours,
+        grad, K, F, Fdot, Q, drho, dS, de)
+
+
 def force_pass(n_active, x, v, X, V0, m, h, rho, material, table, offsets, neighbours, grad,
-               w, dw, F, Q, visc, alpha, dv, de, de_visc):  # pragma: no cover
+               w, dw, F, Q, visc, alpha, dv, de, de_visc) -> None:
     """(TL-7), the artificial viscosity and the hourglass penalty for every active particle:
     sets ``dv`` and ``de_visc``, adds to ``de``.
 
@@ -254,48 +339,9 @@ def force_pass(n_active, x, v, X, V0, m, h, rho, material, table, offsets, neigh
     :func:`hourglass_pair`, its power shared by the pair and taken from their internal
     energies, ``de_i/dt -= 1/2 f_i . (v_i - v_j) / m_i``, so the total energy is kept and a
     rigid translation is not heated."""
-    dim = x.shape[1]
-    a1, a2, eps = visc[0], visc[1], visc[2]
-    for i in nb.prange(n_active):
-        acc = np.zeros(dim)
-        fh = np.empty(dim)
-        heat = 0.0
-        hg_power = 0.0
-        ki = material[i]
-        ci = math.sqrt(table[ki, WAVE_MODULUS] / rho[i])
-        for k in range(offsets[i], offsets[i + 1]):
-            j = neighbours[k]
-            # (TL-7): (Q_i + Q_j) grad0 W_ij, times V0_i V0_j / m_i below
-            for a in range(dim):
-                s = 0.0
-                for b in range(dim):
-                    s += (Q[i, a, b] + Q[j, a, b]) * grad[k, b]
-                acc[a] += V0[j] * s * V0[i] / m[i]
-            r2 = 0.0
-            vr = 0.0
-            for a in range(dim):
-                d = x[i, a] - x[j, a]
-                r2 += d * d
-                vr += d * (v[i, a] - v[j, a])
-            if vr < 0.0 and r2 > 0.0:
-                h_ij = 0.5 * (h[i] + h[j])
-                cj = math.sqrt(table[material[j], WAVE_MODULUS] / rho[j])
-                pi_ij = monaghan_viscosity(vr, r2, h_ij, 0.5 * (ci + cj),
-                                           0.5 * (rho[i] + rho[j]), a1, a2, eps)
-                g = dw[k] / math.sqrt(r2)  # g_ij = g r_ij
-                for a in range(dim):
-                    acc[a] -= m[j] * pi_ij * g * (x[i, a] - x[j, a])
-                heat += 0.5 * m[j] * pi_ij * g * vr
-            if alpha > 0.0:
-                youngs = 0.5 * (table[ki, YOUNGS] + table[material[j], YOUNGS])
-                hourglass_pair(alpha, youngs, V0[i], V0[j], w[k], X, x, F, i, j, fh)
-                for a in range(dim):
-                    acc[a] += fh[a] / m[i]
-                    hg_power += fh[a] * (v[i, a] - v[j, a])
-        for a in range(dim):
-            dv[i, a] = acc[a]
-        de_visc[i] = heat
-        de[i] += heat - 0.5 * hg_power / m[i]
+    compiled_passes(x.shape[1]).force_pass(
+        n_active, x, v, X, V0, m, h, rho, material, table, offsets, neighbours, grad, w, dw, F,
+        Q, visc, alpha, dv, de, de_visc)
 
 
 def reference_pairs(X: np.ndarray, h: np.ndarray, body: np.ndarray
