@@ -465,6 +465,25 @@ def pair_separation(Pi_, Pj):
 
 
 @JIT(inline="always", cache=True)
+def neighbour_separation(xi0, xi1, xi2, hi, P, j):
+    """:func:`pair_separation` for the vectorised neighbour loops: particle ``i``'s position
+    and smoothing length already read, the neighbour's record read as ``P[j, col]`` (a row
+    view ``P[j]`` stops the vectoriser)."""
+    d0 = xi0 - P[j, X]
+    r2 = d0 * d0
+    d1 = d2 = 0.0
+    if DIM > 1:
+        d1 = xi1 - P[j, X + 1]
+        r2 += d1 * d1
+    if DIM > 2:
+        d2 = xi2 - P[j, X + 2]
+        r2 += d2 * d2
+    h_ij = 0.5 * (hi + P[j, H])
+    inv_h = 1.0 / h_ij
+    return d0, d1, d2, r2, h_ij, inv_h, r2 * inv_h * inv_h
+
+
+@JIT(inline="always", cache=True)
 def moment_correction(p, P, offsets, indices):
     """The correction matrix of the particle at sorted position ``p`` into its record:
     ``C = B^-T`` with the moment matrix ``B = -sum_j V_j r_ij (x) grad W_ij`` over the
@@ -482,17 +501,7 @@ def moment_correction(p, P, offsets, indices):
     # the body as a mask on the weight; moment_pass's flags)
     for k in range(offsets[p], offsets[p + 1]):
         j = indices[k]
-        d0 = xi0 - P[j, X]
-        r2 = d0 * d0
-        d1 = d2 = 0.0
-        if DIM > 1:
-            d1 = xi1 - P[j, X + 1]
-            r2 += d1 * d1
-        if DIM > 2:
-            d2 = xi2 - P[j, X + 2]
-            r2 += d2 * d2
-        inv_h = 1.0 / (0.5 * (hi + P[j, H]))
-        q2 = r2 * inv_h * inv_h
+        d0, d1, d2, r2, _, inv_h, q2 = neighbour_separation(xi0, xi1, xi2, hi, P, j)
         inside = (q2 < 4.0) & (r2 > 0.0) & (P[j, BODY] == bi)
         fq = cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM) if inside else 0.0
         w = -P[j, VOL] * fq
@@ -656,18 +665,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     # vector lane (results move at round-off: tests/test_pinned_results.py).
     for k in range(offsets[p], offsets[p + 1]):
         j = indices[k]  # P[j, col], not a row view: the view stops the vectoriser
-        d0 = xi0 - P[j, X]
-        r2 = d0 * d0
-        d1 = d2 = 0.0
-        if DIM > 1:
-            d1 = xi1 - P[j, X + 1]
-            r2 += d1 * d1
-        if DIM > 2:
-            d2 = xi2 - P[j, X + 2]
-            r2 += d2 * d2
-        h_ij = 0.5 * (hi + P[j, H])
-        inv_h = 1.0 / h_ij
-        q2 = r2 * inv_h * inv_h
+        d0, d1, d2, r2, h_ij, inv_h, q2 = neighbour_separation(xi0, xi1, xi2, hi, P, j)
         inside = (q2 < 4.0) & (r2 > 0.0)
         q = math.sqrt(q2)
         fq = cubic_spline_gradient_factor(q, inv_h, DIM) if inside else 0.0
@@ -1109,18 +1107,7 @@ def hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zet
     # the body as a mask on the pair's coefficient; hourglass_pass's flags)
     for k in range(offsets[p], offsets[p + 1]):
         q = indices[k]
-        d0 = xi0 - P[q, X]
-        r2 = d0 * d0
-        d1 = d2 = 0.0
-        if DIM > 1:
-            d1 = xi1 - P[q, X + 1]
-            r2 += d1 * d1
-        if DIM > 2:
-            d2 = xi2 - P[q, X + 2]
-            r2 += d2 * d2
-        h_ij = 0.5 * (hi + P[q, H])
-        inv_h = 1.0 / h_ij
-        q2 = r2 * inv_h * inv_h
+        d0, d1, d2, r2, h_ij, inv_h, q2 = neighbour_separation(xi0, xi1, xi2, hi, P, q)
         inside = (q2 < 4.0) & (r2 > 0.0) & (P[q, BODY] == bi)
         fq = cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM) if inside else 0.0
         coef = 2.0 * P[q, VOL] * fq * r2 / (r2 + 0.01 * h_ij * h_ij)  # grad W = fq r_ij
