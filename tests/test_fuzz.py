@@ -512,7 +512,7 @@ def _variant(tmp_path: Path, edit) -> Path:
      "error: time.end = nan: Input should be a finite number"),
     (lambda c: c["viscosity"].update(scheme="magic"),
      "error: viscosity.scheme = 'magic': Input should be 'av', 'ac', 'balsara', "
-     "'morris_monaghan', 'cullen_dehnen', 'ac_pairwise' or 'ac_optimised'"),
+     "'morris_monaghan', 'cullen_dehnen', 'ac_pairwise', 'ac_optimised' or 'reconstruction'"),
     (lambda c: c["bodies"][1].update(material="gold"),
      "error: bodies.1.material = 'gold' is not one of ['steel']"),
     (lambda c: c["bodies"][0]["geometry"].update(origin=[0.0, 1.0]),

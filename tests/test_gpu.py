@@ -77,6 +77,10 @@ CASES = {
     # and memory, and the switch kernel sets the next ones; every switch is the same kernel)
     "taylor-2d-balsara": ("taylor", ["bodies.0.geometry.count=[6, 10]",
                                      'viscosity.scheme="balsara"']),
+    # the reconstructing viscosity (a compile-time variant: the gradient kernel fills the
+    # records' velocity gradients before the pair kernel)
+    "taylor-2d-reconstruction": ("taylor", ["bodies.0.geometry.count=[6, 10]",
+                                            'viscosity.scheme="reconstruction"']),
 }
 #: Cases with a viscosity switch: their buffers have a row per particle for the factor.
 SWITCHED = {"taylor-2d-balsara"}

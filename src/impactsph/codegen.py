@@ -50,8 +50,8 @@ BEGIN = "# >>> binding"
 END = "# <<< binding"
 #: the package modules whose code the template inlines (their source is part of the hash)
 TEMPLATE_IMPORTS = ("kernels.py", "materials.py", "physics/contact.py", "physics/continuity.py",
-                    "physics/energy.py", "physics/momentum.py", "physics/records.py",
-                    "physics/stress_rate.py")
+                    "physics/energy.py", "physics/momentum.py", "physics/reconstruction.py",
+                    "physics/records.py", "physics/stress_rate.py")
 PACKAGE = Path(__file__).parent
 
 

@@ -83,10 +83,12 @@ def gpu_kernels(dim: int, simulated: bool, version: int = 0,
                 options: PassOptions | str | None = None):
     """The CUDA kernels for dimension ``dim`` and the registered models (``version``: the
     registries' version, so that a newly registered model gets new kernels):
-    the seven kernels of :func:`impactsph.physics.passes.cuda_kernels`, whether the forces
-    are corrected and the record width.  ``simulated``: built for the CUDA simulator."""
+    the eight kernels of :func:`impactsph.physics.passes.cuda_kernels`, whether the forces
+    are corrected, whether the viscosity reconstructs the velocity and the record width.
+    ``simulated``: built for the CUDA simulator."""
     passes = compiled_passes(dim, simulated, PassOptions.coerce(options))
-    return (*passes.cuda_kernels(), passes.FORCE_CORRECTION, passes.RECORD_WIDTH)
+    return (*passes.cuda_kernels(), passes.FORCE_CORRECTION, passes.VELOCITY_RECONSTRUCTION,
+            passes.RECORD_WIDTH)
 
 
 #: The kernels' outputs for the active rows, copied into the ``RateBuffers`` of that name
@@ -165,7 +167,9 @@ class GpuRates:
                                       "GPU passes do not mirror the pair results onto ghosts")
         x, v, rho, e, S, m, h, material, body, carried = arrays
         (particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
-         friction_kernel, switch_kernel, force_correction, record_width) = self._kernels
+         friction_kernel, switch_kernel, gradient_kernel, force_correction, reconstruction,
+         record_width) = self._kernels
+        viscosity.check_compiled(reconstruction)
         n_rows, dim = rho.shape[0], self.dim
         stream, tpb = self._stream, self.threads_per_block
         up = self._upload
@@ -203,6 +207,8 @@ class GpuRates:
                 packed)
             if force_correction:
                 moment_kernel[blocks, tpb, stream](n_rows, packed, doff, dind)
+            if reconstruction:
+                gradient_kernel[blocks, tpb, stream](n_rows, packed, doff, dind)
             if n_active:
                 pair_kernel[blocks, tpb, stream](
                     n_rows, n_active, dorder, packed, doff, dind, int(viscosity.kind),

@@ -55,6 +55,8 @@ SCHEMES: dict[str, Overrides] = {
                                      "viscosity.alpha1=1.0", "viscosity.alpha2=2.0"),
     "Cullen-Dehnen (1, 2)": _fixed('viscosity.scheme="cullen_dehnen"', "viscosity.alpha1=1.0",
                                    "viscosity.alpha2=2.0"),
+    "Reconstruction (1, 1)": _fixed('viscosity.scheme="reconstruction"', "viscosity.alpha1=1.0",
+                                    "viscosity.alpha2=1.0"),
 }
 
 #: the wall of the Taylor bars: the normal-stress contact and the penalty layer that hold a

@@ -89,11 +89,16 @@ ENERGY_PANELS = 4
 
 
 def label_of(case: Any) -> str:
-    """Short label of a run's viscosity settings, e.g. ``AV (0.3, 0.3)``, ``AC (shepard)``."""
+    """Short label of a run's viscosity settings, e.g. ``AV (0.3, 0.3)``, ``AC (shepard)``,
+    ``balsara (1, 1)``: another scheme by its name and the coefficients its pair term uses."""
+    from .models import VISCOSITY
+
     v = case.viscosity
     if v.scheme == "ac":
         return f"AC ({v.correction})"
-    return f"AV ({v.alpha1:g}, {v.alpha2:g})"
+    alpha1, alpha2 = VISCOSITY[v.scheme].pair_parameters(v)[:2]
+    name = "AV" if v.scheme == "av" else v.scheme
+    return f"{name} ({alpha1:g}, {alpha2:g})"
 
 
 def shapes_figure(runs: list[dict[str, Any]], path: Path, title: str, *,

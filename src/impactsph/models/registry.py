@@ -178,6 +178,11 @@ class ViscosityScheme:
     switch_parameters: Callable[[Any], tuple[float, float, float, float]] | None = None
     #: the factor every particle starts a run with (a scheme with a switch)
     initial_factor: Callable[[Any], float] = lambda viscosity: 1.0
+    #: ``pair_viscosity`` gets, for a pair of the same body, the velocity jump reconstructed
+    #: to the pair's midpoint with a limiter (:mod:`impactsph.physics.reconstruction`) in
+    #: place of ``v_ij . r_ij``; the passes then compute every particle's velocity gradient
+    #: before the pair pass
+    reconstruction: bool = False
 
 
 M = TypeVar("M", EquationOfState, StrengthModel, DamageModel, ViscosityScheme)

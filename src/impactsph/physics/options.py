@@ -42,7 +42,10 @@ class PassOptions:
       changing; :func:`impactsph.physics.passes.plane_stress_return`) instead of plane strain;
     - ``viscosity_factor``: the viscosity scheme has a switch (a per-particle factor on
       ``Pi_ij``, :class:`impactsph.models.registry.ViscosityScheme`): the records carry the
-      factor and the pair pass also sums the unscaled viscous acceleration for the switch.
+      factor and the pair pass also sums the unscaled viscous acceleration for the switch;
+    - ``velocity_reconstruction``: the viscosity scheme takes the velocity jump reconstructed
+      to each pair's midpoint (:mod:`impactsph.physics.reconstruction`): the records carry
+      each particle's velocity gradient, set by a pass before the pair pass.
     """
 
     gradient_correction: str = "none"
@@ -54,6 +57,7 @@ class PassOptions:
     axisymmetric: bool = False
     contact_friction: float = 0.0
     viscosity_factor: bool = False
+    velocity_reconstruction: bool = False
 
     def __post_init__(self) -> None:
         if self.gradient_correction not in GRADIENT_CORRECTIONS:
@@ -85,7 +89,8 @@ class PassOptions:
                    plane_stress=getattr(case, "two_dimensional", "") == "plane_stress",
                    axisymmetric=getattr(case, "two_dimensional", "") == "axisymmetric",
                    contact_friction=float(case.contact.friction),
-                   viscosity_factor=VISCOSITY[case.viscosity.scheme].switch is not None)
+                   viscosity_factor=VISCOSITY[case.viscosity.scheme].switch is not None,
+                   velocity_reconstruction=VISCOSITY[case.viscosity.scheme].reconstruction)
 
     @property
     def normal_stress(self) -> bool:
@@ -110,6 +115,8 @@ class PassOptions:
             tag += "_vf"
         if self.axisymmetric:
             tag += "_ax"
+        if self.velocity_reconstruction:
+            tag += "_vr"
         return tag
 
     def constants(self) -> list[str]:
@@ -126,4 +133,5 @@ class PassOptions:
             f"PLANE_STRESS = {bool(self.plane_stress)}",
             f"VISCOSITY_FACTOR = {bool(self.viscosity_factor)}",
             f"AXISYMMETRIC = {bool(self.axisymmetric)}",
+            f"VELOCITY_RECONSTRUCTION = {bool(self.velocity_reconstruction)}",
         ]

@@ -71,6 +71,7 @@ from impactsph.physics.contact import (
 from impactsph.physics.continuity import continuity_pair, velocity_gradient_pair
 from impactsph.physics.energy import viscous_heating_pair
 from impactsph.physics.momentum import viscous_acceleration_pair
+from impactsph.physics.reconstruction import reconstructed_approach
 from impactsph.physics.records import record_columns, symmetric_index
 from impactsph.physics.stress_rate import jaumann_stress_rate
 
@@ -83,6 +84,7 @@ ARTIFICIAL_STRESS_EXPONENT = 4.0
 REFERENCE_Q = 1.0
 PLANE_STRESS = False
 VISCOSITY_FACTOR = False
+VELOCITY_RECONSTRUCTION = False
 AXISYMMETRIC = False
 JIT = nb.njit
 EOS_PARAMS = STRENGTH_PARAMS = DAMAGE_PARAMS = STATE_WIDTH = 6
@@ -108,7 +110,8 @@ PAIR_FASTMATH = {"reassoc", "arcp", "nsz"}
 
 _COLUMNS = record_columns(DIM, correction_matrix=FORCE_CORRECTION,
                           artificial_stress=ARTIFICIAL_STRESS > 0.0,
-                          viscosity_factor=VISCOSITY_FACTOR, axisymmetric=AXISYMMETRIC)
+                          viscosity_factor=VISCOSITY_FACTOR, axisymmetric=AXISYMMETRIC,
+                          velocity_gradient=VELOCITY_RECONSTRUCTION)
 #: the columns of the hoop stress over the density and of the radius (AXISYMMETRIC only)
 HOOP = _COLUMNS.get("hoop", 0)
 RADIUS = _COLUMNS.get("radius", 0)
@@ -124,6 +127,8 @@ X, V, H, M, VOL, RHO, C, PC, BODY, A0, U = (_COLUMNS[k] for k in (
 RECORD_WIDTH = _COLUMNS["width"]
 #: first column of the correction matrix C (FORCE_CORRECTION only; row by row)
 CM0 = _COLUMNS.get("C", 0)
+#: first column of the velocity gradient L (VELOCITY_RECONSTRUCTION only; row by row)
+LV0 = _COLUMNS.get("Lv", 0)
 #: columns of A's components: SYM[a][b] (a tuple of tuples: a compile-time constant)
 SYM = tuple(tuple(A0 + symmetric_index(a, b, DIM) for b in range(DIM)) for a in range(DIM))
 A00 = SYM[0][0]
@@ -525,6 +530,86 @@ def moment_correction(p, P, offsets, indices):
 
 
 @JIT(inline="always", cache=True)
+def velocity_gradient_record(p, P, offsets, indices):
+    """The velocity gradient of the row at sorted position ``p`` into its record
+    (VELOCITY_RECONSTRUCTION only; :mod:`impactsph.physics.reconstruction` reads it), with the
+    kernel gradient correction so that a linear field's is exact where the support spans the
+    space::
+
+        L_i = (-sum_j V_j v_ij (x) grad W_ij) B_i^-1,   B_i = -sum_j V_j r_ij (x) grad W_ij
+
+    over the neighbours of the same body (:func:`correct_velocity_gradient`; blended to the
+    uncorrected sum where ``det B`` is small, :func:`moment_inverse`).  One loop without
+    branches, vectorised as :func:`moment_correction`'s."""
+    Pi_ = P[p]
+    bi = Pi_[BODY]
+    xi0 = Pi_[X]
+    xi1 = Pi_[X + 1] if DIM > 1 else 0.0
+    xi2 = Pi_[X + 2] if DIM > 2 else 0.0
+    vi0 = Pi_[V]
+    vi1 = Pi_[V + 1] if DIM > 1 else 0.0
+    vi2 = Pi_[V + 2] if DIM > 2 else 0.0
+    hi = Pi_[H]
+    B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
+    L00 = L01 = L02 = L10 = L11 = L12 = L20 = L21 = L22 = 0.0
+    for k in range(offsets[p], offsets[p + 1]):
+        j = indices[k]
+        d0, d1, d2, r2, _, inv_h, q2 = neighbour_separation(xi0, xi1, xi2, hi, P, j)
+        inside = (q2 < 4.0) & (r2 > 0.0) & (P[j, BODY] == bi)
+        fq = cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM) if inside else 0.0
+        w = -P[j, VOL] * fq  # -V_j times grad W_ij / r_ij
+        u0 = vi0 - P[j, V]
+        B00 += w * d0 * d0
+        L00 += w * u0 * d0
+        if DIM > 1:
+            u1 = vi1 - P[j, V + 1]
+            B01 += w * d0 * d1
+            B10 += w * d1 * d0
+            B11 += w * d1 * d1
+            L01 += w * u0 * d1
+            L10 += w * u1 * d0
+            L11 += w * u1 * d1
+        if DIM > 2:
+            u2 = vi2 - P[j, V + 2]
+            B02 += w * d0 * d2
+            B12 += w * d1 * d2
+            B20 += w * d2 * d0
+            B21 += w * d2 * d1
+            B22 += w * d2 * d2
+            L02 += w * u0 * d2
+            L12 += w * u1 * d2
+            L20 += w * u2 * d0
+            L21 += w * u2 * d1
+            L22 += w * u2 * d2
+    _, I00, I01, I02, I10, I11, I12, I20, I21, I22 = moment_inverse(
+        B00, B01, B02, B10, B11, B12, B20, B21, B22)
+    Bi = ((I00, I01, I02), (I10, I11, I12), (I20, I21, I22))
+    Lt = ((L00, L01, L02), (L10, L11, L12), (L20, L21, L22))
+    for a in range(DIM):  # L B^-1, row by row
+        for b in range(DIM):
+            s = 0.0
+            for c in range(DIM):
+                s += Lt[a][c] * Bi[c][b]
+            P[p, LV0 + a * DIM + b] = s
+
+
+@JIT(inline="always", cache=True)
+def projected_slope(P, row, col0, d0, d1, d2):
+    """``r . L r`` (m^2/s) for ``r = (d0, d1, d2)`` and the velocity gradient ``L`` stored
+    row by row from column ``col0`` of the record at sorted position ``row``."""
+    s = d0 * (P[row, col0] * d0)
+    if DIM > 1:
+        s += d0 * P[row, col0 + 1] * d1 + d1 * (
+            P[row, col0 + DIM] * d0 + P[row, col0 + DIM + 1] * d1)
+    if DIM > 2:
+        s += (d0 * P[row, col0 + 2] * d2 + d1 * P[row, col0 + DIM + 2] * d2
+              + d2 * (P[row, col0 + 2 * DIM] * d0
+                      + P[row, col0 + 2 * DIM + 1] * d1
+                      + P[row, col0 + 2 * DIM + 2] * d2))
+    return s
+
+
+@JIT(inline="always", cache=True)
 def stress_along(record, d0, d1, d2):
     """``d . A . d`` for the symmetric ``A = sigma/rho^2`` of a packed record."""
     s = record[A00] * d0 * d0
@@ -768,7 +853,12 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
             T20 += m_j * u2 * s0
             T21 += m_j * u2 * s1
             T22 += m_j * u2 * s2
-        pi_ij = pair_viscosity(visc_kind, vr, r2, h_ij, 0.5 * (ci + P[j, C]),
+        vr_visc = vr
+        if VELOCITY_RECONSTRUCTION:  # the jump at the midpoint (reconstruction.py), same body
+            vr_rec = reconstructed_approach(vr, projected_slope(P, p, LV0, d0, d1, d2),
+                                            projected_slope(P, j, LV0, d0, d1, d2))
+            vr_visc = vr_rec if same_body else vr
+        pi_ij = pair_viscosity(visc_kind, vr_visc, r2, h_ij, 0.5 * (ci + P[j, C]),
                                0.5 * (rhoi + P[j, RHO]), visc_params)
         if VISCOSITY_FACTOR:  # the switch: Pi_ij (f_i + f_j) / 2, symmetric in i, j
             raw = viscous_acceleration_pair(m_j, pi_ij, 1.0)
@@ -1168,6 +1258,17 @@ def moment_pass(order, P, offsets, indices, chunk_size):
 
 
 @JIT(parallel=True, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
+def gradient_pass(order, P, offsets, indices, chunk_size):
+    """The velocity gradients of every row into the records (VELOCITY_RECONSTRUCTION only),
+    after the records and before the pair pass; compiled as :func:`moment_pass`."""
+    n = order.shape[0]
+    n_chunks = (n + chunk_size - 1) // chunk_size
+    for chunk in nb.prange(n_chunks):
+        for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
+            velocity_gradient_record(p, P, offsets, indices)
+
+
+@JIT(parallel=True, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
 def pair_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, normal_stress, S,
               material, table, drho, dv, de, de_visc, contact_force, pair_count, dS, L_sorted,
               chunk_size):
@@ -1280,7 +1381,7 @@ def pressures(rho, e, material, table, out):
 def cuda_kernels():
     """The same bodies as CUDA kernels, one thread per sorted position ``p``:
     ``(particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
-    friction_kernel, switch_kernel)``.
+    friction_kernel, switch_kernel, gradient_kernel)``.
     They launch and
     state no physics; :class:`impactsph.gpu.GpuRates` moves the data."""
     global cuda  # a module global, as numba's CUDA simulator expects to find it
@@ -1336,6 +1437,12 @@ def cuda_kernels():
             moment_correction(p, P, offsets, indices)
 
     @cuda.jit
+    def gradient_kernel(n_rows, P, offsets, indices):
+        p = cuda.grid(1)
+        if p < n_rows:
+            velocity_gradient_record(p, P, offsets, indices)
+
+    @cuda.jit
     def hourglass_kernel(n_rows, n_active, order, P, L_sorted, offsets, indices, material,
                          table, zeta, hg, dv, de, dhg):
         p = cuda.grid(1)
@@ -1352,4 +1459,4 @@ def cuda_kernels():
                               real_bodies, normal_stress, dv, de, contact_force)
 
     return (particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
-            friction_kernel, switch_kernel)
+            friction_kernel, switch_kernel, gradient_kernel)

@@ -47,6 +47,9 @@ class ViscositySettings:
     pair: tuple[float, float, float, float]
     correction: tuple[float, float, float, float] | None = None
     switch: tuple[float, float, float, float] | None = None
+    #: the pair term takes the reconstructed velocity jump (passes compiled with
+    #: ``PassOptions(velocity_reconstruction=True)``)
+    reconstruction: bool = False
 
     @classmethod
     def of(cls, viscosity: Any) -> ViscositySettings:
@@ -59,7 +62,15 @@ class ViscositySettings:
                   if scheme.switch is not None else None)
         return cls(VISCOSITY.index(scheme.name),
                    tuple(float(c) for c in scheme.pair_parameters(viscosity)), correction,
-                   switch)
+                   switch, bool(scheme.reconstruction))
+
+    def check_compiled(self, reconstruction: bool) -> None:
+        """Refuse passes compiled for the other kind of velocity jump (a reconstructing
+        scheme's pair term is a compile-time variant of the passes)."""
+        if self.reconstruction != reconstruction:
+            raise ValueError(f"a viscosity scheme with reconstruction = {self.reconstruction} "
+                             f"needs passes compiled with "
+                             f"PassOptions(velocity_reconstruction={self.reconstruction})")
 
 
 class RateBuffers:
@@ -116,11 +127,13 @@ class CpuRates:
         ``after_pairs(packed, gradients, u_column)``, if given, runs after the pair pass and
         before the passes that read its per-particle results (the symmetry planes' mirror:
         :func:`impactsph.boundaries.mirror_ghost_results`); ``after_moments(packed, c0)``
-        likewise after the correction matrices (``c0`` their first record column).  With the
+        likewise after the correction matrices and after the velocity gradients of a
+        reconstructing viscosity (``c0`` their first record column).  With the
         options' ``contact_friction`` > 0, the friction between the ``n_bodies`` bodies (rows
         of a body index at or above it are rigid walls' ghosts) is added after the pairs."""
         x, v, rho, e, S, m, h, material, body, carried = arrays
         k = self.passes
+        viscosity.check_compiled(k.VELOCITY_RECONSTRUCTION)
         nl = neighbours
         n = x.shape[0]
         if self._packed is None or self._packed.shape[0] != n:
@@ -141,6 +154,10 @@ class CpuRates:
             k.moment_pass(nl.order, self._packed, nl.offsets, nl.indices, chunk)
             if after_moments is not None:
                 after_moments(self._packed, k.CM0)
+        if k.VELOCITY_RECONSTRUCTION:
+            k.gradient_pass(nl.order, self._packed, nl.offsets, nl.indices, chunk)
+            if after_moments is not None:  # a matrix as C: a mirror ghost gets R L R
+                after_moments(self._packed, k.LV0)
         k.pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, viscosity.kind,
                     viscosity.pair, self.options.normal_stress, S, material, table, b.drho,
                     b.dv, b.de, b.de_visc,

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 def record_columns(dim: int, correction_matrix: bool = False,
                    artificial_stress: bool = False, viscosity_factor: bool = False,
-                   axisymmetric: bool = False
+                   axisymmetric: bool = False, velocity_gradient: bool = False
                    ) -> dict[str, int]:
     """Columns of the packed record: position ``x``, velocity ``v``, ``h``, ``m``,
     ``volume = m/rho``, ``rho``, ``c``, ``pc = P/rho^2``, ``body``, the symmetric
@@ -18,8 +18,10 @@ def record_columns(dim: int, correction_matrix: bool = False,
     with ``artificial_stress`` the symmetric artificial stress ``R`` (m^5/(kg s^2), as ``A``;
     its upper triangle like ``A``'s), with ``viscosity_factor`` the particle's factor ``f`` on
     the viscosity (a scheme with a switch), with ``axisymmetric`` the hoop stress over the
-    density ``hoop`` and the radius ``radius``.  ``"width"`` is the row length, padded to
-    whole cache lines (2, 2 and 3 lines of 64 bytes in 1D, 2D, 3D without the optional columns)."""
+    density ``hoop`` and the radius ``radius``, with ``velocity_gradient`` the velocity
+    gradient ``Lv`` (``dim x dim``, row by row; a reconstructing viscosity).  ``"width"`` is
+    the row length, padded to whole cache lines (2, 2 and 3 lines of 64 bytes in 1D, 2D, 3D
+    without the optional columns)."""
     n_sym = dim * (dim + 1) // 2
     cols = {"x": 0, "v": dim, "h": 2 * dim, "m": 2 * dim + 1, "volume": 2 * dim + 2,
             "rho": 2 * dim + 3, "c": 2 * dim + 4, "pc": 2 * dim + 5, "body": 2 * dim + 6,
@@ -38,6 +40,9 @@ def record_columns(dim: int, correction_matrix: bool = False,
         cols["hoop"] = end
         cols["radius"] = end + 1
         end += 2
+    if velocity_gradient:
+        cols["Lv"] = end
+        end += dim * dim
     cols["width"] = (end + 7) // 8 * 8
     return cols
 
