@@ -155,16 +155,13 @@ def run_lab(out: Path | str, problems: list[str] | None = None,
     out = Path(out)
     runs = plan(problems or DEFAULT_PROBLEMS, schemes or list(SCHEMES), extra)
     statuses: dict[str, str | None] = {}
-    if not report_only:
-        by_case: dict[str, list[int]] = {}
-        for k, (_, _, case, _) in enumerate(runs):
-            by_case.setdefault(case, []).append(k)
-        for case, ks in by_case.items():
-            names = [run_name(runs[k][0], runs[k][1]) for k in ks]
-            result = run_many(read_case_dict(case), [runs[k][3] for k in ks], out,
-                              workers=workers, scheduler=scheduler, names=names)
-            for k, r in zip(ks, result, strict=True):
-                statuses[run_name(runs[k][0], runs[k][1])] = r.get("status")
+    if not report_only:  # every run on one cluster, so that several problems run side by side
+        bases = {case: read_case_dict(case) for _, _, case, _ in runs}
+        names = [run_name(problem, scheme) for problem, scheme, _, _ in runs]
+        result = run_many([bases[case] for _, _, case, _ in runs], [r[3] for r in runs], out,
+                          workers=workers, scheduler=scheduler, names=names)
+        for name, r in zip(names, result, strict=True):
+            statuses[name] = r.get("status")
     rows = []
     for problem, scheme, _, _ in runs:
         name = run_name(problem, scheme)

@@ -212,11 +212,14 @@ def run_dir_name(out: Path, name: str, overrides: list[str]) -> str:
     return name
 
 
-def run_many(base: dict[str, Any], run_overrides: list[list[str]], out: Path, *,
+def run_many(base: dict[str, Any] | list[dict[str, Any]], run_overrides: list[list[str]],
+             out: Path, *,
              scheduler: str | None = None, workers: int | None = None,
              on_result: Any = None, names: list[str] | None = None,
              metrics: tuple[str, ...] | list[str] = ()) -> list[dict[str, Any]]:
-    """Run the case ``base`` once per override list on a Dask cluster; each run writes into
+    """Run the case ``base`` once per override list on a Dask cluster (or, ``base`` a list,
+    each run its own case: runs of several cases share the cluster and run side by side);
+    each run writes into
     ``out/runs/NAME`` (``names``, else :func:`run_id`; see :func:`run_dir_name`).  Returns
     one row per run, in the order given (``run``: the directory's name; ``metrics``: summary
     values added, :func:`run_one`); ``on_result(i, row)`` is called as runs finish."""
@@ -225,8 +228,11 @@ def run_many(base: dict[str, Any], run_overrides: list[list[str]], out: Path, *,
     for name in ("distributed", "distributed.nanny", "distributed.scheduler",
                  "distributed.worker", "distributed.core", "distributed.http.proxy"):
         logging.getLogger(name).setLevel(logging.WARNING)
-    cases = [validate_case(apply_overrides(base, ov))  # validate every run before any starts
-             for ov in run_overrides]
+    bases = base if isinstance(base, list) else [base] * len(run_overrides)
+    if len(bases) != len(run_overrides):
+        raise ValueError(f"run_many: {len(bases)} cases for {len(run_overrides)} runs")
+    cases = [validate_case(apply_overrides(b, ov))  # validate every run before any starts
+             for b, ov in zip(bases, run_overrides, strict=True)]
     if not scheduler:  # fill numba's disk cache once, before the workers start together
         from .simulation import compile_kernels
 
@@ -250,8 +256,10 @@ def run_many(base: dict[str, Any], run_overrides: list[list[str]], out: Path, *,
         for i, ov in enumerate(run_overrides):
             rid = run_id(ov)
             name = run_dir_name(out, names[i], ov) if names else rid
-            fut = client.submit(run_one, base, ov, str((out / "runs" / name).resolve()),
-                                tuple(metrics), key=f"impactsph-{rid}", retries=3, pure=False)
+            # the key names the run's directory too: two cases' runs may share overrides
+            fut = client.submit(run_one, bases[i], ov, str((out / "runs" / name).resolve()),
+                                tuple(metrics), key=f"impactsph-{name}-{rid}", retries=3,
+                                pure=False)
             futures[fut] = (i, name)
         for fut in as_completed(list(futures)):
             i, rid = futures[fut]
