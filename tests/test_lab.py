@@ -89,3 +89,25 @@ def test_the_long_problems_are_twice_the_resolution_and_run_only_when_named():
         (_, _, case, overrides), = plan([problem], ["AV (1, 1)"])
         spacing[problem] = load_case(case, overrides).bodies[0].geometry.spacing
     assert spacing["taylor3d-x2"] == pytest.approx(spacing["taylor3d"] / 2)
+
+
+def test_the_3d_cylinder_at_x2_runs_as_its_quarter(tmp_path):
+    """The lab's taylor3d-x2 starts from the quarter of the x2 cylinder (two symmetry planes
+    through the axis, the particles in a file): a quarter of the whole one's particles, the
+    wall kept; validated as a case with the problem's and a scheme's overrides."""
+    from impactsph.geometry import read_particle_file
+    from impactsph.lab import base_case
+    from impactsph.loading import apply_overrides, validate_case
+
+    base = base_case("taylor3d-x2", tmp_path)
+    g = base["bodies"][0]["geometry"]
+    assert g["type"] == "file" and g["spacing"] == pytest.approx(25.4e-3 / 138)
+    n = read_particle_file(g["path"], 3)[0].shape[0]
+    assert n == 46230  # the whole cylinder at this spacing: 184,920
+    kinds = [b["type"] for b in base["boundaries"]]
+    assert kinds.count("symmetry") == 2 and "wall" in kinds
+    (_, _, _, overrides), = plan(["taylor3d-x2"], ["AV (1, 1)"])
+    case = validate_case(apply_overrides(base, overrides))
+    assert case.contact.traction == "normal_stress"
+    whole = base_case("taylor3d", tmp_path)
+    assert whole["bodies"][0]["geometry"]["type"] == "cylinder"

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from impactsph.geometry import quarter_cylinder_case as quarter
 from impactsph.loading import read_case_dict
 from impactsph.output import load_run
 from impactsph.sweep import run_many
@@ -39,27 +40,6 @@ def tests(select_all: bool) -> list[dict]:
     if select_all:
         return found
     return [t for t in found if (t["material"], t["velocity"]) in DEFAULT]
-
-
-def quarter(case: dict, folder: Path) -> dict:
-    """The quarter x > 0, y > 0 of the case's cylinder, its particles in a file, with two
-    symmetry planes through the axis (tests/test_symmetry.py: it equals the whole)."""
-    from impactsph.geometry import cylinder_particles
-
-    g = case["bodies"][0]["geometry"]
-    particles = cylinder_particles(g["centre"], g["radius"], g["length"], g["axis"],
-                                   g["spacing"])
-    x = particles.position
-    keep = (x[:, 0] > 0) & (x[:, 1] > 0)
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"{case['name']}-{g['spacing']:.4e}-quarter.npz"
-    np.savez(path, position=x[keep], volume=particles.volume[keep])
-    case["bodies"][0]["geometry"] = {"type": "file", "path": str(path.resolve()),
-                                     "spacing": g["spacing"]}
-    case["boundaries"] = [*case["boundaries"],
-                          {"type": "symmetry", "point": [0.0, 0.0, 0.0], "normal": [1.0, 0, 0]},
-                          {"type": "symmetry", "point": [0.0, 0.0, 0.0], "normal": [0, 1.0, 0]}]
-    return case
 
 
 def axisymmetric(case: dict) -> dict:

@@ -18,7 +18,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from .loading import read_case_dict
+from .geometry import quarter_cylinder_case
+from .loading import apply_overrides, read_case_dict
 from .output import load_run
 
 Overrides = Callable[[dict[str, Any]], list[str]]
@@ -90,13 +91,19 @@ PROBLEMS: dict[str, tuple[str, list[str], list[str]]] = {
     # machine (docs/dissipation.md); run when named, not by default
     "cantilever-x2": ("cantilever", ["bodies.0.geometry.count=[408, 10]"],
                       ["tip_deflection", "plastic_work", "kinetic_energy_ratio_final"]),
-    # the cylinder at half the spacing: 180,000 particles, hours a run here; run when named
+    # the cylinder at half the spacing, as its quarter with two symmetry planes (QUARTERED:
+    # 46,230 particles, the whole one's 184,920; equal to round-off, tests/test_symmetry.py),
+    # 30-60 min a run on one core here; run when named
     "taylor3d-x2": ("taylor3d", [*WALL, f"bodies.0.geometry.spacing={25.4e-3 / 138!r}"],
                     ["final_length_ratio", "footprint_radius_ratio", "plastic_work"]),
     # Gray, Monaghan & Swift's rubber rings (elastic; the artificial stress keeps them whole)
     "rings": ("rings", [], ["restitution", "max_neighbour_gap_over_h", "min_distance_over_dx",
                             "kinetic_energy_ratio_final"]),
 }
+#: the problems run as the quarter of their cylinder
+#: (:func:`impactsph.geometry.quarter_cylinder_case`; the geometry's overrides applied first,
+#: the particles written under OUT/particles)
+QUARTERED = ("taylor3d-x2",)
 #: the problems a plain ``impactsph lab`` leaves out (each run hours on this machine): they
 #: run when named with ``--problem``
 LONG = ("cantilever-x2", "taylor3d-x2")
@@ -145,6 +152,18 @@ def row_of(problem: str, scheme: str, summary: dict[str, Any], status: str | Non
     return row
 
 
+def base_case(problem: str, out: Path) -> dict[str, Any]:
+    """The case dict a problem's runs start from: its built-in case, or for a problem of
+    QUARTERED that case with the problem's geometry overrides applied and cut to the quarter
+    of its cylinder (the particle file under ``out/particles``)."""
+    case, overrides, _ = PROBLEMS[problem]
+    base = read_case_dict(case)
+    if problem in QUARTERED:
+        geometry = [o for o in overrides if o.startswith("bodies.0.geometry.")]
+        base = quarter_cylinder_case(apply_overrides(base, geometry), out / "particles")
+    return base
+
+
 def run_lab(out: Path | str, problems: list[str] | None = None,
             schemes: list[str] | None = None, *, workers: int | None = None,
             scheduler: str | None = None, extra: list[str] | None = None,
@@ -156,10 +175,10 @@ def run_lab(out: Path | str, problems: list[str] | None = None,
     runs = plan(problems or DEFAULT_PROBLEMS, schemes or list(SCHEMES), extra)
     statuses: dict[str, str | None] = {}
     if not report_only:  # every run on one cluster, so that several problems run side by side
-        bases = {case: read_case_dict(case) for _, _, case, _ in runs}
+        bases = {problem: base_case(problem, out) for problem, _, _, _ in runs}
         names = [run_name(problem, scheme) for problem, scheme, _, _ in runs]
-        result = run_many([bases[case] for _, _, case, _ in runs], [r[3] for r in runs], out,
-                          workers=workers, scheduler=scheduler, names=names)
+        result = run_many([bases[problem] for problem, _, _, _ in runs], [r[3] for r in runs],
+                          out, workers=workers, scheduler=scheduler, names=names)
         for name, r in zip(names, result, strict=True):
             statuses[name] = r.get("status")
     rows = []
