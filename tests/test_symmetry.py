@@ -51,7 +51,10 @@ def matched(whole: Simulation, part: Simulation) -> tuple[np.ndarray, np.ndarray
     [],  # the paper's AC scheme (the correction reads the ghosts' viscous acceleration)
     ['stabilisation.gradient_correction="velocity_gradient_and_forces"',
      "stabilisation.hourglass=2.0", 'viscosity.scheme="av"'],
-], ids=["ac", "corrected-hourglass"])
+    # the reconstructing viscosity (the pair pass reads the ghosts' velocity gradients: the
+    # mirror R L R of their sources')
+    ['viscosity.scheme="reconstruction"'],
+], ids=["ac", "corrected-hourglass", "reconstruction"])
 def test_half_taylor_bar_equals_the_whole(extra):
     whole, half = taylor(False, extra), taylor(True, extra)
     assert whole.state.step == half.state.step
