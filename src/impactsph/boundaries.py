@@ -232,6 +232,22 @@ def reflect(M, normal, dim, out):
 
 
 @nb.njit(cache=True)
+def mirrors_a_symmetric_row(src, wall, kinds, n_real, k):
+    """Whether ghost ``k`` is a symmetry plane's image of a real particle or of another
+    symmetry image (a corner image near two planes), whose per-particle results it takes
+    mirrored; not a rigid wall's ghost, nor an image of one."""
+    if kinds[wall[k]] != SYMMETRY:
+        return False
+    i = src[k]
+    while i >= n_real:  # a chain of images ends at a real particle, through symmetry planes
+        k = i - n_real
+        if kinds[wall[k]] != SYMMETRY:
+            return False
+        i = src[k]
+    return True
+
+
+@nb.njit(cache=True)
 def mirror_ghost_results(src, wall, normals, kinds, n_real, position, P, u_column, dim,
                          gradients):
     """After the pair pass: give each symmetry-plane ghost of a particle the mirror of that
@@ -239,11 +255,13 @@ def mirror_ghost_results(src, wall, normals, kinds, n_real, position, P, u_colum
     would have them: its viscous acceleration ``u`` in the packed records (the acceleration
     correction reads it) and its velocity gradient ``L_g = R L R`` (the hourglass control
     reads it; ``gradients`` has no rows when that is off).  ``position[row]`` is the row's
-    place in the packed records."""
+    place in the packed records.  A corner image (the ghost of a symmetry ghost, near two
+    planes) mirrors its source ghost's results, mirrored before it (the ghosts are in order):
+    the composition of the two reflections, as the whole model has it."""
     for k in range(src.shape[0]):
         i = src[k]
         w = wall[k]
-        if kinds[w] != SYMMETRY or i >= n_real:
+        if not mirrors_a_symmetric_row(src, wall, kinds, n_real, k):
             continue
         pg = position[n_real + k]
         pi = position[i]
@@ -261,13 +279,15 @@ def mirror_ghost_matrices(src, wall, normals, kinds, n_real, position, P, c0, di
     """After the correction matrices (the kernel gradient correction of the forces): give
     each symmetry-plane ghost of a particle the mirror ``R C R`` of that particle's matrix,
     which its own neighbourhood (cut at the ghosts' reach) would get wrong.  ``C`` is stored
-    row by row from record column ``c0``."""
+    row by row from record column ``c0``; the same for any matrix stored so (the velocity
+    gradients of a reconstructing viscosity).  A corner image gets the mirror of its source
+    ghost's, as in :func:`mirror_ghost_results`."""
     source = np.empty((dim, dim))
     mirrored = np.empty((dim, dim))
     for k in range(src.shape[0]):
         i = src[k]
         w = wall[k]
-        if kinds[w] != SYMMETRY or i >= n_real:
+        if not mirrors_a_symmetric_row(src, wall, kinds, n_real, k):
             continue
         pg = position[n_real + k]
         pi = position[i]
