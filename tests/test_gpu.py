@@ -524,12 +524,13 @@ def _kernel_argument_types(dim: int) -> dict:
 
 @pytest.mark.skipif(importlib.util.find_spec("numba_cuda") is None,
                     reason="numba-cuda (the gpu extra) is not installed")
-@pytest.mark.parametrize("artificial_stress", [0.0, 0.3])
+@pytest.mark.parametrize("variant", ["plain", "artificial_stress", "reconstruction"])
 @pytest.mark.parametrize("dim", [1, 2, 3])
-def test_kernels_compile_for_a_gpu(dim, artificial_stress):
+def test_kernels_compile_for_a_gpu(dim, variant):
     """With numba-cuda, every kernel compiles to PTX for an H100 (sm_90), no GPU needed:
     the term functions called from the kernels are accepted as device functions (with the
-    artificial stress too: its principal-stress decompositions are scalars only)."""
+    artificial stress too: its principal-stress decompositions are scalars only; and the
+    reconstructing viscosity's gradient kernel and pair term)."""
     import inspect
 
     from numba import cuda
@@ -540,8 +541,10 @@ def test_kernels_compile_for_a_gpu(dim, artificial_stress):
     if simulator_enabled():
         pytest.skip("the CUDA simulator is on")
     types = _kernel_argument_types(dim)
-    options = PassOptions(artificial_stress=artificial_stress)
-    for kernel in gpu_kernels(dim, False, -1, options)[:5]:
+    options = {"plain": PassOptions(), "artificial_stress": PassOptions(artificial_stress=0.3),
+               "reconstruction": PassOptions(velocity_reconstruction=True)}[variant]
+    kernels = gpu_kernels(dim, False, -1, options)
+    for kernel in (*kernels[:5], kernels[7]):  # the gradient kernel: the moment kernel's args
         names = inspect.signature(kernel.py_func).parameters
         ptx, _ = cuda.compile_ptx(kernel.py_func, tuple(types[k] for k in names), cc=(9, 0))
         assert ".target sm_90" in ptx
