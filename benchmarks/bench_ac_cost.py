@@ -5,9 +5,9 @@ scheme against AV (``--schemes ac reconstruction balsara``).
     .venv/bin/python benchmarks/bench_ac_cost.py [--n 1e5] [--repeat 5] [--schemes ac ...]
 
 For each dimension, a lattice of about N particles (dx = 1 mm, h = 1.2 dx, elastic steel, no
-stabilisation: the paper's scheme) with random velocities of about 1 m/s (so that the viscosity is active everywhere) is stepped with
-each scheme, the schemes' runs side by side in one process and stepped in turn; the best of
-``--repeat`` steps is kept.
+stabilisation: the paper's scheme) with random velocities of about 1 m/s (so that the
+viscosity is active everywhere) is stepped with each scheme, the schemes' runs side by side
+in one process and stepped in turn; the best of ``--repeat`` steps is kept.
 """
 
 from __future__ import annotations
