@@ -12,9 +12,7 @@ import argparse
 import json
 from pathlib import Path
 
-import numpy as np
-
-from impactsph.geometry import sphere_particles
+from impactsph.geometry import quarter_file_geometry, quarter_planes, sphere_particles
 from impactsph.loading import read_case_dict
 from impactsph.output import load_run
 from impactsph.sweep import run_many
@@ -30,19 +28,12 @@ def quarter(case: dict, folder: Path) -> dict:
     two symmetry planes through the axis."""
     sphere = case["bodies"][0]["geometry"]
     particles = sphere_particles(sphere["centre"], sphere["radius"], sphere["spacing"])
-    x = particles.position
-    keep = (x[:, 0] > 0) & (x[:, 1] > 0)
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"sphere-{sphere['spacing']:.4e}-quarter.npz"
-    np.savez(path, position=x[keep], volume=particles.volume[keep])
-    case["bodies"][0]["geometry"] = {"type": "file", "path": str(path.resolve()),
-                                     "spacing": sphere["spacing"]}
+    case["bodies"][0]["geometry"] = quarter_file_geometry(
+        particles, folder / f"sphere-{sphere['spacing']:.4e}-quarter.npz")
     plate = case["bodies"][1]["geometry"]
     plate["size"] = [plate["size"][0] / 2, plate["size"][1] / 2, plate["size"][2]]
     plate["origin"] = [0.0, 0.0, plate["origin"][2]]
-    case["boundaries"] = [
-        {"type": "symmetry", "point": [0.0, 0.0, 0.0], "normal": [1.0, 0.0, 0.0]},
-        {"type": "symmetry", "point": [0.0, 0.0, 0.0], "normal": [0.0, 1.0, 0.0]}]
+    case["boundaries"] = quarter_planes()
     return case
 
 

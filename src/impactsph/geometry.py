@@ -131,12 +131,30 @@ def cylinder_particles(centre: list[float], radius: float, length: float, axis: 
     return Particles(x, np.full(x.shape[0], spacing**3), float(spacing))
 
 
+def quarter_planes() -> list[dict[str, Any]]:
+    """The two symmetry planes through the z axis that make a quarter model of x > 0, y > 0
+    (new tables each call: a case may change them)."""
+    return [{"type": "symmetry", "point": [0.0, 0.0, 0.0], "normal": [1.0, 0.0, 0.0]},
+            {"type": "symmetry", "point": [0.0, 0.0, 0.0], "normal": [0.0, 1.0, 0.0]}]
+
+
+def quarter_file_geometry(particles: Particles, path: Path) -> dict[str, Any]:
+    """The particles with x > 0, y > 0 written to ``path`` (``.npz``), as the geometry table
+    of a file body (the quarter of a body symmetric about the z axis)."""
+    x = particles.position
+    keep = (x[:, 0] > 0) & (x[:, 1] > 0)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, position=x[keep], volume=particles.volume[keep])
+    return {"type": "file", "path": str(path.resolve()), "spacing": particles.spacing}
+
+
 def quarter_cylinder_case(case: dict[str, Any], folder: Path) -> dict[str, Any]:
     """A case dict whose first body is a cylinder along z with its axis at x = y = 0 (the
     Taylor bar in 3D), cut to its quarter x > 0, y > 0: the quarter's particles written to
-    ``folder`` (an ``.npz`` file body) and two symmetry planes through the axis added to the
-    boundaries.  Four times cheaper; it equals the whole cylinder to round-off
-    (tests/test_symmetry.py).  ``case`` is changed in place and returned."""
+    ``folder`` (:func:`quarter_file_geometry`) and the two symmetry planes through the axis
+    (:func:`quarter_planes`) added to the boundaries.  Four times cheaper; it equals the whole
+    cylinder to round-off (tests/test_symmetry.py).  ``case`` is changed in place and
+    returned."""
     g = case["bodies"][0]["geometry"]
     if (g.get("type") != "cylinder" or g.get("axis") != "z"
             or any(abs(float(c)) > 0.0 for c in g["centre"][:2])):
@@ -144,16 +162,9 @@ def quarter_cylinder_case(case: dict[str, Any], folder: Path) -> dict[str, Any]:
                         f"axis at x = y = 0, not {g!r}")
     particles = cylinder_particles(g["centre"], g["radius"], g["length"], g["axis"],
                                    g["spacing"])
-    x = particles.position
-    keep = (x[:, 0] > 0) & (x[:, 1] > 0)
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"{case['name']}-{g['spacing']:.4e}-quarter.npz"
-    np.savez(path, position=x[keep], volume=particles.volume[keep])
-    case["bodies"][0]["geometry"] = {"type": "file", "path": str(path.resolve()),
-                                     "spacing": g["spacing"]}
-    case["boundaries"] = [*case.get("boundaries", []),
-                          {"type": "symmetry", "point": [0.0, 0.0, 0.0], "normal": [1.0, 0, 0]},
-                          {"type": "symmetry", "point": [0.0, 0.0, 0.0], "normal": [0, 1.0, 0]}]
+    case["bodies"][0]["geometry"] = quarter_file_geometry(
+        particles, folder / f"{case['name']}-{g['spacing']:.4e}-quarter.npz")
+    case["boundaries"] = [*case.get("boundaries", []), *quarter_planes()]
     return case
 
 

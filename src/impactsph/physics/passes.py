@@ -587,17 +587,12 @@ def velocity_gradient_record(p, P, offsets, indices):
         B00, B01, B02, B10, B11, B12, B20, B21, B22)
     Bi = ((I00, I01, I02), (I10, I11, I12), (I20, I21, I22))
     Lt = ((L00, L01, L02), (L10, L11, L12), (L20, L21, L22))
-    for a in range(DIM):  # (L B^-1)_ab, then its symmetric part, row by row
+    for a in range(DIM):  # the symmetric part of L B^-1, row by row
         for b in range(DIM):
             s = 0.0
             for c in range(DIM):
-                s += Lt[a][c] * Bi[c][b]
-            P[p, LV0 + a * DIM + b] = s
-    for a in range(DIM):
-        for b in range(a + 1, DIM):
-            mean = 0.5 * (P[p, LV0 + a * DIM + b] + P[p, LV0 + b * DIM + a])
-            P[p, LV0 + a * DIM + b] = mean
-            P[p, LV0 + b * DIM + a] = mean
+                s += Lt[a][c] * Bi[c][b] + Lt[b][c] * Bi[c][a]
+            P[p, LV0 + a * DIM + b] = 0.5 * s
 
 
 @JIT(inline="always", cache=True)
