@@ -58,6 +58,9 @@ SCHEMES: dict[str, Overrides] = {
                                    "viscosity.alpha2=2.0"),
     "Reconstruction (1, 1)": _fixed('viscosity.scheme="reconstruction"', "viscosity.alpha1=1.0",
                                     "viscosity.alpha2=1.0"),
+    "Reconstruction (1, 1), minmod": _fixed('viscosity.scheme="reconstruction"',
+                                            "viscosity.alpha1=1.0", "viscosity.alpha2=1.0",
+                                            'viscosity.limiter="minmod"'),
 }
 
 #: the wall of the Taylor bars: the normal-stress contact and the penalty layer that hold a

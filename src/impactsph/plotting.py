@@ -98,7 +98,9 @@ def label_of(case: Any) -> str:
         return f"AC ({v.correction})"
     alpha1, alpha2 = VISCOSITY[v.scheme].pair_parameters(v)[:2]
     name = "AV" if v.scheme == "av" else v.scheme
-    return f"{name} ({alpha1:g}, {alpha2:g})"
+    limiter = getattr(v, "limiter", "van_leer")
+    suffix = f", {limiter}" if limiter != "van_leer" else ""
+    return f"{name} ({alpha1:g}, {alpha2:g}{suffix})"
 
 
 def shapes_figure(runs: list[dict[str, Any]], path: Path, title: str, *,

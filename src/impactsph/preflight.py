@@ -559,6 +559,7 @@ def magnitude_checks(case: Case) -> list[Finding]:
                                 (("MPa", 1e6), ("GPa", 1e9)))
             warn(f"{where}.yield_stress", sigma,
                  f"implausibly low yield stress (SI, Pa: under {_g(YIELD_STRESS_MIN)}){hint}")
+    out.extend(unused_viscosity_fields(case))
     rigid = any(wall.type != "symmetry" for wall in case.boundaries)
     if (case.two_dimensional == "plane_stress" and rigid and case.contact.traction == "pressure"
             and case.contact.wall_layer == 0.0):
@@ -604,6 +605,27 @@ def magnitude_checks(case: Case) -> list[Finding]:
              f"an impact (micro- to milliseconds); did you mean {_g(case.time.end)} ms = "
              f"{case.time.end * 1e-3:.3g} or {_g(case.time.end)} us = "
              f"{case.time.end * 1e-6:.3g}?")
+    return out
+
+
+def unused_viscosity_fields(case: Case) -> list[Finding]:
+    """A warning for each ``[viscosity]`` field the case sets that its scheme does not read
+    (``limiter`` with ``scheme = "av"``, say): the case table holds every scheme's fields,
+    so such a field is accepted, and has no effect."""
+    from .models import VISCOSITY
+
+    out = []
+    for where, viscosity in (("viscosity", case.viscosity),
+                             ("output.reference_viscosity", case.output.reference_viscosity)):
+        if viscosity is None:
+            continue
+        parameters = VISCOSITY[viscosity.scheme].parameters
+        known = set(parameters.model_fields) if parameters is not None else set()
+        for field in sorted(viscosity.model_fields_set - known - {"scheme"}):
+            out.append(Finding("warning", f"{where}.{field}", (
+                f"{where}.{field} = {getattr(viscosity, field)!r}: not a parameter of "
+                f"scheme {viscosity.scheme!r} ({', '.join(sorted(known)) or 'none'}); it has "
+                "no effect")))
     return out
 
 

@@ -857,7 +857,8 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
         vr_visc = vr
         if VELOCITY_RECONSTRUCTION:  # the jump at the midpoint (reconstruction.py), same body
             vr_rec = reconstructed_approach(vr, projected_slope(P, p, LV0, d0, d1, d2),
-                                            projected_slope(P, j, LV0, d0, d1, d2))
+                                            projected_slope(P, j, LV0, d0, d1, d2),
+                                            visc_params[3])
             vr_visc = vr_rec if same_body else vr
         pi_ij = pair_viscosity(visc_kind, vr_visc, r2, h_ij, 0.5 * (ci + P[j, C]),
                                0.5 * (rhoi + P[j, RHO]), visc_params)
