@@ -621,9 +621,9 @@ def unused_viscosity_fields(case: Case) -> list[Finding]:
             continue
         parameters = VISCOSITY[viscosity.scheme].parameters
         known = set(parameters.model_fields) if parameters is not None else set()
-        for field in sorted(viscosity.model_fields_set - known - {"scheme"}):
-            out.append(Finding("warning", f"{where}.{field}", (
-                f"{where}.{field} = {getattr(viscosity, field)!r}: not a parameter of "
+        for name in sorted(viscosity.model_fields_set - known - {"scheme"}):
+            out.append(Finding("warning", f"{where}.{name}", (
+                f"{where}.{name} = {getattr(viscosity, name)!r}: not a parameter of "
                 f"scheme {viscosity.scheme!r} ({', '.join(sorted(known)) or 'none'}); it has "
                 "no effect")))
     return out

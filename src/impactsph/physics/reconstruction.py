@@ -48,7 +48,6 @@ from __future__ import annotations
 
 import numba as nb
 
-
 #: ``viscosity.limiter`` -> the code the pair loop receives in ``visc_params[3]``
 LIMITERS = {"van_leer": 0.0, "minmod": 1.0}
 

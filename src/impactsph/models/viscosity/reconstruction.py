@@ -1,6 +1,6 @@
 """Monaghan's viscosity on the velocity jump reconstructed to each pair's midpoint, with van
-Leer's (or the minmod) slope limiter: ``scheme = "reconstruction"`` (Rosswog 2020, MNRAS 498:4230, section
-2.3; Frontiere, Raskin & Owen 2017, J. Comput. Phys. 332:160).
+Leer's (or the minmod) slope limiter: ``scheme = "reconstruction"`` (Rosswog 2020, MNRAS
+498:4230, section 2.3; Frontiere, Raskin & Owen 2017, J. Comput. Phys. 332:160).
 
 ``Pi_ij`` is eq 29 with ``v_ij . r_ij`` replaced, for two particles of the same body, by
 the limited midpoint jump of :func:`impactsph.physics.reconstruction.reconstructed_approach`:
