@@ -1,0 +1,96 @@
+"""The finite-element reference of the Taylor bar (validation/taylor_fem.py), in plane strain
+and in axisymmetry: its element loop against exact answers (a uniform stress in equilibrium
+loads no interior node; a linear velocity field gives every Gauss point the same stress; a
+rigid rotation leaves the body unstressed), and a coarse run's energy balance and length
+(docs/validation.md)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent.parent / "validation"))
+import taylor_fem as fem  # noqa: E402
+
+BAR = fem.paper_bar()
+
+
+def state(n_across: int, axisymmetric: bool):
+    x, elements = fem.mesh(BAR, n_across)
+    _, mass_e = fem.lumped_masses(x, elements, BAR.material[fem.RHO0], axisymmetric)
+    n_el = len(elements)
+    plastic = np.zeros((n_el, 4, 3))
+    plastic[:, :, 2] = 293.0
+    return (x, elements, mass_e, np.full(n_el, BAR.material[fem.RHO0]), np.zeros(n_el),
+            np.zeros((n_el, 4, 3)), plastic, np.zeros(n_el))
+
+
+def forces(x, v, elements, mass_e, rho, e, S, plastic, p, dt, axisymmetric, update=False):
+    return fem.element_pass(x, v, elements, mass_e, rho, e, S, plastic, p, dt, BAR.material,
+                            axisymmetric, update)
+
+
+@pytest.mark.parametrize("axisymmetric", [False, True])
+def test_a_uniform_stress_in_equilibrium_loads_only_the_boundary(axisymmetric):
+    """A uniform stress (in axisymmetry with equal radial and hoop stresses, which is then in
+    equilibrium): the internal forces of interior nodes vanish; in plane strain the top
+    edge's nodes but its corners carry the traction times their share of its length."""
+    x, elements, mass_e, rho, e, S, plastic, p = state(4, axisymmetric)
+    S[:, :, 0], S[:, :, 1], S[:, :, 2] = 1e8, -2e8, 5e7
+    if axisymmetric:
+        S[:, :, 2] = 0.0  # a shear stress uniform in r is not in equilibrium (d(r s)/dr)
+    p[:] = 3e8
+    force, _, _ = forces(x, np.zeros_like(x), elements, mass_e, rho, e, S, plastic, p, 0.0,
+                         axisymmetric)
+    tol = 1e-9 * np.abs(force).max()
+    interior = ((x[:, 0] > 0) & (x[:, 0] < BAR.half_width) & (x[:, 1] > 0)
+                & (x[:, 1] < BAR.length))
+    assert np.abs(force[interior]).max() < tol
+    if not axisymmetric:
+        np.testing.assert_allclose(force.sum(0), 0.0, atol=tol)
+        top = np.isclose(x[:, 1], BAR.length) & (x[:, 0] > 0) & (x[:, 0] < BAR.half_width)
+        share = BAR.half_width * (1 - 1 / 4)  # 4 elements across: the corners take half of one
+        np.testing.assert_allclose(force[top].sum(0), -np.array([5e7, -2e8 - 3e8]) * share,
+                                   rtol=1e-12)
+
+
+@pytest.mark.parametrize(("rotation", "axisymmetric"), [(False, False), (True, False),
+                                                         (False, True)])
+def test_a_linear_velocity_field_gives_one_stress_everywhere(rotation, axisymmetric):
+    """One step from rest of a linear velocity field: every Gauss point of every element gets
+    the same deviatoric stress, ``2 G D' dt`` (in axisymmetry ``v_r = a r`` adds the hoop rate
+    ``a``); a rigid rotation (plane strain) gives none."""
+    x, elements, mass_e, rho, e, S, plastic, p = state(3, axisymmetric)
+    A = np.array([[0.0, 300.0], [-300.0, 0.0]]) if rotation else np.array(
+        [[100.0, 0.0 if axisymmetric else 40.0], [-20.0, -250.0]])
+    v = x @ A.T
+    dt = 1e-9
+    forces(x, v, elements, mass_e, rho, e, S, plastic, p, dt, axisymmetric, update=True)
+    if rotation:
+        assert np.abs(S).max() < 1e-6
+        return
+    D = np.zeros((3, 3))
+    D[:2, :2] = 0.5 * (A + A.T)
+    D[2, 2] = A[0, 0] if axisymmetric else 0.0
+    tr = np.trace(D)
+    want = 2 * BAR.material[fem.SHEAR] * dt * np.array(
+        [D[0, 0] - tr / 3, D[1, 1] - tr / 3, D[0, 1]])
+    np.testing.assert_allclose(S.reshape(-1, 3), np.broadcast_to(want, (S.size // 3, 3)),
+                               rtol=1e-9, atol=1e-9 * np.abs(want).max())
+
+
+def test_coarse_run_conserves_energy_and_shortens_in_the_theory_band():
+    """The paper's bar, 8 elements across the half-width: the energy balance, net of the
+    bottom row's first impact, within 2e-3; L_f/L_0 inside one-dimensional theory's band
+    (0.75-0.87), the foot wider than the bar, and most of the kinetic energy spent as plastic
+    work (a finite-element bar has no shear viscosity)."""
+    result = fem.run(BAR, 8)
+    last = result["snapshots"]["50us"]
+    assert abs(last["energy_error"]) < 2e-3
+    assert 0.75 < last["final_length_ratio"] < 0.87
+    assert last["widest_section_ratio"] > 1.5
+    kinetic = 0.5 * BAR.material[fem.RHO0] * 2 * BAR.half_width * BAR.length * BAR.speed**2
+    assert last["plastic_work"] > 0.9 * kinetic
