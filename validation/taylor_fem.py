@@ -25,7 +25,8 @@ The same physics as ``impactsph run``, discretised the way a Lagrangian hydrocod
   takes it there), so the bottom row stops dead in the first step: that kinetic energy
   (about 1/(2 n_along) of the whole) is lost, and the energy error is reported net of it.
 
-What it reports at the snapshot times: ``L_f/L_0`` (the highest node), the footprint
+What it reports at the snapshot times: ``L_f/L_0`` (highest node less lowest: a bar that has
+rebounded has left the wall), the footprint
 (outermost node on the wall, over the half-width; 0 once the bar has left the wall), where
 the foot's rim (the bottom outer corner) is, the widest section (outermost node at any
 height), the plastic work (J/m of the whole bar in plane strain, J in axisymmetry, as the SPH
@@ -94,14 +95,17 @@ class Bar:
 
 
 def material_vector(case_material, name: str = "bar") -> np.ndarray:
-    """The entries above from a validated case material: Mie-Gruneisen pressure and a
-    perfectly plastic (``elastic_plastic``) or Johnson-Cook strength."""
+    """The entries above from a validated case material: Mie-Gruneisen or linear pressure and
+    a perfectly plastic (``elastic_plastic``) or Johnson-Cook strength."""
     m = resolve_material(name, case_material)
-    if m.eos != "mie_gruneisen":
-        sys.exit(f"taylor_fem: eos {m.eos!r} is not supported (mie_gruneisen only)")
     out = np.zeros(16)
     out[RHO0], out[SHEAR] = m.density, m.shear_modulus
-    out[A0:GRUNEISEN + 1] = m.eos_columns
+    if m.eos == "mie_gruneisen":
+        out[A0:GRUNEISEN + 1] = m.eos_columns
+    elif m.eos == "linear":  # P = K (rho/rho0 - 1): Mie-Gruneisen with a0 = K and no more
+        out[A0] = m.bulk_modulus
+    else:
+        sys.exit(f"taylor_fem: eos {m.eos!r} is not supported (mie_gruneisen, linear)")
     if m.model == "elastic_plastic":
         out[FLOW_A], out[FLOW_N], out[RATE0] = m.strength_columns[0], 1.0, 1.0
         out[THERMAL_M] = 1.0  # T_melt = T_ref = 0: no thermal softening
@@ -344,7 +348,8 @@ def run(bar: Bar, n_across: int) -> dict:
             ke = 0.5 * float(np.sum(mass * (v * v).sum(1)))
             ie = float(np.sum(mass_e * e))  # e includes the elastic and the dissipated energy
             out["snapshots"][f"{t * 1e6:g}us"] = {
-                "final_length_ratio": float(x[:, 1].max() / bar.length),
+                "final_length_ratio": float((x[:, 1].max() - x[:, 1].min()) / bar.length),
+                "lift_off": float(x[:, 1].min()),  # m: the lowest node's height
                 "footprint_half_width_ratio": (float(x[contact, 0].max() / bar.half_width)
                                                if np.any(contact) else 0.0),
                 "corner": [float(c) for c in x[n_across] / bar.half_width],  # the foot's rim
