@@ -34,6 +34,7 @@ run's ``plastic_work``) and the energy balance.  Nodes are the body's boundary, 
 spacing is added.
 
     .venv/bin/python validation/taylor_fem.py 8 16 32 64       # the paper's bar, plane strain
+    .venv/bin/python validation/taylor_fem.py 8 16 32 --case taylor_axisymmetric  # its cylinder
     .venv/bin/python validation/taylor_fem.py 10 20 40 --test ofhc_copper:190   # axisymmetric
 
 ``N`` is the number of elements across the half-width (the SPH bar at x1 has 10.5 particles
@@ -118,13 +119,16 @@ def material_vector(case_material, name: str = "bar") -> np.ndarray:
     return out
 
 
-def paper_bar() -> Bar:
-    """The paper's Example 2 (``impactsph run taylor``): iron, plane strain, 50 us."""
-    case = load_case("taylor")
+def paper_bar(name: str = "taylor") -> Bar:
+    """The paper's Example 2: ``taylor`` (iron, plane strain, the whole width from x = -B/2)
+    or ``taylor_axisymmetric`` (the cylinder's half-section from the axis), to 50 us."""
+    case = load_case(name)
     body = case.bodies[0]
-    return Bar("taylor", 0.5 * body.geometry.size[0], body.geometry.size[1],
-               -body.velocity[1], material_vector(case.materials[body.material]),
-               False, case.time.end, (30e-6, 40e-6, 50e-6))
+    axisymmetric = case.two_dimensional == "axisymmetric"
+    half_width = body.geometry.size[0] if axisymmetric else 0.5 * body.geometry.size[0]
+    return Bar(name, half_width, body.geometry.size[1], -body.velocity[1],
+               material_vector(case.materials[body.material]), axisymmetric, case.time.end,
+               (30e-6, 40e-6, 50e-6))
 
 
 def measured_bar(material: str, velocity: float, end: float = 100e-6) -> Bar:
@@ -380,13 +384,16 @@ def main() -> None:
     parser.add_argument("--test", default=None, metavar="MATERIAL:VELOCITY",
                         help="a test of validation/taylor_measured.toml in axisymmetry, e.g. "
                              "ofhc_copper:190 (default: the paper's plane-strain bar)")
+    parser.add_argument("--case", default="taylor", choices=["taylor", "taylor_axisymmetric"],
+                        help="the paper's bar: plane strain (default) or the cylinder in "
+                             "axisymmetry")
     parser.add_argument("--out", type=Path, default=Path("runs/validation/taylor-fem"))
     args = parser.parse_args()
     if args.test:
         material, velocity = args.test.split(":")
         bar = measured_bar(material, float(velocity))
     else:
-        bar = paper_bar()
+        bar = paper_bar(args.case)
     args.out.mkdir(parents=True, exist_ok=True)
     for n in args.n_across:
         result = run(bar, n)
