@@ -18,8 +18,15 @@ import taylor_fem as fem  # noqa: E402
 BAR = fem.paper_bar()
 
 
-def state(n_across: int, axisymmetric: bool):
+#: an affine distortion of the mesh, so that the Jacobians have off-diagonal terms (a
+#: transposed J would give wrong gradients on it, not on the rectangles)
+SHEARED = np.array([[1.0, 0.3], [0.1, 1.0]])
+
+
+def state(n_across: int, axisymmetric: bool, distort: bool = False):
     x, elements = fem.mesh(BAR, n_across)
+    if distort:
+        x = x @ SHEARED.T
     _, mass_e = fem.lumped_masses(x, elements, BAR.material[fem.RHO0], axisymmetric)
     n_el = len(elements)
     plastic = np.zeros((n_el, 4, 3))
@@ -62,8 +69,9 @@ def test_a_uniform_stress_in_equilibrium_loads_only_the_boundary(axisymmetric):
 def test_a_linear_velocity_field_gives_one_stress_everywhere(rotation, axisymmetric):
     """One step from rest of a linear velocity field: every Gauss point of every element gets
     the same deviatoric stress, ``2 G D' dt`` (in axisymmetry ``v_r = a r`` adds the hoop rate
-    ``a``); a rigid rotation (plane strain) gives none."""
-    x, elements, mass_e, rho, e, S, plastic, p = state(3, axisymmetric)
+    ``a``); a rigid rotation (plane strain) gives none.  In plane strain on a sheared mesh."""
+    x, elements, mass_e, rho, e, S, plastic, p = state(3, axisymmetric,
+                                                       distort=not axisymmetric)
     A = np.array([[0.0, 300.0], [-300.0, 0.0]]) if rotation else np.array(
         [[100.0, 0.0 if axisymmetric else 40.0], [-20.0, -250.0]])
     v = x @ A.T
@@ -80,6 +88,23 @@ def test_a_linear_velocity_field_gives_one_stress_everywhere(rotation, axisymmet
         [D[0, 0] - tr / 3, D[1, 1] - tr / 3, D[0, 1]])
     np.testing.assert_allclose(S.reshape(-1, 3), np.broadcast_to(want, (S.size // 3, 3)),
                                rtol=1e-9, atol=1e-9 * np.abs(want).max())
+
+
+def test_a_rigid_rotation_rotates_a_prestress():
+    """A pre-stressed sheared mesh spun rigidly for one small step: the stress changes only by
+    the Jaumann terms, ``dt (W S - S W)``, elastically (below yield) and at every point."""
+    x, elements, mass_e, rho, e, S, plastic, p = state(3, False, distort=True)
+    S[:, :, 0], S[:, :, 1], S[:, :, 2] = 1e8, -5e7, 2e7
+    spin = 300.0  # v = omega x (-y, x): w = (dv_x/dy - dv_y/dx) / 2 = -omega
+    v = np.stack([-spin * x[:, 1], spin * x[:, 0]], 1)
+    dt = 1e-8
+    forces(x, v, elements, mass_e, rho, e, S, plastic, p, dt, False, update=True)
+    w = -spin
+    want = [1e8 + dt * 2 * w * 2e7, -5e7 - dt * 2 * w * 2e7, 2e7 + dt * w * (-5e7 - 1e8)]
+    np.testing.assert_allclose(S.reshape(-1, 3), np.broadcast_to(want, (S.size // 3, 3)),
+                               rtol=1e-10)
+    # the rotation's change is 10^4 times the tolerance: a wrong sign would fail
+    assert abs(want[2] - 2e7) > 1e4 * 1e-10 * 2e7
 
 
 def test_coarse_run_conserves_energy_and_shortens_in_the_theory_band():
