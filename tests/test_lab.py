@@ -111,3 +111,18 @@ def test_the_3d_cylinder_at_x2_runs_as_its_quarter(tmp_path):
     assert case.contact.traction == "normal_stress"
     whole = base_case("taylor3d", tmp_path)
     assert whole["bodies"][0]["geometry"]["type"] == "cylinder"
+
+
+def test_taylor_rows_carry_the_length_error_against_the_finite_element_reference():
+    """A Taylor problem's row has ``final_length_error``: its length ratio over the
+    finite-element reference of lab.REFERENCE_LENGTH_RATIO, less 1 (none when the run gave
+    no length); the other problems have no such column."""
+    from impactsph.lab import REFERENCE_LENGTH_RATIO, markdown, row_of
+
+    row = row_of("taylor-axi", "S", {"final_length_ratio": 0.8137, "n_steps": 4,
+                                     "wall_seconds": 1.0}, "ok")
+    assert row["final_length_error"] == pytest.approx(0.8137 / 0.8123 - 1.0, rel=1e-12)
+    assert REFERENCE_LENGTH_RATIO["taylor3d"] == REFERENCE_LENGTH_RATIO["taylor-axi"]
+    assert row_of("taylor", "S", {}, "failed")["final_length_error"] is None
+    assert "final_length_error" not in row_of("bars", "S", {}, "ok")
+    assert "| final_length_ratio | final_length_error |" in markdown([row])

@@ -74,20 +74,22 @@ PROBLEMS: dict[str, tuple[str, list[str], list[str]]] = {
     "plates": ("plates", [], ["velocity_profile_l1_error", "velocity_profile_oscillation",
                               "plateau_velocity_error", "precursor_speed_error",
                               "plastic_speed_error"]),
-    "taylor": ("taylor", WALL, ["final_length_ratio", "footprint_half_width_ratio",
-                                "plastic_work"]),
+    "taylor": ("taylor", WALL, ["final_length_ratio", "final_length_error",
+                                "footprint_half_width_ratio", "plastic_work"]),
     "taylor-x2": ("taylor", [*WALL, "bodies.0.geometry.count=[42, 134]"],
-                  ["final_length_ratio", "footprint_half_width_ratio", "plastic_work"]),
+                  ["final_length_ratio", "final_length_error", "footprint_half_width_ratio",
+                   "plastic_work"]),
     # the cylinder (the Taylor bar in 3D) in axisymmetry: its length within 2% of the 3D
     # cylinder's at x1 and x2 (docs/validation.md), at a fiftieth of the cost
-    "taylor-axi": ("taylor_axisymmetric", WALL, ["final_length_ratio",
+    "taylor-axi": ("taylor_axisymmetric", WALL, ["final_length_ratio", "final_length_error",
                                                  "footprint_radius_ratio", "plastic_work"]),
     "taylor-axi-x2": ("taylor_axisymmetric", [*WALL, "bodies.0.geometry.count=[20, 138]"],
-                      ["final_length_ratio", "footprint_radius_ratio", "plastic_work"]),
+                      ["final_length_ratio", "final_length_error", "footprint_radius_ratio",
+                       "plastic_work"]),
     # the cylinder itself (22,908 particles, 2-4 min a run on 2 cores; at x2, 180,000
     # particles and twice the steps, it is not part of the lab: docs/dissipation.md)
-    "taylor3d": ("taylor3d", WALL, ["final_length_ratio", "footprint_radius_ratio",
-                                    "plastic_work"]),
+    "taylor3d": ("taylor3d", WALL, ["final_length_ratio", "final_length_error",
+                                    "footprint_radius_ratio", "plastic_work"]),
     "cantilever": ("cantilever", [], ["tip_deflection", "plastic_work",
                                       "kinetic_energy_ratio_final"]),
     # twice the particles each way and twice the steps: 30-70 min a run on one core of this
@@ -98,11 +100,22 @@ PROBLEMS: dict[str, tuple[str, list[str], list[str]]] = {
     # 46,230 particles, the whole one's 184,920; equal to round-off, tests/test_symmetry.py),
     # 30-60 min a run on one core here; run when named
     "taylor3d-x2": ("taylor3d", [*WALL, f"bodies.0.geometry.spacing={25.4e-3 / 138!r}"],
-                    ["final_length_ratio", "footprint_radius_ratio", "plastic_work"]),
+                    ["final_length_ratio", "final_length_error", "footprint_radius_ratio",
+                     "plastic_work"]),
     # Gray, Monaghan & Swift's rubber rings (elastic; the artificial stress keeps them whole)
     "rings": ("rings", [], ["restitution", "max_neighbour_gap_over_h", "min_distance_over_dx",
                             "kinetic_energy_ratio_final"]),
 }
+#: L_f / L_0 of the Taylor bars by converged explicit finite elements of the same model
+#: (``validation/taylor_fem.py``: mean-dilatation Q4, the package's return map and
+#: Mie-Gruneisen pressure, a bulk viscosity on the volumetric rate only, the same
+#: frictionless wall; docs/validation.md): the plane-strain bar, 64 elements across its
+#: half-width (``taylor_fem.py 8 16 32 64``: 0.8131, 0.8110, 0.8103, 0.8100), and the
+#: cylinder in axisymmetry, which is also the 3D cylinder's continuum answer (``taylor_fem.py
+#: 8 16 32 --case taylor_axisymmetric``: 0.8130, 0.8125, 0.8123).  ``final_length_error`` is
+#: a run's ``final_length_ratio`` over this, less 1.
+REFERENCE_LENGTH_RATIO = {"taylor": 0.8100, "taylor-x2": 0.8100, "taylor-axi": 0.8123,
+                          "taylor-axi-x2": 0.8123, "taylor3d": 0.8123, "taylor3d-x2": 0.8123}
 #: the problems run as the quarter of their cylinder
 #: (:func:`impactsph.geometry.quarter_cylinder_case`; the geometry's overrides applied first,
 #: the particles written under OUT/particles)
@@ -152,6 +165,10 @@ def row_of(problem: str, scheme: str, summary: dict[str, Any], status: str | Non
     for key in [*PROBLEMS[problem][2], *COMMON]:
         if key != "ms_per_step":
             row[key] = summary.get(key)
+    if "final_length_error" in row:
+        ratio = summary.get("final_length_ratio")
+        row["final_length_error"] = (ratio / REFERENCE_LENGTH_RATIO[problem] - 1.0
+                                     if ratio is not None else None)
     return row
 
 
