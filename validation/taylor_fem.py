@@ -36,6 +36,7 @@ axisymmetry, as the SPH run's ``plastic_work``) and the energy balance.  Nodes a
 boundary, so no half spacing is added.
 
     .venv/bin/python validation/taylor_fem.py 8 16 32 64       # the paper's bar, plane strain
+    .venv/bin/python validation/taylor_fem.py 8 16 --sph runs/taylor runs/taylor-x2  # drawn over
     .venv/bin/python validation/taylor_fem.py 8 16 32 --case taylor_axisymmetric  # its cylinder
     .venv/bin/python validation/taylor_fem.py 10 20 40 --test ofhc_copper:190   # axisymmetric
 
@@ -382,6 +383,40 @@ def boundary(x: np.ndarray, n_across: int) -> np.ndarray:
     return np.concatenate([grid[0], grid[1:, -1], grid[-1, ::-1][1:], grid[::-1, 0][1:]])
 
 
+def figure(results: list[dict], bar: Bar, path: Path, sph: list[Path] = ()) -> Path:
+    """The final outlines of the half bar at each resolution (mm), over the particles of the
+    SPH runs ``sph`` at the same time (their x >= 0 half; a run of the same case)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from impactsph.output import load_run
+
+    fig, ax = plt.subplots(figsize=(5, 6))
+    for k, run_dir in enumerate(sph):
+        snaps = load_run(run_dir)["snapshots"]
+        snap = min(snaps, key=lambda s: abs(s["time"] - bar.end))
+        x = snap["position"]
+        half = x[:, 0] >= 0.0
+        ax.scatter(1e3 * x[half, 0], 1e3 * x[half, 1], s=2 if len(x) > 5000 else 5,
+                   color=f"C{k + 1}", alpha=0.6, label=f"SPH {run_dir.name} ({len(x)})")
+    for result, style in zip(results, ["k:", "k--", "k-.", "k-", "k-"], strict=False):
+        outline = 1e3 * np.array(result["boundary_final"])
+        ax.plot(outline[:, 0], outline[:, 1], style, lw=1.0,
+                label=f"FE, {result['n_across']} across")
+    ax.axhline(0.0, color="0.5", lw=0.8)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (mm)" if not bar.axisymmetric else "r (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_title(f"{bar.name} at {bar.end * 1e6:g} us")
+    ax.legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+    return path
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("n_across", type=int, nargs="+",
@@ -393,6 +428,8 @@ def main() -> None:
                         help="the paper's bar: plane strain (default) or the cylinder in "
                              "axisymmetry")
     parser.add_argument("--out", type=Path, default=Path("runs/validation/taylor-fem"))
+    parser.add_argument("--sph", type=Path, nargs="*", default=[],
+                        help="SPH run directories of the same case to draw under the outlines")
     args = parser.parse_args()
     if args.test:
         material, velocity = args.test.split(":")
@@ -400,8 +437,10 @@ def main() -> None:
     else:
         bar = paper_bar(args.case)
     args.out.mkdir(parents=True, exist_ok=True)
+    results = []
     for n in args.n_across:
         result = run(bar, n)
+        results.append(result)
         (args.out / f"{bar.name}-{n}.json").write_text(json.dumps(result))
         last = result["snapshots"][f"{bar.end * 1e6:g}us"]
         print(f"{bar.name}, {n} across ({result['elements']} elements, {result['steps']} "
@@ -414,6 +453,7 @@ def main() -> None:
                 f"{last['first_impact_loss']:.2e}); max eps_p "
                 f"{last['max_equivalent_plastic_strain']:.3f}, T {last['max_temperature']:.0f} K",
               flush=True)
+    print(f"figure: {figure(results, bar, args.out / f'{bar.name}-outlines.png', args.sph)}")
 
 
 if __name__ == "__main__":
