@@ -125,6 +125,17 @@ def test_coarse_run_conserves_energy_and_shortens_in_the_theory_band(coarse_run)
     assert last["plastic_work"] > 0.9 * kinetic
 
 
+def test_figure_draws_the_outline(coarse_run, tmp_path):
+    """The outline figure is written (a PNG), with the coarse run's closed boundary: it
+    starts and ends on the axis at the wall and its nodes are the mesh's boundary nodes."""
+    outline = np.array(coarse_run["boundary_final"])
+    assert outline[0][0] == 0.0 and np.array_equal(outline[0], outline[-1])  # closed
+    n_along = round(8 * BAR.length / BAR.half_width)
+    assert len(outline) == 2 * (8 + n_along) + 1
+    path = fem.figure([coarse_run], BAR, tmp_path / "outline.png")
+    assert path.read_bytes()[:4] == b"\x89PNG"
+
+
 def test_the_lab_reference_is_this_solution(coarse_run):
     """The lab's plane-strain reference length (``lab.REFERENCE_LENGTH_RATIO``, the 64-across
     value 0.8100) is this solver's: the coarse run lies within 0.5% of it (measured +0.38%),
