@@ -159,6 +159,22 @@ def mesh(bar: Bar, n_across: int) -> tuple[np.ndarray, np.ndarray]:
     return nodes, elements.astype(np.int64)
 
 
+@nb.njit(inline="always", cache=True)
+def point_gradient(f, nodes, derivatives, g):
+    """``sum_a f_a (x) D_a`` at Gauss point ``g`` (``D`` = ``DSHAPE[g]``: the Jacobian of
+    the positions; ``dN[g]``: the gradient of a nodal field) and ``sum_a N_a f_a,0`` (the
+    radius, or the radial velocity, there): ``(f0_1, f0_2, f1_1, f1_2, value0)``."""
+    g00 = g01 = g10 = g11 = value = 0.0
+    for a in range(4):
+        f0, f1 = f[nodes[a], 0], f[nodes[a], 1]
+        g00 += f0 * derivatives[g, a, 0]
+        g01 += f0 * derivatives[g, a, 1]
+        g10 += f1 * derivatives[g, a, 0]
+        g11 += f1 * derivatives[g, a, 1]
+        value += SHAPE[g, a] * f0
+    return g00, g01, g10, g11, value
+
+
 @nb.njit(cache=True)
 def lumped_masses(x, elements, rho0, axisymmetric):
     """``m_a = sum_e rho0 int N_a dV`` (dV = r dA in axisymmetry, per radian); element masses."""
@@ -167,13 +183,7 @@ def lumped_masses(x, elements, rho0, axisymmetric):
     for k in range(elements.shape[0]):
         nodes = elements[k]
         for g in range(4):
-            j00 = j01 = j10 = j11 = r = 0.0
-            for a in range(4):
-                j00 += x[nodes[a], 0] * DSHAPE[g, a, 0]
-                j01 += x[nodes[a], 0] * DSHAPE[g, a, 1]
-                j10 += x[nodes[a], 1] * DSHAPE[g, a, 0]
-                j11 += x[nodes[a], 1] * DSHAPE[g, a, 1]
-                r += SHAPE[g, a] * x[nodes[a], 0]
+            j00, j01, j10, j11, r = point_gradient(x, nodes, DSHAPE, g)
             w = (j00 * j11 - j01 * j10) * (r if axisymmetric else 1.0)
             mass_e[k] += rho0 * w
             for a in range(4):
@@ -204,14 +214,7 @@ def element_pass(x, v, elements, mass_e, rho, e, S, state, p, dt, M, axisymmetri
         volume = 0.0
         area = 0.0
         for g in range(4):
-            j00 = j01 = j10 = j11 = r = 0.0
-            for a in range(4):
-                xa, ya = x[nodes[a], 0], x[nodes[a], 1]
-                j00 += xa * DSHAPE[g, a, 0]
-                j01 += xa * DSHAPE[g, a, 1]
-                j10 += ya * DSHAPE[g, a, 0]
-                j11 += ya * DSHAPE[g, a, 1]
-                r += SHAPE[g, a] * xa
+            j00, j01, j10, j11, r = point_gradient(x, nodes, DSHAPE, g)
             d = j00 * j11 - j01 * j10
             radius[g] = r
             w[g] = d * (r if axisymmetric else 1.0)
@@ -225,15 +228,9 @@ def element_pass(x, v, elements, mass_e, rho, e, S, state, p, dt, M, axisymmetri
             (x[nodes[3], 0] - x[nodes[1], 0]) ** 2 + (x[nodes[3], 1] - x[nodes[1], 1]) ** 2))
         if update:
             div = 0.0
+            rho_new = mass_e[k] / volume  # the element's density in the new configuration
             for g in range(4):
-                lxx = lyy = lxy = lyx = vr = 0.0
-                for a in range(4):
-                    va0, va1 = v[nodes[a], 0], v[nodes[a], 1]
-                    lxx += va0 * dN[g, a, 0]
-                    lxy += va0 * dN[g, a, 1]
-                    lyx += va1 * dN[g, a, 0]
-                    lyy += va1 * dN[g, a, 1]
-                    vr += SHAPE[g, a] * va0
+                lxx, lxy, lyx, lyy, vr = point_gradient(v, nodes, dN, g)
                 hoop[g] = vr / radius[g] if axisymmetric else 0.0
                 div += (lxx + lyy + hoop[g]) * w[g]
                 w_spin = 0.5 * (lxy - lyx)
@@ -253,7 +250,6 @@ def element_pass(x, v, elements, mass_e, rho, e, S, state, p, dt, M, axisymmetri
                 local[EQUIVALENT_PLASTIC_STRAIN] = state[k, g, 0]
                 local[PLASTIC_STRAIN_RATE] = state[k, g, 1]
                 local[TEMPERATURE] = state[k, g, 2]
-                rho_new = mass_e[k] / volume
                 thermal = thermal_factor(local[TEMPERATURE], M[T_REF], M[T_MELT],
                                          M[THERMAL_M])
                 wp = hardening_return(S33, rho_new, shear, local, dt, M[FLOW_A], M[FLOW_B],
@@ -270,7 +266,6 @@ def element_pass(x, v, elements, mass_e, rho, e, S, state, p, dt, M, axisymmetri
             div /= volume
             deviatoric_power = power[0] + power[1] + power[2] + power[3]
             rho_old = rho[k]
-            rho_new = mass_e[k] / volume
             c = math.sqrt(max((M[A0] + 4.0 / 3.0 * shear) / rho_new, 1.0))
             q = 0.0
             if div < 0.0:  # bulk viscosity on the mean volumetric rate, compression only
