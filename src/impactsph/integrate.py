@@ -1,10 +1,10 @@
-"""Time integration: the explicit midpoint predictor-corrector of Table 1 (docs/modelling.md).
-
-::
+"""Time integration (``time.integrator``, :data:`INTEGRATORS`): the explicit midpoint
+predictor-corrector of Table 1 (docs/modelling.md), the default::
 
     rates at t            ->  y(t + dt/2) = y(t) + dt/2 ydot(t)        (predictor)
     rates at t + dt/2     ->  y(t + dt)   = y(t) + dt   ydot(t + dt/2)  (corrector)
 
+and the three-stage strong-stability-preserving Runge-Kutta method (:class:`SspRk3Integrator`)
 for ``y = (x, v, rho, e, S)``, with the strength model's return map (:mod:`.models.strength`)
 after each stage and clamped particles held at zero velocity; one stage of one particle is
 :func:`impactsph.physics.passes.advance_particle`.  The step follows the CFL condition
@@ -125,9 +125,18 @@ class MidpointIntegrator:
     """Table 1's predictor-corrector.  ``rates(state)`` must return
     ``(dv, drho, de, dS, dhg)`` for the active particles; see :class:`~impactsph.solver.Solver`."""
 
+    #: the weight of each rate evaluation of a step in the step's mean rate (``y(t + dt) =
+    #: y(t) + dt sum_k w_k ydot_k``): the powers, wall forces and reactions booked for the step
+    #: are the same mean of each evaluation's
+    WEIGHTS: tuple[float, ...] = (0.0, 1.0)
+
     def __init__(self, rates, table: np.ndarray, n_active: int, dim: int, constraint=None,
-                 drivers=None, plane_stress: bool = False, axisymmetric: bool = False):
+                 drivers=None, plane_stress: bool = False, axisymmetric: bool = False,
+                 observe=None):
         self.rates = rates
+        #: ``observe(k, weight)``, called after the step's ``k``-th rate evaluation with its
+        #: weight in :data:`WEIGHTS` (the run's books: heating, wall impulse), or None
+        self.observe = observe
         #: the driven regions (:class:`impactsph.driven.Drivers`), or None
         self.drivers = drivers
         # constraint(x, v, m) -> (count, impulse), applied after each stage
@@ -166,7 +175,10 @@ class MidpointIntegrator:
         return self._start
 
     def _stage(self, state: ParticleState, dt: float, start: SimpleNamespace, v_rate, rates,
-               final: bool):
+               share: float, last: bool) -> int:
+        """One forward-Euler stage ``y = start + dt ydot`` (positions with ``v_rate``), then
+        the walls' constraint (:meth:`_constrain`, its impulse with the share ``share``; its
+        events counted if this is the step's ``last`` stage)."""
         dv, drho, de, dS, dhg = rates
         self._advance(self.n_active, dt, start.position, start.velocity, start.density,
                       start.specific_energy, start.deviatoric_stress, start.plastic_work,
@@ -176,11 +188,29 @@ class MidpointIntegrator:
                       state.velocity, state.density, state.specific_energy,
                       state.deviatoric_stress, state.plastic_work, state.material_state,
                       state.hourglass_acceleration)
-        if self.constraint is not None:
-            count, impulse = self.constraint(state.position, state.velocity, self._inertia)
-            if final:  # the predictor's state is discarded; only the step's own counts
-                self.constraint_events += count
-                self.constraint_impulse += impulse
+        return self._constrain(state, share, last)
+
+    def _constrain(self, state: ParticleState, share: float, count_events: bool) -> int:
+        """The walls' constraint on ``state``: ``share`` times its impulse goes to the run's
+        books (``share``: the weight of this state in the step's result; the midpoint
+        predictor's state is discarded, 0), and its events if ``count_events`` (those of each
+        integrator's last stage, so that the counts compare).  Returns the events."""
+        if self.constraint is None:
+            return 0
+        count, impulse = self.constraint(state.position, state.velocity, self._inertia)
+        if share != 0.0:
+            self.constraint_impulse += share * impulse
+        if count_events:
+            self.constraint_events += count
+        return count
+
+    def _rates(self, state: ParticleState, k: int, time: float | None):
+        """The ``k``-th rate evaluation of the step, at ``time`` (None: the switches' clock
+        does not move), reported to :attr:`observe`."""
+        rates = self.rates(state, time=time)
+        if self.observe is not None:
+            self.observe(k, self.WEIGHTS[k])
+        return rates
 
     def step(self, state: ParticleState, dt: float) -> None:
         """Advance ``state`` by ``dt`` in place."""
@@ -189,14 +219,15 @@ class MidpointIntegrator:
             self._inertia = state.inertial_mass  # mass + added mass: impulses = inertia dv
         start = self._save_start(state)
         drivers = self.drivers
-        self._stage(state, 0.5 * dt, start, start.velocity, self.rates(state, time=state.time),
-                    final=False)
+        # the predictor's state is discarded: its constraint's impulse has no share
+        self._stage(state, 0.5 * dt, start, start.velocity, self._rates(state, 0, state.time),
+                    0.0, False)
         if drivers is not None:
             drivers.apply(state.velocity, state.time + 0.5 * dt)
-        rates = self.rates(state, time=state.time + 0.5 * dt)
+        rates = self._rates(state, 1, state.time + 0.5 * dt)
         # x(t + dt) = x(t) + dt v(t + dt/2): the kernel reads each particle's midpoint
         # velocity before it overwrites it, so the velocity array itself is the position rate
-        self._stage(state, dt, start, state.velocity, rates, final=True)
+        self._stage(state, dt, start, state.velocity, rates, 1.0, True)
         if drivers is not None:
             drivers.apply(state.velocity, state.time + dt)
             drivers.account(self._inertia, rates[0][: state.n], state.time, dt)
@@ -206,3 +237,100 @@ class MidpointIntegrator:
         state.time += dt
         state.step += 1
 
+
+
+class SspRk3Integrator(MidpointIntegrator):
+    """The three-stage, third-order strong-stability-preserving Runge-Kutta method (Shu &
+    Osher 1988, J. Comput. Phys. 77:439, eq 2.18; Gottlieb & Shu 1998, Math. Comp. 67:73),
+    ``time.integrator = "ssp_rk3"``::
+
+        y1      = y(t) + dt ydot(y(t))                              (rates at t)
+        y2      = 3/4 y(t) + 1/4 (y1 + dt ydot(y1))                 (rates at t + dt)
+        y(t+dt) = 1/3 y(t) + 2/3 (y2 + dt ydot(y2))                 (rates at t + dt/2)
+
+    Each bracket is one forward-Euler stage of :func:`~impactsph.physics.passes.advance_particle`
+    (the return map and damage included, from the stage's own start), and each combination a
+    convex one of every integrated field, so a stress inside a convex yield surface stays
+    inside it and a positive density stays positive.  The step's mean rate is ``(ydot(y(t)) +
+    ydot(y1)) / 6 + 2/3 ydot(y2)`` (:data:`WEIGHTS`).
+
+    Why: on an undamped oscillation ``y' = i omega y`` the midpoint step multiplies the
+    amplitude by ``|G|`` with ``|G|^2 = 1 + z^4/4`` (``z = omega dt``), a slow growth that
+    nothing but the viscosity removes; this method's ``|G|^2 = 1 - z^4/12 + z^6/36`` is below 1
+    for ``z < sqrt(3)``.  Three evaluations a step instead of two: at Courant number ``1.5 cs``
+    it costs what the midpoint step costs at ``cs`` (docs/dissipation.md, "The switches'
+    energy errors").  The viscosity switches' clock moves at the first two evaluations (``t``,
+    ``t + dt``); the third, at the half-step state, sets their factors without time passing.
+    """
+
+    WEIGHTS = (1.0 / 6.0, 1.0 / 6.0, 2.0 / 3.0)
+
+    def _keep(self, state: ParticleState, name: str) -> SimpleNamespace:
+        """A copy of the integrated fields of ``state`` in the buffers ``name``."""
+        buf = getattr(self, name, None)
+        if buf is None or buf.position.shape != state.position.shape:
+            buf = SimpleNamespace(**{f: np.empty_like(getattr(state, f))
+                                     for f in self.INTEGRATED})
+            setattr(self, name, buf)
+        for f in self.INTEGRATED:
+            np.copyto(getattr(buf, f), getattr(state, f))
+        return buf
+
+    def _combine(self, state: ParticleState, start: SimpleNamespace, weight: float,
+                 share: float) -> None:
+        """``y = (1 - weight) y + weight y(t)`` for every integrated field, then the walls'
+        constraint, whose impulse has the share ``share`` in the step's result (a plane
+        wall's half-space is convex: a combination of two states that keep to it does too,
+        and the constraint finds nothing to do)."""
+        for f in self.INTEGRATED:
+            y = getattr(state, f)
+            y *= 1.0 - weight
+            y += weight * getattr(start, f)
+        self._constrain(state, share, False)
+
+    def step(self, state: ParticleState, dt: float) -> None:
+        """Advance ``state`` by ``dt`` in place."""
+        if self._any_clamped is None:
+            self._any_clamped = bool(state.clamped.any())
+            self._inertia = state.inertial_mass
+        start = self._save_start(state)
+        drivers = self.drivers
+        t = state.time
+        books = drivers is not None or self._any_clamped
+        # the walls' constraint acts on each stage's state; its impulse reaches the result
+        # with that state's share in it: y1 1/6, the second stage 1/6, y2 and the third
+        # stage 2/3, the result 1
+        rates = self._rates(state, 0, t)
+        mean_dv = self.WEIGHTS[0] * rates[0][: state.n] if books else None
+        self._stage(state, dt, start, start.velocity, rates, 1.0 / 6.0, False)
+        if drivers is not None:
+            drivers.apply(state.velocity, t + dt)
+        y1 = self._keep(state, "_y1")
+        rates = self._rates(state, 1, t + dt)
+        if books:
+            mean_dv += self.WEIGHTS[1] * rates[0][: state.n]
+        self._stage(state, dt, y1, y1.velocity, rates, 1.0 / 6.0, False)
+        self._combine(state, start, 0.75, 2.0 / 3.0)
+        if drivers is not None:
+            drivers.apply(state.velocity, t + 0.5 * dt)
+        y2 = self._keep(state, "_y2")
+        rates = self._rates(state, 2, None)
+        if books:
+            mean_dv += self.WEIGHTS[2] * rates[0][: state.n]
+        self._stage(state, dt, y2, y2.velocity, rates, 2.0 / 3.0, True)
+        self._combine(state, start, 1.0 / 3.0, 1.0)
+        if drivers is not None:
+            drivers.apply(state.velocity, t + dt)
+            drivers.account(self._inertia, mean_dv, t, dt)
+        if self._any_clamped:
+            clamped = state.clamped
+            self.clamp_impulse -= dt * (self._inertia[clamped] @ mean_dv[clamped])
+        state.time += dt
+        state.step += 1
+
+
+#: ``time.integrator``: the name of each time integrator and its class.
+INTEGRATORS: dict[str, type[MidpointIntegrator]] = {
+    "midpoint": MidpointIntegrator,
+    "ssp_rk3": SspRk3Integrator,
+}

@@ -16,7 +16,7 @@ from .devices import select_backend
 from .driven import Drivers
 from .errors import SimulationError
 from .gauges import Gauges
-from .integrate import MidpointIntegrator
+from .integrate import INTEGRATORS
 from .materials import carried_von_mises
 from .models import VISCOSITY
 from .models.columns import COMMON_STATE, DAMAGE
@@ -126,12 +126,15 @@ class Simulation:
         if case.stabilisation.hourglass > 0.0 and self.state.hourglass_acceleration.shape[1] \
                 != self.state.dim:
             self.state.hourglass_acceleration = np.zeros((self.state.n, self.state.dim))
-        self.integrator = MidpointIntegrator(
+        self.integrator = INTEGRATORS[case.time.integrator](
             self.solver.rates, self.problem.table, self.state.n, self.state.dim,
             constraint=self.walls.enforce if len(self.walls) else None,
             drivers=Drivers.of(case, self.state),
             plane_stress=case.two_dimensional == "plane_stress",
-            axisymmetric=case.two_dimensional == "axisymmetric")
+            axisymmetric=case.two_dimensional == "axisymmetric", observe=self._observe)
+        #: the step's mean powers (AV heating, AC work, AC heating; W) and wall force (N),
+        #: the integrator's weights over its rate evaluations (:meth:`_observe`)
+        self._step_books = (0.0, 0.0, 0.0, np.zeros(self.state.dim))
         self.record = RunRecord(probes={name: [] for name in self.problem.probes})
         self.gauges = Gauges.of(case, self.problem)
         #: per body, the largest displacement |x - x0| of a particle at the history's rows (m)
@@ -150,6 +153,20 @@ class Simulation:
             self._record_row(0.0, self._survey())
             self._take_snapshots(previous=-np.inf)
         self.record.setup_seconds = _time.perf_counter() - t0
+
+    def _observe(self, k: int, weight: float) -> None:
+        """The integrator's ``k``-th rate evaluation of a step, of weight ``weight`` in the
+        step's mean rate: its powers and wall force added to the step's books (a weight of 0
+        adds nothing, so the midpoint step books its midpoint evaluation's, exactly)."""
+        if k == 0:
+            self._step_books = (0.0, 0.0, 0.0, np.zeros(self.state.dim))
+        if weight == 0.0:
+            return
+        heating, work, corr_heating = self.solver.powers
+        books = self._step_books
+        self._step_books = (books[0] + weight * heating, books[1] + weight * work,
+                            books[2] + weight * corr_heating,
+                            books[3] + weight * self.solver.wall_force)
 
     # -- diagnostics -------------------------------------------------------------------
     def _survey(self) -> Survey:
@@ -302,11 +319,11 @@ class Simulation:
                 self.integrator.step(self.state, dt)
                 if reaches_stop:
                     self.state.time = stop
-                heating, work, corr_heating = self.solver.powers
+                heating, work, corr_heating, wall_force = self._step_books
                 self.viscous_dissipation += dt * heating
                 self.correction_work += dt * work
                 self.correction_heating += dt * corr_heating
-                self.wall_impulse += dt * self.solver.wall_force
+                self.wall_impulse += dt * wall_force
                 survey = self._survey()
                 if self.state.step % every == 0 or self.state.time >= t_end * (1 - 1e-12):
                     self._record_row(dt, survey)
