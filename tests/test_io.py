@@ -87,6 +87,9 @@ def final_arrays(sim):
     ("taylor", ["time.end=6e-6"]),  # walls (ghosts), plasticity, AC
     # a viscosity switch: its factors are state that the next evaluation reads
     ("taylor", ["time.end=6e-6", 'viscosity.scheme="balsara"']),
+    # the three-stage integrator, with a switch whose memory and clock are state
+    ("taylor", ["time.end=6e-6", 'viscosity.scheme="cullen_dehnen"',
+                'time.integrator="ssp_rk3"', "time.courant=0.45"]),
     # axisymmetry: the radius in the material state, and the axis's mirror ghosts, whose
     # results are mirrored by the records' places in the restored list's order (before this
     # case was added a restart kept the places of the list built at start-up: 1e-6 apart)
