@@ -84,6 +84,9 @@ def main() -> None:
     parser.add_argument("--all", action="store_true", help="every test with measured values")
     parser.add_argument("--materials", nargs="+", default=None,
                         help="only the tests of these library materials")
+    parser.add_argument("--tests", nargs="+", default=None, metavar="MATERIAL:VELOCITY",
+                        help="only these tests (of every test with measured values), e.g. "
+                        "ofhc_copper:210")
     parser.add_argument("--end", type=float, default=100e-6, help="end time (s)")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--out", type=Path, default=Path("runs/validation/taylor-measured"))
@@ -97,8 +100,14 @@ def main() -> None:
     parser.add_argument("--report-only", action="store_true",
                         help="tabulate the runs already in --out, run nothing")
     args = parser.parse_args()
-    chosen = [t for t in tests(args.all)
-              if args.materials is None or t["material"] in args.materials]
+    wanted = None if args.tests is None else {
+        (name.split(":")[0], float(name.split(":")[1])) for name in args.tests}
+    chosen = [t for t in tests(args.all or wanted is not None)
+              if (args.materials is None or t["material"] in args.materials)
+              and (wanted is None or (t["material"], t["velocity"]) in wanted)]
+    if not chosen:
+        parser.error(f"no test with measured values matches --materials {args.materials} "
+                     f"--tests {args.tests}")
     labels, names = [], []
     cases = []
     for test in chosen:
