@@ -238,7 +238,6 @@ class MidpointIntegrator:
         state.step += 1
 
 
-
 class SspRk3Integrator(MidpointIntegrator):
     """The three-stage, third-order strong-stability-preserving Runge-Kutta method (Shu &
     Osher 1988, J. Comput. Phys. 77:439, eq 2.18; Gottlieb & Shu 1998, Math. Comp. 67:73),
