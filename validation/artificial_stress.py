@@ -49,7 +49,7 @@ from scipy.spatial import cKDTree
 
 from impactsph import Simulation
 from impactsph.errors import SimulationError
-from impactsph.kernels import kernel_derivative
+from impactsph.kernels import artificial_stress_moment, gradient_moment
 from impactsph.loading import validate_case
 
 H_OVER_DX = 1.3
@@ -57,7 +57,22 @@ EPSILON = 0.3
 #: the stabilisation the set-ups run with besides the artificial stress: "plain" is the
 #: paper's scheme (no gradient correction, no hourglass control), "defaults" the case
 #: defaults (for these elastic bodies: the correction of the forces and hourglass zeta = 2)
-SCHEMES = {"plain": {"gradient_correction": "none", "hourglass": 0.0}, "defaults": {}}
+SCHEMES = {"plain": {"gradient_correction": "none", "hourglass": 0.0}, "defaults": {},
+           # the plain scheme with the artificial stress's smooth part added back
+           # (stabilisation.artificial_stress_compensation)
+           "compensated": {"gradient_correction": "none", "hourglass": 0.0,
+                           "artificial_stress_compensation": True}}
+
+
+
+def _scheme(name: str, epsilon: float) -> dict[str, Any]:
+    """The ``[stabilisation]`` fields of ``SCHEMES[name]`` (the compensation only where there
+    is an artificial stress to compensate)."""
+    fields = dict(SCHEMES[name])
+    if epsilon == 0.0:
+        fields.pop("artificial_stress_compensation", None)
+    return fields
+
 
 # -- the tension rod -------------------------------------------------------------------------
 ROD_RHO, ROD_E = 1000.0, 1e7  # kg/m^3, Pa
@@ -82,26 +97,16 @@ def lattice_moments(dim: int, h_over_dx: float = H_OVER_DX, exponent: float = 4.
                     ) -> tuple[float, float]:
     """``(M, M_f)``: the first moment ``M = -sum_j V_j (x_j^2 / r_j) dW/dr`` of the kernel
     gradient over a regular lattice (:func:`impactsph.kernels.gradient_moment`), and the same
-    sum weighted by the artificial stress's ``f_j^n = (W(r_j) / W(dx))^n``.
+    sum weighted by the artificial stress's ``f_j^n = (W(r_j) / W(dx))^n``
+    (:func:`impactsph.kernels.artificial_stress_moment`).
 
     For a long wave on the lattice, the SPH gradient of a linear field is ``M`` times the
     exact one, and the artificial-stress sum of a linearly varying ``R`` is ``M_f rho grad R``;
     in tension ``R = -epsilon sigma / rho^2``, so the momentum equation sees ``(M - epsilon
     M_f) grad sigma`` and the stress rate ``M grad v``: the discrete long-wave speed in
     tension is ``c sqrt(M (M - epsilon M_f))`` (:func:`discrete_tension_speed`)."""
-    reach = int(np.ceil(2.0 * h_over_dx)) + 1
-    axis = np.arange(-reach, reach + 1, dtype=np.float64)
-    grid = np.stack(np.meshgrid(*[axis] * dim, indexing="ij"), -1).reshape(-1, dim)
-    r = np.linalg.norm(grid, axis=1)
-    inside = (r > 0) & (r < 2.0 * h_over_dx)
-    q = r[inside] / h_over_dx
-
-    def shape(q: np.ndarray) -> np.ndarray:
-        return np.where(q <= 1.0, 1.0 - 1.5 * q**2 + 0.75 * q**3, 0.25 * (2.0 - q) ** 3)
-
-    f = (shape(q) / shape(np.array(1.0 / h_over_dx))) ** exponent
-    w = -grid[inside, 0] ** 2 / r[inside] * kernel_derivative(r[inside], h_over_dx, dim)
-    return float(w.sum()), float((w * f).sum())
+    return (gradient_moment(h_over_dx, dim),
+            artificial_stress_moment(h_over_dx, dim, exponent))
 
 
 def discrete_tension_speed(dim: int, epsilon: float) -> float:
@@ -128,7 +133,8 @@ def rod_case(dim: int, spacing: float, epsilon: float, end_fraction: float = 1.0
             "clamped": {"origin": [-CLAMP_COLUMNS * dx - 0.1 * dx] + [-1.0] * (dim - 1),
                         "size": [CLAMP_COLUMNS * dx] + [2.0] * (dim - 1)}}],
         "kernel": {"h_over_dx": H_OVER_DX},
-        "stabilisation": {"artificial_stress": epsilon, **SCHEMES[scheme]},
+        "stabilisation": {"artificial_stress": epsilon,
+                          **_scheme(scheme, epsilon)},
         "time": {"end": end_fraction * ROD_LENGTH / ROD_C},
         "output": {"figures": False, "history_every": 1000}})
 
@@ -224,7 +230,7 @@ def rings_case(spacing: float, epsilon: float, end: float, scheme: str = "plain"
                    {"name": "right", "material": "rubber", "velocity": [-RING_SPEED, 0.0],
                     "geometry": ring(1.0)}],
         "kernel": {"h_over_dx": H_OVER_DX},
-        "stabilisation": {"artificial_stress": epsilon, **SCHEMES[scheme]},
+        "stabilisation": {"artificial_stress": epsilon, **_scheme(scheme, epsilon)},
         "time": {"end": end, "wave_speed": "p_wave"},
         "output": {"figures": False, "history_every": 1000}})
 

@@ -169,7 +169,7 @@ def binding(dim: int, options: PassOptions | str | None = None) -> tuple[str, di
         "# into this module):",
         *described,
         f"DIM = {dim}",
-        *options.constants(),
+        *options.constants(dim),
         "JIT = nb.njit",
         f"EOS_PARAMS = {layout.eos_params}",
         f"STRENGTH_PARAMS = {layout.strength_params}",

@@ -477,6 +477,20 @@ class Stabilisation(_Model):
     artificial_stress_exponent: float = Field(
         4.0, gt=0.0, description="exponent n of the artificial stress's weight "
         "(W(r)/W(dx))^n (Gray et al. 2001 use 4)")
+    artificial_stress_compensation: bool = Field(
+        False, description="add back, through the stress term, the smooth part of the "
+        "artificial stress's force (kappa = M_f / M of the initial lattice: "
+        "impactsph.kernels.artificial_stress_moment), so that long tensile waves keep their "
+        "speed while close pairs are still pushed apart (docs/stabilisation.md); needs "
+        "artificial_stress > 0")
+
+    @model_validator(mode="after")
+    def _compensation_needs_the_artificial_stress(self) -> Stabilisation:
+        if self.artificial_stress_compensation and self.artificial_stress == 0.0:
+            raise ValueError("stabilisation.artificial_stress_compensation = true needs "
+                             "stabilisation.artificial_stress > 0 (it compensates that term); "
+                             "set artificial_stress (e.g. 0.3) or leave the compensation off")
+        return self
 
 
 class Contact(_Model):

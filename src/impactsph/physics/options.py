@@ -33,7 +33,8 @@ class PassOptions:
       are few, so the test costs nothing), not part of the generated module;
     - ``artificial_stress``: Monaghan's (2000) coefficient epsilon, 0 for none;
       ``artificial_stress_exponent`` n and ``reference_q`` = dx / h, the kernel argument at
-      which ``f_ij = W(r_ij) / W(dx)`` is 1;
+      which ``f_ij = W(r_ij) / W(dx)`` is 1; ``artificial_stress_compensation``: the smooth
+      part of its force added back through the stress term (``AS_COMPENSATION``);
     - ``contact_friction``: the Coulomb coefficient between bodies (0: frictionless); a
       run-time argument of the friction pass, which runs only where it is > 0;
     - ``axisymmetric``: a 2D run in axisymmetry (``x`` the radius, ``y`` the axis; the hoop
@@ -53,6 +54,7 @@ class PassOptions:
     artificial_stress: float = 0.0
     artificial_stress_exponent: float = 4.0
     reference_q: float = 1.0 / 1.3
+    artificial_stress_compensation: bool = False
     plane_stress: bool = False
     axisymmetric: bool = False
     contact_friction: float = 0.0
@@ -86,6 +88,8 @@ class PassOptions:
                    artificial_stress=float(stab.artificial_stress),
                    artificial_stress_exponent=float(stab.artificial_stress_exponent),
                    reference_q=1.0 / float(case.kernel.h_over_dx),
+                   artificial_stress_compensation=bool(
+                       getattr(stab, "artificial_stress_compensation", False)),
                    plane_stress=getattr(case, "two_dimensional", "") == "plane_stress",
                    axisymmetric=getattr(case, "two_dimensional", "") == "axisymmetric",
                    contact_friction=float(case.contact.friction),
@@ -108,7 +112,7 @@ class PassOptions:
         """A short tag for the generated module's file name."""
         tag = GRADIENT_CORRECTIONS[self.gradient_correction]
         if self.artificial_stress > 0.0:
-            tag += "_as"
+            tag += "_asc" if self.artificial_stress_compensation else "_as"
         if self.plane_stress:
             tag += "_ps"
         if self.viscosity_factor:
@@ -119,9 +123,22 @@ class PassOptions:
             tag += "_vr"
         return tag
 
-    def constants(self) -> list[str]:
-        """The binding's lines for these options (the artificial stress's parameters only
-        where it is on, so that a run without it shares one module whatever its h/dx)."""
+    def compensation(self, dim: int) -> float:
+        """``kappa = M_f / M`` on the regular lattice of this ``h/dx`` in ``dim`` dimensions
+        (:func:`impactsph.kernels.artificial_stress_moment`,
+        :func:`impactsph.kernels.gradient_moment`) with the compensation on, else 0."""
+        if not (self.artificial_stress_compensation and self.artificial_stress > 0.0):
+            return 0.0
+        from ..kernels import artificial_stress_moment, gradient_moment
+
+        h_over_dx = 1.0 / self.reference_q
+        return (artificial_stress_moment(h_over_dx, dim, self.artificial_stress_exponent)
+                / gradient_moment(h_over_dx, dim))
+
+    def constants(self, dim: int = 2) -> list[str]:
+        """The binding's lines for these options in ``dim`` dimensions (the artificial
+        stress's parameters only where it is on, so that a run without it shares one module
+        whatever its h/dx)."""
         on = self.artificial_stress > 0.0
         return [
             f"GRADIENT_CORRECTION = {self.gradient_correction == 'velocity_gradient'}",
@@ -130,6 +147,7 @@ class PassOptions:
             f"ARTIFICIAL_STRESS_EXPONENT = "
             f"{float(self.artificial_stress_exponent) if on else 4.0!r}",
             f"REFERENCE_Q = {float(self.reference_q) if on else 1.0!r}",
+            f"AS_COMPENSATION = {self.compensation(dim) if on else 0.0!r}",
             f"PLANE_STRESS = {bool(self.plane_stress)}",
             f"VISCOSITY_FACTOR = {bool(self.viscosity_factor)}",
             f"AXISYMMETRIC = {bool(self.axisymmetric)}",

@@ -81,6 +81,9 @@ GRADIENT_CORRECTION = False
 FORCE_CORRECTION = False
 ARTIFICIAL_STRESS = 0.0
 ARTIFICIAL_STRESS_EXPONENT = 4.0
+#: kappa = M_f / M of the initial lattice with the artificial stress's compensation, else 0
+#: (:func:`artificial_stress_record`)
+AS_COMPENSATION = 0.0
 REFERENCE_Q = 1.0
 PLANE_STRESS = False
 VISCOSITY_FACTOR = False
@@ -280,7 +283,16 @@ def artificial_stress_record(P, p):
     axes of the problem; ``R`` (m^5/(kg s^2), like ``A = sigma/rho^2``) is ``-epsilon`` times
     the tensile part of ``A_i`` (:func:`tension_part_2d`, :func:`tension_part_3d`).  In 1D
     ``R = -epsilon max(sigma_xx, 0) / rho^2``; in 2D (plane strain) the in-plane 2x2 part of
-    the stress, the only one the in-plane forces see."""
+    the stress, the only one the in-plane forces see.
+
+    With the compensation (``AS_COMPENSATION`` = kappa > 0, ``stabilisation.
+    artificial_stress_compensation``) the record's ``A_i`` becomes ``A_i - kappa R_i``.  For a
+    long wave on the lattice the stress term gives ``M rho grad A`` and AS-3 ``M_f rho grad R``,
+    so with ``kappa = M_f / M`` the two smooth parts cancel and the momentum equation sees ``M
+    rho grad A`` as without the artificial stress (the tensile wave keeps its speed, where it
+    is ``c sqrt(M (M - epsilon M_f))`` without the compensation); the pair repulsion of AS-3,
+    which grows as ``f_ij^n`` when two particles close in, is untouched.  The energy equation
+    reads the same ``A_i`` (:func:`particle_rates`), so the total energy is still kept."""
     eps = ARTIFICIAL_STRESS
     if DIM == 1:
         P[p, R00] = -eps * max(P[p, A00], 0.0)
@@ -298,6 +310,16 @@ def artificial_stress_record(P, p):
         P[p, R11] = -eps * t11
         P[p, R12] = -eps * t12
         P[p, R22] = -eps * t22
+    if AS_COMPENSATION != 0.0:  # A - kappa R: the smooth part of AS-3 added back
+        k = AS_COMPENSATION
+        P[p, A00] -= k * P[p, R00]
+        if DIM > 1:
+            P[p, A01] -= k * P[p, R01]
+            P[p, A11] -= k * P[p, R11]
+        if DIM > 2:
+            P[p, A02] -= k * P[p, R02]
+            P[p, A12] -= k * P[p, R12]
+            P[p, A22] -= k * P[p, R22]
 
 
 @JIT(inline="always", cache=True)
