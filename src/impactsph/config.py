@@ -478,9 +478,9 @@ class Stabilisation(_Model):
         4.0, gt=0.0, description="exponent n of the artificial stress's weight "
         "(W(r)/W(dx))^n (Gray et al. 2001 use 4)")
     artificial_stress_compensation: bool = Field(
-        False, description="add back, through the stress term, the smooth part of the "
-        "artificial stress's force (kappa = M_f / M of the initial lattice: "
-        "impactsph.kernels.artificial_stress_moment), so that long tensile waves keep their "
+        False, description="cancel the smooth part of the artificial stress's force: its "
+        "pair weight becomes (W(r)/W(dx))^n - kappa, kappa = M_f / M of the initial lattice "
+        "(impactsph.kernels.artificial_stress_moment), so that long tensile waves keep their "
         "speed while close pairs are still pushed apart (docs/stabilisation.md); needs "
         "artificial_stress > 0")
 
@@ -780,6 +780,12 @@ class Case(_Model):
                 seen.add(probe.name)
         if self.formulation == "total_lagrangian":
             self._total_lagrangian_limits()
+        if self.time.integrator == "ssp_rk3" and self.viscosity.scheme == "ac_optimised":
+            raise ValueError("time.integrator = 'ssp_rk3' with viscosity.scheme = "
+                             "'ac_optimised': that scheme optimises each factor over the time "
+                             "to the next rate evaluation, which the three-stage step's "
+                             "evaluations (at t, t + dt, t + dt/2) do not give; use "
+                             "time.integrator = 'midpoint'")
         self._resolve_stabilisation()
         return self
 

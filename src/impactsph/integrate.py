@@ -249,8 +249,8 @@ class SspRk3Integrator(MidpointIntegrator):
 
     Each bracket is one forward-Euler stage of :func:`~impactsph.physics.passes.advance_particle`
     (the return map and damage included, from the stage's own start), and each combination a
-    convex one of every integrated field, so a stress inside a convex yield surface stays
-    inside it and a positive density stays positive.  The step's mean rate is ``(ydot(y(t)) +
+    convex one of every integrated field, so a positive density stays positive (for a
+    stress and its yield surface, below).  The step's mean rate is ``(ydot(y(t)) +
     ydot(y1)) / 6 + 2/3 ydot(y2)`` (:data:`WEIGHTS`).
 
     Why: on an undamped oscillation ``y' = i omega y`` the midpoint step multiplies the
@@ -258,8 +258,14 @@ class SspRk3Integrator(MidpointIntegrator):
     nothing but the viscosity removes; this method's ``|G|^2 = 1 - z^4/12 + z^6/36`` is below 1
     for ``z < sqrt(3)``.  Three evaluations a step instead of two: at Courant number ``1.5 cs``
     it costs what the midpoint step costs at ``cs`` (docs/dissipation.md, "The switches'
-    energy errors").  The viscosity switches' clock moves at the first two evaluations (``t``,
-    ``t + dt``); the third, at the half-step state, sets their factors without time passing.
+    energy errors").  The viscosity switches' clock moves once a step, by ``dt``, at the second
+    evaluation (the state ``y1`` at ``t + dt``); the first (at ``t``, where the clock already
+    is) and the third (the half-step state ``y2``, earlier than ``y1``) set the factors without
+    time passing, so Morris-Monaghan's and Cullen-Dehnen's factors move once a step.
+    ``ac_optimised``, which optimises over the time to the next evaluation, is refused with
+    this integrator.  The convex combinations keep a stress inside a convex yield surface
+    whose size is fixed; with hardening, softening or damage the combined yield stress is
+    the combination of the stages', close to but not exactly the combined state's.
     """
 
     WEIGHTS = (1.0 / 6.0, 1.0 / 6.0, 2.0 / 3.0)

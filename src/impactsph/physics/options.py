@@ -34,7 +34,7 @@ class PassOptions:
     - ``artificial_stress``: Monaghan's (2000) coefficient epsilon, 0 for none;
       ``artificial_stress_exponent`` n and ``reference_q`` = dx / h, the kernel argument at
       which ``f_ij = W(r_ij) / W(dx)`` is 1; ``artificial_stress_compensation``: the smooth
-      part of its force added back through the stress term (``AS_COMPENSATION``);
+      part of its force cancelled (its pair weight ``f_ij^n - kappa``, ``AS_COMPENSATION``);
     - ``contact_friction``: the Coulomb coefficient between bodies (0: frictionless); a
       run-time argument of the friction pass, which runs only where it is > 0;
     - ``axisymmetric``: a 2D run in axisymmetry (``x`` the radius, ``y`` the axis; the hoop
@@ -135,7 +135,7 @@ class PassOptions:
         return (artificial_stress_moment(h_over_dx, dim, self.artificial_stress_exponent)
                 / gradient_moment(h_over_dx, dim))
 
-    def constants(self, dim: int = 2) -> list[str]:
+    def constants(self, dim: int) -> list[str]:
         """The binding's lines for these options in ``dim`` dimensions (the artificial
         stress's parameters only where it is on, so that a run without it shares one module
         whatever its h/dx)."""

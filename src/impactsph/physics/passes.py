@@ -82,7 +82,7 @@ FORCE_CORRECTION = False
 ARTIFICIAL_STRESS = 0.0
 ARTIFICIAL_STRESS_EXPONENT = 4.0
 #: kappa = M_f / M of the initial lattice with the artificial stress's compensation, else 0
-#: (:func:`artificial_stress_record`)
+#: (subtracted from AS-3's weight ``f_ij^n`` in :func:`particle_rates`)
 AS_COMPENSATION = 0.0
 REFERENCE_Q = 1.0
 PLANE_STRESS = False
@@ -284,15 +284,7 @@ def artificial_stress_record(P, p):
     the tensile part of ``A_i`` (:func:`tension_part_2d`, :func:`tension_part_3d`).  In 1D
     ``R = -epsilon max(sigma_xx, 0) / rho^2``; in 2D (plane strain) the in-plane 2x2 part of
     the stress, the only one the in-plane forces see.
-
-    With the compensation (``AS_COMPENSATION`` = kappa > 0, ``stabilisation.
-    artificial_stress_compensation``) the record's ``A_i`` becomes ``A_i - kappa R_i``.  For a
-    long wave on the lattice the stress term gives ``M rho grad A`` and AS-3 ``M_f rho grad R``,
-    so with ``kappa = M_f / M`` the two smooth parts cancel and the momentum equation sees ``M
-    rho grad A`` as without the artificial stress (the tensile wave keeps its speed, where it
-    is ``c sqrt(M (M - epsilon M_f))`` without the compensation); the pair repulsion of AS-3,
-    which grows as ``f_ij^n`` when two particles close in, is untouched.  The energy equation
-    reads the same ``A_i`` (:func:`particle_rates`), so the total energy is still kept."""
+"""
     eps = ARTIFICIAL_STRESS
     if DIM == 1:
         P[p, R00] = -eps * max(P[p, A00], 0.0)
@@ -310,16 +302,6 @@ def artificial_stress_record(P, p):
         P[p, R11] = -eps * t11
         P[p, R12] = -eps * t12
         P[p, R22] = -eps * t22
-    if AS_COMPENSATION != 0.0:  # A - kappa R: the smooth part of AS-3 added back
-        k = AS_COMPENSATION
-        P[p, A00] -= k * P[p, R00]
-        if DIM > 1:
-            P[p, A01] -= k * P[p, R01]
-            P[p, A11] -= k * P[p, R11]
-        if DIM > 2:
-            P[p, A02] -= k * P[p, R02]
-            P[p, A12] -= k * P[p, R12]
-            P[p, A22] -= k * P[p, R22]
 
 
 @JIT(inline="always", cache=True)
@@ -686,7 +668,14 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
 
     with ``R`` of :func:`artificial_stress_record` (eq AS-1, negative in tension, so the pair
     repels) and ``f_ij^n`` of :func:`artificial_stress_weight` (eq AS-2): the same form as the
-    stress term ``m_j (A_i + A_j) . grad W_ij``.  The pair force is antisymmetric, so momentum
+    stress term ``m_j (A_i + A_j) . grad W_ij``.  With the compensation (``AS_COMPENSATION`` =
+    kappa > 0, ``stabilisation.artificial_stress_compensation``) the weight is ``f_ij^n -
+    kappa``: for a long wave on the lattice AS-3 gives ``M_f rho grad R`` and the ``-kappa``
+    part ``-kappa M rho grad R`` (both on the uncorrected ``grad W_ij``), so with ``kappa = M_f
+    / M`` the smooth parts cancel and the tensile wave keeps its speed (without it,
+    ``c sqrt(M (M - epsilon M_f))``), while the repulsion of a closing pair, growing as
+    ``f_ij^n``, stays; the weight is still symmetric, so AS-4 still books the pair's power.
+    The pair force is antisymmetric, so momentum
     is kept exactly, and AS-4 is its power shared equally by the pair, so the semi-discrete
     equations keep the total energy.  With the kernel gradient correction of the forces it
     stays on the uncorrected ``grad W_ij``: a repulsion between neighbours, which needs no
@@ -825,7 +814,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
         else:
             t0, t1, t2 = s0, s1, s2
         if ARTIFICIAL_STRESS > 0.0:  # on the uncorrected grad W_ij (docs/stabilisation.md)
-            mf = m_j * artificial_stress_weight(q)
+            mf = m_j * (artificial_stress_weight(q) - AS_COMPENSATION)
             e0 = (ri00 + P[j, R00]) * s0
             e1 = e2 = 0.0
             if DIM > 1:
