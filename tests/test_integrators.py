@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from impactsph import Simulation, load_case
-from impactsph.integrate import INTEGRATORS, MidpointIntegrator, SspRk3Integrator
+from impactsph.integrate import INTEGRATORS
 
 #: the stability polynomial R(w) of each method: y_{n+1} = R(lambda dt) y_n for y' = lambda y
 POLYNOMIAL = {
@@ -48,9 +48,8 @@ def test_a_step_is_the_method_on_an_oscillator(name):
     u = (state.position[:, 0] - x0[:, 0]) + 1j * state.velocity[:, 0] / omega
     expected = POLYNOMIAL[name](-1j * z) ** steps * u0
     assert np.abs(u - expected).max() <= 1e-12 * np.abs(u0).max()
-    growth = abs(POLYNOMIAL[name](-1j * z)) ** 2
-    assert (growth > 1) if name == "midpoint" else (growth < 1)
-    assert issubclass(SspRk3Integrator, MidpointIntegrator)
+    grew = np.abs(u).sum() > np.abs(u0).sum()
+    assert grew if name == "midpoint" else not grew
 
 
 def _bars(integrator: str, courant: float) -> tuple[dict, np.ndarray, np.ndarray]:

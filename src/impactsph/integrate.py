@@ -168,11 +168,19 @@ class MidpointIntegrator:
             if state.material_state.shape != (state.n, width):
                 raise ValueError(f"material_state has shape {state.material_state.shape}; the "
                                  f"registered models need ({state.n}, {width})")
-            self._start = SimpleNamespace(**{f: np.empty_like(getattr(state, f))
-                                             for f in self.INTEGRATED})
+        return self._keep(state, "_start")
+
+    def _keep(self, state: ParticleState, name: str) -> SimpleNamespace:
+        """A copy of the integrated fields of ``state`` in the buffers ``name`` (reused while
+        the shapes stay)."""
+        buf = getattr(self, name, None)
+        if buf is None or buf.position.shape != state.position.shape:
+            buf = SimpleNamespace(**{f: np.empty_like(getattr(state, f))
+                                     for f in self.INTEGRATED})
+            setattr(self, name, buf)
         for f in self.INTEGRATED:
-            np.copyto(getattr(self._start, f), getattr(state, f))
-        return self._start
+            np.copyto(getattr(buf, f), getattr(state, f))
+        return buf
 
     def _stage(self, state: ParticleState, dt: float, start: SimpleNamespace, v_rate, rates,
                share: float, last: bool) -> int:
@@ -269,17 +277,6 @@ class SspRk3Integrator(MidpointIntegrator):
     """
 
     WEIGHTS = (1.0 / 6.0, 1.0 / 6.0, 2.0 / 3.0)
-
-    def _keep(self, state: ParticleState, name: str) -> SimpleNamespace:
-        """A copy of the integrated fields of ``state`` in the buffers ``name``."""
-        buf = getattr(self, name, None)
-        if buf is None or buf.position.shape != state.position.shape:
-            buf = SimpleNamespace(**{f: np.empty_like(getattr(state, f))
-                                     for f in self.INTEGRATED})
-            setattr(self, name, buf)
-        for f in self.INTEGRATED:
-            np.copyto(getattr(buf, f), getattr(state, f))
-        return buf
 
     def _combine(self, state: ParticleState, start: SimpleNamespace, weight: float,
                  share: float) -> None:

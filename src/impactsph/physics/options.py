@@ -88,8 +88,7 @@ class PassOptions:
                    artificial_stress=float(stab.artificial_stress),
                    artificial_stress_exponent=float(stab.artificial_stress_exponent),
                    reference_q=1.0 / float(case.kernel.h_over_dx),
-                   artificial_stress_compensation=bool(
-                       getattr(stab, "artificial_stress_compensation", False)),
+                   artificial_stress_compensation=bool(stab.artificial_stress_compensation),
                    plane_stress=getattr(case, "two_dimensional", "") == "plane_stress",
                    axisymmetric=getattr(case, "two_dimensional", "") == "axisymmetric",
                    contact_friction=float(case.contact.friction),

@@ -283,8 +283,7 @@ def artificial_stress_record(P, p):
     axes of the problem; ``R`` (m^5/(kg s^2), like ``A = sigma/rho^2``) is ``-epsilon`` times
     the tensile part of ``A_i`` (:func:`tension_part_2d`, :func:`tension_part_3d`).  In 1D
     ``R = -epsilon max(sigma_xx, 0) / rho^2``; in 2D (plane strain) the in-plane 2x2 part of
-    the stress, the only one the in-plane forces see.
-"""
+    the stress, the only one the in-plane forces see."""
     eps = ARTIFICIAL_STRESS
     if DIM == 1:
         P[p, R00] = -eps * max(P[p, A00], 0.0)
@@ -675,11 +674,11 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     / M`` the smooth parts cancel and the tensile wave keeps its speed (without it,
     ``c sqrt(M (M - epsilon M_f))``), while the repulsion of a closing pair, growing as
     ``f_ij^n``, stays; the weight is still symmetric, so AS-4 still books the pair's power.
-    The pair force is antisymmetric, so momentum
-    is kept exactly, and AS-4 is its power shared equally by the pair, so the semi-discrete
-    equations keep the total energy.  With the kernel gradient correction of the forces it
-    stays on the uncorrected ``grad W_ij``: a repulsion between neighbours, which needs no
-    consistency, and its antisymmetry and energy balance need no correction matrix.
+    The pair force is antisymmetric, so momentum is kept exactly, and AS-4 is its power
+    shared equally by the pair, so the semi-discrete equations keep the total energy.  With
+    the kernel gradient correction of the forces it stays on the uncorrected ``grad W_ij``: a
+    repulsion between neighbours, which needs no consistency, and its antisymmetry and energy
+    balance need no correction matrix.
 
     Axisymmetry (``AXISYMMETRIC``; x the radius r, y the axis z; docs/modelling.md): with
     ``rho = rho_m r`` (the mass per radian and unit area of the r-z plane, which the 2D
