@@ -538,6 +538,12 @@ class Time(_Model):
         "1 (two rate evaluations a step), or 'ssp_rk3', the third-order strong-stability-"
         "preserving Runge-Kutta method (three a step; it does not amplify undamped "
         "oscillations, and costs the same at 1.5 times the Courant number)")
+    energy_update: Literal["rate", "compatible"] = Field(
+        "rate", description="how the specific energy is advanced: 'rate', with its rate at the "
+        "step's evaluation (eq 28, the paper's), or 'compatible', with the pair forces' work at "
+        "each particle's mean velocity over the step (Owen 2014), which keeps kinetic plus "
+        "internal energy exactly against those forces; one more pair pass a step, midpoint "
+        "integrator and CPU only")
     wave_speed: Literal["bar", "p_wave"] = Field(
         "bar", description="wave speed of eq 26 and of the viscosity: 'bar' sqrt(E/rho) as in "
         "the paper, or 'p_wave' sqrt((K + 4/3 mu)/rho)"
@@ -786,6 +792,16 @@ class Case(_Model):
                              "to the next rate evaluation, which the three-stage step's "
                              "evaluations (at t, t + dt, t + dt/2) do not give; use "
                              "time.integrator = 'midpoint'")
+        if self.time.energy_update == "compatible":
+            if self.time.integrator != "midpoint":
+                raise ValueError(f"time.energy_update = 'compatible' with time.integrator = "
+                                 f"{self.time.integrator!r}: the update needs the step's "
+                                 f"forces from one evaluation; use time.integrator = "
+                                 f"'midpoint'")
+            if self.formulation == "total_lagrangian":
+                raise ValueError("time.energy_update = 'compatible' with formulation = "
+                                 "'total_lagrangian': the update is built for the "
+                                 "updated-Lagrangian pair pass; use energy_update = 'rate'")
         self._resolve_stabilisation()
         return self
 

@@ -132,8 +132,13 @@ class MidpointIntegrator:
 
     def __init__(self, rates, table: np.ndarray, n_active: int, dim: int, constraint=None,
                  drivers=None, plane_stress: bool = False, axisymmetric: bool = False,
-                 observe=None):
+                 observe=None, work=None):
         self.rates = rates
+        #: ``work(state, mean_velocity)``: the compatible energy update's correction to the
+        #: last evaluation's specific-energy rates (:meth:`impactsph.solver.Solver.work_rates`),
+        #: or None (the paper's update: ``e`` advanced with its rates, eq 28)
+        self.work = work
+        self._mean_velocity: np.ndarray | None = None
         #: ``observe(k, weight)``, called after the step's ``k``-th rate evaluation with its
         #: weight in :data:`WEIGHTS` (the run's books: heating, wall impulse), or None
         self.observe = observe
@@ -220,6 +225,21 @@ class MidpointIntegrator:
             self.observe(k, self.WEIGHTS[k])
         return rates
 
+    def _compatible_energy(self, state: ParticleState, start: SimpleNamespace,
+                           dt: float) -> None:
+        """The compatible energy update (``time.energy_update = "compatible"``): the
+        specific energies advanced with the corrector's pair forces' work at each particle's
+        mean velocity over the step, ``(v(t) + v(t + dt)) / 2`` (walls, drivers and clamps
+        included), instead of at its midpoint velocity.  With ``v(t + dt) = v(t) + dt a``
+        the kinetic energy gained is ``sum_i m_i vbar_i . a_i dt``, which the pair forces'
+        share of the internal energy now loses exactly (docs/modelling.md)."""
+        if self._mean_velocity is None or self._mean_velocity.shape != state.velocity.shape:
+            self._mean_velocity = np.empty_like(state.velocity)
+        mean = self._mean_velocity
+        np.add(start.velocity, state.velocity, out=mean)
+        mean *= 0.5
+        state.specific_energy += dt * self.work(state, mean)
+
     def step(self, state: ParticleState, dt: float) -> None:
         """Advance ``state`` by ``dt`` in place."""
         if self._any_clamped is None:
@@ -239,6 +259,8 @@ class MidpointIntegrator:
         if drivers is not None:
             drivers.apply(state.velocity, state.time + dt)
             drivers.account(self._inertia, rates[0][: state.n], state.time, dt)
+        if self.work is not None:
+            self._compatible_energy(state, start, dt)
         if self._any_clamped:
             clamped = state.clamped
             self.clamp_impulse -= dt * (self._inertia[clamped] @ rates[0][: state.n][clamped])

@@ -44,6 +44,7 @@ import numpy as np
 from .config import Block, Case, Cylinder, Disk, ParticleFile, Ring, Sphere
 from .errors import CaseError
 from .initial import max_speed
+from .integrate import INTEGRATORS
 from .kernels import SUPPORT_RADIUS
 from .models.columns import PASS_CARRIED
 
@@ -483,8 +484,11 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
     # the reference run's arrays are allocated while the run's are still held
     memory = BASE_MEMORY + runs * (memory - BASE_MEMORY)
     rate, source = pair_rate(case.compute.device, dim)
-    # two rate evaluations per step, and the fixed cost of a step
-    seconds = runs * steps * (2.0 * n * pairs_per_particle / rate + STEP_SECONDS)
+    # the integrator's rate evaluations per step (and the compatible energy update's work
+    # pass), and the fixed cost of a step
+    passes = len(INTEGRATORS[case.time.integrator].WEIGHTS) + (
+        1 if case.time.energy_update == "compatible" else 0)
+    seconds = runs * steps * (passes * n * pairs_per_particle / rate + STEP_SECONDS)
     return Estimate(particles={b.name: k for b, k in zip(case.bodies, counts, strict=True)},
                     neighbours=neighbours, pairs_per_particle=pairs_per_particle,
                     ghosts=ghosts, memory=memory, available=available_memory(), dt=dt,

@@ -131,7 +131,9 @@ class Simulation:
             constraint=self.walls.enforce if len(self.walls) else None,
             drivers=Drivers.of(case, self.state),
             plane_stress=case.two_dimensional == "plane_stress",
-            axisymmetric=case.two_dimensional == "axisymmetric", observe=self._observe)
+            axisymmetric=case.two_dimensional == "axisymmetric", observe=self._observe,
+            work=(self.solver.work_rates if case.time.energy_update == "compatible"
+                  else None))
         #: the step's mean powers (AV heating, AC work, AC heating; W) and wall force (N),
         #: the integrator's weights over its rate evaluations (:meth:`_observe`)
         self._step_books = (0.0, 0.0, 0.0, np.zeros(self.state.dim))
@@ -409,6 +411,8 @@ def _cpu_only(case: Case) -> str | None:
         what = ("the axis of axisymmetry is a symmetry plane"
                 if case.two_dimensional == "axisymmetric" else "the case has symmetry planes")
         return f"{what}, which runs on the CPU only"
+    if case.time.energy_update == "compatible":
+        return "time.energy_update = 'compatible' runs on the CPU only"
     return None
 
 

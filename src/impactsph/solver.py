@@ -106,6 +106,9 @@ class Solver:
         self._friction = self.walls is not None and bool((self.walls.friction > 0.0).any())
         options = getattr(self.backend, "options", None)
         self._axisymmetric = bool(getattr(options, "axisymmetric", False))
+        #: the compatible energy update (:meth:`work_rates`)
+        self.compatible = bool(getattr(options, "compatible_energy", False))
+        self._scratch: RateBuffers | None = None  # the work pass's discarded results
         self._positions: np.ndarray | None = None  # row -> place in the packed records
         rigid = np.zeros(0, dtype=np.int64) if self.walls is None else self.walls.walls_only
         self._rigid = rigid
@@ -164,7 +167,8 @@ class Solver:
                                        contact=self.walls is not None or self.n_bodies > 1,
                                        corrected=self.corrected,
                                        hourglass=self.hourglass > 0.0,
-                                       switched=self.switched)
+                                       switched=self.switched,
+                                       compatible=self.compatible)
         return positions
 
     def _fill(self, state: ParticleState) -> None:
@@ -274,6 +278,39 @@ class Solver:
         self.pair_evaluations += int(totals[3])
         self.rate_evaluations += 1
         return b.dv, b.drho, b.de, b.dS, b.dhg
+
+    def work_rates(self, state: ParticleState, mean_velocity: np.ndarray) -> np.ndarray:
+        """The compatible energy update's correction to the last evaluation's specific-energy
+        rates (W/kg, one per particle): the pair pass's energy terms again, with the forces of
+        that evaluation (its records, neighbours and ghosts) and the velocity differences of
+        ``mean_velocity`` (the step's mean velocity of each particle, ``(v(t) + v(t + dt))
+        / 2``; the ghosts get their sources' mirrored as their velocities are), less what
+        that evaluation's energy terms gave.  Added to ``de`` over the step it makes the
+        internal energy the pair forces' work at the step's mean velocity, so that kinetic
+        plus internal energy is kept exactly by those forces (Owen 2014, Int. J. Numer. Meth.
+        Fluids 75:749; docs/modelling.md, "The compatible energy update").  The other
+        passes' energy terms (hourglass control, friction, the walls' penalty layer, a
+        correction) keep their evaluation's rates."""
+        n = self.n_active
+        b = self.buffers
+        if self._ext is None:
+            work = mean_velocity
+        else:
+            ext = self._ext
+            work = np.empty_like(ext["v"])
+            work[:n] = mean_velocity
+            w = self.walls  # the ghosts' rows from their sources, as in the evaluation
+            fill_ghosts(self._ghost_src, self._ghost_wall, w.points, w.normals, w.kinds, n,
+                        ext["x"], work, ext["rho"], ext["e"], ext["S"], ext["carried"],
+                        ext["m"], ext["h"], ext["material"], ext["body"], self.n_bodies)
+        rows = work.shape[0]
+        if self._scratch is None or self._scratch.de.shape[0] != rows:
+            self._scratch = RateBuffers(rows, self.dim, contact=False, corrected=False)
+        S = state.deviatoric_stress if self._ext is None else self._ext["S"]
+        material = state.material if self._ext is None else self._ext["material"]
+        de = self.backend.work_energy(n, work, self.neighbours, self.viscosity, S, material,
+                                      self.table, self._scratch)
+        return de[:n] - b.de_pairs[:n]
 
     def pressure(self, state: ParticleState) -> np.ndarray:
         """Pressure (Pa) of each particle of ``state``, from the equations of state, a

@@ -46,7 +46,11 @@ class PassOptions:
       factor and the pair pass also sums the unscaled viscous acceleration for the switch;
     - ``velocity_reconstruction``: the viscosity scheme takes the velocity jump reconstructed
       to each pair's midpoint (:mod:`impactsph.physics.reconstruction`): the records carry
-      each particle's velocity gradient, set by a pass before the pair pass.
+      each particle's velocity gradient, set by a pass before the pair pass;
+    - ``compatible_energy``: the records carry a second velocity, the *work velocity*, which
+      the pair pass's energy terms (and only they) read; the ordinary evaluations set it to
+      the velocity, and the step's work pass to the step's mean velocity
+      (``time.energy_update = "compatible"``, :meth:`impactsph.solver.Solver.work_rates`).
     """
 
     gradient_correction: str = "none"
@@ -60,6 +64,7 @@ class PassOptions:
     contact_friction: float = 0.0
     viscosity_factor: bool = False
     velocity_reconstruction: bool = False
+    compatible_energy: bool = False
 
     def __post_init__(self) -> None:
         if self.gradient_correction not in GRADIENT_CORRECTIONS:
@@ -93,7 +98,8 @@ class PassOptions:
                    axisymmetric=getattr(case, "two_dimensional", "") == "axisymmetric",
                    contact_friction=float(case.contact.friction),
                    viscosity_factor=VISCOSITY[case.viscosity.scheme].switch is not None,
-                   velocity_reconstruction=VISCOSITY[case.viscosity.scheme].reconstruction)
+                   velocity_reconstruction=VISCOSITY[case.viscosity.scheme].reconstruction,
+                   compatible_energy=case.time.energy_update == "compatible")
 
     @property
     def normal_stress(self) -> bool:
@@ -120,6 +126,8 @@ class PassOptions:
             tag += "_ax"
         if self.velocity_reconstruction:
             tag += "_vr"
+        if self.compatible_energy:
+            tag += "_ce"
         return tag
 
     def compensation(self, dim: int) -> float:
@@ -151,4 +159,5 @@ class PassOptions:
             f"VISCOSITY_FACTOR = {bool(self.viscosity_factor)}",
             f"AXISYMMETRIC = {bool(self.axisymmetric)}",
             f"VELOCITY_RECONSTRUCTION = {bool(self.velocity_reconstruction)}",
+            f"COMPATIBLE_ENERGY = {bool(self.compatible_energy)}",
         ]

@@ -89,6 +89,9 @@ PLANE_STRESS = False
 VISCOSITY_FACTOR = False
 VELOCITY_RECONSTRUCTION = False
 AXISYMMETRIC = False
+#: the records carry the work velocity, which the pair pass's energy terms read
+#: (``time.energy_update = "compatible"``: :func:`particle_rates`)
+COMPATIBLE_ENERGY = False
 JIT = nb.njit
 EOS_PARAMS = STRENGTH_PARAMS = DAMAGE_PARAMS = STATE_WIDTH = 6
 STRENGTH_STATE = DAMAGE_STATE = 4
@@ -114,7 +117,8 @@ PAIR_FASTMATH = {"reassoc", "arcp", "nsz"}
 _COLUMNS = record_columns(DIM, correction_matrix=FORCE_CORRECTION,
                           artificial_stress=ARTIFICIAL_STRESS > 0.0,
                           viscosity_factor=VISCOSITY_FACTOR, axisymmetric=AXISYMMETRIC,
-                          velocity_gradient=VELOCITY_RECONSTRUCTION)
+                          velocity_gradient=VELOCITY_RECONSTRUCTION,
+                          work_velocity=COMPATIBLE_ENERGY)
 #: the columns of the hoop stress over the density and of the radius (AXISYMMETRIC only)
 HOOP = _COLUMNS.get("hoop", 0)
 RADIUS = _COLUMNS.get("radius", 0)
@@ -132,6 +136,8 @@ RECORD_WIDTH = _COLUMNS["width"]
 CM0 = _COLUMNS.get("C", 0)
 #: first column of the velocity gradient L (VELOCITY_RECONSTRUCTION only; row by row)
 LV0 = _COLUMNS.get("Lv", 0)
+#: first column of the work velocity (COMPATIBLE_ENERGY only)
+W = _COLUMNS.get("w", 0)
 #: columns of A's components: SYM[a][b] (a tuple of tuples: a compile-time constant)
 SYM = tuple(tuple(A0 + symmetric_index(a, b, DIM) for b in range(DIM)) for a in range(DIM))
 A00 = SYM[0][0]
@@ -355,6 +361,8 @@ def particle_record(p, i, x, v, m, rho, e, S, carried, h, body, material, table,
     for a in range(DIM):
         P[p, X + a] = x[i, a]
         P[p, V + a] = v[i, a]
+        if COMPATIBLE_ENERGY:  # the work velocity: the velocity, but in the work pass
+            P[p, W + a] = v[i, a]
         for b in range(a, DIM):
             P[p, SYM[a][b]] = intact * S[i, a, b] * inv_rho2
         P[p, SYM[a][a]] -= pr * inv_rho2
@@ -703,7 +711,18 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     a particle the mirror of the pair of their sources, and the energy stays exact; the
     signed ``r``, which continues ``r sigma`` smoothly across the axis, broke that (a rod's
     energy error 4e-3 against 6e-5, docs/modelling.md).  Contact between bodies takes the
-    same form with the normal stress (or pressure) for ``sigma``."""
+    same form with the normal stress (or pressure) for ``sigma``.
+
+    The compatible energy update (``COMPATIBLE_ENERGY``, ``time.energy_update =
+    "compatible"``; Owen 2014, Int. J. Numer. Meth. Fluids 75:749): every energy term above
+    (the stress work ``A_i : T``, the viscous heating, AS-4, the contact work and the hoop
+    power) reads the velocity differences of the *work velocity* ``w`` (record column ``W``),
+    and nothing else does: the forces, the continuity sum and the velocity gradient read
+    ``v``.  Each energy term is its pair force's power shared between the pair, so with ``w``
+    the step's mean velocity ``(v(t) + v(t + dt)) / 2`` and the forces of the step's
+    evaluation, ``sum_i m_i de_i dt`` is minus the kinetic energy the step gave those
+    forces, exactly (:meth:`impactsph.solver.Solver.work_rates`).  The ordinary evaluations
+    set ``w = v``."""
     shear = table[material[i], SHEAR]
     Pi_ = P[p]
     xi0 = Pi_[X]
@@ -713,6 +732,10 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     xi2 = Pi_[X + 2] if DIM > 2 else 0.0
     vi2 = Pi_[V + 2] if DIM > 2 else 0.0
     hi, ci, rhoi, bi = Pi_[H], Pi_[C], Pi_[RHO], Pi_[BODY]
+    # the velocity the energy terms read: the work velocity with the compatible update
+    wi0 = Pi_[W] if COMPATIBLE_ENERGY else vi0
+    wi1 = (Pi_[W + 1] if COMPATIBLE_ENERGY else vi1) if DIM > 1 else 0.0
+    wi2 = (Pi_[W + 2] if COMPATIBLE_ENERGY else vi2) if DIM > 2 else 0.0
     # accumulators: continuity / rho_i; sum m_j grad W (same body); sum m_j A_j . grad W;
     # contact and viscous accelerations; L; T = sum m_j v_ij (x) grad W; energies
     cont = 0.0
@@ -778,9 +801,15 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
         u0 = vi0 - P[j, V]
         u1 = vi1 - P[j, V + 1] if DIM > 1 else 0.0
         u2 = vi2 - P[j, V + 2] if DIM > 2 else 0.0
-        vg = u0 * g0 + u1 * g1 + u2 * g2
         vs = u0 * s0 + u1 * s1 + u2 * s2
         vr = u0 * d0 + u1 * d1 + u2 * d2
+        if COMPATIBLE_ENERGY:  # the energy terms' velocity difference: the work velocity's
+            z0 = wi0 - P[j, W]
+            z1 = wi1 - P[j, W + 1] if DIM > 1 else 0.0
+            z2 = wi2 - P[j, W + 2] if DIM > 2 else 0.0
+        else:
+            z0, z1, z2 = u0, u1, u2
+        vg = z0 * g0 + z1 * g1 + z2 * g2  # energy only (the viscous heating)
         m_j = P[j, M]
         volume_j = P[j, VOL]
         cont += continuity_pair(1.0, volume_j, vs)
@@ -829,7 +858,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
             x0 += mf * e0
             x1 += mf * e1
             x2 += mf * e2
-            xe += mf * (u0 * e0 + u1 * e1 + u2 * e2)
+            xe += mf * (z0 * e0 + z1 * e1 + z2 * e2)
         # the weight of the particle's own A_i: m_j (A_i = sigma_i / rho_i^2), or in
         # axisymmetry V_j (A_i = Q_i / rho_i)
         w_j = volume_j if AXISYMMETRIC else m_j
@@ -838,7 +867,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
         G0 += w_j * s0
         a0 += m_j * P[j, A00] * t0
         L00 += velocity_gradient_pair(volume_j, u0, s0)
-        T00 += w_j * u0 * s0
+        T00 += w_j * z0 * s0
         if DIM > 1:
             G1 += w_j * s1
             a0 += m_j * P[j, A01] * t1
@@ -846,9 +875,9 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
             L01 += velocity_gradient_pair(volume_j, u0, s1)
             L10 += velocity_gradient_pair(volume_j, u1, s0)
             L11 += velocity_gradient_pair(volume_j, u1, s1)
-            T01 += w_j * u0 * s1
-            T10 += w_j * u1 * s0
-            T11 += w_j * u1 * s1
+            T01 += w_j * z0 * s1
+            T10 += w_j * z1 * s0
+            T11 += w_j * z1 * s1
         if DIM > 2:
             G2 += m_j * s2
             a0 += m_j * P[j, A02] * t2
@@ -859,11 +888,11 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
             L20 += velocity_gradient_pair(volume_j, u2, s0)
             L21 += velocity_gradient_pair(volume_j, u2, s1)
             L22 += velocity_gradient_pair(volume_j, u2, s2)
-            T02 += m_j * u0 * s2
-            T12 += m_j * u1 * s2
-            T20 += m_j * u2 * s0
-            T21 += m_j * u2 * s1
-            T22 += m_j * u2 * s2
+            T02 += m_j * z0 * s2
+            T12 += m_j * z1 * s2
+            T20 += m_j * z2 * s0
+            T21 += m_j * z2 * s1
+            T22 += m_j * z2 * s2
         vr_visc = vr
         if VELOCITY_RECONSTRUCTION:  # the jump at the midpoint (reconstruction.py), same body
             vr_rec = reconstructed_approach(vr, projected_slope(P, p, LV0, d0, d1, d2),
@@ -905,6 +934,13 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
         c_u1 = vi1 - c_Pj[V + 1] if DIM > 1 else 0.0
         c_u2 = vi2 - c_Pj[V + 2] if DIM > 2 else 0.0
         c_vg = c_u0 * c_g0 + c_u1 * c_g1 + c_u2 * c_g2
+        c_wg = c_vg  # the energy term's: with the work velocity under the compatible update
+        if COMPATIBLE_ENERGY:
+            c_wg = (wi0 - c_Pj[W]) * c_g0
+            if DIM > 1:
+                c_wg += (wi1 - c_Pj[W + 1]) * c_g1
+            if DIM > 2:
+                c_wg += (wi2 - c_Pj[W + 2]) * c_g2
         c_volume_j = c_Pj[VOL]
         c_sn_i, c_sn_j = contact_traction(Pi_, c_Pj, c_d0, c_d1, c_d2, c_r2, normal_stress)
         if AXISYMMETRIC:  # V_i V_j (Q_i + Q_j) with Q = rho sn: per unit mass of i
@@ -920,7 +956,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
             k0 += c_push * c_g0
             k1 += c_push * c_g1
             k2 += c_push * c_g2
-            de_contact += contact_work_pair(c_own_j, c_sn_i, c_s_ij, c_vg)
+            de_contact += contact_work_pair(c_own_j, c_sn_i, c_s_ij, c_wg)
     # A_i applied to the regrouped sums
     if FORCE_CORRECTION:  # the particle's own C_i: G <- C_i G, T <- T C_i^T, L <- L C_i^T
         G0, G1, G2 = corrected(Pi_, G0, G1, G2)
@@ -968,7 +1004,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     if AXISYMMETRIC:  # the hoop terms: rho dv_r/dt -= sigma_tt M, rho de/dt += sigma_tt M v_r
         hoop = Pi_[HOOP] * -mr
         dv[i, 0] -= hoop
-        de_s += hoop * vi0
+        de_s += hoop * wi0
     de[i] = de_s + de_v
     de_visc[i] = de_v
     pair_count[i] = count

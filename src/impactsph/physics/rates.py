@@ -79,7 +79,7 @@ class RateBuffers:
     correction terms only with a correcting scheme: otherwise they have no rows."""
 
     def __init__(self, n: int, dim: int, contact: bool = True, corrected: bool = True,
-                 hourglass: bool = False, switched: bool = False):
+                 hourglass: bool = False, switched: bool = False, compatible: bool = False):
         self.drho = np.zeros(n)
         self.dv = np.zeros((n, dim))
         self.de = np.zeros(n)
@@ -94,6 +94,9 @@ class RateBuffers:
         self.factor = np.ones(n if switched else 0)
         #: the switch's memory of each particle, for the next evaluation
         self.memory = np.zeros(n if switched else 0)
+        #: the pair pass's own specific-energy rates (the compatible energy update replaces
+        #: them after the step: :meth:`impactsph.solver.Solver.work_rates`)
+        self.de_pairs = np.zeros(n if compatible else 0)
 
 
 class CpuRates:
@@ -162,6 +165,8 @@ class CpuRates:
                     viscosity.pair, self.options.normal_stress, S, material, table, b.drho,
                     b.dv, b.de, b.de_visc,
                     b.contact_force, b.pair_count, b.dS, self._gradients, chunk)
+        if b.de_pairs.shape[0]:
+            np.copyto(b.de_pairs[:n_active], b.de[:n_active])
         if after_pairs is not None:
             after_pairs(self._packed, self._gradients, k.U)
         if self.options.contact_friction > 0.0:
@@ -184,6 +189,29 @@ class CpuRates:
             k.hourglass_pass(n_active, nl.order, self._packed, self._gradients, nl.offsets,
                              nl.indices, material, table, hourglass, hourglass_acceleration,
                              b.dv, b.de, b.dhg, chunk)
+
+
+    def work_energy(self, n_active: int, work_velocity: np.ndarray, neighbours,
+                    viscosity: ViscositySettings, S: np.ndarray, material: np.ndarray,
+                    table: np.ndarray, scratch: RateBuffers) -> np.ndarray:
+        """The pair pass's specific-energy rates of the first ``n_active`` rows (W/kg) with
+        the records of the last :meth:`evaluate` (its forces) and the velocity differences of
+        ``work_velocity`` (one row per row of that evaluation, ghosts included) in the energy
+        terms: the compatible energy update's work pass.  ``scratch``: buffers for the pass's
+        other results, which are discarded.  Passes compiled with
+        ``PassOptions(compatible_energy=True)`` only."""
+        k = self.passes
+        if not k.COMPATIBLE_ENERGY:
+            raise ValueError("the work pass needs passes compiled with "
+                             "PassOptions(compatible_energy=True)")
+        nl = neighbours
+        self._packed[:, k.W:k.W + self.dim] = work_velocity[nl.order]
+        k.pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, viscosity.kind,
+                    viscosity.pair, self.options.normal_stress, S, material, table,
+                    scratch.drho, scratch.dv, scratch.de, scratch.de_visc,
+                    scratch.contact_force[:0], scratch.pair_count, scratch.dS,
+                    np.empty((0, self.dim, self.dim)), self._chunk[1])
+        return scratch.de
 
 
 def pressures(rho: np.ndarray, e: np.ndarray, material: np.ndarray, table: np.ndarray,

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 def record_columns(dim: int, correction_matrix: bool = False,
                    artificial_stress: bool = False, viscosity_factor: bool = False,
-                   axisymmetric: bool = False, velocity_gradient: bool = False
-                   ) -> dict[str, int]:
+                   axisymmetric: bool = False, velocity_gradient: bool = False,
+                   work_velocity: bool = False) -> dict[str, int]:
     """Columns of the packed record: position ``x``, velocity ``v``, ``h``, ``m``,
     ``volume = m/rho``, ``rho``, ``c``, ``pc = P/rho^2``, ``body``, the symmetric
     ``A = sigma/rho^2`` (its upper triangle, row by row: :func:`symmetric_index`) and the
@@ -19,7 +19,9 @@ def record_columns(dim: int, correction_matrix: bool = False,
     its upper triangle like ``A``'s), with ``viscosity_factor`` the particle's factor ``f`` on
     the viscosity (a scheme with a switch), with ``axisymmetric`` the hoop stress over the
     density ``hoop`` and the radius ``radius``, with ``velocity_gradient`` the velocity
-    gradient ``Lv`` (``dim x dim``, row by row; a reconstructing viscosity).  ``"width"`` is
+    gradient ``Lv`` (``dim x dim``, row by row; a reconstructing viscosity), with
+    ``work_velocity`` the velocity ``w`` that the energy terms read (the compatible energy
+    update: the velocity itself, or the step's mean velocity in its work pass).  ``"width"`` is
     the row length, padded to whole cache lines (2, 2 and 3 lines of 64 bytes in 1D, 2D, 3D
     without the optional columns)."""
     n_sym = dim * (dim + 1) // 2
@@ -43,6 +45,9 @@ def record_columns(dim: int, correction_matrix: bool = False,
     if velocity_gradient:
         cols["Lv"] = end
         end += dim * dim
+    if work_velocity:
+        cols["w"] = end
+        end += dim
     cols["width"] = (end + 7) // 8 * 8
     return cols
 
