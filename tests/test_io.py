@@ -95,7 +95,7 @@ def final_arrays(sim):
     # case was added a restart kept the places of the list built at start-up: 1e-6 apart)
     ("taylor_axisymmetric", ["time.end=6e-6"]),
     # the compatible energy update: its work pass reads the restored list and ghosts
-    ("taylor", ["time.end=6e-6", 'time.energy_update="compatible"']),
+    ("taylor_axisymmetric", ["time.end=6e-6", 'time.energy_update="compatible"']),
 ])
 def test_restart_is_bitwise_identical(tmp_path, case_name, overrides):
     end = float(overrides[0].split("=")[1])
