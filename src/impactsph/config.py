@@ -838,9 +838,6 @@ class Case(_Model):
         if stab.hourglass != "auto" and stab.hourglass > 0.0:
             raise ValueError(f"stabilisation.hourglass = {stab.hourglass!r} is not available "
                              f"{axi}; 0")
-        if stab.artificial_stress > 0.0:
-            raise ValueError(f"stabilisation.artificial_stress = {stab.artificial_stress!r} "
-                             f"is not available {axi}; 0")
         if self.contact.friction > 0.0:
             raise ValueError(f"contact.friction = {self.contact.friction!r} (between bodies) "
                              f"is not available {axi}; 0 (walls may have friction)")

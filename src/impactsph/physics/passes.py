@@ -683,7 +683,14 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     ``c sqrt(M (M - epsilon M_f))``), while the repulsion of a closing pair, growing as
     ``f_ij^n``, stays; the weight is still symmetric, so AS-4 still books the pair's power.
     The pair force is antisymmetric, so momentum is kept exactly, and AS-4 is its power
-    shared equally by the pair, so the semi-discrete equations keep the total energy.  With
+    shared equally by the pair, so the semi-discrete equations keep the total energy.  In
+    axisymmetry (``R`` from the record's ``A = |r| sigma / rho``, so ``rho R`` is ``|r|`` times
+    the artificial stress, as ``Q = rho A`` is the stress's) the pair takes the form of the
+    stress term below, ``dv_i/dt += 1/rho_i sum_j V_j f_ij^n (rho_i R_i + rho_j R_j) . grad
+    W_ij`` and ``de_i/dt -= 1/(2 rho_i) sum_j V_j f_ij^n v_ij . (rho_i R_i + rho_j R_j) .
+    grad W_ij``: the pair force ``V_i V_j f^n (...) . grad W_ij`` is antisymmetric (axial
+    momentum kept) and AS-4 its power shared equally; the artificial stress acts in the r-z
+    plane only (no hoop part: no pair of particles lies along the hoop direction).  With
     the kernel gradient correction of the forces it stays on the uncorrected ``grad W_ij``: a
     repulsion between neighbours, which needs no consistency, and its antisymmetry and energy
     balance need no correction matrix.
@@ -767,6 +774,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
             ri22 = Pi_[R22]
     x0 = x1 = x2 = 0.0
     xe = 0.0
+    inv_rho_i = 1.0 / rhoi if AXISYMMETRIC else 1.0
     mr = 0.0  # axisymmetry: -M_i = sum_j V_j (r_i - r_j) dW_ij/dr_i (same body)
     de_contact = 0.0
     de_v = 0.0
@@ -841,7 +849,19 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
                       + P[j, CM0 + 2 * DIM + 2] * s2)
         else:
             t0, t1, t2 = s0, s1, s2
-        if ARTIFICIAL_STRESS > 0.0:  # on the uncorrected grad W_ij (docs/stabilisation.md)
+        if ARTIFICIAL_STRESS > 0.0 and AXISYMMETRIC:  # V_j f (rho_i R_i + rho_j R_j) / rho_i
+            fw = artificial_stress_weight(q) - AS_COMPENSATION
+            wo = volume_j * fw  # the own R_i's weight
+            wn = m_j * fw * inv_rho_i  # the neighbour's R_j's
+            r00 = wo * ri00 + wn * P[j, R00]
+            r01 = wo * ri01 + wn * P[j, R01]
+            r11 = wo * ri11 + wn * P[j, R11]
+            e0 = r00 * s0 + r01 * s1
+            e1 = r01 * s0 + r11 * s1
+            x0 += e0
+            x1 += e1
+            xe += z0 * e0 + z1 * e1
+        elif ARTIFICIAL_STRESS > 0.0:  # on the uncorrected grad W_ij (docs/stabilisation.md)
             mf = m_j * (artificial_stress_weight(q) - AS_COMPENSATION)
             e0 = (ri00 + P[j, R00]) * s0
             e1 = e2 = 0.0
