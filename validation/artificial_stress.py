@@ -13,6 +13,10 @@ station's column of particles falls through V/2.  The rod stays whole if no two 
 were neighbours at the start (closer than 1.5 dx) are ever farther apart than 2.5 h, and no
 two particles come closer than 0.3 dx (no clumping).
 
+**The rod in axisymmetry** (``rod-axi``): the same rod as a cylinder of radius 4 mm along
+the axis (``two_dimensional = "axisymmetric"``, the rod along y), pulled the same way; only
+its integrity is measured (as for the rod).
+
 **The colliding rubber rings** (Monaghan 2000, Gray et al. 2001 section 6.2): two rings of
 inner radius 3 cm and outer radius 4 cm (``geometry.type = "ring"``), 4 mm apart, each moving
 towards the other at 0.059 c0.  The material is theirs in scaled form: ``P = c0^2 (rho -
@@ -29,6 +33,7 @@ steps with and without the artificial stress, one thread, best of three alternat
 Usage::
 
     .venv/bin/python validation/artificial_stress.py rod [--dim 1 2] [--spacing 1e-3 5e-4]
+    .venv/bin/python validation/artificial_stress.py rod-axi [--spacing 1e-3 5e-4]
     .venv/bin/python validation/artificial_stress.py rings [--spacing 2e-3 1e-3]
     .venv/bin/python validation/artificial_stress.py cost [--steps 300]
 
@@ -212,6 +217,54 @@ def measure_rod(dim: int, spacing: float, epsilon: float, end_fraction: float = 
             "seconds": time.perf_counter() - start, "failure": failure}
 
 
+def axisymmetric_rod_case(spacing: float, epsilon: float) -> Any:
+    """The tension rod as a cylinder of radius ``ROD_WIDTH / 2`` along the axis (y) in
+    axisymmetry, run to ``L / c``."""
+    dx = spacing
+    return validate_case({
+        "name": "rod_axisymmetric", "dimension": 2, "two_dimensional": "axisymmetric",
+        "materials": {"m": {"model": "elastic", "density": ROD_RHO, "youngs_modulus": ROD_E,
+                            "poisson_ratio": 0.0}},
+        "bodies": [{
+            "name": "rod", "material": "m", "velocity": [0.0, ROD_SPEED],
+            "geometry": {"origin": [0.0, -CLAMP_COLUMNS * dx],
+                         "size": [ROD_WIDTH / 2, ROD_LENGTH + CLAMP_COLUMNS * dx],
+                         "spacing": dx},
+            "clamped": {"origin": [-1.0, -CLAMP_COLUMNS * dx - 0.1 * dx],
+                        "size": [2.0, CLAMP_COLUMNS * dx]}}],
+        "kernel": {"h_over_dx": H_OVER_DX},
+        "stabilisation": {"artificial_stress": epsilon},
+        "time": {"end": ROD_LENGTH / ROD_C},
+        "output": {"figures": False, "history_every": 1000}})
+
+
+def measure_axisymmetric_rod(spacing: float, epsilon: float, every: int = 5
+                             ) -> dict[str, Any]:
+    """Run the rod in axisymmetry: its integrity (:class:`Integrity`, sampled every
+    ``every`` steps), energy error and axial momentum."""
+    sim = Simulation(axisymmetric_rod_case(spacing, epsilon))
+    integrity = Integrity(sim, spacing)
+
+    def record(sim: Simulation) -> None:
+        if sim.state.step % every == 0:
+            integrity.sample(sim.state.position)
+
+    failure = None
+    start = time.perf_counter()
+    try:
+        sim.run(callback=record)
+    except SimulationError as exc:
+        failure = str(exc)
+    integrity.sample(sim.state.position)
+    summary = sim.summary()
+    return {"set_up": "rod-axi", "spacing": spacing, "epsilon": epsilon,
+            "particles": sim.state.n, "steps": sim.state.step,
+            "max_separation_over_h": integrity.max_separation,
+            "min_distance_over_dx": integrity.min_distance,
+            "total_energy_relative_error": summary["total_energy_relative_error"],
+            "seconds": time.perf_counter() - start, "failure": failure}
+
+
 def rings_case(spacing: float, epsilon: float, end: float, scheme: str = "plain") -> Any:
     """The colliding rubber rings (module docstring), run to ``end`` (s), with the
     stabilisation ``SCHEMES[scheme]``."""
@@ -321,7 +374,7 @@ def cost(steps: int = 300, rounds: int = 3, side: int = 50,
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("set_up", choices=("rod", "rings", "cost"))
+    ap.add_argument("set_up", choices=("rod", "rod-axi", "rings", "cost"))
     ap.add_argument("--epsilon", type=float, nargs="+", default=[0.0, EPSILON])
     ap.add_argument("--dim", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--spacing", type=float, nargs="+")
@@ -338,9 +391,12 @@ def main(argv: list[str] | None = None) -> int:
             print(json.dumps({"set_up": "cost", "epsilon": epsilon, "seconds_per_step": seconds,
                               "ratio": seconds / plain if plain else None}), flush=True)
         return 0
-    for spacing in args.spacing or ([1e-3, 5e-4] if args.set_up == "rod" else [2e-3]):
+    for spacing in args.spacing or ([1e-3, 5e-4] if args.set_up.startswith("rod")
+                                    else [2e-3]):
         for epsilon in args.epsilon:
-            if args.set_up == "rod":
+            if args.set_up == "rod-axi":
+                print(json.dumps(measure_axisymmetric_rod(spacing, epsilon)), flush=True)
+            elif args.set_up == "rod":
                 for dim in args.dim:
                     print(json.dumps(measure_rod(dim, spacing, epsilon,
                                                  scheme=args.scheme)), flush=True)
