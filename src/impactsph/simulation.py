@@ -137,6 +137,9 @@ class Simulation:
         #: the step's mean powers (AV heating, AC work, AC heating; W) and wall force (N),
         #: the integrator's weights over its rate evaluations (:meth:`_observe`)
         self._step_books = (0.0, 0.0, 0.0, np.zeros(self.state.dim))
+        #: the step's mean contact force on each body (several bodies only; N or N/m), by the
+        #: same weights (the history's ``contact_force_*``)
+        self._body_force = np.zeros((len(self.problem.body_names), self.state.dim))
         self.record = RunRecord(probes={name: [] for name in self.problem.probes})
         self.gauges = Gauges.of(case, self.problem)
         #: per body, the largest displacement |x - x0| of a particle at the history's rows (m)
@@ -162,8 +165,16 @@ class Simulation:
         adds nothing, so the midpoint step books its midpoint evaluation's, exactly)."""
         if k == 0:
             self._step_books = (0.0, 0.0, 0.0, np.zeros(self.state.dim))
+            self._body_force[:] = 0.0
         if weight == 0.0:
             return
+        n_bodies = self._body_force.shape[0]
+        if n_bodies > 1:
+            s = self.state
+            force = self.solver.buffers.contact_force[: s.n]
+            for a in range(s.dim):
+                self._body_force[:, a] += weight * np.bincount(s.body, weights=force[:, a],
+                                                               minlength=n_bodies)
         heating, work, corr_heating = self.solver.powers
         books = self._step_books
         self._step_books = (books[0] + weight * heating, books[1] + weight * work,
@@ -207,17 +218,17 @@ class Simulation:
                 force = drivers.reaction.get(r.name, np.zeros(s.dim))
                 for a, name in enumerate("xyz"[: s.dim]):
                     row[f"reaction_force_{r.name}_{name}"] = float(force[a])
+        # the contact forces: the step's mean (for the midpoint step, its midpoint
+        # evaluation's), as the books
         n_bodies = len(self.problem.body_names)
         if n_bodies == 1 and len(self.walls):  # one body: its force is the walls' push
             for a, name in enumerate("xyz"[: s.dim]):
                 row[f"contact_force_{self.problem.body_names[0]}_{name}"] = float(
-                    self.solver.wall_force[a])
+                    self._step_books[3][a])
         elif n_bodies > 1:
-            force = self.solver.buffers.contact_force[: s.n]
             for a, name in enumerate("xyz"[: s.dim]):
-                per_body = np.bincount(s.body, weights=force[:, a], minlength=n_bodies)
                 for b, body in enumerate(self.problem.body_names):
-                    row[f"contact_force_{body}_{name}"] = float(per_body[b])
+                    row[f"contact_force_{body}_{name}"] = float(self._body_force[b, a])
         totals = body_totals(s.body, s.mass, s.added_mass, s.velocity, s.specific_energy,
                              s.plastic_work, s.position, s.initial_position, n_bodies)
         row["plastic_work"] = float(totals[:, 2].sum())
