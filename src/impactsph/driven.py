@@ -87,12 +87,17 @@ class Drivers:
         for r in self.regions:
             velocity[r.rows] = r.velocity(t)
 
-    def account(self, mass: np.ndarray, dv: np.ndarray, t: float, dt: float) -> None:
+    def account(self, mass: np.ndarray, dv: np.ndarray, t: float, dt: float,
+                mean_velocity: bool = False) -> None:
         """The reactions of the step from ``t`` to ``t + dt`` (``dv``: the midpoint
         accelerations), their work, and the supports' impulse beyond the clamps' (which
-        counts ``-dt sum m dv`` for every held particle, driven ones included)."""
+        counts ``-dt sum m dv`` for every held particle, driven ones included).  The work is
+        the reaction's at the prescribed velocity at ``t + dt/2``, or with ``mean_velocity``
+        (the compatible energy update, which gives the forces their work at the step's mean
+        velocity) at ``(v(t) + v(t + dt)) / 2``."""
         for r in self.regions:
-            v0, v1, vm = r.velocity(t), r.velocity(t + dt), r.velocity(t + 0.5 * dt)
+            v0, v1 = r.velocity(t), r.velocity(t + dt)
+            vm = 0.5 * (v0 + v1) if mean_velocity else r.velocity(t + 0.5 * dt)
             change = r.mass * (v1 - v0)
             force = change / dt - mass[r.rows] @ dv[r.rows]
             self.reaction[r.name] = force

@@ -258,7 +258,8 @@ class MidpointIntegrator:
         self._stage(state, dt, start, state.velocity, rates, 1.0, True)
         if drivers is not None:
             drivers.apply(state.velocity, state.time + dt)
-            drivers.account(self._inertia, rates[0][: state.n], state.time, dt)
+            drivers.account(self._inertia, rates[0][: state.n], state.time, dt,
+                            mean_velocity=self.work is not None)
         if self.work is not None:
             self._compatible_energy(state, start, dt)
         if self._any_clamped:

@@ -47,6 +47,7 @@ from .initial import max_speed
 from .integrate import INTEGRATORS
 from .kernels import SUPPORT_RADIUS
 from .models.columns import PASS_CARRIED
+from .physics.records import record_columns
 
 # -- thresholds (documented in docs/case-files.md, "Preflight checks") ----------------------
 
@@ -290,7 +291,8 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
                     corrected: bool = False, walls: bool = False, contact: bool = False,
                     hourglass: bool = False,
                     force_correction: bool = False, strength_width: int = 1,
-                    snapshots: int = 0, history_values: int = 0) -> float:
+                    snapshots: int = 0, history_values: int = 0,
+                    compatible: bool = False) -> float:
     """Peak bytes of a run of ``n`` particles (``ghosts`` more in the sums) with ``neighbours``
     stored neighbour-list entries per particle:
 
@@ -304,6 +306,9 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     - per stored neighbour pair: 4 bytes (int32 index);
     - ``history_values`` numbers of the history and the probes (:data:`HISTORY_VALUE_BYTES`
       each, :func:`history_values`);
+    - with ``compatible`` (the compatible energy update), per particle and ghost: the work
+      velocity's record columns, the work pass's rate buffers, the corrector's pair energy
+      rates, the work velocity and its sorted copy;
 
     times :data:`MEMORY_SAFETY`, plus :data:`BASE_MEMORY` for the process itself."""
     d = dim
@@ -313,13 +318,15 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     per_particle = state + integrator + snapshots * snapshot
     buffers = 100 + 8 * d + (8 * d if contact else 0) + (8 * d + 8 if corrected else 0) \
         + (8 * d + 8 * d * d if hourglass else 0)
-    width = {1: 16, 2: 16, 3: 24}[d] + (8 if force_correction and d > 1 else 0)
-    records = 8 * width
+    records = 8 * record_columns(d, correction_matrix=force_correction and d > 1,
+                                 work_velocity=compatible)["width"]
     ghost_arrays = (16 * d + 104) if walls else 0  # x, v, rho, e, S, m, h, material, body
     # the carried columns the passes read (the common material state and a switch's factor
     # and memory), for the particles or, with walls, the extended rows
     carried = 8 * PASS_CARRIED
     neighbour_list = 12 + 4 * d + 32 + 8 * d  # offsets, order, reference; build temporaries
+    if compatible:  # the work pass's rate buffers, the pair energy rates, the velocities
+        buffers += (100 + 8 * d) + 8 + 16 * d
     per_row = buffers + records + ghost_arrays + carried + neighbour_list + 4 * neighbours
     total = n * per_particle + (n + ghosts) * per_row + history_values * HISTORY_VALUE_BYTES
     return BASE_MEMORY + MEMORY_SAFETY * total
@@ -477,6 +484,7 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
         force_correction=PassOptions.of_case(case).gradient_correction
         == "velocity_gradient_and_forces",
         strength_width=TableLayout.registered().state_width,
+        compatible=case.time.energy_update == "compatible",
         snapshots=len(case.output.snapshot_times),
         history_values=history_values(case, steps))
     ref = case.output.reference_viscosity

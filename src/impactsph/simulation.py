@@ -132,8 +132,7 @@ class Simulation:
             drivers=Drivers.of(case, self.state),
             plane_stress=case.two_dimensional == "plane_stress",
             axisymmetric=case.two_dimensional == "axisymmetric", observe=self._observe,
-            work=(self.solver.work_rates if case.time.energy_update == "compatible"
-                  else None))
+            work=self._work if case.time.energy_update == "compatible" else None)
         #: the step's mean powers (AV heating, AC work, AC heating; W) and wall force (N),
         #: the integrator's weights over its rate evaluations (:meth:`_observe`)
         self._step_books = (0.0, 0.0, 0.0, np.zeros(self.state.dim))
@@ -183,6 +182,14 @@ class Simulation:
         self._step_books = (books[0] + weight * heating, books[1] + weight * work,
                             books[2] + weight * corr_heating,
                             books[3] + weight * self.solver.wall_force)
+
+    def _work(self, state: ParticleState, mean_velocity: np.ndarray) -> np.ndarray:
+        """The compatible energy update's work pass (:meth:`Solver.work_rates`); the step's
+        viscous heating booked is then the heat it put in, not the evaluation's."""
+        correction = self.solver.work_rates(state, mean_velocity)
+        books = self._step_books
+        self._step_books = (self.solver.work_heating, *books[1:])
+        return correction
 
     # -- diagnostics -------------------------------------------------------------------
     def _survey(self) -> Survey:

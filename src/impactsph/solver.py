@@ -109,6 +109,7 @@ class Solver:
         #: the compatible energy update (:meth:`work_rates`)
         self.compatible = bool(getattr(options, "compatible_energy", False))
         self._scratch: RateBuffers | None = None  # the work pass's discarded results
+        self.work_heating = 0.0
         self._positions: np.ndarray | None = None  # row -> place in the packed records
         rigid = np.zeros(0, dtype=np.int64) if self.walls is None else self.walls.walls_only
         self._rigid = rigid
@@ -310,6 +311,9 @@ class Solver:
         material = state.material if self._ext is None else self._ext["material"]
         de = self.backend.work_energy(n, work, self.neighbours, self.viscosity, S, material,
                                       self.table, self._scratch)
+        self.pair_evaluations += int(self._scratch.pair_count[:n].sum())
+        #: the work pass's viscous heating (W): what the step's update put in
+        self.work_heating = float(state.mass @ self._scratch.de_visc[:n])
         return de[:n] - b.de_pairs[:n]
 
     def pressure(self, state: ParticleState) -> np.ndarray:
