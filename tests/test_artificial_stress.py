@@ -185,14 +185,13 @@ def stretched_block(epsilon: float, correction: str, compensation: bool = False
     return sim
 
 
-def reference_terms(sim: Simulation, kappa: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """``dv`` and ``de`` of the artificial stress alone, pair by pair (eqs AS-1 to AS-4 of
-    :mod:`impactsph.physics.passes`; the weight ``f^n - kappa`` with the compensation)."""
-    s, table = sim.state, sim.problem.table
-    x, v, m, rho, h = s.position, s.velocity, s.mass, s.density, s.smoothing_length
-    p = pressures(rho, s.specific_energy, s.material, table, 2)
-    sigma = s.deviatoric_stress[:, :2, :2] - p[:, None, None] * np.eye(2)
-    R = np.stack([-EPS * tensile_part(sg) / r**2 for sg, r in zip(sigma, rho, strict=True)])
+def pair_sums(sim: Simulation, R: np.ndarray, own: np.ndarray, neighbour: np.ndarray,
+              kappa: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """``dv_i = sum_j (f_ij^n - kappa) (own_ij R_i + neighbour_ij R_j) . grad W_ij`` and
+    ``de_i = -1/2 sum_j v_ij . (the same)``, pair by pair (AS-2 to AS-4 of
+    :mod:`impactsph.physics.passes`), with the weights ``own[i, j]`` and ``neighbour[i, j]``."""
+    s = sim.state
+    x, v, h = s.position, s.velocity, s.smoothing_length
 
     def shape(q: float) -> float:
         return 1 - 1.5 * q**2 + 0.75 * q**3 if q <= 1 else 0.25 * (2 - q) ** 3
@@ -207,10 +206,28 @@ def reference_terms(sim: Simulation, kappa: float = 0.0) -> tuple[np.ndarray, np
                 continue
             g = cubic_spline_dwdr(r, h_ij, 2) / r * r_ij
             fn = (shape(r / h_ij) / shape(1.0 / H_OVER_DX)) ** 4 - kappa
-            push = (R[i] + R[j]) @ g
-            dv[i] += m[j] * fn * push
-            de[i] -= 0.5 * m[j] * fn * (v[i] - v[j]) @ push
+            push = fn * (own[i, j] * R[i] + neighbour[i, j] * R[j]) @ g
+            dv[i] += push
+            de[i] -= 0.5 * (v[i] - v[j]) @ push
     return dv, de
+
+
+def stress_in_plane(sim: Simulation) -> np.ndarray:
+    """``sigma = -P I + S`` of each particle, its in-plane 2x2 part (Pa)."""
+    s = sim.state
+    p = pressures(s.material_density, s.specific_energy, s.material, sim.problem.table, 2)
+    return s.deviatoric_stress[:, :2, :2] - p[:, None, None] * np.eye(2)
+
+
+def reference_terms(sim: Simulation, kappa: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """``dv`` and ``de`` of the artificial stress alone in plane strain: :func:`pair_sums`
+    with ``R = -epsilon tensile(sigma) / rho^2`` and the weight ``m_j`` on both (with the
+    compensation, ``f^n - kappa``)."""
+    s = sim.state
+    R = np.stack([-EPS * tensile_part(sg) / r**2
+                  for sg, r in zip(stress_in_plane(sim), s.density, strict=True)])
+    m = np.broadcast_to(s.mass, (s.n, s.n))
+    return pair_sums(sim, R, m, m, kappa)
 
 
 @pytest.mark.parametrize("correction,compensation", [
@@ -282,28 +299,12 @@ def test_pair_terms_in_axisymmetry_conserve_axial_momentum_and_energy():
     dv_on, _, de_on, _, _ = (np.array(r[: s.n]) for r in on.solver.rates(s))
     dv_off, _, de_off, _, _ = (np.array(r[: s.n]) for r in off.solver.rates(off.state))
     dv, de = dv_on - dv_off, de_on - de_off
-    x, v, m, rho, h = s.position, s.velocity, s.mass, s.density, s.smoothing_length
-    p = pressures(s.material_density, s.specific_energy, s.material, on.problem.table, 2)
-    sigma = s.deviatoric_stress[:, :2, :2] - p[:, None, None] * np.eye(2)
+    x, v, m, rho = s.position, s.velocity, s.mass, s.density
     R = np.stack([-EPS * abs(xi[0]) * tensile_part(sg) / r
-                  for xi, sg, r in zip(x, sigma, rho, strict=True)])
-
-    def shape(q: float) -> float:
-        return 1 - 1.5 * q**2 + 0.75 * q**3 if q <= 1 else 0.25 * (2 - q) ** 3
-
-    dv_ref, de_ref = np.zeros((s.n, 2)), np.zeros(s.n)
-    for i in range(s.n):
-        for j in range(s.n):
-            r_ij = x[i] - x[j]
-            r = float(np.linalg.norm(r_ij))
-            h_ij = 0.5 * (h[i] + h[j])
-            if j == i or r >= 2.0 * h_ij:
-                continue
-            g = cubic_spline_dwdr(r, h_ij, 2) / r * r_ij
-            fn = (shape(r / h_ij) / shape(1.0 / H_OVER_DX)) ** 4
-            push = fn * (m[j] / rho[j] * R[i] + m[j] / rho[i] * R[j]) @ g
-            dv_ref[i] += push
-            de_ref[i] -= 0.5 * (v[i] - v[j]) @ push
+                  for xi, sg, r in zip(x, stress_in_plane(on), rho, strict=True)])
+    # own R_i weighted by V_j = m_j / rho_j, the neighbour's R_j by m_j / rho_i
+    dv_ref, de_ref = pair_sums(on, R, np.broadcast_to(m / rho, (s.n, s.n)),
+                               m[None, :] / rho[:, None])
     assert np.abs(dv_ref).max() > 0.05 * np.abs(dv_off).max()  # not a negligible term
     assert np.abs(dv - dv_ref).max() < 1e-10 * np.abs(dv_ref).max()
     assert np.abs(de - de_ref).max() < 1e-10 * np.abs(de_ref).max()

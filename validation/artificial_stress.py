@@ -47,6 +47,7 @@ import json
 import math
 import sys
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -174,6 +175,28 @@ def _crossing(t: np.ndarray, v: np.ndarray, level: float) -> float:
     return float(t[k - 1] + (level - v[k - 1]) * (t[k] - t[k - 1]) / (v[k] - v[k - 1]))
 
 
+def run_sampled(sim: Simulation, every: int, sample: Callable[[Simulation], None],
+                each_step: Callable[[Simulation], None] | None = None
+                ) -> tuple[str | None, float]:
+    """Run ``sim`` to its end: ``each_step(sim)`` after every step, ``sample(sim)`` every
+    ``every`` steps and once at the end (after a failure too).  Returns the failure's message
+    (None if the run finished) and the seconds it took."""
+    def callback(sim: Simulation) -> None:
+        if each_step is not None:
+            each_step(sim)
+        if sim.state.step % every == 0:
+            sample(sim)
+
+    failure = None
+    start = time.perf_counter()
+    try:
+        sim.run(callback=callback)
+    except SimulationError as exc:
+        failure = str(exc)
+    sample(sim)
+    return failure, time.perf_counter() - start
+
+
 def measure_rod(dim: int, spacing: float, epsilon: float, end_fraction: float = 1.0,
                 every: int = 5, scheme: str = "plain") -> dict[str, Any]:
     """Run the tension rod: its front speed (m/s) between the stations, against ``c`` and the
@@ -193,16 +216,9 @@ def measure_rod(dim: int, spacing: float, epsilon: float, end_fraction: float = 
     def record(sim: Simulation) -> None:
         times.append(sim.state.time)
         speeds.append([float(sim.state.velocity[c, 0].mean()) for c in columns])
-        if sim.state.step % every == 0:
-            integrity.sample(sim.state.position)
 
-    failure = None
-    start = time.perf_counter()
-    try:
-        sim.run(callback=record)
-    except SimulationError as exc:
-        failure = str(exc)
-    integrity.sample(s.position)
+    failure, seconds = run_sampled(sim, every, lambda sim: integrity.sample(sim.state.position),
+                                   record)
     t, v = np.array(times), np.array(speeds)
     arrival = [_crossing(t, v[:, k], 0.5 * ROD_SPEED) for k in range(len(STATIONS))]
     speed = (where[1] - where[0]) / (arrival[1] - arrival[0])
@@ -214,7 +230,7 @@ def measure_rod(dim: int, spacing: float, epsilon: float, end_fraction: float = 
             "error_vs_discrete": (speed - theory) / ROD_C,
             "max_separation_over_h": integrity.max_separation,
             "min_distance_over_dx": integrity.min_distance,
-            "seconds": time.perf_counter() - start, "failure": failure}
+            "seconds": seconds, "failure": failure}
 
 
 def axisymmetric_rod_case(spacing: float, epsilon: float) -> Any:
@@ -241,28 +257,17 @@ def axisymmetric_rod_case(spacing: float, epsilon: float) -> Any:
 def measure_axisymmetric_rod(spacing: float, epsilon: float, every: int = 5
                              ) -> dict[str, Any]:
     """Run the rod in axisymmetry: its integrity (:class:`Integrity`, sampled every
-    ``every`` steps), energy error and axial momentum."""
+    ``every`` steps) and energy error."""
     sim = Simulation(axisymmetric_rod_case(spacing, epsilon))
     integrity = Integrity(sim, spacing)
-
-    def record(sim: Simulation) -> None:
-        if sim.state.step % every == 0:
-            integrity.sample(sim.state.position)
-
-    failure = None
-    start = time.perf_counter()
-    try:
-        sim.run(callback=record)
-    except SimulationError as exc:
-        failure = str(exc)
-    integrity.sample(sim.state.position)
+    failure, seconds = run_sampled(sim, every, lambda sim: integrity.sample(sim.state.position))
     summary = sim.summary()
     return {"set_up": "rod-axi", "spacing": spacing, "epsilon": epsilon,
             "particles": sim.state.n, "steps": sim.state.step,
             "max_separation_over_h": integrity.max_separation,
             "min_distance_over_dx": integrity.min_distance,
             "total_energy_relative_error": summary["total_energy_relative_error"],
-            "seconds": time.perf_counter() - start, "failure": failure}
+            "seconds": seconds, "failure": failure}
 
 
 def rings_case(spacing: float, epsilon: float, end: float, scheme: str = "plain") -> Any:
@@ -313,17 +318,7 @@ def measure_rings(spacing: float, epsilon: float, end: float = 0.016, every: int
         rows.append((st.time, vl, vr, xr - xl, energy, momentum))
         integrity.sample(st.position)
 
-    def record(sim: Simulation) -> None:
-        if sim.state.step % every == 0:
-            sample(sim)
-
-    failure = None
-    start = time.perf_counter()
-    try:
-        sim.run(callback=record)
-    except SimulationError as exc:
-        failure = str(exc)
-    sample(sim)
+    failure, seconds = run_sampled(sim, every, sample)
     r = np.array(rows)
     return {"set_up": "rings", "scheme": scheme, "spacing": spacing,
             "epsilon": epsilon, "particles": s.n,
@@ -336,7 +331,7 @@ def measure_rings(spacing: float, epsilon: float, end: float = 0.016, every: int
             "min_distance_over_dx": integrity.min_distance,
             "energy_error": float(np.abs(r[:, 4]).max()),
             "momentum_error": float(r[:, 5].max()),
-            "seconds": time.perf_counter() - start, "failure": failure}
+            "seconds": seconds, "failure": failure}
 
 
 def cost(steps: int = 300, rounds: int = 3, side: int = 50,

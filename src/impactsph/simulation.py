@@ -139,9 +139,6 @@ class Simulation:
         #: the step's mean contact force on each body (several bodies only; N or N/m), by the
         #: same weights (the history's ``contact_force_*``)
         self._body_force = np.zeros((len(self.problem.body_names), self.state.dim))
-        #: the step the run (or restart) started from: its first history row has no step's
-        #: books yet
-        self._first_step = self.state.step
         self.record = RunRecord(probes={name: [] for name in self.problem.probes})
         self.gauges = Gauges.of(case, self.problem)
         #: per body, the largest displacement |x - x0| of a particle at the history's rows (m)
@@ -154,6 +151,7 @@ class Simulation:
         self._abs_momentum0 = float(np.sum(self.state.inertial_mass *
                                            np.linalg.norm(self.state.velocity, axis=1)))
         self.solver.rates(self.state.copy())  # compile (or load from cache) before timing
+        self._observe(0, 1.0)  # the start's forces, for the history's first row
         self.solver.pair_evaluations = 0
         self.solver.rate_evaluations = 0
         if state is None:
@@ -186,9 +184,8 @@ class Simulation:
     def _work(self, state: ParticleState, mean_velocity: np.ndarray) -> np.ndarray:
         """The compatible energy update's work pass (:meth:`Solver.work_rates`); the step's
         viscous heating booked is then the heat it put in, not the evaluation's."""
-        correction = self.solver.work_rates(state, mean_velocity)
-        books = self._step_books
-        self._step_books = (self.solver.work_heating, *books[1:])
+        correction, heating = self.solver.work_rates(state, mean_velocity)
+        self._step_books = (heating, *self._step_books[1:])
         return correction
 
     # -- diagnostics -------------------------------------------------------------------
@@ -229,20 +226,13 @@ class Simulation:
                 for a, name in enumerate("xyz"[: s.dim]):
                     row[f"reaction_force_{r.name}_{name}"] = float(force[a])
         # the contact forces: the step's mean (for the midpoint step, its midpoint
-        # evaluation's), as the books; before the first step, the last evaluation's
+        # evaluation's), as the books (at the start, the start's)
         n_bodies = len(self.problem.body_names)
-        stepped = s.step > self._first_step
         if n_bodies == 1 and len(self.walls):  # one body: its force is the walls' push
-            wall_force = self._step_books[3] if stepped else self.solver.wall_force
             for a, name in enumerate("xyz"[: s.dim]):
                 row[f"contact_force_{self.problem.body_names[0]}_{name}"] = float(
-                    wall_force[a])
+                    self._step_books[3][a])
         elif n_bodies > 1:
-            if not stepped:
-                force = self.solver.buffers.contact_force[: s.n]
-                for a in range(s.dim):
-                    self._body_force[:, a] = np.bincount(s.body, weights=force[:, a],
-                                                         minlength=n_bodies)
             for a, name in enumerate("xyz"[: s.dim]):
                 for b, body in enumerate(self.problem.body_names):
                     row[f"contact_force_{body}_{name}"] = float(self._body_force[b, a])

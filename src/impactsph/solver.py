@@ -109,7 +109,6 @@ class Solver:
         #: the compatible energy update (:meth:`work_rates`)
         self.compatible = bool(getattr(options, "compatible_energy", False))
         self._scratch: RateBuffers | None = None  # the work pass's discarded results
-        self.work_heating = 0.0
         self._positions: np.ndarray | None = None  # row -> place in the packed records
         rigid = np.zeros(0, dtype=np.int64) if self.walls is None else self.walls.walls_only
         self._rigid = rigid
@@ -280,7 +279,8 @@ class Solver:
         self.rate_evaluations += 1
         return b.dv, b.drho, b.de, b.dS, b.dhg
 
-    def work_rates(self, state: ParticleState, mean_velocity: np.ndarray) -> np.ndarray:
+    def work_rates(self, state: ParticleState, mean_velocity: np.ndarray
+                   ) -> tuple[np.ndarray, float]:
         """The compatible energy update's correction to the last evaluation's specific-energy
         rates (W/kg, one per particle): the pair pass's energy terms again, with the forces of
         that evaluation (its records, neighbours and ghosts) and the velocity differences of
@@ -291,7 +291,8 @@ class Solver:
         plus internal energy is kept exactly by those forces (Owen 2014, Int. J. Numer. Meth.
         Fluids 75:749; docs/modelling.md, "The compatible energy update").  The other
         passes' energy terms (hourglass control, friction, the walls' penalty layer, a
-        correction) keep their evaluation's rates."""
+        correction) keep their evaluation's rates.  Returns the correction and the work
+        pass's viscous heating (W)."""
         n = self.n_active
         b = self.buffers
         if self._ext is None:
@@ -312,9 +313,7 @@ class Solver:
         de = self.backend.work_energy(n, work, self.neighbours, self.viscosity, S, material,
                                       self.table, self._scratch)
         self.pair_evaluations += int(self._scratch.pair_count[:n].sum())
-        #: the work pass's viscous heating (W): what the step's update put in
-        self.work_heating = float(state.mass @ self._scratch.de_visc[:n])
-        return de[:n] - b.de_pairs[:n]
+        return de[:n] - b.de_pairs[:n], float(state.mass @ self._scratch.de_visc[:n])
 
     def pressure(self, state: ParticleState) -> np.ndarray:
         """Pressure (Pa) of each particle of ``state``, from the equations of state, a
