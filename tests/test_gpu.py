@@ -96,6 +96,109 @@ RUNS = {
     "taylor-2d": ("taylor", ["bodies.0.geometry.count=[4, 6]"]),
 }
 STEPS = 100
+#: Runs with the state on the device between steps (:mod:`impactsph.gpu_step`): the bars (1D,
+#: two bodies, AV, probes), two small rings in collision (2D, AC, the artificial stress, the
+#: neighbour list rebuilt on the device at every evaluation), a Taylor bar and a 3D block on a
+#: wall (ghosts and the walls' constraint on the device).  Each
+#: starts from random velocities; a callback halves particle 0's velocity after step 2 (the
+#: state downloaded, changed on the host and uploaded again).
+_RING = "bodies.{b}.geometry.inner_radius=0.005 bodies.{b}.geometry.outer_radius=0.009"
+RESIDENT = {
+    "bars-1d": ("bars", [*CASES["bars-1d"][1], "output.history_every=2"], 6),
+    "rings-2d": ("rings", [*_RING.format(b=0).split(), *_RING.format(b=1).split(),
+                           "bodies.0.geometry.centre=[-0.0095, 0.0]",
+                           "bodies.1.geometry.centre=[0.0095, 0.0]",
+                           "bodies.0.velocity=[50.0, 0.0]", "bodies.1.velocity=[-50.0, 3.0]",
+                           "time.neighbour_skin=0.02", "analysis=none", 'viscosity.scheme="ac"',
+                           "output.history_every=2"], 5),
+    # rigid walls: ghosts chosen, filled and the constraint applied on the device
+    "taylor-2d": ("taylor", ["bodies.0.geometry.count=[4, 6]", "time.neighbour_skin=0.02",
+                             "output.history_every=1"], 5),
+    "block-3d": ("taylor", [*CASES["block-3d"][1][:-2], "time.neighbour_skin=0.02",
+                            "output.history_every=1"], 3),
+}
+
+
+def _halve(sim) -> None:
+    """The :data:`RESIDENT` runs' callback: particle 0's velocity halved after step 2."""
+    if sim.step == 2:
+        sim.state.velocity[0] *= 0.5
+
+
+def _enforce_input():
+    """Particles on both sides of two walls (2D), for the walls' constraint."""
+    from impactsph.boundaries import Walls
+
+    rng = np.random.default_rng(11)
+    x = rng.uniform(-1.0, 1.0, (40, 2))
+    v = rng.normal(0.0, 1.0, (40, 2))
+    m = rng.uniform(1.0, 2.0, 40)
+    walls = Walls.from_planes([[0.0, -0.5], [0.5, 0.0]], [[0.0, 1.0], [-0.6, 0.8]],
+                              ["free", "free"], 2)
+    return x, v, m, walls
+
+
+def _device_enforce() -> dict:
+    """The walls' constraint by the device's kernels (``enforce``, ``enforce_sums``,
+    ``enforce_finish``): positions, velocities, the events and the impulse."""
+    from numba import cuda
+
+    from impactsph.gpu import SIMULATOR_THREADS_PER_BLOCK, THREADS_PER_BLOCK, simulator_enabled
+    from impactsph.gpu_step import BOOKS_WIDTH, EVENTS, step_kernels
+    from impactsph.physics.options import PassOptions
+
+    x, v, m, walls = _enforce_input()
+    simulated = simulator_enabled()
+    tpb = SIMULATOR_THREADS_PER_BLOCK if simulated else THREADS_PER_BLOCK
+    k = step_kernels(2, simulated, -1, PassOptions(), tpb)
+    n = x.shape[0]
+    blocks = (n + tpb - 1) // tpb
+    dx, dv, dm = cuda.to_device(x), cuda.to_device(v), cuda.to_device(m)
+    points, normals = cuda.to_device(walls.points), cuda.to_device(walls.normals)
+    scratch = cuda.device_array((n, 4))
+    part = cuda.device_array((blocks, 4))
+    books = cuda.to_device(np.zeros(BOOKS_WIDTH))
+    k["enforce"][blocks, tpb](n, dx, dv, dm, points, normals, scratch)
+    k["enforce_sums"][blocks, tpb](n, scratch, part)
+    k["enforce_finish"][1, tpb](blocks, part, True, 1.0, books)
+    b = books.copy_to_host()
+    return {"x": dx.copy_to_host().tolist(), "v": dv.copy_to_host().tolist(),
+            "events": b[EVENTS], "impulse": b[EVENTS + 1: EVENTS + 3].tolist()}
+
+
+class _StopHereError(Exception):
+    """Stops a run after a chosen step, as an interrupted run stops."""
+
+
+def _resident_run(name: str, on_gpu: bool, stop_after: int | None = None):
+    """A :data:`RESIDENT` run, on the CPU or with the GPU backend (the state on the device);
+    ``stop_after``: stopped after that step, as an interrupted run stops."""
+    import impactsph.simulation as simulation
+    from impactsph.loading import load_case
+
+    case, overrides, steps = RESIDENT[name]
+    if on_gpu:
+        from impactsph.gpu import GpuRates
+
+        simulation.select_backend = (lambda device, dim, *options, cpu_only=None:
+                                     GpuRates(dim, *options))
+    sim = simulation.Simulation(load_case(case, [*overrides, f"time.max_steps={steps}"]))
+    resident = sim._resident is not None
+    sim.state.velocity[:] += np.random.default_rng(5).normal(0.0, 5.0, sim.state.velocity.shape)
+
+    def callback(s) -> None:
+        _halve(s)
+        if s.step == stop_after:
+            raise _StopHereError
+
+    try:
+        sim.run(callback=callback)
+    except _StopHereError:
+        pass
+    nl = sim.solver.neighbours
+    lists = [nl.order[nl.indices[nl.offsets[p]:nl.offsets[p + 1]]].tolist()
+             for p in np.argsort(nl.order)]
+    return sim, resident, lists
 
 
 # -- shared by the parent and the worker ------------------------------------------------------
@@ -207,6 +310,36 @@ def _worker(task: str, folder: Path) -> int:
                             "builds": sim.solver.neighbours.builds,
                             "rate_evaluations": sim.solver.rate_evaluations}
             report["seconds"][name] = time.perf_counter() - t0
+    elif task == "resident":
+        for name in RESIDENT:
+            t0 = time.perf_counter()
+            sim, resident, lists = _resident_run(name, on_gpu=True)
+            np.savez(folder / f"{name}.npz", **sim.state.arrays())
+            summary = sim.summary()
+            report[name] = {"resident": resident, "history": sim.record.history,
+                            "probes": {k: [[t, v.tolist()] for t, v in rows]
+                                       for k, rows in sim.record.probes.items()},
+                            "lists": lists, "device": summary["device"],
+                            "counts": [summary["pair_evaluations"],
+                                       sim.solver.rate_evaluations,
+                                       summary["neighbour_list_builds"]]}
+            report["seconds"][name] = time.perf_counter() - t0
+        report["enforce"] = _device_enforce()
+        # a restart: 2 steps, a checkpoint, the rest from it, against the run above
+        from impactsph.checkpoint import load_checkpoint, write_checkpoint
+        from impactsph.loading import load_case
+
+        case, overrides, steps = RESIDENT["taylor-2d"]
+        full = np.load(folder / "taylor-2d.npz")
+        first = _resident_run("taylor-2d", on_gpu=True, stop_after=2)[0]
+        write_checkpoint(first, folder / "checkpoint.h5")
+        second = load_checkpoint(folder / "checkpoint.h5", load_case(
+            case, [*overrides, f"time.max_steps={steps}"]))
+        second.run(callback=_halve)
+        report["restart"] = {
+            "resident": second._resident is not None, "steps": second.state.step,
+            "differences": {k: int(np.count_nonzero(v != full[k]))
+                            for k, v in second.state.arrays().items()}}
     else:
         raise SystemExit(f"unknown task {task!r}")
     (folder / "report.json").write_text(json.dumps(report))
@@ -454,6 +587,109 @@ def test_taylor_run_rebuilds_its_neighbour_list(run_comparison):
     assert report["taylor-2d"]["builds"] > 2
 
 
+@pytest.fixture(scope="module", params=MODES)
+def resident_comparison(request, tmp_path_factory):
+    """The :data:`RESIDENT` runs with the state on the device (the worker) and on the CPU."""
+    mode = request.param
+    _skip_without_gpu(mode)
+    folder = tmp_path_factory.mktemp(f"resident-{mode}")
+    report = _run_worker(mode, "resident", folder)
+    cpu = {name: _resident_run(name, on_gpu=False) for name in RESIDENT}
+    return mode, report, cpu, folder
+
+
+@pytest.mark.parametrize("name", list(RESIDENT))
+def test_the_whole_step_on_the_device_matches_the_cpu(resident_comparison, name):
+    """With the state kept on the device (neighbour list built there, the integrator's stages,
+    the survey and the books on the device) the final state, every history column, the
+    probes, the counts of pairs, evaluations and rebuilds and each particle's neighbours (in
+    their order) are the CPU run's, to 1e-10; the callback's change reached the device."""
+    mode, report, cpu, folder = resident_comparison
+    sim, _, lists = cpu[name]
+    info = report[name]
+    assert info["resident"] and info["device"] == "gpu"
+    with np.load(folder / f"{name}.npz") as z:
+        errors = _relative_errors(sim.state.arrays(), {k: z[k] for k in z.files})
+    assert not {k: e for k, e in errors.items() if not e <= TOL}, (mode, name, errors)
+    history = sim.record.history
+    assert len(info["history"]) == len(history)
+    for key in history[0]:
+        ref = np.array([row[key] for row in history])
+        got = np.array([row[key] for row in info["history"]])
+        # a vector's components against the vector's size (a component that is zero on the
+        # CPU may be round-off on the device)
+        like = [k for k in history[0] if k[:-2] == key[:-2]] if key[-2:] in ("_x", "_y", "_z") \
+            else [key]
+        scale = max(float(np.abs([row[k] for row in history for k in like]).max()), 1e-300)
+        assert np.abs(got - ref).max() <= TOL * scale + 1e-18, (name, key, ref, got)
+    assert info["counts"] == [sim.solver.pair_evaluations, sim.solver.rate_evaluations,
+                              sim.solver.neighbours.builds]
+    assert info["lists"] == lists
+    if name == "rings-2d":  # rebuilt on the device at nearly every evaluation
+        assert info["counts"][2] > RESIDENT[name][2]
+    if name == "bars-1d":  # a probe's rows, taken from the device at every step
+        assert sum(len(rows) for rows in sim.record.probes.values()) > RESIDENT[name][2]
+    for probe, rows in sim.record.probes.items():
+        got = info["probes"][probe]
+        assert [t for t, _ in got] == [t for t, _ in rows]
+        np.testing.assert_allclose([v for _, v in got], [v for _, v in rows], rtol=1e-10,
+                                   atol=1e-12)
+
+
+def test_a_device_run_restarts_bitwise(resident_comparison):
+    """A run with the state on the device (the Taylor bar on its wall), checkpointed after 2
+    steps (the state, the device's neighbour list and ghosts downloaded) and continued from
+    the checkpoint (uploaded), ends in the uninterrupted run's state, bit for bit."""
+    _, report, _, _ = resident_comparison
+    restart = report["restart"]
+    assert restart["resident"] and restart["steps"] == RESIDENT["taylor-2d"][2]
+    assert not any(restart["differences"].values()), restart["differences"]
+
+
+def test_the_walls_constraint_on_the_device_is_the_cpus(resident_comparison):
+    """The device's walls' constraint (particles behind two walls put back, their velocity
+    into the wall removed) gives the CPU's positions, velocities, events and impulse."""
+    _, report, _, _ = resident_comparison
+    x, v, m, walls = _enforce_input()
+    moved, impulse = walls.enforce(x, v, m)
+    got = report["enforce"]
+    assert moved > 5 and got["events"] == moved
+    np.testing.assert_allclose(got["x"], x, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(got["v"], v, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(got["impulse"], impulse, rtol=1e-12)
+
+
+def test_what_keeps_the_state_on_the_host_is_named():
+    """:func:`impactsph.gpu_step.resident_unsupported` says why a case's state cannot stay on
+    the device, and lets the cases without such a feature through."""
+    from impactsph.boundaries import walls_of
+    from impactsph.gpu_step import resident_unsupported
+    from impactsph.loading import load_case
+    from impactsph.problem import build_problem
+
+    def why(name: str, overrides: list[str] = ()) -> str | None:
+        case = load_case(name, list(overrides))
+        state = build_problem(case).state
+        return resident_unsupported(case, state, walls_of(case.boundaries, case.dimension),
+                                    False)
+
+    assert why("bars") is None
+    assert why("rings") is None
+    assert why("taylor") is None  # a rigid wall: its ghosts on the device
+    assert "penalty layer" in why("taylor", ["contact.wall_layer=0.25"])
+    assert "symmetry" in why("taylor", [
+        'boundaries=[{type="wall", point=[0.0, 0.0], normal=[0.0, 1.0]}, '
+        '{type="symmetry", point=[0.0, 0.0], normal=[1.0, 0.0]}]'])
+    assert "friction" in why("taylor", [
+        'boundaries=[{type="wall", point=[0.0, 0.0], normal=[0.0, 1.0], friction=0.1}]'])
+    assert "axisymmetric" in why("taylor_axisymmetric")
+    assert why("bars", ["compute.resident=false"]) == "compute.resident = false"
+    assert "ssp_rk3" in why("bars", ['time.integrator="ssp_rk3"'])
+    assert "compatible" in why("bars", ['time.energy_update="compatible"'])
+    assert "balsara" in why("bars", ['viscosity.scheme="balsara"'])
+    assert "clamped" in why("cantilever") or "symmetry" in why("cantilever")
+
+
 # -- falling back to the CPU -------------------------------------------------------------------
 def test_device_gpu_without_a_gpu_falls_back_with_a_reason(caplog):
     from impactsph.devices import select_backend
@@ -514,6 +750,8 @@ def _kernel_argument_types(dim: int) -> dict:
              "pair_count": nb.typeof(RateBuffers(2, dim).pair_count), "table": f2}
     types["visc_params"] = types["correction_params"] = nb.types.UniTuple(nb.float64, 4)
     types["zeta"] = nb.float64
+    types["carried"] = f2
+    types["normal_stress"] = nb.boolean
     for names, t in (("n_rows n_active visc_kind", nb.int64),
                      ("m rho e h drho de_visc de_corr de", f1),
                      ("x v P contact_force dv_corr dv hg dhg", f2),
@@ -522,11 +760,22 @@ def _kernel_argument_types(dim: int) -> dict:
     return types
 
 
+def _as_if_on_sm90(monkeypatch) -> None:
+    """numba-cuda compiles a function that a kernel calls (one not inlined) for the current
+    device's compute capability; without a GPU there is none, so it is given as sm_90's."""
+    from types import SimpleNamespace
+
+    import numba.cuda.dispatcher
+
+    monkeypatch.setattr(numba.cuda.dispatcher, "get_current_device",
+                        lambda: SimpleNamespace(compute_capability=(9, 0)))
+
+
 @pytest.mark.skipif(importlib.util.find_spec("numba_cuda") is None,
                     reason="numba-cuda (the gpu extra) is not installed")
 @pytest.mark.parametrize("variant", ["plain", "artificial_stress", "reconstruction"])
 @pytest.mark.parametrize("dim", [1, 2, 3])
-def test_kernels_compile_for_a_gpu(dim, variant):
+def test_kernels_compile_for_a_gpu(dim, variant, monkeypatch):
     """With numba-cuda, every kernel compiles to PTX for an H100 (sm_90), no GPU needed:
     the term functions called from the kernels are accepted as device functions (with the
     artificial stress too: its principal-stress decompositions are scalars only; and the
@@ -540,6 +789,7 @@ def test_kernels_compile_for_a_gpu(dim, variant):
 
     if simulator_enabled():
         pytest.skip("the CUDA simulator is on")
+    _as_if_on_sm90(monkeypatch)
     types = _kernel_argument_types(dim)
     options = {"plain": PassOptions(), "artificial_stress": PassOptions(artificial_stress=0.3),
                "reconstruction": PassOptions(velocity_reconstruction=True)}[variant]
@@ -548,6 +798,64 @@ def test_kernels_compile_for_a_gpu(dim, variant):
         names = inspect.signature(kernel.py_func).parameters
         ptx, _ = cuda.compile_ptx(kernel.py_func, tuple(types[k] for k in names), cc=(9, 0))
         assert ".target sm_90" in ptx
+
+
+def _step_kernel_types(name: str, dim: int) -> tuple:
+    """numba types of the arguments of the step kernel ``name``
+    (:func:`impactsph.gpu_step.step_kernels`), as :class:`~impactsph.gpu_step.ResidentStep`
+    hands them over."""
+    import inspect
+
+    import numba as nb
+
+    from impactsph.gpu_step import step_kernels
+    from impactsph.physics.options import PassOptions
+
+    f1, f2, f3 = nb.float64[::1], nb.float64[:, ::1], nb.float64[:, :, ::1]
+    i64, i32 = nb.int64[::1], nb.int32[::1]
+    types = {}
+    for names, t in (("n n_blocks n_cells chunk n_ghosts n_real ghost_body0", nb.int64),
+                     ("dt courant scale radius weight share reach", nb.float64),
+                     ("corrected store first count_events", nb.boolean),
+                     ("x0 v0 x v dv xs v_rate hg0 hg dhg part st0 st dv_corr table points "
+                      "normals scratch contact_force carried", f2),
+                     ("S0 S dS", f3),
+                     ("rho0 e0 pw0 drho de rho e pw h m de_visc de_corr lo hi origin largest "
+                      "books", f1),
+                     ("pair_count bad ncell key counts ends fill a sums rows offsets src wall",
+                      i64),
+                     ("material order indices body", i32)):
+        types.update(dict.fromkeys(names.split(), t))
+    types.update(clamped=nb.boolean[::1], reference=nb.float32[:, ::1], kinds=nb.int8[::1])
+    kernel = step_kernels(dim, False, -1, PassOptions(), 128)[name]
+    special = {("survey_finish", "out"): f1, ("take_rows", "out"): f2}
+    return kernel, tuple(special.get((name, k), types.get(k))
+                         for k in inspect.signature(kernel.py_func).parameters)
+
+
+@pytest.mark.skipif(importlib.util.find_spec("numba_cuda") is None,
+                    reason="numba-cuda (the gpu extra) is not installed")
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_step_kernels_compile_for_a_gpu(dim, monkeypatch):
+    """With numba-cuda, every kernel of the step on the device (the stages, the survey, the
+    books, the neighbour build, the prefix sums) compiles to PTX for sm_90, no GPU needed.
+    (The stage calls the strength and damage models' functions, which numba-cuda compiles as
+    device functions for the current device's compute capability: without a GPU it is given
+    as sm_90's here.)"""
+    from numba import cuda
+
+    _as_if_on_sm90(monkeypatch)
+
+    from impactsph.gpu import simulator_enabled
+    from impactsph.gpu_step import step_kernels
+    from impactsph.physics.options import PassOptions
+
+    if simulator_enabled():
+        pytest.skip("the CUDA simulator is on")
+    for name in step_kernels(dim, False, -1, PassOptions(), 128):
+        kernel, types = _step_kernel_types(name, dim)
+        ptx, _ = cuda.compile_ptx(kernel.py_func, types, cc=(9, 0))
+        assert ".target sm_90" in ptx, name
 
 
 if __name__ == "__main__":

@@ -136,26 +136,36 @@ def walls_of(specs: Iterable[Any], dim: int) -> Walls:
                              [float(getattr(w, "friction", 0.0)) for w in specs])
 
 
-@nb.njit(cache=True)
-def _enforce(x, v, m, points, normals, impulse):
-    """:meth:`Walls.enforce` for each wall in turn; adds the impulse, returns the count."""
+@nb.njit(inline="always", cache=True)
+def enforce_particle(i, x, v, m, points, normals, impulse):
+    """:meth:`Walls.enforce` for particle ``i``, wall by wall: adds its impulse to
+    ``impulse`` and returns how many times it was moved (the CPU loop and the kernel of
+    :mod:`impactsph.gpu_step` call this)."""
     dim = x.shape[1]
     moved = 0
     for w in range(points.shape[0]):
-        for i in range(x.shape[0]):
-            d = 0.0
+        d = 0.0
+        for a in range(dim):
+            d += (x[i, a] - points[w, a]) * normals[w, a]
+        if d < 0.0:
+            vn = 0.0
             for a in range(dim):
-                d += (x[i, a] - points[w, a]) * normals[w, a]
-            if d < 0.0:
-                vn = 0.0
-                for a in range(dim):
-                    x[i, a] -= d * normals[w, a]
-                    vn += v[i, a] * normals[w, a]
-                dvn = -min(vn, 0.0)
-                for a in range(dim):
-                    v[i, a] += dvn * normals[w, a]
-                    impulse[a] += m[i] * dvn * normals[w, a]
-                moved += 1
+                x[i, a] -= d * normals[w, a]
+                vn += v[i, a] * normals[w, a]
+            dvn = -min(vn, 0.0)
+            for a in range(dim):
+                v[i, a] += dvn * normals[w, a]
+                impulse[a] += m[i] * dvn * normals[w, a]
+            moved += 1
+    return moved
+
+
+@nb.njit(cache=True)
+def _enforce(x, v, m, points, normals, impulse):
+    """:meth:`Walls.enforce` for each particle in turn; adds the impulse, returns the count."""
+    moved = 0
+    for i in range(x.shape[0]):
+        moved += enforce_particle(i, x, v, m, points, normals, impulse)
     return moved
 
 
@@ -175,46 +185,55 @@ def _first_behind(x, points, normals):
 def fill_ghosts(src, wall, points, normals, kinds, n_real, x, v, rho, e, S, carried, m, h,
                 material, body, ghost_body0):
     """Write the ghosts' states into rows ``n_real + k`` of the extended arrays, in order (a
-    symmetry plane's ghost may mirror an earlier ghost).  A rigid wall's ghost is a body of
-    its own (``ghost_body0 + w``: the contact law); a symmetry plane's ghost belongs to its
-    source's body, so it interacts as the mirrored half of the model would."""
-    dim = x.shape[1]
+    symmetry plane's ghost may mirror an earlier ghost): :func:`fill_ghost` for each."""
     for k in range(src.shape[0]):
-        i = src[k]
-        w = wall[k]
-        g = n_real + k
-        d = 0.0
-        vn = 0.0
-        for a in range(dim):
-            d += (x[i, a] - points[w, a]) * normals[w, a]
-            vn += v[i, a] * normals[w, a]
-        for a in range(dim):
-            x[g, a] = x[i, a] - 2.0 * d * normals[w, a]
-            if kinds[w] == NO_SLIP:
-                v[g, a] = -v[i, a]
-            else:
-                v[g, a] = v[i, a] - 2.0 * vn * normals[w, a]
-        # S_g = R S R with R = I - 2 n n (in-plane components of n; n_z = 0 in 2D)
-        for a in range(3):
-            for b in range(3):
-                acc = 0.0
-                for c in range(3):
-                    rac = (1.0 if a == c else 0.0) - (
-                        2.0 * normals[w, a] * normals[w, c] if a < dim and c < dim else 0.0)
-                    for d2 in range(3):
-                        rdb = (1.0 if d2 == b else 0.0) - (
-                            2.0 * normals[w, d2] * normals[w, b] if d2 < dim and b < dim
-                            else 0.0)
-                        acc += rac * S[i, c, d2] * rdb
-                S[g, a, b] = acc
-        rho[g] = rho[i]
-        e[g] = e[i]
-        for c in range(carried.shape[1]):  # the common material state (damage, thickness)
-            carried[g, c] = carried[i, c]
-        m[g] = m[i]
-        h[g] = h[i]
-        material[g] = material[i]
-        body[g] = body[i] if kinds[w] == SYMMETRY else ghost_body0 + w
+        fill_ghost(k, src, wall, points, normals, kinds, n_real, x, v, rho, e, S, carried, m,
+                   h, material, body, ghost_body0)
+
+
+@nb.njit(inline="always", cache=True)
+def fill_ghost(k, src, wall, points, normals, kinds, n_real, x, v, rho, e, S, carried, m, h,
+               material, body, ghost_body0):
+    """Ghost ``k``'s state in row ``n_real + k``: its source's mirrored across its plane.  A
+    rigid wall's ghost is a body of its own (``ghost_body0 + w``: the contact law); a symmetry
+    plane's ghost belongs to its source's body, so it interacts as the mirrored half of the
+    model would."""
+    dim = x.shape[1]
+    i = src[k]
+    w = wall[k]
+    g = n_real + k
+    d = 0.0
+    vn = 0.0
+    for a in range(dim):
+        d += (x[i, a] - points[w, a]) * normals[w, a]
+        vn += v[i, a] * normals[w, a]
+    for a in range(dim):
+        x[g, a] = x[i, a] - 2.0 * d * normals[w, a]
+        if kinds[w] == NO_SLIP:
+            v[g, a] = -v[i, a]
+        else:
+            v[g, a] = v[i, a] - 2.0 * vn * normals[w, a]
+    # S_g = R S R with R = I - 2 n n (in-plane components of n; n_z = 0 in 2D)
+    for a in range(3):
+        for b in range(3):
+            acc = 0.0
+            for c in range(3):
+                rac = (1.0 if a == c else 0.0) - (
+                    2.0 * normals[w, a] * normals[w, c] if a < dim and c < dim else 0.0)
+                for d2 in range(3):
+                    rdb = (1.0 if d2 == b else 0.0) - (
+                        2.0 * normals[w, d2] * normals[w, b] if d2 < dim and b < dim
+                        else 0.0)
+                    acc += rac * S[i, c, d2] * rdb
+            S[g, a, b] = acc
+    rho[g] = rho[i]
+    e[g] = e[i]
+    for c in range(carried.shape[1]):  # the common material state (damage, thickness)
+        carried[g, c] = carried[i, c]
+    m[g] = m[i]
+    h[g] = h[i]
+    material[g] = material[i]
+    body[g] = body[i] if kinds[w] == SYMMETRY else ghost_body0 + w
 
 
 @nb.njit(inline="always", cache=True)

@@ -620,6 +620,10 @@ class Compute(_Model):
         "numba's thread count at the start, NUMBA_NUM_THREADS unless set lower), saying so in "
         "the log when the count changes; a number fixes it (capped at NUMBA_NUM_THREADS); the "
         "results do not depend on it (impactsph.threads)")
+    resident: bool = Field(
+        True, description="with device = 'gpu': keep the state on the GPU between steps (the "
+        "whole step runs there: docs/gpu.md) where the case allows it; the log says when it "
+        "does not and why. false: copy the state up and the rates back at every evaluation")
 
 
 class Case(_Model):

@@ -86,7 +86,7 @@ def write_case(out: Path, case: Any) -> None:
 
 def _probe_rows(sim: Any, start: int = 0) -> list[dict[str, Any]]:
     """The rows of ``probes.csv`` from the ``start``-th sample on."""
-    dims = "xyz"[: sim.state.dim]
+    dims = "xyz"[: sim.case.dimension]  # not sim.state: no download of a GPU state
     rows = []
     probes = sim.record.probes
     if probes:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import math
 import time as _time
 from collections.abc import Callable
@@ -27,6 +28,8 @@ from .solver import Solver
 from .state import ParticleState
 from .threads import ThreadGovernor
 from .tl_solver import TotalLagrangianSolver
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -102,7 +105,8 @@ class Simulation:
         self.problem = problem or build_problem(case)
         if state is not None:
             self.problem.state = state
-        self.state: ParticleState = self.problem.state
+        self._resident = None  # the state on the GPU between steps (gpu_step.ResidentStep)
+        self._state: ParticleState = self.problem.state
         self.walls = walls_of(case.boundaries, case.dimension)
         self.solver: Solver | TotalLagrangianSolver
         if case.formulation == "total_lagrangian":
@@ -154,10 +158,78 @@ class Simulation:
         self._observe(0, 1.0)  # the start's forces, for the history's first row
         self.solver.pair_evaluations = 0
         self.solver.rate_evaluations = 0
+        if getattr(self.solver, "backend", None) is not None \
+                and self.solver.backend.device == "gpu":
+            self._keep_on_device()
         if state is None:
             self._record_row(0.0, self._survey())
             self._take_snapshots(previous=-np.inf)
         self.record.setup_seconds = _time.perf_counter() - t0
+
+    # -- the state on the GPU ------------------------------------------------------------
+    @property
+    def state(self) -> ParticleState:
+        """The particle state.  With the state kept on the GPU between steps
+        (:mod:`impactsph.gpu_step`) reading it downloads the device's latest values first."""
+        if self._resident is not None and not self._resident.host_current:
+            self._sync()
+        return self._state
+
+    @property
+    def time(self) -> float:
+        """The simulated time (s), without a download of the state."""
+        return self._state.time
+
+    @property
+    def step(self) -> int:
+        """The steps taken, without a download of the state."""
+        return self._state.step
+
+    def _keep_on_device(self) -> None:
+        """Keep the state on the GPU between steps where the case allows it (else say why:
+        its rates still run on the GPU)."""
+        from .gpu_step import ResidentStep, resident_unsupported
+
+        why = resident_unsupported(self.case, self._state, self.walls, self.gauges is not None)
+        if why is not None:
+            log.info("the state stays on the host between steps (%s): its rates run on the "
+                     "GPU, with the state copied up and the rates down at each evaluation", why)
+            return
+        self._resident = ResidentStep(self.solver, self._state, self.problem.table)
+        log.info("the whole step runs on the GPU: the state stays there between steps")
+
+    def _sync(self) -> None:
+        """The device's state into the host state, with the books and counters of the steps
+        done there since the last download."""
+        self._resident.download(self._state)
+        self._fold()
+        if self._body_force.shape[0] > 1 and self._state.step > 0:  # the last step's
+            self._book_body_force(self._resident.contact_force(), 1.0, reset=True)
+
+    def _fold(self) -> None:
+        """The books and counters of the steps done on the GPU since the last call."""
+        r = self._resident
+        books = r.take_books()
+        self.viscous_dissipation += books["heating"]
+        self.correction_work += books["correction_work"]
+        self.correction_heating += books["correction_heating"]
+        self.wall_impulse += books["wall_impulse"]
+        self._step_books = (0.0, 0.0, 0.0, books["push"])  # the last step's push (history)
+        self.integrator.constraint_events += books["events"]
+        self.integrator.constraint_impulse += books["constraint_impulse"]
+        self.solver.pair_evaluations += books["pairs"]
+        self.solver.rate_evaluations += r.rate_evaluations
+        self.solver.neighbours.builds += r.builds
+        r.rate_evaluations = r.builds = 0
+
+    def _book_body_force(self, force: np.ndarray, weight: float, reset: bool = False) -> None:
+        """Add ``weight`` times each body's sum of the particles' contact ``force``."""
+        if reset:
+            self._body_force[:] = 0.0
+        s, n_bodies = self._state, self._body_force.shape[0]
+        for a in range(s.dim):
+            self._body_force[:, a] += weight * np.bincount(s.body, weights=force[: s.n, a],
+                                                           minlength=n_bodies)
 
     def _observe(self, k: int, weight: float) -> None:
         """The integrator's ``k``-th rate evaluation of a step, of weight ``weight`` in the
@@ -168,13 +240,8 @@ class Simulation:
             self._body_force[:] = 0.0
         if weight == 0.0:
             return
-        n_bodies = self._body_force.shape[0]
-        if n_bodies > 1:
-            s = self.state
-            force = self.solver.buffers.contact_force[: s.n]
-            for a in range(s.dim):
-                self._body_force[:, a] += weight * np.bincount(s.body, weights=force[:, a],
-                                                               minlength=n_bodies)
+        if self._body_force.shape[0] > 1:
+            self._book_body_force(self.solver.buffers.contact_force, weight)
         heating, work, corr_heating = self.solver.powers
         books = self._step_books
         self._step_books = (books[0] + weight * heating, books[1] + weight * work,
@@ -191,7 +258,10 @@ class Simulation:
     # -- diagnostics -------------------------------------------------------------------
     def _survey(self) -> Survey:
         """CFL step, energies, momentum and the first bad value of the state, in one pass."""
-        s = self.state
+        s = self._state
+        if self._resident is not None:
+            dt, sums, bad = self._resident.survey(self.case.time.courant)
+            return Survey(dt, float(sums[0]), float(sums[1]), sums[2: 2 + s.dim].copy(), bad)
         dt, sums, bad = self.integrator.survey_kernel(
             s.n, s.position, s.velocity, s.material_density, s.specific_energy,
             s.deviatoric_stress, s.mass, s.added_mass, s.smoothing_length, s.material,
@@ -265,17 +335,21 @@ class Simulation:
         return fields
 
     def _take_snapshots(self, previous: float) -> None:
-        t = self.state.time
+        t = self._state.time
         for ts in self.case.output.snapshot_times:
             if previous < ts <= t:
                 self.record.snapshots.append(Snapshot(ts, self._snapshot_fields()))
         for name, idx in self.problem.probes.items():
-            self.record.probes[name].append((t, self.state.velocity[idx].copy()))
+            velocity = (self._state.velocity[idx].copy() if self._resident is None
+                        or self._resident.host_current
+                        else self._resident.rows(np.atleast_1d(idx)).reshape(
+                            self._state.velocity[idx].shape))
+            self.record.probes[name].append((t, velocity))
         if self.gauges is not None:
             self.record.gauges.append(self.gauges.sample(self))
 
     def _next_stop(self, t_end: float) -> float:
-        t = self.state.time
+        t = self._state.time
         later = [ts for ts in self.case.output.snapshot_times if ts > t * (1 + 1e-12) + 1e-300]
         return min([t_end, *later])
 
@@ -288,19 +362,19 @@ class Simulation:
     #: what :meth:`_survey`'s bad-value code means, by field
     BAD_VALUES = ("non-finite position", "non-finite velocity", "non-finite density",
                   "non-finite specific_energy", "non-finite deviatoric_stress",
-                  "non-positive density")
+                  "non-positive density", "particle crossed a wall")
 
     def _check(self, survey: Survey, dt0: float) -> None:
         """Stop on a non-finite value, a non-positive density, a particle behind a wall or a
         collapsed step.  Run before every step (and once after the last), so it sees the
         result of the previous step and of any callback."""
-        s = self.state
+        s = self._state
         dt = survey.dt
         if survey.bad >= 0:
             field, i = divmod(survey.bad, s.n)
             raise SimulationError(f"{self.BAD_VALUES[field]} {self._where(i)}", s.step, s.time,
                                   i)
-        if len(self.walls):
+        if len(self.walls) and self._resident is None:  # (on the device: in the survey)
             i = self.walls.first_behind(s.position)
             if i >= 0:
                 raise SimulationError(f"particle crossed a wall {self._where(i)}", s.step,
@@ -318,44 +392,55 @@ class Simulation:
         t_end = self.case.time.end if t_end is None else t_end
         max_steps = self.case.time.max_steps
         every = self.case.output.history_every
+        resident = self._resident
+        if resident is not None and resident.host_current:  # the caller may have changed it
+            resident.upload(self._state)
+        s = self._state
         survey = self._survey()
         dt0 = survey.dt
         governor = ThreadGovernor(self.case.compute.threads)
         start = _time.perf_counter()
         try:
-            while self.state.time < t_end * (1 - 1e-12):
+            while s.time < t_end * (1 - 1e-12):
                 governor.tick()
-                if max_steps is not None and self.state.step >= max_steps:
+                if max_steps is not None and s.step >= max_steps:
                     break
                 dt = survey.dt
                 self._check(survey, dt0)
                 stop = self._next_stop(t_end)
-                reaches_stop = self.state.time + dt >= stop
+                reaches_stop = s.time + dt >= stop
                 if reaches_stop:
-                    dt = stop - self.state.time
-                elif self.state.time + 1.5 * dt > stop:  # avoid a sliver step before a stop
-                    dt = 0.5 * (stop - self.state.time)
-                previous = self.state.time
-                self.integrator.step(self.state, dt)
+                    dt = stop - s.time
+                elif s.time + 1.5 * dt > stop:  # avoid a sliver step before a stop
+                    dt = 0.5 * (stop - s.time)
+                previous = s.time
+                if resident is not None:  # its books stay on the device (:meth:`_sync`)
+                    resident.step(s, dt)
+                else:
+                    self.integrator.step(s, dt)
+                    heating, work, corr_heating, wall_force = self._step_books
+                    self.viscous_dissipation += dt * heating
+                    self.correction_work += dt * work
+                    self.correction_heating += dt * corr_heating
+                    self.wall_impulse += dt * wall_force
                 if reaches_stop:
-                    self.state.time = stop
-                heating, work, corr_heating, wall_force = self._step_books
-                self.viscous_dissipation += dt * heating
-                self.correction_work += dt * work
-                self.correction_heating += dt * corr_heating
-                self.wall_impulse += dt * wall_force
+                    s.time = stop
                 survey = self._survey()
-                if self.state.step % every == 0 or self.state.time >= t_end * (1 - 1e-12):
+                if s.step % every == 0 or s.time >= t_end * (1 - 1e-12):
                     self._record_row(dt, survey)
                 self._take_snapshots(previous)
                 if callback is not None:
                     callback(self)
+                    if resident is not None and resident.host_current:
+                        resident.upload(s)  # the callback read the state: it may have changed it
                     survey = self._survey()  # the callback may have changed the state
             self._check(survey, dt0)
         except SimulationError as exc:
             self.record.failure = str(exc)
             raise
         finally:
+            if resident is not None and not resident.host_current:  # the state back
+                self._sync()
             self.record.wall_seconds += _time.perf_counter() - start
             self.record.thread_changes.extend(governor.changes)
             governor.close()

@@ -1,0 +1,948 @@
+"""The whole time step on the GPU: :class:`ResidentStep` keeps a run's state on the device
+between steps (issue 16; docs/gpu.md, "The state on the device").
+
+:class:`~impactsph.gpu.GpuRates` runs the rate passes on the GPU but takes the state up and
+the rates back at every evaluation; at a million 3D particles those copies alone cost more than
+the whole step should (docs/gpu.md).  Here the state, the step's start copy, the neighbour list
+and the rates stay on the device, and a step is a sequence of kernel launches:
+
+- the neighbour list's staleness test (the largest displacement since the build, one number
+  back) and, when it is stale, its rebuild on the device: the bounding box, each particle's cell,
+  a counting sort by cell (particles in ascending number within a cell, so the order does not
+  depend on the threads' scheduling), then the same two sweeps as the CPU builder (count,
+  prefix sum, store).  The stencil and the particles within a cell come in the CPU builder's
+  order, so each particle's neighbours are listed in the same order on both;
+- the rate passes of :func:`impactsph.physics.passes.cuda_kernels` on the device records;
+- the integrator's stages with :func:`~impactsph.physics.passes.advance_particle` (the
+  strength model's return map, damage and the plastic work included), the CPU stage's body;
+- the survey (CFL step, kinetic and internal energy, momentum, the first bad value) and the
+  powers booked for the history, as per-block partial sums that one thread then adds in block
+  order: the same input gives the same bits, whatever the scheduling.
+
+What comes back: one small record per step (the time step, energies, momentum, the first bad
+value), one number per rate evaluation (the displacement test), a few at each rebuild (the
+bounding box, the pair count), and the state itself only when something on the host asks for
+it (a history row, a snapshot, a checkpoint, a callback; :class:`impactsph.simulation.Simulation`
+downloads it lazily).  No physics is stated here: the kernels call the bodies that the CPU
+passes call.
+
+Rigid walls are handled on the device too: at each rebuild their ghosts are chosen (a count,
+a prefix sum and a fill, in the order of :meth:`impactsph.boundaries.Walls.select`), at each
+evaluation the ghosts' rows are filled from their sources
+(:func:`impactsph.boundaries.fill_ghost`), and after each stage the walls' constraint acts
+(:func:`impactsph.boundaries.enforce_particle`), its events and impulse booked as the CPU
+books them.
+
+Which runs keep their state on the device: :func:`resident_unsupported` names what keeps a
+run on the host path (symmetry planes, whose ghosts mirror results on the CPU; walls with
+friction or the walls' penalty layer; driven regions, clamps and added mass; the hourglass
+control and friction between bodies; viscosity switches; SSP-RK3 and the compatible energy
+update; plane stress and axisymmetry; gauges).  Such a run still evaluates its rates on
+the GPU, as before, and its log says why its state stays on the host.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cache
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from . import boundaries
+from .gpu import cuda, gpu_kernels, simulator_enabled
+from .kernels import SUPPORT_RADIUS
+from .materials import WAVE_MODULUS
+from .physics.rates import compiled_passes
+
+if TYPE_CHECKING:
+    from .boundaries import Walls
+    from .config import Case
+    from .state import ParticleState
+
+#: Entries of a prefix sum that one thread adds serially (the sums of the chunks are summed
+#: the same way, recursively).
+SCAN_CHUNK = 256
+#: The survey's record: dt, KE, IE, p_x, p_y, p_z, bad (as a float).
+SURVEY_WIDTH = 7
+#: The books' columns: the viscous heating, the correction's work and its heating (each the
+#: time integral, J), the pair evaluations, the walls' push's impulse (3, N s), the walls'
+#: constraint's events and impulse (1 + 3), the step's mean push so far (3, N).
+TOTALS = 7
+EVENTS = 7
+LAST_PUSH = 11
+BOOKS_WIDTH = 14
+#: The integrated fields of :class:`~impactsph.state.ParticleState`, in the order of the
+#: device arrays.
+INTEGRATED = ("position", "velocity", "density", "specific_energy", "deviatoric_stress",
+              "plastic_work", "material_state", "hourglass_acceleration")
+#: The constant fields the kernels read.
+CONSTANT = ("mass", "smoothing_length", "material", "body", "clamped")
+#: A code above any bad-value code: none found.
+NO_BAD = np.iinfo(np.int64).max
+
+
+def resident_unsupported(case: Case, state: ParticleState, walls: Walls,
+                         gauges: bool) -> str | None:
+    """Why the state of ``case`` cannot stay on the device between steps (None: it can);
+    ``walls``: its :class:`~impactsph.boundaries.Walls`."""
+    from .models import registry
+
+    if not case.compute.resident:
+        return "compute.resident = false"
+    if case.formulation != "updated_lagrangian":
+        return f"formulation = {case.formulation!r} runs on the host"
+    if case.time.integrator != "midpoint":
+        return f"time.integrator = {case.time.integrator!r} runs on the host"
+    if case.time.energy_update != "rate":
+        return f"time.energy_update = {case.time.energy_update!r} runs on the host"
+    if case.dimension == 2 and case.two_dimensional != "plane_strain":
+        return f"two_dimensional = {case.two_dimensional!r} runs on the host"
+    if len(walls) and (walls.kinds == boundaries.SYMMETRY).any():
+        return "the case has symmetry planes, whose ghosts are mirrored on the host"
+    if len(walls) and (walls.friction > 0.0).any():
+        return "a wall has friction, applied on the host"
+    if len(walls) and case.contact.wall_layer > 0.0:
+        return "contact.wall_layer > 0 (the walls' penalty layer) runs on the host"
+    if any(body.driven for body in case.bodies):
+        return "the case has driven regions, applied on the host"
+    if state.clamped.any():
+        return "the case has clamped particles, held on the host"
+    if state.added_mass.any():
+        return "the case has added mass, applied on the host"
+    if case.stabilisation.hourglass > 0.0:
+        return "stabilisation.hourglass > 0 runs on the host"
+    if case.contact.friction > 0.0:
+        return "contact.friction > 0 runs on the host"
+    if registry.VISCOSITY[case.viscosity.scheme].switch is not None:
+        return f"the viscosity switch of {case.viscosity.scheme!r} runs on the host"
+    if gauges:
+        return "gauges sample the state on the host at every step"
+    return None
+
+
+# -- the kernels ---------------------------------------------------------------------------------
+@cache
+def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int):
+    """The step's own kernels for dimension ``dim`` (the passes' module of ``options``,
+    ``version``: the registries' version), ``tpb`` threads per block (the partial sums' block
+    size): a namespace of CUDA kernels."""
+    passes = compiled_passes(dim, simulated, options)
+    advance_particle = passes.advance_particle
+    # the walls' functions as the CPU runs them (their Python source under the simulator)
+    fill_ghost = boundaries.fill_ghost.py_func if simulated else boundaries.fill_ghost
+    enforce_particle = (boundaries.enforce_particle.py_func if simulated
+                        else boundaries.enforce_particle)
+    DIM = dim  # noqa: N806 - a compile-time constant of the kernels
+    TPB = tpb  # noqa: N806
+    STENCIL = 3**dim  # noqa: N806
+    float64 = np.float64
+
+    @cuda.jit
+    def advance_kernel(n, dt, x0, v0, rho0, e0, S0, pw0, st0, hg0, v_rate, dv, drho, de, dS,
+                       dhg, clamped, material, table, h, x, v, rho, e, S, pw, st, hg):
+        i = cuda.grid(1)
+        if i < n:
+            advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, st0, hg0, v_rate, dv, drho, de,
+                             dS, dhg, clamped, material, table, h, x, v, rho, e, S, pw, st, hg)
+
+    @cuda.jit
+    def survey_kernel(n, x, v, rho, e, S, m, h, material, table, points, normals, part, bad):
+        """Per block: min h/(c + |v|), KE, IE, momentum; the first bad value (atomic min of
+        its code, which is exact), a particle behind a wall the last kind."""
+        sh = cuda.shared.array((6, TPB), float64)
+        i = cuda.grid(1)
+        t = cuda.threadIdx.x
+        for k in range(6):
+            sh[k, t] = 0.0
+        sh[0, t] = math.inf
+        if i < n:
+            speed2 = 0.0
+            pos_ok = True
+            vel_ok = True
+            for a in range(DIM):
+                speed2 += v[i, a] * v[i, a]
+                pos_ok = pos_ok and math.isfinite(x[i, a])
+                vel_ok = vel_ok and math.isfinite(v[i, a])
+            stress_ok = True
+            for a in range(3):
+                for b in range(3):
+                    stress_ok = stress_ok and math.isfinite(S[i, a, b])
+            code = -1
+            if not pos_ok:
+                code = i
+            elif not vel_ok:
+                code = n + i
+            elif not math.isfinite(rho[i]):
+                code = 2 * n + i
+            elif not math.isfinite(e[i]):
+                code = 3 * n + i
+            elif not stress_ok:
+                code = 4 * n + i
+            elif not rho[i] > 0.0:
+                code = 5 * n + i
+            else:
+                for w in range(points.shape[0]):
+                    d = 0.0
+                    for a in range(DIM):
+                        d += (x[i, a] - points[w, a]) * normals[w, a]
+                    if d < 0.0:
+                        code = 6 * n + i
+            if code >= 0:
+                cuda.atomic.min(bad, 0, code)
+            c = math.sqrt(table[material[i], WAVE_MODULUS] / rho[i])
+            sh[0, t] = h[i] / (c + math.sqrt(speed2))
+            sh[1, t] = 0.5 * m[i] * speed2
+            sh[2, t] = m[i] * e[i]
+            for a in range(DIM):
+                sh[3 + a, t] = m[i] * v[i, a]
+        cuda.syncthreads()
+        s = TPB // 2
+        while s > 0:
+            if t < s:
+                sh[0, t] = min(sh[0, t], sh[0, t + s])
+                for k in range(1, 6):
+                    sh[k, t] += sh[k, t + s]
+            cuda.syncthreads()
+            s //= 2
+        if t == 0:
+            for k in range(6):
+                part[cuda.blockIdx.x, k] = sh[k, 0]
+
+    @cuda.jit(device=True, inline=True)
+    def _block_sums(sh, width, t):
+        """Tree sum of the block's rows of ``sh`` (each ``width`` columns) into row 0."""
+        cuda.syncthreads()
+        s = TPB // 2
+        while s > 0:
+            if t < s:
+                for k in range(width):
+                    sh[k, t] += sh[k, t + s]
+            cuda.syncthreads()
+            s //= 2
+
+    @cuda.jit
+    def survey_finish(n_blocks, part, courant, bad, out):
+        """One thread: the blocks' partials in block order."""
+        if cuda.grid(1) == 0:
+            dt = math.inf
+            for k in range(1, 6):
+                out[k] = 0.0
+            for blk in range(n_blocks):
+                dt = min(dt, part[blk, 0])
+                for k in range(1, 6):
+                    out[k] += part[blk, k]
+            out[0] = courant * dt
+            out[6] = -1.0 if bad[0] == NO_BAD else float64(bad[0])
+            bad[0] = NO_BAD
+
+    @cuda.jit
+    def totals_kernel(n, m, v, de_visc, dv_corr, de_corr, pair_count, contact_force, corrected,
+                      part):
+        """Per block: sum m de_visc, sum m v . dv_corr, sum m de_corr, the pairs and (walls)
+        the sum of the contact forces, the walls' push."""
+        sh = cuda.shared.array((TOTALS, TPB), float64)
+        i = cuda.grid(1)
+        t = cuda.threadIdx.x
+        for k in range(TOTALS):
+            sh[k, t] = 0.0
+        if i < n:
+            sh[0, t] = m[i] * de_visc[i]
+            sh[3, t] = pair_count[i]
+            if corrected:
+                sh[2, t] = m[i] * de_corr[i]
+                w = 0.0
+                for a in range(DIM):
+                    w += v[i, a] * dv_corr[i, a]
+                sh[1, t] = m[i] * w
+            if contact_force.shape[0] > 0:
+                for a in range(DIM):
+                    sh[4 + a, t] = contact_force[i, a]
+        _block_sums(sh, TOTALS, t)
+        if t == 0:
+            for k in range(TOTALS):
+                part[cuda.blockIdx.x, k] = sh[k, 0]
+
+    @cuda.jit
+    def totals_finish(n_blocks, part, dt, weight, first, books):
+        """One thread: the blocks' totals in block order into the books: the powers and the
+        walls' push times ``dt weight``, the pairs, and the step's mean push so far (set
+        back at its ``first`` evaluation)."""
+        if cuda.grid(1) == 0:
+            if first:
+                for a in range(3):
+                    books[LAST_PUSH + a] = 0.0
+            for k in range(TOTALS):
+                acc = 0.0
+                for blk in range(n_blocks):
+                    acc += part[blk, k]
+                if k == 3:
+                    books[k] += acc
+                else:
+                    books[k] += dt * weight * acc
+                if k >= 4:
+                    books[LAST_PUSH + k - 4] += weight * acc
+
+    @cuda.jit
+    def enforce_kernel(n, x, v, m, points, normals, scratch):
+        """The walls' constraint on each particle (:func:`impactsph.boundaries.
+        enforce_particle`); its count and impulse into ``scratch`` for the books."""
+        i = cuda.grid(1)
+        if i < n:
+            for k in range(4):
+                scratch[i, k] = 0.0
+            scratch[i, 0] = enforce_particle(i, x, v, m, points, normals, scratch[i, 1:])
+
+    @cuda.jit
+    def enforce_sums(n, scratch, part):
+        sh = cuda.shared.array((4, TPB), float64)
+        i = cuda.grid(1)
+        t = cuda.threadIdx.x
+        for k in range(4):
+            sh[k, t] = scratch[i, k] if i < n else 0.0
+        _block_sums(sh, 4, t)
+        if t == 0:
+            for k in range(4):
+                part[cuda.blockIdx.x, k] = sh[k, 0]
+
+    @cuda.jit
+    def enforce_finish(n_blocks, part, count_events, share, books):
+        """One thread: the constraint's events (if ``count_events``) and ``share`` times its
+        impulse into the books."""
+        if cuda.grid(1) == 0:
+            for k in range(4):
+                acc = 0.0
+                for blk in range(n_blocks):
+                    acc += part[blk, k]
+                if k == 0:
+                    if count_events:
+                        books[EVENTS] += acc
+                else:
+                    books[EVENTS + k] += share * acc
+
+    @cuda.jit
+    def ghost_count_kernel(n, x, points, normals, reach, counts):
+        """How many walls' ghosts particle ``i`` has (``0 <= d < reach``, as
+        :meth:`impactsph.boundaries.Walls.select`)."""
+        i = cuda.grid(1)
+        if i < n:
+            c = 0
+            for w in range(points.shape[0]):
+                d = 0.0
+                for a in range(DIM):
+                    d += (x[i, a] - points[w, a]) * normals[w, a]
+                if d >= 0.0 and d < reach:
+                    c += 1
+            counts[i] = c
+
+    @cuda.jit
+    def ghost_list_kernel(n, x, points, normals, reach, counts, ends, src, wall):
+        """The ghosts' sources and walls, particle by particle, wall by wall: the order of
+        :meth:`~impactsph.boundaries.Walls.select`."""
+        i = cuda.grid(1)
+        if i < n:
+            k = ends[i] - counts[i]
+            for w in range(points.shape[0]):
+                d = 0.0
+                for a in range(DIM):
+                    d += (x[i, a] - points[w, a]) * normals[w, a]
+                if d >= 0.0 and d < reach:
+                    src[k] = i
+                    wall[k] = w
+                    k += 1
+
+    @cuda.jit
+    def ghost_fill_kernel(n_ghosts, src, wall, points, normals, kinds, n_real, x, v, rho, e, S,
+                          carried, m, h, material, body, ghost_body0):
+        k = cuda.grid(1)
+        if k < n_ghosts:
+            fill_ghost(k, src, wall, points, normals, kinds, n_real, x, v, rho, e, S, carried,
+                       m, h, material, body, ghost_body0)
+
+    @cuda.jit
+    def displacement_kernel(n, x, reference, origin, largest):
+        """The largest squared displacement since the build (atomic max: exact)."""
+        i = cuda.grid(1)
+        if i < n:
+            s = 0.0
+            for a in range(DIM):
+                d = (x[i, a] - origin[a]) - float64(reference[i, a])
+                s += d * d
+            cuda.atomic.max(largest, 0, s)
+
+    @cuda.jit
+    def bounds_kernel(n, x, lo, hi):
+        i = cuda.grid(1)
+        if i < n:
+            for a in range(DIM):
+                cuda.atomic.min(lo, a, x[i, a])
+                cuda.atomic.max(hi, a, x[i, a])
+
+    @cuda.jit
+    def cell_kernel(n, x, lo, radius, ncell, key, counts, reference):
+        """Each particle's row-major cell (as the CPU builder clamps it), counted per cell;
+        the reference positions for the staleness test."""
+        i = cuda.grid(1)
+        if i < n:
+            k = 0
+            for a in range(DIM):
+                c = int((x[i, a] - lo[a]) / radius)
+                if c < 0:
+                    c = 0
+                if c >= ncell[a]:
+                    c = ncell[a] - 1
+                k = k * ncell[a] + c
+                reference[i, a] = x[i, a] - lo[a]
+            key[i] = k
+            cuda.atomic.add(counts, k, 1)
+
+    @cuda.jit
+    def scatter_kernel(n, key, counts, ends, fill, order):
+        i = cuda.grid(1)
+        if i < n:
+            k = key[i]
+            slot = ends[k] - counts[k] + cuda.atomic.add(fill, k, 1)
+            order[slot] = i
+
+    @cuda.jit
+    def cell_sort_kernel(n_cells, counts, ends, order):
+        """Each cell's particles in ascending number (insertion sort of a few entries)."""
+        k = cuda.grid(1)
+        if k < n_cells:
+            start = ends[k] - counts[k]
+            for p in range(start + 1, ends[k]):
+                value = order[p]
+                q = p - 1
+                while q >= start and order[q] > value:
+                    order[q + 1] = order[q]
+                    q -= 1
+                order[q + 1] = value
+
+    @cuda.jit
+    def gather_kernel(n, order, x, xs):
+        p = cuda.grid(1)
+        if p < n:
+            for a in range(DIM):
+                xs[p, a] = x[order[p], a]
+
+    @cuda.jit
+    def neighbour_kernel(n, xs, lo, radius, ncell, counts, ends, offsets, indices, store):
+        """The CPU builder's sweep for sorted position ``p``: its neighbours within
+        ``radius`` in the 3^dim cells around its own, counted (``store`` False: into
+        ``offsets[p + 1]``) or stored from ``offsets[p]``."""
+        p = cuda.grid(1)
+        if p >= n:
+            return
+        own = cuda.local.array(3, np.int64)
+        for a in range(DIM):
+            own[a] = min(max(int((xs[p, a] - lo[a]) / radius), 0), ncell[a] - 1)
+        r2max = radius * radius
+        found = 0
+        pos = offsets[p] if store else 0
+        for s in range(STENCIL):
+            t = s
+            kc = 0
+            inside = True
+            for a in range(DIM):
+                c = own[a] + t % 3 - 1
+                t //= 3
+                if c < 0 or c >= ncell[a]:
+                    inside = False
+                kc = kc * ncell[a] + c
+            if not inside:
+                continue
+            for q in range(ends[kc] - counts[kc], ends[kc]):
+                if q == p:
+                    continue
+                r2 = 0.0
+                for a in range(DIM):
+                    d = xs[p, a] - xs[q, a]
+                    r2 += d * d
+                if r2 < r2max:
+                    if store:
+                        indices[pos + found] = q
+                    found += 1
+        if not store:
+            offsets[p + 1] = found
+
+    @cuda.jit
+    def zero_kernel(a):
+        i = cuda.grid(1)
+        if i < a.shape[0]:
+            a[i] = 0
+
+    @cuda.jit
+    def scan_chunks(a, n, chunk, sums):
+        """Inclusive prefix sum within each chunk of ``chunk`` entries; the chunk's total."""
+        c = cuda.grid(1)
+        start = c * chunk
+        if start < n:
+            s = 0
+            for k in range(start, min(start + chunk, n)):
+                s += a[k]
+                a[k] = s
+            sums[c] = s
+
+    @cuda.jit
+    def scan_add(a, n, chunk, sums):
+        """Add the (scanned) totals of the chunks before each chunk."""
+        c = cuda.grid(1)
+        if c >= 1 and c * chunk < n:
+            add = sums[c - 1]
+            for k in range(c * chunk, min((c + 1) * chunk, n)):
+                a[k] += add
+
+    @cuda.jit
+    def take_rows(rows, v, out):
+        k = cuda.grid(1)
+        if k < rows.shape[0]:
+            for a in range(DIM):
+                out[k, a] = v[rows[k], a]
+
+    return dict(advance=advance_kernel, survey=survey_kernel, survey_finish=survey_finish,
+                totals=totals_kernel, totals_finish=totals_finish, enforce=enforce_kernel,
+                enforce_sums=enforce_sums, enforce_finish=enforce_finish,
+                ghost_count=ghost_count_kernel, ghost_list=ghost_list_kernel,
+                ghost_fill=ghost_fill_kernel,
+                displacement=displacement_kernel, bounds=bounds_kernel, cell=cell_kernel,
+                scatter=scatter_kernel, cell_sort=cell_sort_kernel, gather=gather_kernel,
+                neighbours=neighbour_kernel, zero=zero_kernel, scan_chunks=scan_chunks,
+                scan_add=scan_add, take_rows=take_rows)
+
+
+class ResidentStep:
+    """A run's state on the GPU, advanced by Table 1's midpoint step on the device.
+
+    ``solver``: the run's :class:`~impactsph.solver.Solver`, whose backend is a
+    :class:`~impactsph.gpu.GpuRates` (its rate kernels, stream and block size are used) and
+    whose host neighbour list and ghosts are taken over at the start and kept in step at
+    each :meth:`download` after a rebuild (a checkpoint stores them).  The host ``state`` is
+    the copy the caller reads: :meth:`download` refreshes it, :meth:`upload` hands a changed
+    one back.  Rigid walls (no symmetry planes): their ghosts are chosen, filled and the
+    walls' constraint applied on the device.
+    """
+
+    def __init__(self, solver: Any, state: ParticleState, table: np.ndarray):
+        from .models import registry
+
+        backend = solver.backend
+        self.solver = solver
+        self.dim = state.dim
+        self.n = state.n
+        self.tpb = backend.threads_per_block
+        self.stream = backend._stream
+        self.options = backend.options
+        simulated = simulator_enabled()
+        version = registry.version()
+        self.rate_kernels = gpu_kernels(self.dim, simulated, version, self.options)
+        self.k = step_kernels(self.dim, simulated, version, self.options, self.tpb)
+        self.record_width = self.rate_kernels[-1]
+        self.viscosity = solver.viscosity
+        self.corrected = self.viscosity.correction is not None
+        self.n_bodies = solver.n_bodies
+        walls = solver.walls
+        self.contact = self.n_bodies > 1 or walls is not None
+        self.support = SUPPORT_RADIUS * float(state.smoothing_length.max())
+        self.skin = solver.neighbours.skin
+        self.radius = solver.neighbours.radius
+        self.blocks = max(1, (self.n + self.tpb - 1) // self.tpb)
+        s = self.stream
+        dim = self.dim
+        if walls is not None:
+            self.points = cuda.to_device(np.ascontiguousarray(walls.points), stream=s)
+            self.normals = cuda.to_device(np.ascontiguousarray(walls.normals), stream=s)
+            self.kinds = cuda.to_device(np.ascontiguousarray(walls.kinds), stream=s)
+        else:
+            self.points = cuda.device_array((0, dim), np.float64, stream=s)
+            self.normals = cuda.device_array((0, dim), np.float64, stream=s)
+            self.kinds = None
+        self.walls = walls
+        #: rate evaluations and rebuilds done on the device since :meth:`Simulation._fold`
+        #: took them (the pair evaluations are in the books)
+        self.rate_evaluations = 0
+        self.builds = 0
+        self._list_builds = 0  # device rebuilds not yet copied into the host list
+        self._host_list = None  # the host NeighbourList the device list came from
+        self.capacity = 0  # rows of the extended arrays (particles and ghosts)
+        self.n_ghosts = 0
+        #: whether the host state holds the latest values (after a download or an upload)
+        self.host_current = True
+        self._allocate(state, table)
+        self.upload(state)
+
+    # -- device memory -----------------------------------------------------------------------
+    def _allocate(self, state: ParticleState, table: np.ndarray) -> None:
+        n, dim, s = self.n, self.dim, self.stream
+        empty = cuda.device_array
+        self.now = {f: empty(getattr(state, f).shape, getattr(state, f).dtype, stream=s)
+                    for f in INTEGRATED}
+        self.start = {f: empty(getattr(state, f).shape, getattr(state, f).dtype, stream=s)
+                      for f in INTEGRATED}
+        self.const = {f: empty(getattr(state, f).shape, getattr(state, f).dtype, stream=s)
+                      for f in CONSTANT}
+        self.table = cuda.to_device(np.ascontiguousarray(table), stream=s)
+        contact_rows = n if self.contact else 0
+        corr_rows = n if self.corrected else 0  # AC's correction: only where it is used
+        self.out = {"drho": empty(n, np.float64, stream=s), "dv": empty((n, dim), np.float64),
+                    "de": empty(n, np.float64), "de_visc": empty(n, np.float64),
+                    "contact_force": empty((contact_rows, dim), np.float64),
+                    "pair_count": empty(n, np.int64), "dS": empty((n, 3, 3), np.float64),
+                    "dv_corr": empty((corr_rows, dim), np.float64),
+                    "de_corr": empty(corr_rows, np.float64),
+                    "dhg": empty((n, 0), np.float64), "gradients": empty((0, dim, dim),
+                                                                         np.float64)}
+        self.survey_part = empty((self.blocks, 6), np.float64)
+        self.survey_out = empty(SURVEY_WIDTH, np.float64)
+        self.bad = cuda.to_device(np.array([NO_BAD], dtype=np.int64), stream=s)
+        self.totals_part = empty((self.blocks, TOTALS), np.float64)
+        self.books = cuda.to_device(np.zeros(BOOKS_WIDTH), stream=s)
+        self.largest = cuda.to_device(np.zeros(1), stream=s)
+        self.origin = empty(dim, np.float64)
+        if self.walls is not None:
+            self.scratch = empty((n, 4), np.float64)
+            self.enforce_part = empty((self.blocks, 4), np.float64)
+
+    def _rows(self, rows: int) -> None:
+        """The arrays of every row (particles, then ghosts) for ``rows`` rows: the state's
+        own without walls; with walls, extended arrays (reallocated with a margin when the
+        ghosts outgrow them, their particles' constant rows copied in)."""
+        s = self.stream
+        if self.walls is None:
+            if self.capacity == 0:
+                self.ext = {"x": self.now["position"], "v": self.now["velocity"],
+                            "rho": self.now["density"], "e": self.now["specific_energy"],
+                            "S": self.now["deviatoric_stress"],
+                            "carried": self.now["material_state"],
+                            "m": self.const["mass"], "h": self.const["smoothing_length"],
+                            "material": self.const["material"], "body": self.const["body"]}
+                self._packed(rows)
+            return
+        if rows <= self.capacity:
+            return
+        capacity = rows + rows // 8 + 16
+        width = self.now["material_state"].shape[1]
+        empty = cuda.device_array
+        self.ext = {"x": empty((capacity, self.dim), np.float64, stream=s),
+                    "v": empty((capacity, self.dim), np.float64, stream=s),
+                    "rho": empty(capacity, np.float64, stream=s),
+                    "e": empty(capacity, np.float64, stream=s),
+                    "S": empty((capacity, 3, 3), np.float64, stream=s),
+                    "carried": empty((capacity, width), np.float64, stream=s),
+                    "m": empty(capacity, np.float64, stream=s),
+                    "h": empty(capacity, np.float64, stream=s),
+                    "material": empty(capacity, np.int32, stream=s),
+                    "body": empty(capacity, np.int32, stream=s)}
+        n = self.n
+        for name, field in (("m", "mass"), ("h", "smoothing_length"), ("material", "material"),
+                            ("body", "body")):
+            self.ext[name][:n].copy_to_device(self.const[field], stream=s)
+        self._packed(capacity)
+
+    def _packed(self, rows: int) -> None:
+        """The packed records and the reference positions for ``rows`` rows."""
+        self.capacity = rows
+        self.packed = cuda.device_array((rows, self.record_width), np.float64,
+                                        stream=self.stream)
+        reference = cuda.device_array((rows, self.dim), np.float32, stream=self.stream)
+        if getattr(self, "reference", None) is not None:  # the particles' rows kept
+            reference[: self.n].copy_to_device(self.reference[: self.n], stream=self.stream)
+        self.reference = reference
+
+    def _fill(self) -> None:
+        """The particles' rows of the extended arrays from the state, and the ghosts' from
+        their sources (with walls)."""
+        if self.walls is None:
+            return
+        s, n, ext, now = self.stream, self.n, self.ext, self.now
+        for name, field in (("x", "position"), ("v", "velocity"), ("rho", "density"),
+                            ("e", "specific_energy"), ("S", "deviatoric_stress"),
+                            ("carried", "material_state")):
+            ext[name][:n].copy_to_device(now[field], stream=s)
+        if self.n_ghosts:
+            self._launch("ghost_fill", self.n_ghosts, self.n_ghosts, self.ghost_src,
+                         self.ghost_wall, self.points, self.normals, self.kinds, n, ext["x"],
+                         ext["v"], ext["rho"], ext["e"], ext["S"], ext["carried"], ext["m"],
+                         ext["h"], ext["material"], ext["body"], self.n_bodies)
+
+    def _fetch(self, device_array) -> np.ndarray:
+        """A device array's values on the host, once they are there (the copy is queued
+        on the stream; the stream is then waited for)."""
+        host = device_array.copy_to_host(stream=self.stream)
+        self.stream.synchronize()
+        return host
+
+    def _launch(self, kernel: str, threads: int, *args) -> None:
+        blocks = max(1, (threads + self.tpb - 1) // self.tpb)
+        self.k[kernel][blocks, self.tpb, self.stream](*args)
+
+    def upload(self, state: ParticleState) -> None:
+        """Hand the host ``state`` (and the host neighbour list and ghosts, if the solver
+        holds another list than the device's) to the device."""
+        s = self.stream
+        for f in INTEGRATED:
+            if getattr(state, f).size:
+                self.now[f].copy_to_device(np.ascontiguousarray(getattr(state, f)), stream=s)
+        for f in CONSTANT:
+            self.const[f].copy_to_device(np.ascontiguousarray(getattr(state, f)), stream=s)
+        nl = self.solver.neighbours
+        if nl is not self._host_list:
+            src = np.ascontiguousarray(self.solver._ghost_src, np.int64)
+            wall = np.ascontiguousarray(self.solver._ghost_wall, np.int64)
+            self.n_ghosts = int(src.shape[0])
+            self.ghost_src = cuda.device_array(self.n_ghosts, np.int64, stream=s)
+            self.ghost_wall = cuda.device_array(self.n_ghosts, np.int64, stream=s)
+            if self.n_ghosts:  # (no copy of nothing)
+                self.ghost_src.copy_to_device(src, stream=s)
+                self.ghost_wall.copy_to_device(wall, stream=s)
+            rows = self.n + self.n_ghosts
+            self.capacity = 0  # new arrays: the constants' rows are copied in
+            self._rows(rows)
+            self.order = cuda.to_device(np.ascontiguousarray(nl.order), stream=s)
+            self.offsets = cuda.to_device(np.ascontiguousarray(nl.offsets), stream=s)
+            self.indices = cuda.to_device(np.ascontiguousarray(nl.indices), stream=s)
+            self.reference[:rows].copy_to_device(np.ascontiguousarray(
+                nl.reference_positions[:rows]), stream=s)
+            self.origin.copy_to_device(np.ascontiguousarray(nl.reference_origin, np.float64),
+                                       stream=s)
+            self._host_list = nl
+            self._list_builds = 0
+        s.synchronize()
+        self.host_current = True
+
+    def download(self, state: ParticleState) -> None:
+        """The device's state into the host ``state`` (nothing when it is current); after a
+        rebuild also the neighbour list and the ghosts into the solver's."""
+        if self.host_current:
+            return
+        s = self.stream
+        for f in INTEGRATED:
+            if getattr(state, f).size:
+                self.now[f].copy_to_host(getattr(state, f), stream=s)
+        if self._list_builds:
+            nl = self.solver.neighbours
+            rows = self.n + self.n_ghosts
+            nl.order = self._fetch(self.order).astype(np.int32)
+            nl.offsets = self._fetch(self.offsets)
+            nl.indices = self._fetch(self.indices)
+            nl.reference_positions = self._fetch(self.reference[:rows])
+            nl.reference_origin = self._fetch(self.origin)
+            src, wall = ((self._fetch(self.ghost_src), self._fetch(self.ghost_wall))
+                         if self.n_ghosts else (np.zeros(0, np.int64), np.zeros(0, np.int64)))
+            s.synchronize()
+            self.solver.restore(state, nl, src, wall)  # the host's ghosts and buffers too
+            self._list_builds = 0
+        s.synchronize()
+        self.host_current = True
+
+    def contact_force(self) -> np.ndarray:
+        """The last evaluation's contact force on each particle (several bodies only)."""
+        return self._fetch(self.out["contact_force"])
+
+    def rows(self, rows: np.ndarray) -> np.ndarray:
+        """The velocities of the particles ``rows`` (a probe), without the rest."""
+        d_rows = cuda.to_device(np.ascontiguousarray(rows, np.int64), stream=self.stream)
+        out = cuda.device_array((rows.shape[0], self.dim), np.float64, stream=self.stream)
+        if rows.shape[0]:
+            self._launch("take_rows", rows.shape[0], d_rows, self.now["velocity"], out)
+        return self._fetch(out)
+
+    def take_books(self) -> dict[str, Any]:
+        """The books since the last call, set back to zero on the device (the step's mean
+        push, a state rather than a sum, stays): ``heating``, ``correction_work``,
+        ``correction_heating`` (J), ``pairs``, ``wall_impulse`` (N s), ``events``,
+        ``constraint_impulse`` (N s) and ``push`` (N, the last step's)."""
+        books = self._fetch(self.books)
+        kept = np.zeros(BOOKS_WIDTH)
+        kept[LAST_PUSH:] = books[LAST_PUSH:]
+        self.books.copy_to_device(kept, stream=self.stream)
+        dim = self.dim
+        return {"heating": books[0], "correction_work": books[1],
+                "correction_heating": books[2], "pairs": int(books[3]),
+                "wall_impulse": books[4: 4 + dim].copy(), "events": int(books[EVENTS]),
+                "constraint_impulse": books[EVENTS + 1: EVENTS + 1 + dim].copy(),
+                "push": books[LAST_PUSH: LAST_PUSH + dim].copy()}
+
+    # -- the neighbour list --------------------------------------------------------------------
+    def _stale(self) -> bool:
+        if self.skin <= 0.0:
+            return True
+        self.largest.copy_to_device(np.zeros(1), stream=self.stream)
+        self._launch("displacement", self.n, self.n, self.now["position"], self.reference,
+                     self.origin, self.largest)
+        largest = self._fetch(self.largest)[0]
+        return bool(math.sqrt(largest) > 0.5 * self.skin)
+
+    def _scan(self, a, n: int) -> None:
+        """Inclusive prefix sum of the first ``n`` entries of the device array ``a``."""
+        chunks = (n + SCAN_CHUNK - 1) // SCAN_CHUNK
+        if chunks == 0:
+            return
+        sums = cuda.device_array(chunks, a.dtype, stream=self.stream)
+        self._launch("scan_chunks", chunks, a, n, SCAN_CHUNK, sums)
+        if chunks > 1:
+            self._scan(sums, chunks)
+            self._launch("scan_add", chunks, a, n, SCAN_CHUNK, sums)
+
+    def _select_ghosts(self) -> None:
+        """The walls' ghosts of the particles within reach of them (as
+        :meth:`impactsph.boundaries.Walls.select`: particle by particle, wall by wall)."""
+        n, s = self.n, self.stream
+        if self.walls is None:
+            self._rows(n)
+            return
+        x = self.now["position"]
+        reach = self.support + self.skin
+        counts = cuda.device_array(n, np.int64, stream=s)
+        self._launch("ghost_count", n, n, x, self.points, self.normals, reach, counts)
+        ends = cuda.device_array(n, np.int64, stream=s)
+        ends.copy_to_device(counts, stream=s)
+        self._scan(ends, n)
+        self.n_ghosts = int(self._fetch(ends[n - 1:])[0]) if n else 0
+        self.ghost_src = cuda.device_array(max(self.n_ghosts, 1), np.int64, stream=s)
+        self.ghost_wall = cuda.device_array(max(self.n_ghosts, 1), np.int64, stream=s)
+        self._launch("ghost_list", n, n, x, self.points, self.normals, reach, counts, ends,
+                     self.ghost_src, self.ghost_wall)
+        self.ghost_src = self.ghost_src[: self.n_ghosts]
+        self.ghost_wall = self.ghost_wall[: self.n_ghosts]
+        self._rows(n + self.n_ghosts)
+
+    def build(self) -> None:
+        """Choose the ghosts and rebuild the neighbour list on the device (the module's
+        docstring)."""
+        self._select_ghosts()
+        self._fill()
+        n, dim, s = self.n + self.n_ghosts, self.dim, self.stream
+        x = self.ext["x"]
+        # the old list first: the peak memory holds one list (and the build's own arrays)
+        self.order = self.offsets = self.indices = None
+        key = cuda.device_array(n, np.int64, stream=s)
+        xs = cuda.device_array((n, dim), np.float64, stream=s)  # the sorted positions
+        lo = cuda.to_device(np.full(dim, np.inf), stream=s)
+        hi = cuda.to_device(np.full(dim, -np.inf), stream=s)
+        self._launch("bounds", n, n, x, lo, hi)
+        lo_h, hi_h = self._fetch(lo), self._fetch(hi)
+        radius = self.radius
+        ncell = np.array([max(1, int((hi_h[a] - lo_h[a]) / radius) + 1) for a in range(dim)],
+                         dtype=np.int64)
+        n_cells = int(np.prod(ncell))
+        d_ncell = cuda.to_device(ncell, stream=s)
+        counts = cuda.device_array(n_cells, np.int64, stream=s)
+        fill = cuda.device_array(n_cells, np.int64, stream=s)
+        self._launch("zero", n_cells, counts)
+        self._launch("zero", n_cells, fill)
+        self._launch("cell", n, n, x, lo, radius, d_ncell, key, counts, self.reference)
+        ends = cuda.device_array(n_cells, np.int64, stream=s)
+        ends.copy_to_device(counts, stream=s)
+        self._scan(ends, n_cells)
+        order = cuda.device_array(n, np.int32, stream=s)
+        self._launch("scatter", n, n, key, counts, ends, fill, order)
+        self._launch("cell_sort", n_cells, n_cells, counts, ends, order)
+        self._launch("gather", n, n, order, x, xs)
+        offsets = cuda.device_array(n + 1, np.int64, stream=s)
+        self._launch("zero", n + 1, offsets)
+        self._launch("neighbours", n, n, xs, lo, radius, d_ncell, counts, ends, offsets,
+                     offsets, False)
+        self._scan(offsets[1:], n)
+        total = int(self._fetch(offsets[n:])[0])
+        indices = cuda.device_array(max(total, 1), np.int32, stream=s)[:total]
+        self._launch("neighbours", n, n, xs, lo, radius, d_ncell, counts, ends, offsets,
+                     indices, True)
+        self.order, self.offsets, self.indices = order, offsets, indices
+        self.origin.copy_to_device(lo_h, stream=s)
+        self.builds += 1
+        self._list_builds += 1
+
+    # -- one step ------------------------------------------------------------------------------
+    def _evaluate(self, dt: float, weight: float, first: bool) -> None:
+        """The rates at the device state; the powers and the walls' push booked with
+        ``dt`` times ``weight`` (the evaluation's in the step's mean rate); ``first``: the
+        step's first evaluation."""
+        if self._stale():
+            self.build()
+        else:
+            self._fill()
+        (particle_kernel, pair_kernel, correction_kernel, _, moment_kernel, _, _,
+         gradient_kernel, force_correction, reconstruction, _) = self.rate_kernels
+        self.viscosity.check_compiled(reconstruction)
+        n, tpb, s = self.n, self.tpb, self.stream
+        rows = n + self.n_ghosts
+        blocks = max(1, (rows + tpb - 1) // tpb)
+        ext, out, P = self.ext, self.out, self.packed
+        order, offsets, indices = self.order, self.offsets, self.indices
+        particle_kernel[blocks, tpb, s](
+            rows, order, ext["x"], ext["v"], ext["m"], ext["rho"], ext["e"], ext["S"],
+            ext["carried"], ext["h"], ext["body"], ext["material"], self.table, P)
+        if force_correction:
+            moment_kernel[blocks, tpb, s](rows, P, offsets, indices)
+        if reconstruction:
+            gradient_kernel[blocks, tpb, s](rows, P, offsets, indices)
+        pair_kernel[blocks, tpb, s](
+            rows, n, order, P, offsets, indices, int(self.viscosity.kind), self.viscosity.pair,
+            self.options.normal_stress, ext["S"], ext["material"], self.table,
+            out["drho"], out["dv"], out["de"], out["de_visc"], out["contact_force"],
+            out["pair_count"], out["dS"], out["gradients"])
+        if self.corrected:
+            correction_kernel[blocks, tpb, s](
+                rows, n, order, P, offsets, indices, int(self.viscosity.kind),
+                self.viscosity.correction, out["dv_corr"], out["de_corr"], out["dv"],
+                out["de"])
+        c = self.const
+        self._launch("totals", n, n, c["mass"], self.now["velocity"], out["de_visc"],
+                     out["dv_corr"], out["de_corr"], out["pair_count"], out["contact_force"],
+                     self.corrected, self.totals_part)
+        self._launch("totals_finish", 1, self.blocks, self.totals_part, float(dt),
+                     float(weight), bool(first), self.books)
+        self.rate_evaluations += 1
+
+    def _stage(self, dt: float, v_rate, share: float, last: bool) -> None:
+        """One forward-Euler stage from the step's start, then the walls' constraint (its
+        impulse with ``share`` in the books, its events counted at the ``last`` stage)."""
+        st, now, c, out = self.start, self.now, self.const, self.out
+        self._launch("advance", self.n, self.n, dt, st["position"], st["velocity"],
+                     st["density"], st["specific_energy"], st["deviatoric_stress"],
+                     st["plastic_work"], st["material_state"], st["hourglass_acceleration"],
+                     v_rate, out["dv"], out["drho"], out["de"], out["dS"], out["dhg"],
+                     c["clamped"], c["material"], self.table, c["smoothing_length"],
+                     now["position"], now["velocity"], now["density"], now["specific_energy"],
+                     now["deviatoric_stress"], now["plastic_work"], now["material_state"],
+                     now["hourglass_acceleration"])
+        if self.walls is not None:
+            n = self.n
+            self._launch("enforce", n, n, now["position"], now["velocity"], c["mass"],
+                         self.points, self.normals, self.scratch)
+            self._launch("enforce_sums", n, n, self.scratch, self.enforce_part)
+            self._launch("enforce_finish", 1, self.blocks, self.enforce_part, bool(last),
+                         float(share), self.books)
+
+    def step(self, state: ParticleState, dt: float) -> None:
+        """Table 1's predictor-corrector on the device (as
+        :meth:`impactsph.integrate.MidpointIntegrator.step`): rates at t, the half step, rates
+        at t + dt/2 (the step's books: the weights (0, 1)), the whole step.  ``state``'s time
+        and step move; its arrays are left as they were (:meth:`download`)."""
+        for f in INTEGRATED:
+            if self.now[f].size:
+                self.start[f].copy_to_device(self.now[f], stream=self.stream)
+        self._evaluate(dt, 0.0, True)
+        self._stage(0.5 * dt, self.start["velocity"], 0.0, False)
+        self._evaluate(dt, 1.0, False)
+        # x(t + dt) = x(t) + dt v(t + dt/2): each thread reads its particle's midpoint
+        # velocity before it overwrites it
+        self._stage(dt, self.now["velocity"], 1.0, True)
+        self.host_current = False
+        state.time += dt
+        state.step += 1
+
+    def survey(self, courant: float) -> tuple[float, np.ndarray, int]:
+        """The CFL step (eq 26), ``(KE, IE, p_x, p_y, p_z)`` and the first bad value's code
+        (as :func:`impactsph.integrate._survey_kernel` returns them, and ``6 n + i`` for a
+        particle behind a wall), from the device state."""
+        n = self.n
+        now, c = self.now, self.const
+        self._launch("survey", n, n, now["position"], now["velocity"], now["density"],
+                     now["specific_energy"], now["deviatoric_stress"], c["mass"],
+                     c["smoothing_length"], c["material"], self.table, self.points,
+                     self.normals, self.survey_part, self.bad)
+        self._launch("survey_finish", 1, self.blocks, self.survey_part, float(courant),
+                     self.bad, self.survey_out)
+        out = self._fetch(self.survey_out)
+        return float(out[0]), out[1:6].copy(), int(out[6])
