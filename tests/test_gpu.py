@@ -110,12 +110,16 @@ RESIDENT = {
                            "bodies.1.geometry.centre=[0.0095, 0.0]",
                            "bodies.0.velocity=[50.0, 0.0]", "bodies.1.velocity=[-50.0, 3.0]",
                            "time.neighbour_skin=0.02", "analysis=none", 'viscosity.scheme="ac"',
-                           "output.history_every=2"], 5),
+                           "output.history_every=3"], 5),
     # rigid walls: ghosts chosen, filled and the constraint applied on the device
     "taylor-2d": ("taylor", ["bodies.0.geometry.count=[4, 6]", "time.neighbour_skin=0.02",
                              "output.history_every=1"], 5),
     "block-3d": ("taylor", [*CASES["block-3d"][1][:-2], "time.neighbour_skin=0.02",
                             "output.history_every=1"], 3),
+    # the walls that hold: the penalty layer and the normal-stress traction
+    "taylor-2d-layer": ("taylor", ["bodies.0.geometry.count=[4, 6]", "contact.wall_layer=0.25",
+                                   'contact.traction="normal_stress"',
+                                   "output.history_every=1"], 4),
 }
 
 
@@ -317,6 +321,10 @@ def _worker(task: str, folder: Path) -> int:
             np.savez(folder / f"{name}.npz", **sim.state.arrays())
             summary = sim.summary()
             report[name] = {"resident": resident, "history": sim.record.history,
+                            "downloads": sim._resident.downloads,
+                            "books": [sim.viscous_dissipation, sim.correction_work,
+                                      sim.correction_heating, *sim.wall_impulse.tolist(),
+                                      sim.integrator.constraint_events],
                             "probes": {k: [[t, v.tolist()] for t, v in rows]
                                        for k, rows in sim.record.probes.items()},
                             "lists": lists, "device": summary["device"],
@@ -331,15 +339,38 @@ def _worker(task: str, folder: Path) -> int:
 
         case, overrides, steps = RESIDENT["taylor-2d"]
         full = np.load(folder / "taylor-2d.npz")
-        first = _resident_run("taylor-2d", on_gpu=True, stop_after=2)[0]
+        first = _resident_run("taylor-2d", on_gpu=True, stop_after=3)[0]
+        builds_at_checkpoint = first.solver.neighbours.builds
         write_checkpoint(first, folder / "checkpoint.h5")
         second = load_checkpoint(folder / "checkpoint.h5", load_case(
             case, [*overrides, f"time.max_steps={steps}"]))
         second.run(callback=_halve)
+        summary = second.summary()
         report["restart"] = {
             "resident": second._resident is not None, "steps": second.state.step,
+            "builds_at_checkpoint": builds_at_checkpoint,
             "differences": {k: int(np.count_nonzero(v != full[k]))
-                            for k, v in second.state.arrays().items()}}
+                            for k, v in second.state.arrays().items()},
+            "books": [second.viscous_dissipation, second.correction_work,
+                      second.correction_heating, *second.wall_impulse.tolist()],
+            "counts": [summary["pair_evaluations"], summary["neighbour_list_builds"]],
+            "last_row": second.record.history[-1]}
+        # the prefix sums over several chunks (the runs' are shorter than one)
+        from numba import cuda as _cuda
+
+        from impactsph.gpu import SIMULATOR_THREADS_PER_BLOCK, THREADS_PER_BLOCK
+        from impactsph.gpu_step import prefix_sum, step_kernels
+
+        simulated = report["simulator"]
+        tpb = SIMULATOR_THREADS_PER_BLOCK if simulated else THREADS_PER_BLOCK
+        kernels = step_kernels(1, simulated, -1, PassOptions(), tpb)
+        report["scans"] = {}
+        for size in (1, 255, 257, 65836):
+            values = np.random.default_rng(size).integers(0, 9, size)
+            device = _cuda.to_device(values)
+            prefix_sum(kernels, device, size, tpb, 0,
+                       lambda level, rows: _cuda.device_array(rows, np.int64))
+            report["scans"][size] = bool((device.copy_to_host() == np.cumsum(values)).all())
     else:
         raise SystemExit(f"unknown task {task!r}")
     (folder / "report.json").write_text(json.dumps(report))
@@ -622,9 +653,19 @@ def test_the_whole_step_on_the_device_matches_the_cpu(resident_comparison, name)
             else [key]
         scale = max(float(np.abs([row[k] for row in history for k in like]).max()), 1e-300)
         assert np.abs(got - ref).max() <= TOL * scale + 1e-18, (name, key, ref, got)
-    assert info["counts"] == [sim.solver.pair_evaluations, sim.solver.rate_evaluations,
-                              sim.solver.neighbours.builds]
-    assert info["lists"] == lists
+    books = [sim.viscous_dissipation, sim.correction_work, sim.correction_heating,
+             *sim.wall_impulse.tolist(), sim.integrator.constraint_events]
+    np.testing.assert_allclose(info["books"], books, rtol=TOL,
+                               atol=TOL * float(np.abs(books).max()))  # (a zero component)
+    if not (len(sim.walls) or sim.problem.body_names[1:]):  # no walls' push: none booked
+        assert not any(info["books"][3:-1])
+    # the state came down only for the callback's read (step 2) and at the end of the run:
+    # history rows, probes and the survey read the device
+    assert info["downloads"] == 2, info["downloads"]
+    if mode == "simulator":  # on a GPU, fused multiply-adds may move a pair at the radius
+        assert info["counts"] == [sim.solver.pair_evaluations, sim.solver.rate_evaluations,
+                                  sim.solver.neighbours.builds]
+        assert info["lists"] == lists
     if name == "rings-2d":  # rebuilt on the device at nearly every evaluation
         assert info["counts"][2] > RESIDENT[name][2]
     if name == "bars-1d":  # a probe's rows, taken from the device at every step
@@ -642,8 +683,20 @@ def test_a_device_run_restarts_bitwise(resident_comparison):
     the checkpoint (uploaded), ends in the uninterrupted run's state, bit for bit."""
     _, report, _, _ = resident_comparison
     restart = report["restart"]
+    full = report["taylor-2d"]
     assert restart["resident"] and restart["steps"] == RESIDENT["taylor-2d"][2]
+    assert restart["builds_at_checkpoint"] > 1  # a list built on the device, checkpointed
     assert not any(restart["differences"].values()), restart["differences"]
+    assert restart["books"] == full["books"][:-1]
+    assert restart["last_row"] == full["history"][-1]
+    assert restart["counts"] == full["counts"][::2]
+
+
+def test_the_device_prefix_sum_spans_several_chunks(resident_comparison):
+    """The device's prefix sum (its chunks, their totals' sum, the recursion) equals numpy's
+    cumulative sum at 1, 255, 257 and 65,836 entries."""
+    _, report, _, _ = resident_comparison
+    assert all(report["scans"].values()), report["scans"]
 
 
 def test_the_walls_constraint_on_the_device_is_the_cpus(resident_comparison):
@@ -676,13 +729,22 @@ def test_what_keeps_the_state_on_the_host_is_named():
     assert why("bars") is None
     assert why("rings") is None
     assert why("taylor") is None  # a rigid wall: its ghosts on the device
-    assert "penalty layer" in why("taylor", ["contact.wall_layer=0.25"])
+    assert why("taylor", ["contact.wall_layer=0.25"]) is None  # the walls that hold too
     assert "symmetry" in why("taylor", [
         'boundaries=[{type="wall", point=[0.0, 0.0], normal=[0.0, 1.0]}, '
         '{type="symmetry", point=[0.0, 0.0], normal=[1.0, 0.0]}]'])
     assert "friction" in why("taylor", [
         'boundaries=[{type="wall", point=[0.0, 0.0], normal=[0.0, 1.0], friction=0.1}]'])
     assert "axisymmetric" in why("taylor_axisymmetric")
+    assert "hourglass" in why("taylor", ["stabilisation.hourglass=1.0"])
+    assert "plane_stress" in why("taylor", ['two_dimensional="plane_stress"'])
+    assert "friction" in why(str(Path(__file__).parent / "data" / "friction_pair.toml"),
+                             ["stabilisation.hourglass=0.0"])
+    assert "driven" in why("taylor", ['bodies.0.driven=[{name="top", origin=[-0.004, 0.02], '
+                                      'size=[0.008, 0.01], velocity=[0.0, -10.0]}]'])
+    case = load_case("bars")
+    assert "gauges" in resident_unsupported(case, build_problem(case).state,
+                                            walls_of(case.boundaries, 1), True)
     assert why("bars", ["compute.resident=false"]) == "compute.resident = false"
     assert "ssp_rk3" in why("bars", ['time.integrator="ssp_rk3"'])
     assert "compatible" in why("bars", ['time.energy_update="compatible"'])
@@ -814,11 +876,11 @@ def _step_kernel_types(name: str, dim: int) -> tuple:
     f1, f2, f3 = nb.float64[::1], nb.float64[:, ::1], nb.float64[:, :, ::1]
     i64, i32 = nb.int64[::1], nb.int32[::1]
     types = {}
-    for names, t in (("n n_blocks n_cells chunk n_ghosts n_real ghost_body0", nb.int64),
-                     ("dt courant scale radius weight share reach", nb.float64),
-                     ("corrected store first count_events", nb.boolean),
+    for names, t in (("n n_blocks n_cells chunk n_ghosts n_real ghost_body0 b", nb.int64),
+                     ("dt courant scale radius weight share reach layer", nb.float64),
+                     ("corrected store first count_events walls", nb.boolean),
                      ("x0 v0 x v dv xs v_rate hg0 hg dhg part st0 st dv_corr table points "
-                      "normals scratch contact_force carried", f2),
+                      "normals scratch contact_force carried force layer_force x0", f2),
                      ("S0 S dS", f3),
                      ("rho0 e0 pw0 drho de rho e pw h m de_visc de_corr lo hi origin largest "
                       "books", f1),
@@ -828,7 +890,8 @@ def _step_kernel_types(name: str, dim: int) -> tuple:
         types.update(dict.fromkeys(names.split(), t))
     types.update(clamped=nb.boolean[::1], reference=nb.float32[:, ::1], kinds=nb.int8[::1])
     kernel = step_kernels(dim, False, -1, PassOptions(), 128)[name]
-    special = {("survey_finish", "out"): f1, ("take_rows", "out"): f2}
+    special = {("survey_finish", "out"): f1, ("take_rows", "out"): f2,
+               ("body_finish", "out"): f2}
     return kernel, tuple(special.get((name, k), types.get(k))
                          for k in inspect.signature(kernel.py_func).parameters)
 

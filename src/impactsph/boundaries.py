@@ -377,6 +377,42 @@ def friction_push(n, x, v, m, material, table, contact_force, points, normals, m
 LAYER_DAMPING = 0.5
 
 
+@nb.njit(inline="always", cache=True)
+def layer_push_particle(i, x, v, m, material, table, points, normals, layer, dv, de, soft,
+                        per_radian, force):
+    """:func:`layer_push` on particle ``i``: its push added to ``dv[i]``, ``de[i]`` and its
+    force (N) to ``force`` (the CPU loop and the kernel of :mod:`impactsph.gpu_step` call
+    this)."""
+    dim = x.shape[1]
+    k = material[i]
+    rho0 = table[k, RHO0]
+    # axisymmetry (per_radian): the mass is per radian, the particle's area m / (rho0 r)
+    area = m[i] / (rho0 * max(x[i, 0], 1e-300)) if per_radian else m[i] / rho0
+    dx = area ** (1.0 / dim)
+    r0 = layer * dx
+    for w in range(points.shape[0]):
+        d = 0.0
+        vn = 0.0
+        for a in range(dim):
+            d += (x[i, a] - points[w, a]) * normals[w, a]
+            vn += v[i, a] * normals[w, a]
+        if d >= r0:
+            continue
+        if soft:
+            omega = 0.5 * math.sqrt(table[k, BULK] / rho0) / dx
+            push = omega * omega * (r0 - d) - (2.0 * LAYER_DAMPING * omega * vn
+                                               * (r0 - d) / r0)
+        else:
+            omega = math.sqrt(table[k, BULK] / (rho0 * r0 * dx))
+            push = omega * omega * (r0 - d) - 2.0 * LAYER_DAMPING * omega * vn
+        if push <= 0.0:
+            continue
+        for a in range(dim):
+            dv[i, a] += push * normals[w, a]
+            force[a] += m[i] * push * normals[w, a]
+        de[i] -= push * vn
+
+
 @nb.njit(parallel=True, cache=True)
 def layer_push(n, x, v, m, material, table, points, normals, layer, dv, de, soft=False,
                per_radian=False):
@@ -416,33 +452,8 @@ def layer_push(n, x, v, m, material, table, points, normals, layer, dv, de, soft
     part = np.zeros((n_chunks, 3))
     for c in nb.prange(n_chunks):
         for i in range(c * chunk, min((c + 1) * chunk, n)):
-            k = material[i]
-            rho0 = table[k, RHO0]
-            # axisymmetry (per_radian): the mass is per radian, the particle's area m / (rho0 r)
-            area = m[i] / (rho0 * max(x[i, 0], 1e-300)) if per_radian else m[i] / rho0
-            dx = area ** (1.0 / dim)
-            r0 = layer * dx
-            for w in range(points.shape[0]):
-                d = 0.0
-                vn = 0.0
-                for a in range(dim):
-                    d += (x[i, a] - points[w, a]) * normals[w, a]
-                    vn += v[i, a] * normals[w, a]
-                if d >= r0:
-                    continue
-                if soft:
-                    omega = 0.5 * math.sqrt(table[k, BULK] / rho0) / dx
-                    push = omega * omega * (r0 - d) - (2.0 * LAYER_DAMPING * omega * vn
-                                                       * (r0 - d) / r0)
-                else:
-                    omega = math.sqrt(table[k, BULK] / (rho0 * r0 * dx))
-                    push = omega * omega * (r0 - d) - 2.0 * LAYER_DAMPING * omega * vn
-                if push <= 0.0:
-                    continue
-                for a in range(dim):
-                    dv[i, a] += push * normals[w, a]
-                    part[c, a] += m[i] * push * normals[w, a]
-                de[i] -= push * vn
+            layer_push_particle(i, x, v, m, material, table, points, normals, layer, dv, de,
+                                soft, per_radian, part[c])
     total = np.zeros(dim)
     for c in range(n_chunks):
         for a in range(dim):

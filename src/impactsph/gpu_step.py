@@ -31,11 +31,12 @@ a prefix sum and a fill, in the order of :meth:`impactsph.boundaries.Walls.selec
 evaluation the ghosts' rows are filled from their sources
 (:func:`impactsph.boundaries.fill_ghost`), and after each stage the walls' constraint acts
 (:func:`impactsph.boundaries.enforce_particle`), its events and impulse booked as the CPU
-books them.
+books them; the walls' penalty layer (``contact.wall_layer``) adds its push to the rates
+(:func:`impactsph.boundaries.layer_push_particle`).
 
 Which runs keep their state on the device: :func:`resident_unsupported` names what keeps a
 run on the host path (symmetry planes, whose ghosts mirror results on the CPU; walls with
-friction or the walls' penalty layer; driven regions, clamps and added mass; the hourglass
+friction; driven regions, clamps and added mass; the hourglass
 control and friction between bodies; viscosity switches; SSP-RK3 and the compatible energy
 update; plane stress and axisymmetry; gauges).  Such a run still evaluates its rates on
 the GPU, as before, and its log says why its state stays on the host.
@@ -77,7 +78,7 @@ BOOKS_WIDTH = 14
 INTEGRATED = ("position", "velocity", "density", "specific_energy", "deviatoric_stress",
               "plastic_work", "material_state", "hourglass_acceleration")
 #: The constant fields the kernels read.
-CONSTANT = ("mass", "smoothing_length", "material", "body", "clamped")
+CONSTANT = ("mass", "smoothing_length", "material", "body", "clamped", "initial_position")
 #: A code above any bad-value code: none found.
 NO_BAD = np.iinfo(np.int64).max
 
@@ -102,8 +103,6 @@ def resident_unsupported(case: Case, state: ParticleState, walls: Walls,
         return "the case has symmetry planes, whose ghosts are mirrored on the host"
     if len(walls) and (walls.friction > 0.0).any():
         return "a wall has friction, applied on the host"
-    if len(walls) and case.contact.wall_layer > 0.0:
-        return "contact.wall_layer > 0 (the walls' penalty layer) runs on the host"
     if any(body.driven for body in case.bodies):
         return "the case has driven regions, applied on the host"
     if state.clamped.any():
@@ -133,9 +132,12 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
     fill_ghost = boundaries.fill_ghost.py_func if simulated else boundaries.fill_ghost
     enforce_particle = (boundaries.enforce_particle.py_func if simulated
                         else boundaries.enforce_particle)
+    layer_push_particle = (boundaries.layer_push_particle.py_func if simulated
+                           else boundaries.layer_push_particle)
     DIM = dim  # noqa: N806 - a compile-time constant of the kernels
     TPB = tpb  # noqa: N806
     STENCIL = 3**dim  # noqa: N806
+    BODY_WIDTH = 4 + dim  # noqa: N806 - energies, plastic work, force, displacement
     float64 = np.float64
 
     @cuda.jit
@@ -196,51 +198,75 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
             sh[2, t] = m[i] * e[i]
             for a in range(DIM):
                 sh[3 + a, t] = m[i] * v[i, a]
-        cuda.syncthreads()
-        s = TPB // 2
-        while s > 0:
-            if t < s:
-                sh[0, t] = min(sh[0, t], sh[0, t + s])
-                for k in range(1, 6):
-                    sh[k, t] += sh[k, t + s]
-            cuda.syncthreads()
-            s //= 2
+        _block_reduce(sh, 6, 1, 0, t)
         if t == 0:
             for k in range(6):
                 part[cuda.blockIdx.x, k] = sh[k, 0]
 
     @cuda.jit(device=True, inline=True)
-    def _block_sums(sh, width, t):
-        """Tree sum of the block's rows of ``sh`` (each ``width`` columns) into row 0."""
+    def _block_reduce(sh, width, n_min, n_max, t):
+        """The block's rows of ``sh`` into row 0, column by column (the first ``n_min`` by
+        their minimum, the last ``n_max`` by their maximum, the others summed), by a tree
+        whose order is fixed: the same bits whatever the scheduling."""
         cuda.syncthreads()
         s = TPB // 2
         while s > 0:
             if t < s:
                 for k in range(width):
-                    sh[k, t] += sh[k, t + s]
+                    if k < n_min:
+                        sh[k, t] = min(sh[k, t], sh[k, t + s])
+                    elif k >= width - n_max:
+                        sh[k, t] = max(sh[k, t], sh[k, t + s])
+                    else:
+                        sh[k, t] += sh[k, t + s]
             cuda.syncthreads()
             s //= 2
 
+    @cuda.jit(device=True, inline=True)
+    def _gather_blocks(part, n_blocks, sh, width, n_min, n_max, t):
+        """The blocks' partial results (rows of ``part``) into ``sh[:, 0]`` by one block:
+        thread ``t`` folds blocks ``t, t + TPB, ...`` in order, then the tree."""
+        for k in range(width):
+            acc = math.inf if k < n_min else (-math.inf if k >= width - n_max else 0.0)
+            for blk in range(t, n_blocks, TPB):
+                if k < n_min:
+                    acc = min(acc, part[blk, k])
+                elif k >= width - n_max:
+                    acc = max(acc, part[blk, k])
+                else:
+                    acc += part[blk, k]
+            sh[k, t] = acc
+        _block_reduce(sh, width, n_min, n_max, t)
+
     @cuda.jit
     def survey_finish(n_blocks, part, courant, bad, out):
-        """One thread: the blocks' partials in block order."""
-        if cuda.grid(1) == 0:
-            dt = math.inf
+        """One block: the blocks' partials (:func:`_gather_blocks`) into the survey's record."""
+        sh = cuda.shared.array((6, TPB), float64)
+        t = cuda.threadIdx.x
+        _gather_blocks(part, n_blocks, sh, 6, 1, 0, t)
+        if t == 0:
+            out[0] = courant * sh[0, 0]
             for k in range(1, 6):
-                out[k] = 0.0
-            for blk in range(n_blocks):
-                dt = min(dt, part[blk, 0])
-                for k in range(1, 6):
-                    out[k] += part[blk, k]
-            out[0] = courant * dt
+                out[k] = sh[k, 0]
             out[6] = -1.0 if bad[0] == NO_BAD else float64(bad[0])
             bad[0] = NO_BAD
 
     @cuda.jit
-    def totals_kernel(n, m, v, de_visc, dv_corr, de_corr, pair_count, contact_force, corrected,
-                      part):
+    def layer_kernel(n, x, v, m, material, table, points, normals, layer, dv, de, force):
+        """The walls' penalty layer on each particle (:func:`impactsph.boundaries.
+        layer_push_particle`): added to its rates, its force into ``force`` for the books."""
+        i = cuda.grid(1)
+        if i < n:
+            for a in range(DIM):
+                force[i, a] = 0.0
+            layer_push_particle(i, x, v, m, material, table, points, normals, layer, dv, de,
+                                False, False, force[i])
+
+    @cuda.jit
+    def totals_kernel(n, m, v, de_visc, dv_corr, de_corr, pair_count, contact_force,
+                      layer_force, corrected, walls, part):
         """Per block: sum m de_visc, sum m v . dv_corr, sum m de_corr, the pairs and (walls)
-        the sum of the contact forces, the walls' push."""
+        the walls' push: the contact forces' sum and the penalty layer's."""
         sh = cuda.shared.array((TOTALS, TPB), float64)
         i = cuda.grid(1)
         t = cuda.threadIdx.x
@@ -255,33 +281,36 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 for a in range(DIM):
                     w += v[i, a] * dv_corr[i, a]
                 sh[1, t] = m[i] * w
-            if contact_force.shape[0] > 0:
+            if walls:  # the contact forces' sum is the walls' push (bodies' cancel)
                 for a in range(DIM):
                     sh[4 + a, t] = contact_force[i, a]
-        _block_sums(sh, TOTALS, t)
+            if layer_force.shape[0] > 0:
+                for a in range(DIM):
+                    sh[4 + a, t] += layer_force[i, a]
+        _block_reduce(sh, TOTALS, 0, 0, t)
         if t == 0:
             for k in range(TOTALS):
                 part[cuda.blockIdx.x, k] = sh[k, 0]
 
     @cuda.jit
     def totals_finish(n_blocks, part, dt, weight, first, books):
-        """One thread: the blocks' totals in block order into the books: the powers and the
-        walls' push times ``dt weight``, the pairs, and the step's mean push so far (set
-        back at its ``first`` evaluation)."""
-        if cuda.grid(1) == 0:
+        """One block: the blocks' totals (:func:`_gather_blocks`) into the books: the powers
+        and the walls' push times ``dt weight`` (nothing at weight 0, as the CPU's books),
+        the pairs, and the step's mean push so far (set back at its ``first`` evaluation)."""
+        sh = cuda.shared.array((TOTALS, TPB), float64)
+        t = cuda.threadIdx.x
+        _gather_blocks(part, n_blocks, sh, TOTALS, 0, 0, t)
+        if t == 0:
             if first:
                 for a in range(3):
                     books[LAST_PUSH + a] = 0.0
-            for k in range(TOTALS):
-                acc = 0.0
-                for blk in range(n_blocks):
-                    acc += part[blk, k]
-                if k == 3:
-                    books[k] += acc
-                else:
-                    books[k] += dt * weight * acc
-                if k >= 4:
-                    books[LAST_PUSH + k - 4] += weight * acc
+            books[3] += sh[3, 0]
+            if weight != 0.0:
+                for k in range(TOTALS):
+                    if k != 3:
+                        books[k] += dt * weight * sh[k, 0]
+                    if k >= 4:
+                        books[LAST_PUSH + k - 4] += weight * sh[k, 0]
 
     @cuda.jit
     def enforce_kernel(n, x, v, m, points, normals, scratch):
@@ -300,25 +329,62 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
         t = cuda.threadIdx.x
         for k in range(4):
             sh[k, t] = scratch[i, k] if i < n else 0.0
-        _block_sums(sh, 4, t)
+        _block_reduce(sh, 4, 0, 0, t)
         if t == 0:
             for k in range(4):
                 part[cuda.blockIdx.x, k] = sh[k, 0]
 
     @cuda.jit
     def enforce_finish(n_blocks, part, count_events, share, books):
-        """One thread: the constraint's events (if ``count_events``) and ``share`` times its
-        impulse into the books."""
-        if cuda.grid(1) == 0:
-            for k in range(4):
-                acc = 0.0
-                for blk in range(n_blocks):
-                    acc += part[blk, k]
-                if k == 0:
-                    if count_events:
-                        books[EVENTS] += acc
-                else:
-                    books[EVENTS + k] += share * acc
+        """One block: the constraint's events (if ``count_events``) and ``share`` times its
+        impulse into the books (nothing at share 0, as the CPU's books)."""
+        sh = cuda.shared.array((4, TPB), float64)
+        t = cuda.threadIdx.x
+        _gather_blocks(part, n_blocks, sh, 4, 0, 0, t)
+        if t == 0:
+            if count_events:
+                books[EVENTS] += sh[0, 0]
+            if share != 0.0:
+                for k in range(1, 4):
+                    books[EVENTS + k] += share * sh[k, 0]
+
+    @cuda.jit
+    def body_kernel(n, b, body, m, v, e, pw, x, x0, force, part):
+        """Per block, over body ``b``'s particles (:func:`impactsph.simulation.body_totals`):
+        kinetic and internal energy, plastic work, the contact force (``force``, where it has
+        rows), then the largest squared displacement."""
+        sh = cuda.shared.array((BODY_WIDTH, TPB), float64)
+        i = cuda.grid(1)
+        t = cuda.threadIdx.x
+        for k in range(BODY_WIDTH):
+            sh[k, t] = 0.0
+        if i < n and body[i] == b:
+            v2 = 0.0
+            u2 = 0.0
+            for a in range(DIM):
+                v2 += v[i, a] * v[i, a]
+                d = x[i, a] - x0[i, a]
+                u2 += d * d
+            sh[0, t] = 0.5 * m[i] * v2
+            sh[1, t] = m[i] * e[i]
+            sh[2, t] = m[i] * pw[i]
+            if force.shape[0] > 0:
+                for a in range(DIM):
+                    sh[3 + a, t] = force[i, a]
+            sh[BODY_WIDTH - 1, t] = u2
+        _block_reduce(sh, BODY_WIDTH, 0, 1, t)
+        if t == 0:
+            for k in range(BODY_WIDTH):
+                part[cuda.blockIdx.x, k] = sh[k, 0]
+
+    @cuda.jit
+    def body_finish(n_blocks, part, b, out):
+        sh = cuda.shared.array((BODY_WIDTH, TPB), float64)
+        t = cuda.threadIdx.x
+        _gather_blocks(part, n_blocks, sh, BODY_WIDTH, 0, 1, t)
+        if t == 0:
+            for k in range(BODY_WIDTH):
+                out[b, k] = sh[k, 0]
 
     @cuda.jit
     def ghost_count_kernel(n, x, points, normals, reach, counts):
@@ -361,22 +427,40 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
 
     @cuda.jit
     def displacement_kernel(n, x, reference, origin, largest):
-        """The largest squared displacement since the build (atomic max: exact)."""
+        """The largest squared displacement since the build: the block's, then one atomic
+        max per block (exact)."""
+        sh = cuda.shared.array((1, TPB), float64)
         i = cuda.grid(1)
+        t = cuda.threadIdx.x
+        sh[0, t] = 0.0
         if i < n:
             s = 0.0
             for a in range(DIM):
                 d = (x[i, a] - origin[a]) - float64(reference[i, a])
                 s += d * d
-            cuda.atomic.max(largest, 0, s)
+            sh[0, t] = s
+        _block_reduce(sh, 1, 0, 1, t)
+        if t == 0:
+            cuda.atomic.max(largest, 0, sh[0, 0])
 
     @cuda.jit
     def bounds_kernel(n, x, lo, hi):
+        """The bounding box: the block's, then one atomic min and max per block and axis."""
+        sh = cuda.shared.array((6, TPB), float64)
         i = cuda.grid(1)
+        t = cuda.threadIdx.x
+        for a in range(3):
+            sh[a, t] = math.inf
+            sh[3 + a, t] = -math.inf
         if i < n:
             for a in range(DIM):
-                cuda.atomic.min(lo, a, x[i, a])
-                cuda.atomic.max(hi, a, x[i, a])
+                sh[a, t] = x[i, a]
+                sh[3 + a, t] = x[i, a]
+        _block_reduce(sh, 6, 3, 3, t)
+        if t == 0:
+            for a in range(DIM):
+                cuda.atomic.min(lo, a, sh[a, 0])
+                cuda.atomic.max(hi, a, sh[3 + a, 0])
 
     @cuda.jit
     def cell_kernel(n, x, lo, radius, ncell, key, counts, reference):
@@ -500,14 +584,32 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 out[k, a] = v[rows[k], a]
 
     return dict(advance=advance_kernel, survey=survey_kernel, survey_finish=survey_finish,
-                totals=totals_kernel, totals_finish=totals_finish, enforce=enforce_kernel,
-                enforce_sums=enforce_sums, enforce_finish=enforce_finish,
+                totals=totals_kernel, totals_finish=totals_finish, layer=layer_kernel,
+                enforce=enforce_kernel,
+                enforce_sums=enforce_sums, enforce_finish=enforce_finish, body=body_kernel,
+                body_finish=body_finish,
                 ghost_count=ghost_count_kernel, ghost_list=ghost_list_kernel,
                 ghost_fill=ghost_fill_kernel,
                 displacement=displacement_kernel, bounds=bounds_kernel, cell=cell_kernel,
                 scatter=scatter_kernel, cell_sort=cell_sort_kernel, gather=gather_kernel,
                 neighbours=neighbour_kernel, zero=zero_kernel, scan_chunks=scan_chunks,
                 scan_add=scan_add, take_rows=take_rows)
+
+
+def prefix_sum(kernels: dict, a, n: int, tpb: int, stream, buffer, depth: int = 0) -> None:
+    """Inclusive prefix sum, in place, of the first ``n`` entries of the device array ``a``:
+    each chunk of :data:`SCAN_CHUNK` entries by one thread, the chunks' totals the same way
+    (recursively), then each chunk's offset added.  ``buffer(depth, size)``: a device array
+    for the chunks' totals at that depth of the recursion."""
+    chunks = (n + SCAN_CHUNK - 1) // SCAN_CHUNK
+    if chunks == 0:
+        return
+    blocks = max(1, (chunks + tpb - 1) // tpb)
+    sums = buffer(depth, chunks)
+    kernels["scan_chunks"][blocks, tpb, stream](a, n, SCAN_CHUNK, sums)
+    if chunks > 1:
+        prefix_sum(kernels, sums, chunks, tpb, stream, buffer, depth + 1)
+        kernels["scan_add"][blocks, tpb, stream](a, n, SCAN_CHUNK, sums)
 
 
 class ResidentStep:
@@ -530,6 +632,9 @@ class ResidentStep:
         self.dim = state.dim
         self.n = state.n
         self.tpb = backend.threads_per_block
+        if self.tpb & (self.tpb - 1) or not 1 <= self.tpb <= 512:
+            raise ValueError(f"threads_per_block = {self.tpb}: the step's block sums need a "
+                             f"power of two from 1 to 512")
         self.stream = backend._stream
         self.options = backend.options
         simulated = simulator_enabled()
@@ -557,13 +662,17 @@ class ResidentStep:
             self.normals = cuda.device_array((0, dim), np.float64, stream=s)
             self.kinds = None
         self.walls = walls
+        #: the walls' penalty layer (spacings), 0 for none
+        self.layer = solver.wall_layer if walls is not None else 0.0
         #: rate evaluations and rebuilds done on the device since :meth:`Simulation._fold`
         #: took them (the pair evaluations are in the books)
         self.rate_evaluations = 0
         self.builds = 0
+        self.downloads = 0  #: the state's downloads (each the whole state)
         self._list_builds = 0  # device rebuilds not yet copied into the host list
         self._host_list = None  # the host NeighbourList the device list came from
         self.capacity = 0  # rows of the extended arrays (particles and ghosts)
+        self._buffers: dict[str, Any] = {}  # the builds' arrays, kept and grown
         self.n_ghosts = 0
         #: whether the host state holds the latest values (after a download or an upload)
         self.host_current = True
@@ -597,10 +706,13 @@ class ResidentStep:
         self.totals_part = empty((self.blocks, TOTALS), np.float64)
         self.books = cuda.to_device(np.zeros(BOOKS_WIDTH), stream=s)
         self.largest = cuda.to_device(np.zeros(1), stream=s)
+        self.body_part = empty((self.blocks, 4 + dim), np.float64)
+        self.body_out = empty((max(self.n_bodies, 1), 4 + dim), np.float64)
         self.origin = empty(dim, np.float64)
         if self.walls is not None:
             self.scratch = empty((n, 4), np.float64)
             self.enforce_part = empty((self.blocks, 4), np.float64)
+        self.layer_force = empty((n if self.layer > 0.0 else 0, dim), np.float64)
 
     def _rows(self, rows: int) -> None:
         """The arrays of every row (particles, then ghosts) for ``rows`` rows: the state's
@@ -632,11 +744,15 @@ class ResidentStep:
                     "h": empty(capacity, np.float64, stream=s),
                     "material": empty(capacity, np.int32, stream=s),
                     "body": empty(capacity, np.int32, stream=s)}
-        n = self.n
+        self._constant_rows()
+        self._packed(capacity)
+
+    def _constant_rows(self) -> None:
+        """The particles' constant fields into their rows of the extended arrays."""
+        n, s = self.n, self.stream
         for name, field in (("m", "mass"), ("h", "smoothing_length"), ("material", "material"),
                             ("body", "body")):
             self.ext[name][:n].copy_to_device(self.const[field], stream=s)
-        self._packed(capacity)
 
     def _packed(self, rows: int) -> None:
         """The packed records and the reference positions for ``rows`` rows."""
@@ -664,6 +780,18 @@ class ResidentStep:
                          ext["v"], ext["rho"], ext["e"], ext["S"], ext["carried"], ext["m"],
                          ext["h"], ext["material"], ext["body"], self.n_bodies)
 
+    def _buffer(self, name: str, rows: int, dtype, width: int | None = None):
+        """The first ``rows`` rows of a device array kept between rebuilds (grown by an
+        eighth when too small): numba frees device memory lazily, and a free waits for the
+        device, so the builds reuse their arrays rather than allocating each time."""
+        buf = self._buffers.get(name)
+        if buf is None or buf.shape[0] < rows:
+            size = max(rows + rows // 8, 1)
+            buf = cuda.device_array(size if width is None else (size, width), dtype,
+                                    stream=self.stream)
+            self._buffers[name] = buf
+        return buf[:rows]
+
     def _fetch(self, device_array) -> np.ndarray:
         """A device array's values on the host, once they are there (the copy is queued
         on the stream; the stream is then waited for)."""
@@ -684,6 +812,8 @@ class ResidentStep:
                 self.now[f].copy_to_device(np.ascontiguousarray(getattr(state, f)), stream=s)
         for f in CONSTANT:
             self.const[f].copy_to_device(np.ascontiguousarray(getattr(state, f)), stream=s)
+        if self.walls is not None and self.capacity:  # the kernels read the extended rows
+            self._constant_rows()
         nl = self.solver.neighbours
         if nl is not self._host_list:
             src = np.ascontiguousarray(self.solver._ghost_src, np.int64)
@@ -714,6 +844,7 @@ class ResidentStep:
         rebuild also the neighbour list and the ghosts into the solver's."""
         if self.host_current:
             return
+        self.downloads += 1
         s = self.stream
         for f in INTEGRATED:
             if getattr(state, f).size:
@@ -734,10 +865,6 @@ class ResidentStep:
         s.synchronize()
         self.host_current = True
 
-    def contact_force(self) -> np.ndarray:
-        """The last evaluation's contact force on each particle (several bodies only)."""
-        return self._fetch(self.out["contact_force"])
-
     def rows(self, rows: np.ndarray) -> np.ndarray:
         """The velocities of the particles ``rows`` (a probe), without the rest."""
         d_rows = cuda.to_device(np.ascontiguousarray(rows, np.int64), stream=self.stream)
@@ -746,21 +873,48 @@ class ResidentStep:
             self._launch("take_rows", rows.shape[0], d_rows, self.now["velocity"], out)
         return self._fetch(out)
 
-    def take_books(self) -> dict[str, Any]:
-        """The books since the last call, set back to zero on the device (the step's mean
-        push, a state rather than a sum, stays): ``heating``, ``correction_work``,
+    def books_now(self) -> dict[str, Any]:
+        """The run's books as the device holds them (the running totals are kept there, from
+        the values :meth:`set_books` gave, so that they add up in the order the CPU adds
+        them whenever they are read): ``heating``, ``correction_work``,
         ``correction_heating`` (J), ``pairs``, ``wall_impulse`` (N s), ``events``,
         ``constraint_impulse`` (N s) and ``push`` (N, the last step's)."""
         books = self._fetch(self.books)
-        kept = np.zeros(BOOKS_WIDTH)
-        kept[LAST_PUSH:] = books[LAST_PUSH:]
-        self.books.copy_to_device(kept, stream=self.stream)
         dim = self.dim
         return {"heating": books[0], "correction_work": books[1],
                 "correction_heating": books[2], "pairs": int(books[3]),
                 "wall_impulse": books[4: 4 + dim].copy(), "events": int(books[EVENTS]),
                 "constraint_impulse": books[EVENTS + 1: EVENTS + 1 + dim].copy(),
                 "push": books[LAST_PUSH: LAST_PUSH + dim].copy()}
+
+    def set_books(self, books: dict[str, Any]) -> None:
+        """The run's books (as :meth:`books_now` names them) onto the device."""
+        dim = self.dim
+        values = np.zeros(BOOKS_WIDTH)
+        values[0] = books["heating"]
+        values[1] = books["correction_work"]
+        values[2] = books["correction_heating"]
+        values[3] = books["pairs"]
+        values[4: 4 + dim] = books["wall_impulse"]
+        values[EVENTS] = books["events"]
+        values[EVENTS + 1: EVENTS + 1 + dim] = books["constraint_impulse"]
+        values[LAST_PUSH: LAST_PUSH + dim] = books["push"]
+        self.books.copy_to_device(values, stream=self.stream)
+
+    def body_totals(self) -> np.ndarray:
+        """Per body, from the device state, the columns of
+        :func:`impactsph.simulation.body_totals` (kinetic and internal energy, plastic work,
+        the largest squared displacement) and then the body's contact force (the last
+        evaluation's)."""
+        now, c, n, dim = self.now, self.const, self.n, self.dim
+        force = self.out["contact_force"] if self.n_bodies > 1 else self.out["dv"][:0]
+        for b in range(self.n_bodies):
+            self._launch("body", n, n, b, c["body"], c["mass"], now["velocity"],
+                         now["specific_energy"], now["plastic_work"], now["position"],
+                         c["initial_position"], force, self.body_part)
+            self._launch("body_finish", 1, self.blocks, self.body_part, b, self.body_out)
+        out = self._fetch(self.body_out)
+        return np.concatenate([out[:, :3], out[:, 3 + dim:], out[:, 3: 3 + dim]], axis=1)
 
     # -- the neighbour list --------------------------------------------------------------------
     def _stale(self) -> bool:
@@ -772,16 +926,11 @@ class ResidentStep:
         largest = self._fetch(self.largest)[0]
         return bool(math.sqrt(largest) > 0.5 * self.skin)
 
-    def _scan(self, a, n: int) -> None:
-        """Inclusive prefix sum of the first ``n`` entries of the device array ``a``."""
-        chunks = (n + SCAN_CHUNK - 1) // SCAN_CHUNK
-        if chunks == 0:
-            return
-        sums = cuda.device_array(chunks, a.dtype, stream=self.stream)
-        self._launch("scan_chunks", chunks, a, n, SCAN_CHUNK, sums)
-        if chunks > 1:
-            self._scan(sums, chunks)
-            self._launch("scan_add", chunks, a, n, SCAN_CHUNK, sums)
+    def _scan(self, a, n: int, depth: int = 0) -> None:
+        """Inclusive prefix sum of the first ``n`` entries of the device array ``a``
+        (:func:`prefix_sum`)."""
+        prefix_sum(self.k, a, n, self.tpb, self.stream,
+                   lambda level, size: self._buffer(f"scan{level}", size, a.dtype), depth)
 
     def _select_ghosts(self) -> None:
         """The walls' ghosts of the particles within reach of them (as
@@ -792,18 +941,16 @@ class ResidentStep:
             return
         x = self.now["position"]
         reach = self.support + self.skin
-        counts = cuda.device_array(n, np.int64, stream=s)
+        counts = self._buffer("ghost_counts", n, np.int64)
         self._launch("ghost_count", n, n, x, self.points, self.normals, reach, counts)
-        ends = cuda.device_array(n, np.int64, stream=s)
+        ends = self._buffer("ghost_ends", n, np.int64)
         ends.copy_to_device(counts, stream=s)
         self._scan(ends, n)
         self.n_ghosts = int(self._fetch(ends[n - 1:])[0]) if n else 0
-        self.ghost_src = cuda.device_array(max(self.n_ghosts, 1), np.int64, stream=s)
-        self.ghost_wall = cuda.device_array(max(self.n_ghosts, 1), np.int64, stream=s)
+        self.ghost_src = self._buffer("ghost_src", self.n_ghosts, np.int64)
+        self.ghost_wall = self._buffer("ghost_wall", self.n_ghosts, np.int64)
         self._launch("ghost_list", n, n, x, self.points, self.normals, reach, counts, ends,
                      self.ghost_src, self.ghost_wall)
-        self.ghost_src = self.ghost_src[: self.n_ghosts]
-        self.ghost_wall = self.ghost_wall[: self.n_ghosts]
         self._rows(n + self.n_ghosts)
 
     def build(self) -> None:
@@ -813,38 +960,38 @@ class ResidentStep:
         self._fill()
         n, dim, s = self.n + self.n_ghosts, self.dim, self.stream
         x = self.ext["x"]
-        # the old list first: the peak memory holds one list (and the build's own arrays)
-        self.order = self.offsets = self.indices = None
-        key = cuda.device_array(n, np.int64, stream=s)
-        xs = cuda.device_array((n, dim), np.float64, stream=s)  # the sorted positions
-        lo = cuda.to_device(np.full(dim, np.inf), stream=s)
-        hi = cuda.to_device(np.full(dim, -np.inf), stream=s)
+        key = self._buffer("key", n, np.int64)
+        xs = self._buffer("xs", n, np.float64, dim)  # the sorted positions
+        lo, hi = self._buffer("lo", dim, np.float64), self._buffer("hi", dim, np.float64)
+        lo.copy_to_device(np.full(dim, np.inf), stream=s)
+        hi.copy_to_device(np.full(dim, -np.inf), stream=s)
         self._launch("bounds", n, n, x, lo, hi)
         lo_h, hi_h = self._fetch(lo), self._fetch(hi)
         radius = self.radius
         ncell = np.array([max(1, int((hi_h[a] - lo_h[a]) / radius) + 1) for a in range(dim)],
                          dtype=np.int64)
         n_cells = int(np.prod(ncell))
-        d_ncell = cuda.to_device(ncell, stream=s)
-        counts = cuda.device_array(n_cells, np.int64, stream=s)
-        fill = cuda.device_array(n_cells, np.int64, stream=s)
+        d_ncell = self._buffer("ncell", dim, np.int64)
+        d_ncell.copy_to_device(ncell, stream=s)
+        counts = self._buffer("cell_counts", n_cells, np.int64)
+        fill = self._buffer("cell_fill", n_cells, np.int64)
         self._launch("zero", n_cells, counts)
         self._launch("zero", n_cells, fill)
         self._launch("cell", n, n, x, lo, radius, d_ncell, key, counts, self.reference)
-        ends = cuda.device_array(n_cells, np.int64, stream=s)
+        ends = self._buffer("cell_ends", n_cells, np.int64)
         ends.copy_to_device(counts, stream=s)
         self._scan(ends, n_cells)
-        order = cuda.device_array(n, np.int32, stream=s)
+        order = self._buffer("order", n, np.int32)
         self._launch("scatter", n, n, key, counts, ends, fill, order)
         self._launch("cell_sort", n_cells, n_cells, counts, ends, order)
         self._launch("gather", n, n, order, x, xs)
-        offsets = cuda.device_array(n + 1, np.int64, stream=s)
+        offsets = self._buffer("offsets", n + 1, np.int64)
         self._launch("zero", n + 1, offsets)
         self._launch("neighbours", n, n, xs, lo, radius, d_ncell, counts, ends, offsets,
                      offsets, False)
         self._scan(offsets[1:], n)
         total = int(self._fetch(offsets[n:])[0])
-        indices = cuda.device_array(max(total, 1), np.int32, stream=s)[:total]
+        indices = self._buffer("indices", total, np.int32)
         self._launch("neighbours", n, n, xs, lo, radius, d_ncell, counts, ends, offsets,
                      indices, True)
         self.order, self.offsets, self.indices = order, offsets, indices
@@ -887,9 +1034,14 @@ class ResidentStep:
                 self.viscosity.correction, out["dv_corr"], out["de_corr"], out["dv"],
                 out["de"])
         c = self.const
+        if self.layer > 0.0:  # after the pairs and the correction, as the CPU solver
+            self._launch("layer", n, n, self.now["position"], self.now["velocity"], c["mass"],
+                         c["material"], self.table, self.points, self.normals,
+                         float(self.layer), out["dv"], out["de"], self.layer_force)
         self._launch("totals", n, n, c["mass"], self.now["velocity"], out["de_visc"],
                      out["dv_corr"], out["de_corr"], out["pair_count"], out["contact_force"],
-                     self.corrected, self.totals_part)
+                     self.layer_force, self.corrected, self.walls is not None,
+                     self.totals_part)
         self._launch("totals_finish", 1, self.blocks, self.totals_part, float(dt),
                      float(weight), bool(first), self.books)
         self.rate_evaluations += 1

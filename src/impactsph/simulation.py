@@ -106,6 +106,7 @@ class Simulation:
         if state is not None:
             self.problem.state = state
         self._resident = None  # the state on the GPU between steps (gpu_step.ResidentStep)
+        self._handed_out = False  # whether `state` was read (by a callback) since it was reset
         self._state: ParticleState = self.problem.state
         self.walls = walls_of(case.boundaries, case.dimension)
         self.solver: Solver | TotalLagrangianSolver
@@ -170,7 +171,14 @@ class Simulation:
     @property
     def state(self) -> ParticleState:
         """The particle state.  With the state kept on the GPU between steps
-        (:mod:`impactsph.gpu_step`) reading it downloads the device's latest values first."""
+        (:mod:`impactsph.gpu_step`) reading it downloads the device's latest values first (and
+        a callback that read it has it uploaded again after it: it may have changed it)."""
+        self._handed_out = True
+        return self._host_state()
+
+    def _host_state(self) -> ParticleState:
+        """The state, downloaded from the GPU if the device's is newer (for this class's own
+        readers: not counted as handed out)."""
         if self._resident is not None and not self._resident.host_current:
             self._sync()
         return self._state
@@ -196,36 +204,47 @@ class Simulation:
                      "GPU, with the state copied up and the rates down at each evaluation", why)
             return
         self._resident = ResidentStep(self.solver, self._state, self.problem.table)
+        self._resident.set_books(self._books())
         log.info("the whole step runs on the GPU: the state stays there between steps")
 
     def _sync(self) -> None:
-        """The device's state into the host state, with the books and counters of the steps
-        done there since the last download."""
+        """The device's state into the host state, with the books and counters."""
         self._resident.download(self._state)
         self._fold()
-        if self._body_force.shape[0] > 1 and self._state.step > 0:  # the last step's
-            self._book_body_force(self._resident.contact_force(), 1.0, reset=True)
+
+    def _books(self) -> dict:
+        """The run's books, as :meth:`impactsph.gpu_step.ResidentStep.set_books` takes them."""
+        return {"heating": self.viscous_dissipation, "correction_work": self.correction_work,
+                "correction_heating": self.correction_heating,
+                "pairs": self.solver.pair_evaluations, "wall_impulse": self.wall_impulse,
+                "events": self.integrator.constraint_events,
+                "constraint_impulse": self.integrator.constraint_impulse,
+                "push": self._step_books[3]}
+
+    def _upload(self) -> None:
+        """The host state and books onto the GPU (the caller may have changed them)."""
+        self._resident.upload(self._state)
+        self._resident.set_books(self._books())
 
     def _fold(self) -> None:
-        """The books and counters of the steps done on the GPU since the last call."""
+        """The books as the GPU holds them (its running totals, added in the CPU's order:
+        the same bits whenever they are read), and the counters of the steps done there."""
         r = self._resident
-        books = r.take_books()
-        self.viscous_dissipation += books["heating"]
-        self.correction_work += books["correction_work"]
-        self.correction_heating += books["correction_heating"]
-        self.wall_impulse += books["wall_impulse"]
+        books = r.books_now()
+        self.viscous_dissipation = books["heating"]
+        self.correction_work = books["correction_work"]
+        self.correction_heating = books["correction_heating"]
+        self.wall_impulse = books["wall_impulse"]
         self._step_books = (0.0, 0.0, 0.0, books["push"])  # the last step's push (history)
-        self.integrator.constraint_events += books["events"]
-        self.integrator.constraint_impulse += books["constraint_impulse"]
-        self.solver.pair_evaluations += books["pairs"]
+        self.integrator.constraint_events = books["events"]
+        self.integrator.constraint_impulse = books["constraint_impulse"]
+        self.solver.pair_evaluations = books["pairs"]
         self.solver.rate_evaluations += r.rate_evaluations
         self.solver.neighbours.builds += r.builds
         r.rate_evaluations = r.builds = 0
 
-    def _book_body_force(self, force: np.ndarray, weight: float, reset: bool = False) -> None:
+    def _book_body_force(self, force: np.ndarray, weight: float) -> None:
         """Add ``weight`` times each body's sum of the particles' contact ``force``."""
-        if reset:
-            self._body_force[:] = 0.0
         s, n_bodies = self._state, self._body_force.shape[0]
         for a in range(s.dim):
             self._body_force[:, a] += weight * np.bincount(s.body, weights=force[: s.n, a],
@@ -272,7 +291,17 @@ class Simulation:
     def _record_row(self, dt: float, survey: Survey) -> None:
         d = {"kinetic": survey.kinetic, "internal": survey.internal,
              "momentum": survey.momentum}
-        s = self.state
+        s = self._state
+        n_bodies = len(self.problem.body_names)
+        if self._resident is not None:  # the sums on the GPU: no download of the state
+            self._fold()
+            device = self._resident.body_totals()
+            totals = device[:, :4]
+            if n_bodies > 1 and s.step > 0:  # the last step's (its weights are (0, 1))
+                self._body_force[:] = device[:, 4: 4 + s.dim]
+        else:
+            totals = body_totals(s.body, s.mass, s.added_mass, s.velocity, s.specific_energy,
+                                 s.plastic_work, s.position, s.initial_position, n_bodies)
         row = {"time": s.time, "step": s.step, "dt": dt, "kinetic_energy": d["kinetic"],
                "internal_energy": d["internal"],
                "total_energy": d["kinetic"] + d["internal"],
@@ -297,7 +326,6 @@ class Simulation:
                     row[f"reaction_force_{r.name}_{name}"] = float(force[a])
         # the contact forces: the step's mean (for the midpoint step, its midpoint
         # evaluation's), as the books (at the start, the start's)
-        n_bodies = len(self.problem.body_names)
         if n_bodies == 1 and len(self.walls):  # one body: its force is the walls' push
             for a, name in enumerate("xyz"[: s.dim]):
                 row[f"contact_force_{self.problem.body_names[0]}_{name}"] = float(
@@ -306,8 +334,6 @@ class Simulation:
             for a, name in enumerate("xyz"[: s.dim]):
                 for b, body in enumerate(self.problem.body_names):
                     row[f"contact_force_{body}_{name}"] = float(self._body_force[b, a])
-        totals = body_totals(s.body, s.mass, s.added_mass, s.velocity, s.specific_energy,
-                             s.plastic_work, s.position, s.initial_position, n_bodies)
         row["plastic_work"] = float(totals[:, 2].sum())
         if n_bodies > 1:  # the energies of each body
             for b, body in enumerate(self.problem.body_names):
@@ -325,7 +351,7 @@ class Simulation:
 
     # -- snapshots and probes ------------------------------------------------------------
     def _snapshot_fields(self) -> dict[str, np.ndarray]:
-        s = self.state
+        s = self._host_state()
         fields = {k: v.copy() for k, v in s.arrays().items()}
         fields["pressure"] = self.solver.pressure(s)
         damage = s.material_state[:, DAMAGE]
@@ -355,7 +381,7 @@ class Simulation:
 
     # -- failure detection ---------------------------------------------------------------
     def _where(self, i: int) -> str:
-        s = self.state
+        s = self._host_state()
         return (f"at step {s.step}, t = {s.time:.6e} s, particle {i} "
                 f"(body {self.problem.body_names[s.body[i]]!r}, position {s.position[i].tolist()})")
 
@@ -394,7 +420,7 @@ class Simulation:
         every = self.case.output.history_every
         resident = self._resident
         if resident is not None and resident.host_current:  # the caller may have changed it
-            resident.upload(self._state)
+            self._upload()
         s = self._state
         survey = self._survey()
         dt0 = survey.dt
@@ -430,9 +456,10 @@ class Simulation:
                     self._record_row(dt, survey)
                 self._take_snapshots(previous)
                 if callback is not None:
+                    self._handed_out = False
                     callback(self)
-                    if resident is not None and resident.host_current:
-                        resident.upload(s)  # the callback read the state: it may have changed it
+                    if resident is not None and self._handed_out:
+                        self._upload()  # the callback read the state: it may have changed it
                     survey = self._survey()  # the callback may have changed the state
             self._check(survey, dt0)
         except SimulationError as exc:
