@@ -258,13 +258,16 @@ def _evaluate(backend, call: dict, b) -> None:
 
 
 def _gpu_run(name: str, overrides: list[str], steps: int):
-    """Run a case for ``steps`` steps with the rate passes on the GPU backend."""
+    """Run a case for ``steps`` steps with the rate passes on the GPU backend and the state on
+    the host (``compute.resident = false``: the step on the device is
+    ``tests/test_gpu_step.py``'s)."""
     import impactsph.simulation as simulation
     from impactsph.gpu import GpuRates
     from impactsph.loading import load_case
 
     simulation.select_backend = lambda device, dim, *options, cpu_only=None: GpuRates(dim, *options)
-    sim = simulation.Simulation(load_case(name, [*overrides, f"time.max_steps={steps}"]))
+    sim = simulation.Simulation(load_case(name, [*overrides, f"time.max_steps={steps}",
+                                                 "compute.resident=false"]))
     sim.run()
     return sim
 
@@ -599,7 +602,8 @@ def run_comparison(request, tmp_path_factory):
 
 @pytest.mark.parametrize("name", list(RUNS))
 def test_run_matches_cpu(run_comparison, name):
-    """100 steps with the rate passes on the GPU end in the CPU run's state to 1e-10."""
+    """100 steps with the rate passes on the GPU (the state on the host) end in the CPU run's
+    state to 1e-10."""
     mode, report, cpu, folder = run_comparison
     state, builds = cpu[name]
     info = report[name]
@@ -616,100 +620,6 @@ def test_taylor_run_rebuilds_its_neighbour_list(run_comparison):
     """The 2D run exercises the uploads after a rebuild (new list, new ghosts)."""
     _, report, _, _ = run_comparison
     assert report["taylor-2d"]["builds"] > 2
-
-
-@pytest.fixture(scope="module", params=MODES)
-def resident_comparison(request, tmp_path_factory):
-    """The :data:`RESIDENT` runs with the state on the device (the worker) and on the CPU."""
-    mode = request.param
-    _skip_without_gpu(mode)
-    folder = tmp_path_factory.mktemp(f"resident-{mode}")
-    report = _run_worker(mode, "resident", folder)
-    cpu = {name: _resident_run(name, on_gpu=False) for name in RESIDENT}
-    return mode, report, cpu, folder
-
-
-@pytest.mark.parametrize("name", list(RESIDENT))
-def test_the_whole_step_on_the_device_matches_the_cpu(resident_comparison, name):
-    """With the state kept on the device (neighbour list built there, the integrator's stages,
-    the survey and the books on the device) the final state, every history column, the
-    probes, the counts of pairs, evaluations and rebuilds and each particle's neighbours (in
-    their order) are the CPU run's, to 1e-10; the callback's change reached the device."""
-    mode, report, cpu, folder = resident_comparison
-    sim, _, lists = cpu[name]
-    info = report[name]
-    assert info["resident"] and info["device"] == "gpu"
-    with np.load(folder / f"{name}.npz") as z:
-        errors = _relative_errors(sim.state.arrays(), {k: z[k] for k in z.files})
-    assert not {k: e for k, e in errors.items() if not e <= TOL}, (mode, name, errors)
-    history = sim.record.history
-    assert len(info["history"]) == len(history)
-    for key in history[0]:
-        ref = np.array([row[key] for row in history])
-        got = np.array([row[key] for row in info["history"]])
-        # a vector's components against the vector's size (a component that is zero on the
-        # CPU may be round-off on the device)
-        like = [k for k in history[0] if k[:-2] == key[:-2]] if key[-2:] in ("_x", "_y", "_z") \
-            else [key]
-        scale = max(float(np.abs([row[k] for row in history for k in like]).max()), 1e-300)
-        assert np.abs(got - ref).max() <= TOL * scale + 1e-18, (name, key, ref, got)
-    books = [sim.viscous_dissipation, sim.correction_work, sim.correction_heating,
-             *sim.wall_impulse.tolist(), sim.integrator.constraint_events]
-    np.testing.assert_allclose(info["books"], books, rtol=TOL,
-                               atol=TOL * float(np.abs(books).max()))  # (a zero component)
-    if not (len(sim.walls) or sim.problem.body_names[1:]):  # no walls' push: none booked
-        assert not any(info["books"][3:-1])
-    # the state came down only for the callback's read (step 2) and at the end of the run:
-    # history rows, probes and the survey read the device
-    assert info["downloads"] == 2, info["downloads"]
-    if mode == "simulator":  # on a GPU, fused multiply-adds may move a pair at the radius
-        assert info["counts"] == [sim.solver.pair_evaluations, sim.solver.rate_evaluations,
-                                  sim.solver.neighbours.builds]
-        assert info["lists"] == lists
-    if name == "rings-2d":  # rebuilt on the device at nearly every evaluation
-        assert info["counts"][2] > RESIDENT[name][2]
-    if name == "bars-1d":  # a probe's rows, taken from the device at every step
-        assert sum(len(rows) for rows in sim.record.probes.values()) > RESIDENT[name][2]
-    for probe, rows in sim.record.probes.items():
-        got = info["probes"][probe]
-        assert [t for t, _ in got] == [t for t, _ in rows]
-        np.testing.assert_allclose([v for _, v in got], [v for _, v in rows], rtol=1e-10,
-                                   atol=1e-12)
-
-
-def test_a_device_run_restarts_bitwise(resident_comparison):
-    """A run with the state on the device (the Taylor bar on its wall), checkpointed after 2
-    steps (the state, the device's neighbour list and ghosts downloaded) and continued from
-    the checkpoint (uploaded), ends in the uninterrupted run's state, bit for bit."""
-    _, report, _, _ = resident_comparison
-    restart = report["restart"]
-    full = report["taylor-2d"]
-    assert restart["resident"] and restart["steps"] == RESIDENT["taylor-2d"][2]
-    assert restart["builds_at_checkpoint"] > 1  # a list built on the device, checkpointed
-    assert not any(restart["differences"].values()), restart["differences"]
-    assert restart["books"] == full["books"][:-1]
-    assert restart["last_row"] == full["history"][-1]
-    assert restart["counts"] == full["counts"][::2]
-
-
-def test_the_device_prefix_sum_spans_several_chunks(resident_comparison):
-    """The device's prefix sum (its chunks, their totals' sum, the recursion) equals numpy's
-    cumulative sum at 1, 255, 257 and 65,836 entries."""
-    _, report, _, _ = resident_comparison
-    assert all(report["scans"].values()), report["scans"]
-
-
-def test_the_walls_constraint_on_the_device_is_the_cpus(resident_comparison):
-    """The device's walls' constraint (particles behind two walls put back, their velocity
-    into the wall removed) gives the CPU's positions, velocities, events and impulse."""
-    _, report, _, _ = resident_comparison
-    x, v, m, walls = _enforce_input()
-    moved, impulse = walls.enforce(x, v, m)
-    got = report["enforce"]
-    assert moved > 5 and got["events"] == moved
-    np.testing.assert_allclose(got["x"], x, rtol=0, atol=1e-15)
-    np.testing.assert_allclose(got["v"], v, rtol=0, atol=1e-15)
-    np.testing.assert_allclose(got["impulse"], impulse, rtol=1e-12)
 
 
 def test_what_keeps_the_state_on_the_host_is_named():
