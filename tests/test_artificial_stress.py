@@ -172,17 +172,22 @@ def stretched_block(epsilon: float, correction: str, compensation: bool = False
                              else {})},
         "time": {"end": 1e-6}, "output": {"figures": False}})
     sim = Simulation(case)
-    s = sim.state
-    rng = np.random.default_rng(1)
+    _disturb(sim.state, 1, np.zeros(2))
+    return sim
+
+
+def _disturb(s, seed: int, centre: np.ndarray) -> None:
+    """Jiggled positions, a stretching velocity about ``centre`` with noise, densities a few
+    per cent low and a random in-plane deviatoric stress (principal stresses of both signs)."""
+    rng = np.random.default_rng(seed)
     s.position += rng.uniform(-0.15, 0.15, s.position.shape) * 1e-3
-    s.velocity[:] = 20.0 * s.position + rng.normal(0.0, 0.5, s.velocity.shape)
+    s.velocity[:] = 20.0 * (s.position - centre) + rng.normal(0.0, 0.5, s.velocity.shape)
     s.density *= 1.0 - rng.uniform(0.0, 0.03, s.n)
     S = rng.normal(0.0, 1e5, (s.n, 3, 3))
     S = 0.5 * (S + S.transpose(0, 2, 1))
     S -= np.trace(S, axis1=1, axis2=2)[:, None, None] * np.eye(3) / 3.0
     S[:, 2, :2] = S[:, :2, 2] = 0.0
     s.deviatoric_stress[:] = S
-    return sim
 
 
 def pair_sums(sim: Simulation, R: np.ndarray, own: np.ndarray, neighbour: np.ndarray,
@@ -274,16 +279,7 @@ def stretched_ring(epsilon: float) -> Simulation:
         "stabilisation": {"artificial_stress": epsilon},
         "time": {"end": 1e-6}, "output": {"figures": False}})
     sim = Simulation(case)
-    s = sim.state
-    rng = np.random.default_rng(2)
-    s.position += rng.uniform(-0.15, 0.15, s.position.shape) * 1e-3
-    s.velocity[:] = 20.0 * (s.position - [8e-3, 4e-3]) + rng.normal(0.0, 0.5, s.velocity.shape)
-    s.density *= 1.0 - rng.uniform(0.0, 0.03, s.n)
-    S = rng.normal(0.0, 1e5, (s.n, 3, 3))
-    S = 0.5 * (S + S.transpose(0, 2, 1))
-    S -= np.trace(S, axis1=1, axis2=2)[:, None, None] * np.eye(3) / 3.0
-    S[:, 2, :2] = S[:, :2, 2] = 0.0
-    s.deviatoric_stress[:] = S
+    _disturb(sim.state, 2, np.array([8e-3, 4e-3]))
     return sim
 
 

@@ -50,7 +50,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from . import boundaries
+from . import boundaries, integrate
 from .gpu import cuda, gpu_kernels, simulator_enabled
 from .kernels import SUPPORT_RADIUS
 from .materials import WAVE_MODULUS
@@ -134,6 +134,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                         else boundaries.enforce_particle)
     layer_push_particle = (boundaries.layer_push_particle.py_func if simulated
                            else boundaries.layer_push_particle)
+    bad_field = integrate.bad_field.py_func if simulated else integrate.bad_field
     DIM = dim  # noqa: N806 - a compile-time constant of the kernels
     TPB = tpb  # noqa: N806
     STENCIL = 3**dim  # noqa: N806
@@ -160,30 +161,11 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
         sh[0, t] = math.inf
         if i < n:
             speed2 = 0.0
-            pos_ok = True
-            vel_ok = True
             for a in range(DIM):
                 speed2 += v[i, a] * v[i, a]
-                pos_ok = pos_ok and math.isfinite(x[i, a])
-                vel_ok = vel_ok and math.isfinite(v[i, a])
-            stress_ok = True
-            for a in range(3):
-                for b in range(3):
-                    stress_ok = stress_ok and math.isfinite(S[i, a, b])
-            code = -1
-            if not pos_ok:
-                code = i
-            elif not vel_ok:
-                code = n + i
-            elif not math.isfinite(rho[i]):
-                code = 2 * n + i
-            elif not math.isfinite(e[i]):
-                code = 3 * n + i
-            elif not stress_ok:
-                code = 4 * n + i
-            elif not rho[i] > 0.0:
-                code = 5 * n + i
-            else:
+            field = bad_field(i, x, v, rho, e, S)  # the CPU survey's test
+            code = -1 if field < 0 else field * n + i
+            if field < 0:
                 for w in range(points.shape[0]):
                     d = 0.0
                     for a in range(DIM):
@@ -673,6 +655,7 @@ class ResidentStep:
         self._host_list = None  # the host NeighbourList the device list came from
         self.capacity = 0  # rows of the extended arrays (particles and ghosts)
         self._buffers: dict[str, Any] = {}  # the builds' arrays, kept and grown
+        self._probes: dict[bytes, tuple] = {}  # each probe's rows and output on the device
         self.n_ghosts = 0
         #: whether the host state holds the latest values (after a download or an upload)
         self.host_current = True
@@ -867,8 +850,12 @@ class ResidentStep:
 
     def rows(self, rows: np.ndarray) -> np.ndarray:
         """The velocities of the particles ``rows`` (a probe), without the rest."""
-        d_rows = cuda.to_device(np.ascontiguousarray(rows, np.int64), stream=self.stream)
-        out = cuda.device_array((rows.shape[0], self.dim), np.float64, stream=self.stream)
+        key = rows.tobytes()
+        if key not in self._probes:  # a probe's rows, on the device once
+            self._probes[key] = (
+                cuda.to_device(np.ascontiguousarray(rows, np.int64), stream=self.stream),
+                cuda.device_array((rows.shape[0], self.dim), np.float64, stream=self.stream))
+        d_rows, out = self._probes[key]
         if rows.shape[0]:
             self._launch("take_rows", rows.shape[0], d_rows, self.now["velocity"], out)
         return self._fetch(out)

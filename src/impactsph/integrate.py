@@ -35,6 +35,35 @@ CHUNK = 1024
 HOURGLASS_SPEED = 0.25
 
 
+@nb.njit(inline="always", cache=True)
+def bad_field(i, x, v, rho, e, S):
+    """The first bad field of particle ``i`` (0 position, 1 velocity, 2 density, 3 specific
+    energy, 4 deviatoric stress: non-finite; 5 density: not positive), or -1 (the CPU's
+    survey and the GPU's, :mod:`impactsph.gpu_step`, call this)."""
+    pos_ok = True
+    vel_ok = True
+    for a in range(x.shape[1]):
+        pos_ok = pos_ok and math.isfinite(x[i, a])
+        vel_ok = vel_ok and math.isfinite(v[i, a])
+    stress_ok = True
+    for a in range(3):
+        for b in range(3):
+            stress_ok = stress_ok and math.isfinite(S[i, a, b])
+    if not pos_ok:
+        return 0
+    if not vel_ok:
+        return 1
+    if not math.isfinite(rho[i]):
+        return 2
+    if not math.isfinite(e[i]):
+        return 3
+    if not stress_ok:
+        return 4
+    if not rho[i] > 0.0:
+        return 5
+    return -1
+
+
 @cache
 def _survey_kernel(dim: int):
     @nb.njit(parallel=True, cache=True)
@@ -56,23 +85,13 @@ def _survey_kernel(dim: int):
             first = -1
             for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n_active)):
                 speed2 = 0.0
-                pos_ok = True
-                vel_ok = True
                 for a in range(dim):
                     speed2 += v[i, a] * v[i, a]
-                    pos_ok = pos_ok and math.isfinite(x[i, a])
-                    vel_ok = vel_ok and math.isfinite(v[i, a])
-                stress_ok = True
-                for a in range(3):
-                    for b in range(3):
-                        stress_ok = stress_ok and math.isfinite(S[i, a, b])
-                for field, ok in enumerate((pos_ok, vel_ok, math.isfinite(rho[i]),
-                                            math.isfinite(e[i]), stress_ok, rho[i] > 0.0)):
-                    if not ok:
-                        code = field * n_active + i
-                        if first < 0 or code < first:
-                            first = code
-                        break
+                field = bad_field(i, x, v, rho, e, S)
+                if field >= 0:
+                    code = field * n_active + i
+                    if first < 0 or code < first:
+                        first = code
                 c = math.sqrt(table[material[i], WAVE_MODULUS] / rho[i])
                 if hourglass > 0.0:
                     c += HOURGLASS_SPEED * hourglass * math.sqrt(table[material[i], SHEAR]

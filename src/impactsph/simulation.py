@@ -243,13 +243,6 @@ class Simulation:
         self.solver.neighbours.builds += r.builds
         r.rate_evaluations = r.builds = 0
 
-    def _book_body_force(self, force: np.ndarray, weight: float) -> None:
-        """Add ``weight`` times each body's sum of the particles' contact ``force``."""
-        s, n_bodies = self._state, self._body_force.shape[0]
-        for a in range(s.dim):
-            self._body_force[:, a] += weight * np.bincount(s.body, weights=force[: s.n, a],
-                                                           minlength=n_bodies)
-
     def _observe(self, k: int, weight: float) -> None:
         """The integrator's ``k``-th rate evaluation of a step, of weight ``weight`` in the
         step's mean rate: its powers and wall force added to the step's books (a weight of 0
@@ -259,8 +252,13 @@ class Simulation:
             self._body_force[:] = 0.0
         if weight == 0.0:
             return
-        if self._body_force.shape[0] > 1:
-            self._book_body_force(self.solver.buffers.contact_force, weight)
+        n_bodies = self._body_force.shape[0]
+        if n_bodies > 1:
+            s = self._state
+            force = self.solver.buffers.contact_force[: s.n]
+            for a in range(s.dim):
+                self._body_force[:, a] += weight * np.bincount(s.body, weights=force[:, a],
+                                                               minlength=n_bodies)
         heating, work, corr_heating = self.solver.powers
         books = self._step_books
         self._step_books = (books[0] + weight * heating, books[1] + weight * work,
