@@ -493,6 +493,8 @@ def _rate_calls(name: str, overrides: list[str], seed: int) -> list[dict]:
     third["neighbours"] = copy.copy(second["neighbours"])
     nl = third["neighbours"]
     nl.offsets, nl.indices = _thinned(nl.offsets, nl.indices)
+    nl.inner_offsets = nl.inner_indices = None  # (the inner list was the old list's)
+    nl.inner_reach = 1.0
     third["m"] = second["m"] * (1.0 + 0.1 * rng.random(second["m"].shape))
     for call in (first, second, third):
         call["options"] = dataclasses.asdict(options)

@@ -236,3 +236,29 @@ def test_checkpoint_before_the_thickness_ratio_loads(tmp_path):
     with pytest.raises(CaseError, match=r"material state has 2 columns, this version's case "
                                         r"needs \d+"):
         load_checkpoint(path, case)
+
+
+def test_checkpoint_keeps_the_inner_list_and_loads_without_one(tmp_path):
+    """The neighbour list's inner list (AC's correction pass reads it) is written and read
+    back; a checkpoint of a version that wrote none continues on the whole list, to the same
+    bits."""
+    case = load_case("taylor", ["time.end=2e-6"])
+    sim = Simulation(case)
+    sim.run(t_end=1e-6)
+    path = write_checkpoint(sim, tmp_path / "checkpoint.h5")
+    kept = load_checkpoint(path, case).solver.neighbours
+    nl = sim.solver.neighbours
+    assert kept.inner_reach == nl.inner_reach == 0.5
+    np.testing.assert_array_equal(kept.inner_offsets, nl.inner_offsets)
+    np.testing.assert_array_equal(kept.inner_indices, nl.inner_indices)
+    with h5py.File(path, "a") as f:
+        del f.attrs["sha256"]
+        g = f["neighbours"]
+        del g["inner_offsets"], g["inner_indices"], g.attrs["inner_reach"]
+        del g.attrs["inner_radius"]
+    again = load_checkpoint(path, case)
+    assert again.solver.neighbours.inner_offsets is None
+    again.run()
+    sim.run()
+    for name, arr in final_arrays(sim).items():
+        np.testing.assert_array_equal(again.state.arrays()[name], arr, err_msg=name)

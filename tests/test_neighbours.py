@@ -67,3 +67,51 @@ def test_support_growing_past_the_radius_makes_the_list_stale():
     assert nl.builds == 2 and nl.radius == pytest.approx(2.0)
     assert pairs_of(nl) == brute_force_pairs(x, 2.0)
     assert NeighbourList.build(x, support=1.5).stale(x, 1.5)  # no skin: always rebuilt
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_inner_list_is_the_near_part_of_the_list_in_its_order(dim):
+    """The inner list holds, for each particle, exactly the pairs closer than ``reach *
+    support + skin``, in the order they have in the whole list."""
+    rng = np.random.default_rng(10 + dim)
+    x = rng.random((500, dim)) * [1.0, 0.7, 0.5][:dim]
+    support, skin, reach = 0.12, 0.012, 0.5
+    nl = NeighbourList.build(x, support, skin, inner_reach=reach)
+    assert nl.inner_reach == reach
+    assert nl.inner_radius == pytest.approx(reach * support + skin)
+    inner = NeighbourList(nl.inner_offsets, nl.inner_indices, nl.inner_radius, skin,
+                          nl.reference_positions, order=nl.order)
+    assert pairs_of(inner) == brute_force_pairs(x, reach * support + skin)
+    xs = x[nl.order]
+    for p in range(x.shape[0]):
+        whole = nl.indices[nl.offsets[p]:nl.offsets[p + 1]]
+        near = whole[np.linalg.norm(xs[whole] - xs[p], axis=1) < nl.inner_radius]
+        np.testing.assert_array_equal(nl.inner_indices[nl.inner_offsets[p]:
+                                                       nl.inner_offsets[p + 1]], near)
+    # a reach the inner list covers gets it; a longer one the whole list
+    assert nl.within(reach)[1] is nl.inner_indices
+    assert nl.within(0.3)[1] is nl.inner_indices
+    assert nl.within(0.6)[1] is nl.indices
+    # without a reach below 1 there is none
+    whole = NeighbourList.build(x, support, skin)
+    assert whole.inner_offsets is None and whole.within(0.5)[1] is whole.indices
+    np.testing.assert_array_equal(whole.indices, nl.indices)
+    with pytest.raises(ValueError, match="inner_reach = 0.0"):
+        NeighbourList.build(x, support, skin, inner_reach=0.0)
+
+
+def test_inner_list_is_rebuilt_with_the_list():
+    x = np.stack(np.meshgrid(np.arange(6.0), np.arange(6.0), indexing="ij"), -1).reshape(-1, 2)
+    nl = NeighbourList.build(x, support=2.5, skin=0.4, inner_reach=0.5)
+    assert pairs_of(NeighbourList(nl.inner_offsets, nl.inner_indices, 1.65, 0.4,
+                                  nl.reference_positions, order=nl.order)) == \
+        brute_force_pairs(x, 1.65)
+    assert not nl.stale(x, 2.5)
+    assert nl.stale(x, 2.6)  # the support grew: both lists are short
+    moved = x.copy()
+    moved[7] += 0.3
+    nl.update(moved, support=2.5)
+    assert nl.builds == 2 and nl.inner_reach == 0.5
+    assert pairs_of(NeighbourList(nl.inner_offsets, nl.inner_indices, 1.65, 0.4,
+                                  nl.reference_positions, order=nl.order)) == \
+        brute_force_pairs(moved, 1.65)

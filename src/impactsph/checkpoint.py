@@ -92,6 +92,10 @@ def write_checkpoint(sim: Simulation, path: Path | str) -> Path:
                      "reference_origin"):
             g.create_dataset(name, data=getattr(nl, name))
         g.attrs["radius"], g.attrs["skin"], g.attrs["builds"] = nl.radius, nl.skin, nl.builds
+        if nl.inner_offsets is not None:  # the inner list (neighbours.py)
+            g.create_dataset("inner_offsets", data=nl.inner_offsets)
+            g.create_dataset("inner_indices", data=nl.inner_indices)
+            g.attrs["inner_reach"], g.attrs["inner_radius"] = nl.inner_reach, nl.inner_radius
         g.create_dataset("ghost_src", data=sim.solver._ghost_src)
         g.create_dataset("ghost_wall", data=sim.solver._ghost_wall)
         acc = f.create_group("accumulators")
@@ -264,6 +268,10 @@ def load_checkpoint(path: Path | str, case: Any = None, *, verify: bool = True
                            order=g["order"][()] if "order" in g else None,
                            reference_origin=(g["reference_origin"][()]
                                              if "reference_origin" in g else None))
+        if "inner_offsets" in g:  # (a checkpoint without one: the passes read the whole list)
+            nl.inner_offsets, nl.inner_indices = g["inner_offsets"][()], g["inner_indices"][()]
+            nl.inner_reach = float(g.attrs["inner_reach"])
+            nl.inner_radius = float(g.attrs["inner_radius"])
         sim.solver.restore(state, nl, g["ghost_src"][()], g["ghost_wall"][()])
         # read by name: datasets of older checkpoints that nothing reads any more (their
         # initial_kinetic, initial_internal, initial_momentum) are ignored

@@ -840,6 +840,10 @@ class ResidentStep:
             nl.indices = self._fetch(self.indices)
             nl.reference_positions = self._fetch(self.reference[:rows])
             nl.reference_origin = self._fetch(self.origin)
+            # the device builds no inner list (its correction kernel reads the whole list, to
+            # the same sums): the host's, of an older build, goes
+            nl.inner_reach, nl.inner_radius = 1.0, 0.0
+            nl.inner_offsets = nl.inner_indices = None
             src, wall = ((self._fetch(self.ghost_src), self._fetch(self.ghost_wall))
                          if self.n_ghosts else (np.zeros(0, np.int64), np.zeros(0, np.int64)))
             s.synchronize()

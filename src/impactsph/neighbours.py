@@ -11,6 +11,13 @@ valid until some particle has moved more than ``skin / 2`` from where it was whe
 was built, or the support has grown past what the radius covers
 (:meth:`NeighbourList.stale`).  Pairs beyond the kernel's support are then skipped by the
 pair loops, whose kernel value is zero there.
+
+A list may also carry an *inner list*: the same neighbours, in the same order, of those
+closer than a smaller radius ``reach * 2 h_max + skin`` (the same skin), built in the same
+sweeps.  A pass whose kernel reaches only part of the support (the acceleration
+correction's, ``2 h_c = h``) loops over it instead of the whole list: the entries it skips
+are the ones that pass would have skipped by their distance, so its sums are the same to the
+bit (``tests/test_neighbours.py``).
 """
 
 from __future__ import annotations
@@ -59,7 +66,7 @@ def _build_functions(dim: int):
     n_stencil = 3**dim
 
     @nb.njit(parallel=True, cache=True)
-    def build(x, radius):
+    def build(x, radius, inner_radius):
         n = x.shape[0]
         lo = np.empty(dim)
         ncell = np.ones(dim, dtype=np.int64)
@@ -86,8 +93,12 @@ def _build_functions(dim: int):
                 cell_start[c] = p
             cell_end[c] = p + 1
         r2max = radius * radius
+        r2inner = inner_radius * inner_radius  # 0: no inner list
+        inner = inner_radius > 0.0
         offsets = np.zeros(n + 1, dtype=np.int64)
         indices = np.empty(0, dtype=np.int32)
+        inner_offsets = np.zeros(n + 1 if inner else 0, dtype=np.int64)
+        inner_indices = np.empty(0, dtype=np.int32)
         # two sweeps of the same loop: count the neighbours, then (offsets known) store them;
         # written out here, not in a helper, so that dim is a compile-time constant and the
         # small loops unroll
@@ -96,12 +107,18 @@ def _build_functions(dim: int):
                 for p in range(n):
                     offsets[p + 1] += offsets[p]
                 indices = np.empty(offsets[n], dtype=np.int32)
+                if inner:
+                    for p in range(n):
+                        inner_offsets[p + 1] += inner_offsets[p]
+                    inner_indices = np.empty(inner_offsets[n], dtype=np.int32)
             for p in nb.prange(n):
                 own = np.empty(dim, dtype=np.int64)
                 for a in range(dim):
                     own[a] = min(max(int((xs[p, a] - lo[a]) / radius), 0), ncell[a] - 1)
                 found = 0
+                found_inner = 0
                 pos = offsets[p]
+                pos_inner = inner_offsets[p] if inner else 0
                 for s in range(n_stencil):
                     t = s
                     kc = 0
@@ -125,9 +142,15 @@ def _build_functions(dim: int):
                             if sweep == 1:
                                 indices[pos + found] = q
                             found += 1
+                            if inner and r2 < r2inner:
+                                if sweep == 1:
+                                    inner_indices[pos_inner + found_inner] = q
+                                found_inner += 1
                 if sweep == 0:
                     offsets[p + 1] = found
-        return order, offsets, indices
+                    if inner:
+                        inner_offsets[p + 1] = found_inner
+        return order, offsets, indices, inner_offsets, inner_indices
 
     @nb.njit(cache=True)
     def max_displacement(x, x_ref, origin):
@@ -166,6 +189,12 @@ class NeighbourList:
     builds: int = 1
     order: np.ndarray | None = None  #: sorted position -> particle; None: the identity
     reference_origin: np.ndarray | None = None  #: subtracted from reference_positions
+    #: the inner list (module docstring): the fraction of the support it covers (1: no inner
+    #: list), its radius, offsets and indices (as ``offsets`` and ``indices`` are)
+    inner_reach: float = 1.0
+    inner_radius: float = 0.0
+    inner_offsets: np.ndarray | None = None
+    inner_indices: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.order is None:
@@ -174,17 +203,37 @@ class NeighbourList:
             self.reference_origin = np.zeros(self.reference_positions.shape[1])
 
     @classmethod
-    def build(cls, x: np.ndarray, support: float, skin: float = 0.0) -> NeighbourList:
-        """All pairs closer than ``support + skin`` (``support`` = 2 h_max for eq 20)."""
+    def build(cls, x: np.ndarray, support: float, skin: float = 0.0,
+              inner_reach: float = 1.0) -> NeighbourList:
+        """All pairs closer than ``support + skin`` (``support`` = 2 h_max for eq 20), and
+        with ``inner_reach`` < 1 an inner list of those closer than ``inner_reach * support +
+        skin``."""
         dim = x.shape[1]
         build, _ = _build_functions(dim)
         radius = float(support + skin)
-        order, offsets, indices = build(np.ascontiguousarray(x), radius)
+        if not 0.0 < inner_reach <= 1.0:
+            raise ValueError(f"inner_reach = {inner_reach!r}: a fraction of the support in "
+                             f"(0, 1]")
+        inner_radius = float(inner_reach * support + skin) if inner_reach < 1.0 else 0.0
+        order, offsets, indices, inner_offsets, inner_indices = build(
+            np.ascontiguousarray(x), radius, inner_radius)
         if offsets[-1] < np.iinfo(np.int32).max:  # 4 bytes per particle less
             offsets = offsets.astype(np.int32)
+            inner_offsets = inner_offsets.astype(np.int32)
         origin = x.min(axis=0) if x.shape[0] else np.zeros(dim)
+        inner = inner_radius > 0.0
         return cls(offsets, indices, radius, float(skin), (x - origin).astype(np.float32),
-                   order=order.astype(np.int32), reference_origin=origin)
+                   order=order.astype(np.int32), reference_origin=origin,
+                   inner_reach=float(inner_reach) if inner else 1.0, inner_radius=inner_radius,
+                   inner_offsets=inner_offsets if inner else None,
+                   inner_indices=inner_indices if inner else None)
+
+    def within(self, reach: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(offsets, indices)`` of a list that holds every pair within ``reach`` times the
+        support: the inner list where it reaches that far, else the whole list."""
+        if self.inner_offsets is not None and reach <= self.inner_reach:
+            return self.inner_offsets, self.inner_indices
+        return self.offsets, self.indices
 
     def stale(self, x: np.ndarray, support: float) -> bool:
         """Whether the list no longer holds every pair within ``support`` of particles at
@@ -193,6 +242,9 @@ class NeighbourList:
         :data:`RADIUS_TOLERANCE`).  ``x`` may be the first rows of the positions the list was
         built from (the real particles, whose ghosts follow them)."""
         if self._moved_past_skin(x):
+            return True
+        if self.inner_offsets is not None and (self.inner_reach * support + self.skin
+                                               > self.inner_radius * (1 + RADIUS_TOLERANCE)):
             return True
         return support + self.skin > self.radius * (1 + RADIUS_TOLERANCE)
 
@@ -206,10 +258,12 @@ class NeighbourList:
     def update(self, x: np.ndarray, support: float) -> None:
         """Rebuild in place if the list is :meth:`stale`."""
         if self.stale(x, support):
-            new = NeighbourList.build(x, support, self.skin)
+            new = NeighbourList.build(x, support, self.skin, self.inner_reach)
             self.offsets, self.indices, self.order = new.offsets, new.indices, new.order
             self.radius, self.reference_positions = new.radius, new.reference_positions
             self.reference_origin = new.reference_origin
+            self.inner_reach, self.inner_radius = new.inner_reach, new.inner_radius
+            self.inner_offsets, self.inner_indices = new.inner_offsets, new.inner_indices
             self.builds += 1
 
     def pairs(self) -> set[tuple[int, int]]:

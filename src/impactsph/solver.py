@@ -131,7 +131,8 @@ class Solver:
         positions = self._allocate(state, src, wall)
         builds = self.neighbours.builds if self.neighbours is not None else 0
         self.neighbours = None  # free the old list first: the peak memory is one list
-        self.neighbours = NeighbourList.build(positions, support, skin)
+        reach = self.viscosity.correction_reach if self.corrected else 1.0
+        self.neighbours = NeighbourList.build(positions, support, skin, reach)
         self.neighbours.builds += builds
         self._positions = None
 

@@ -183,6 +183,11 @@ class ViscosityScheme:
     #: place of ``v_ij . r_ij``; the passes then compute every particle's velocity gradient
     #: before the pair pass
     reconstruction: bool = False
+    #: how far ``correction`` reads its neighbours, as a fraction of the kernel support
+    #: ``2 h`` (None: the whole support); a correction that reaches less is handed the
+    #: neighbour list's inner list (:mod:`impactsph.neighbours`), whose pairs beyond that
+    #: reach it would have skipped by their distance
+    correction_reach: Callable[[Any], float] | None = None
 
 
 M = TypeVar("M", EquationOfState, StrengthModel, DamageModel, ViscosityScheme)

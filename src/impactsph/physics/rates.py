@@ -50,6 +50,9 @@ class ViscositySettings:
     #: the pair term takes the reconstructed velocity jump (passes compiled with
     #: ``PassOptions(velocity_reconstruction=True)``)
     reconstruction: bool = False
+    #: how far the correction reads its neighbours, a fraction of the support (the correction
+    #: pass gets the neighbour list's inner list where it has one that reaches so far)
+    correction_reach: float = 1.0
 
     @classmethod
     def of(cls, viscosity: Any) -> ViscositySettings:
@@ -60,9 +63,12 @@ class ViscositySettings:
                       if scheme.correction is not None else None)
         switch = (tuple(float(c) for c in scheme.switch_parameters(viscosity))
                   if scheme.switch is not None else None)
+        reach = (float(scheme.correction_reach(viscosity))
+                 if scheme.correction is not None and scheme.correction_reach is not None
+                 else 1.0)
         return cls(VISCOSITY.index(scheme.name),
                    tuple(float(c) for c in scheme.pair_parameters(viscosity)), correction,
-                   switch, bool(scheme.reconstruction))
+                   switch, bool(scheme.reconstruction), reach)
 
     def check_compiled(self, reconstruction: bool) -> None:
         """Refuse passes compiled for the other kind of velocity jump (a reconstructing
@@ -174,8 +180,9 @@ class CpuRates:
                             viscosity.kind, viscosity.pair, self.options.contact_friction,
                             n_bodies, self.options.normal_stress, b.dv, b.de, b.contact_force,
                             chunk)
-        if viscosity.correction is not None:
-            k.correction_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
+        if viscosity.correction is not None:  # (the inner list where there is one)
+            near_offsets, near_indices = nl.within(viscosity.correction_reach)
+            k.correction_pass(n_active, nl.order, self._packed, near_offsets, near_indices,
                               viscosity.kind, viscosity.correction, b.dv_corr, b.de_corr,
                               b.dv, b.de, chunk)
         if viscosity.switch is not None:

@@ -232,5 +232,7 @@ ACCELERATION_CORRECTION = VISCOSITY.register(ViscosityScheme(
     correction_parameters=lambda v: (float(v.correction_h_ratio),
                                      float(VARIANTS[v.correction]),
                                      float(ENERGY_CORRECTIONS[v.energy_correction]), 0.0),
+    # the correction kernel's support 2 h_c = h_ratio 2 h_ij: the inner list suffices
+    correction_reach=lambda v: float(v.correction_h_ratio),
     source="Shaw & Reid (2009) eqs 31-37",
     description="Shaw-Reid acceleration correction of Monaghan's viscosity (1, 1)"))
