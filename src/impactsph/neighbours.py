@@ -63,7 +63,6 @@ def _build_functions(dim: int):
     """Compile the cell-list builder for one dimension (``dim`` is a compile-time constant;
     the helpers are module functions: numba caches a closure only if it captures no compiled
     function)."""
-    n_stencil = 3**dim
 
     @nb.njit(parallel=True, cache=True)
     def build(x, radius, inner_radius):
@@ -99,9 +98,16 @@ def _build_functions(dim: int):
         indices = np.empty(0, dtype=np.int32)
         inner_offsets = np.zeros(n + 1 if inner else 0, dtype=np.int64)
         inner_indices = np.empty(0, dtype=np.int32)
+        n0 = ncell[0]
+        n1 = ncell[1] if dim > 1 else 1
+        n2 = ncell[2] if dim > 2 else 1
+        lo0 = lo[0]
+        lo1 = lo[1] if dim > 1 else 0.0
+        lo2 = lo[2] if dim > 2 else 0.0
         # two sweeps of the same loop: count the neighbours, then (offsets known) store them;
         # written out here, not in a helper, so that dim is a compile-time constant and the
-        # small loops unroll
+        # small loops unroll.  The stencil's cells are visited with axis 0 fastest (the
+        # order of the list); the count is branch-free (LLVM vectorises it), the store not
         for sweep in range(2):
             if sweep == 1:
                 for p in range(n):
@@ -112,40 +118,71 @@ def _build_functions(dim: int):
                         inner_offsets[p + 1] += inner_offsets[p]
                     inner_indices = np.empty(inner_offsets[n], dtype=np.int32)
             for p in nb.prange(n):
-                own = np.empty(dim, dtype=np.int64)
-                for a in range(dim):
-                    own[a] = min(max(int((xs[p, a] - lo[a]) / radius), 0), ncell[a] - 1)
+                xp0 = xs[p, 0]
+                xp1 = xs[p, 1] if dim > 1 else 0.0
+                xp2 = xs[p, 2] if dim > 2 else 0.0
+                c0 = min(max(int((xp0 - lo0) / radius), 0), n0 - 1)
+                c1 = min(max(int((xp1 - lo1) / radius), 0), n1 - 1) if dim > 1 else 0
+                c2 = min(max(int((xp2 - lo2) / radius), 0), n2 - 1) if dim > 2 else 0
                 found = 0
                 found_inner = 0
                 pos = offsets[p]
                 pos_inner = inner_offsets[p] if inner else 0
-                for s in range(n_stencil):
-                    t = s
-                    kc = 0
-                    inside = True
-                    for a in range(dim):
-                        c = own[a] + t % 3 - 1
-                        t //= 3
-                        if c < 0 or c >= ncell[a]:
-                            inside = False
-                        kc = kc * ncell[a] + c
-                    if not inside:
+                for e2 in range(-1 if dim > 2 else 0, 2 if dim > 2 else 1):
+                    k2 = c2 + e2
+                    if k2 < 0 or k2 >= n2:
                         continue
-                    for q in range(cell_start[kc], cell_end[kc]):
-                        if q == p:
+                    for e1 in range(-1 if dim > 1 else 0, 2 if dim > 1 else 1):
+                        k1 = c1 + e1
+                        if k1 < 0 or k1 >= n1:
                             continue
-                        r2 = 0.0
-                        for a in range(dim):
-                            d = xs[p, a] - xs[q, a]
-                            r2 += d * d
-                        if r2 < r2max:
-                            if sweep == 1:
-                                indices[pos + found] = q
-                            found += 1
-                            if inner and r2 < r2inner:
-                                if sweep == 1:
-                                    inner_indices[pos_inner + found_inner] = q
-                                found_inner += 1
+                        for e0 in range(-1, 2):
+                            k0 = c0 + e0
+                            if k0 < 0 or k0 >= n0:
+                                continue
+                            if dim == 1:
+                                kc = k0
+                            elif dim == 2:
+                                kc = k0 * n1 + k1
+                            else:
+                                kc = (k0 * n1 + k1) * n2 + k2
+                            q0 = cell_start[kc]
+                            q1 = cell_end[kc]
+                            if sweep == 0:
+                                cnt = 0
+                                cnt_inner = 0
+                                for q in range(q0, q1):
+                                    d = xp0 - xs[q, 0]
+                                    r2 = d * d
+                                    if dim > 1:
+                                        d = xp1 - xs[q, 1]
+                                        r2 += d * d
+                                    if dim > 2:
+                                        d = xp2 - xs[q, 2]
+                                        r2 += d * d
+                                    other = q != p
+                                    cnt += 1 if (r2 < r2max) & other else 0
+                                    cnt_inner += 1 if (r2 < r2inner) & other else 0
+                                found += cnt
+                                found_inner += cnt_inner
+                                continue
+                            for q in range(q0, q1):
+                                if q == p:
+                                    continue
+                                d = xp0 - xs[q, 0]
+                                r2 = d * d
+                                if dim > 1:
+                                    d = xp1 - xs[q, 1]
+                                    r2 += d * d
+                                if dim > 2:
+                                    d = xp2 - xs[q, 2]
+                                    r2 += d * d
+                                if r2 < r2max:
+                                    indices[pos + found] = q
+                                    found += 1
+                                    if inner and r2 < r2inner:
+                                        inner_indices[pos_inner + found_inner] = q
+                                        found_inner += 1
                 if sweep == 0:
                     offsets[p + 1] = found
                     if inner:
