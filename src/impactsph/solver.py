@@ -71,32 +71,6 @@ def rate_totals(n, m, v, de_visc, dv_corr, de_corr, contact_force, pair_count, c
 serial_rate_totals = nb.njit(cache=True)(rate_totals.py_func)
 
 
-@nb.njit(cache=True)
-def fill_extended(x, v, rho, e, S, material_state, factor, memory, switched, src, wall, points,
-                  normals, kinds, ext_x, ext_v, ext_rho, ext_e, ext_S, ext_carried, ext_m, ext_h,
-                  ext_material, ext_body, ghost_body0):
-    """The real particles' state into the first rows of the extended arrays (the common
-    material state, and a switch's factor and memory if ``switched``), then the ghosts
-    (:func:`impactsph.boundaries.fill_ghosts`): one call per rate evaluation."""
-    n, dim = x.shape
-    for i in range(n):
-        for a in range(dim):
-            ext_x[i, a] = x[i, a]
-            ext_v[i, a] = v[i, a]
-        ext_rho[i] = rho[i]
-        ext_e[i] = e[i]
-        for a in range(3):
-            for b in range(3):
-                ext_S[i, a, b] = S[i, a, b]
-        for c in range(CARRIED):
-            ext_carried[i, c] = material_state[i, c]
-        if switched:  # read only by the passes of a scheme with a switch
-            ext_carried[i, VISCOSITY_FACTOR] = factor[i]
-            ext_carried[i, VISCOSITY_MEMORY] = memory[i]
-    fill_ghosts(src, wall, points, normals, kinds, n, ext_x, ext_v, ext_rho, ext_e, ext_S,
-                ext_carried, ext_m, ext_h, ext_material, ext_body, ghost_body0)
-
-
 class Solver:
     """Evaluates ``(dv/dt, drho/dt, de/dt, dS/dt)`` for a state.
 
@@ -204,13 +178,18 @@ class Solver:
 
     def _fill(self, state: ParticleState) -> None:
         """Copy the real particles into the extended arrays and mirror them into ghosts."""
-        ext, w = self._ext, self.walls
-        fill_extended(state.position, state.velocity, state.density, state.specific_energy,
-                      state.deviatoric_stress, state.material_state, state.viscosity_factor,
-                      state.viscosity_memory, self.switched, self._ghost_src, self._ghost_wall,
-                      w.points, w.normals, w.kinds, ext["x"], ext["v"], ext["rho"], ext["e"],
-                      ext["S"], ext["carried"], ext["m"], ext["h"], ext["material"],
-                      ext["body"], self.n_bodies)
+        ext, n = self._ext, state.n
+        ext["x"][:n], ext["v"][:n] = state.position, state.velocity
+        ext["rho"][:n], ext["e"][:n] = state.density, state.specific_energy
+        ext["S"][:n] = state.deviatoric_stress
+        ext["carried"][:n, :CARRIED] = state.material_state[:, :CARRIED]
+        if self.switched:  # read only by the passes of a scheme with a switch
+            ext["carried"][:n, VISCOSITY_FACTOR] = state.viscosity_factor
+            ext["carried"][:n, VISCOSITY_MEMORY] = state.viscosity_memory
+        w = self.walls
+        fill_ghosts(self._ghost_src, self._ghost_wall, w.points, w.normals, w.kinds, n,
+                    ext["x"], ext["v"], ext["rho"], ext["e"], ext["S"], ext["carried"], ext["m"],
+                    ext["h"], ext["material"], ext["body"], self.n_bodies)
 
     def _record_positions(self) -> np.ndarray:
         """Each row's place in the packed records (the inverse of the list's order)."""
