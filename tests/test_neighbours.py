@@ -115,3 +115,53 @@ def test_inner_list_is_rebuilt_with_the_list():
     assert pairs_of(NeighbourList(nl.inner_offsets, nl.inner_indices, 1.65, 0.4,
                                   nl.reference_positions, order=nl.order)) == \
         brute_force_pairs(moved, 1.65)
+
+
+def _stencil_order_reference(x: np.ndarray, radius: float) -> tuple[np.ndarray, list[list[int]]]:
+    """The list the builder is specified to make, written plainly: particles sorted (stably)
+    by the Morton code of their cell, each one's neighbours found cell by cell over the
+    ``3**dim`` stencil with axis 0 fastest, the particles of a cell in sorted order."""
+    from impactsph.neighbours import cell_keys
+
+    n, dim = x.shape
+    lo = x.min(axis=0)
+    ncell = np.maximum(1, ((x.max(axis=0) - lo) / radius).astype(np.int64) + 1)
+    key, morton = cell_keys(x, lo, radius, ncell)
+    order = np.argsort(morton, kind="stable")
+    xs = x[order]
+    cell_of = key[order]
+    own = np.clip(((xs - lo) / radius).astype(np.int64), 0, ncell - 1)
+    rows = []
+    for p in range(n):
+        row = []
+        for s in range(3**dim):
+            offset = [(s // 3**a) % 3 - 1 for a in range(dim)]
+            c = own[p] + offset
+            if np.any(c < 0) or np.any(c >= ncell):
+                continue
+            k = 0
+            for a in range(dim):
+                k = k * ncell[a] + c[a]
+            for q in np.flatnonzero(cell_of == k):
+                if q != p and np.sum((xs[p] - xs[q]) ** 2) < radius * radius:
+                    row.append(int(q))
+        rows.append(row)
+    return order, rows
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_list_order_is_the_stencil_order(dim):
+    """Each particle's neighbours in the order the pair sums take them (their order sets the
+    sums' last bits): random points, and a lattice with points on the cell borders."""
+    rng = np.random.default_rng(20 + dim)
+    dx = 0.25
+    side = {1: 30, 2: 9, 3: 5}[dim]
+    axis = np.arange(side) * dx
+    lattice = np.stack(np.meshgrid(*[axis] * dim, indexing="ij"), -1).reshape(-1, dim)
+    for x, radius in ((rng.random((150, dim)), 0.21), (lattice[rng.permutation(len(lattice))],
+                                                         0.5)):
+        nl = NeighbourList.build(x, radius)
+        order, rows = _stencil_order_reference(x, radius)
+        np.testing.assert_array_equal(nl.order, order)
+        for p, row in enumerate(rows):
+            assert nl.indices[nl.offsets[p]:nl.offsets[p + 1]].tolist() == row, p

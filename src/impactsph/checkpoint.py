@@ -262,16 +262,18 @@ def load_checkpoint(path: Path | str, case: Any = None, *, verify: bool = True
                                                                       f.attrs["time"])))
         sim = Simulation(case, problem=problem, state=state)
         g = f["neighbours"]
+        # the inner list, where written (without one the passes read the whole list)
+        inner = ({"inner_offsets": g["inner_offsets"][()],
+                  "inner_indices": g["inner_indices"][()],
+                  "inner_reach": float(g.attrs["inner_reach"]),
+                  "inner_radius": float(g.attrs["inner_radius"])}
+                 if "inner_offsets" in g else {})
         nl = NeighbourList(g["offsets"][()], g["indices"][()], float(g.attrs["radius"]),
                            float(g.attrs["skin"]), g["reference_positions"][()],
                            int(g.attrs["builds"]),
                            order=g["order"][()] if "order" in g else None,
                            reference_origin=(g["reference_origin"][()]
-                                             if "reference_origin" in g else None))
-        if "inner_offsets" in g:  # (a checkpoint without one: the passes read the whole list)
-            nl.inner_offsets, nl.inner_indices = g["inner_offsets"][()], g["inner_indices"][()]
-            nl.inner_reach = float(g.attrs["inner_reach"])
-            nl.inner_radius = float(g.attrs["inner_radius"])
+                                             if "reference_origin" in g else None), **inner)
         sim.solver.restore(state, nl, g["ghost_src"][()], g["ghost_wall"][()])
         # read by name: datasets of older checkpoints that nothing reads any more (their
         # initial_kinetic, initial_internal, initial_momentum) are ignored

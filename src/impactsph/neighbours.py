@@ -63,6 +63,8 @@ def _build_functions(dim: int):
     """Compile the cell-list builder for one dimension (``dim`` is a compile-time constant;
     the helpers are module functions: numba caches a closure only if it captures no compiled
     function)."""
+    if dim not in (1, 2, 3):
+        raise ValueError(f"dim = {dim!r}: the neighbour list is built for 1, 2 or 3 dimensions")
 
     @nb.njit(parallel=True, cache=True)
     def build(x, radius, inner_radius):
@@ -92,7 +94,7 @@ def _build_functions(dim: int):
                 cell_start[c] = p
             cell_end[c] = p + 1
         r2max = radius * radius
-        r2inner = inner_radius * inner_radius  # 0: no inner list
+        r2inner = min(inner_radius, radius) ** 2  # 0: no inner list
         inner = inner_radius > 0.0
         offsets = np.zeros(n + 1, dtype=np.int64)
         indices = np.empty(0, dtype=np.int32)
@@ -238,6 +240,12 @@ class NeighbourList:
             self.order = np.arange(self.offsets.shape[0] - 1, dtype=np.int32)
         if self.reference_origin is None:
             self.reference_origin = np.zeros(self.reference_positions.shape[1])
+        if (self.inner_offsets is None) != (self.inner_indices is None) or (
+                self.inner_offsets is not None
+                and not (0.0 < self.inner_reach < 1.0 and self.inner_radius > self.skin)):
+            raise ValueError(f"an inner list needs its offsets, its indices, inner_reach in "
+                             f"(0, 1) and inner_radius above the skin; got inner_reach = "
+                             f"{self.inner_reach!r}, inner_radius = {self.inner_radius!r}")
 
     @classmethod
     def build(cls, x: np.ndarray, support: float, skin: float = 0.0,

@@ -33,42 +33,64 @@ from .state import ParticleState
 CHUNK = 2048
 
 
-@nb.njit(parallel=True, cache=True)
-def rate_totals(n, m, v, de_visc, dv_corr, de_corr, contact_force, pair_count, corrected):
-    """Sums over the first ``n`` particles: ``sum m de_visc`` (W), ``sum m v . dv_corr`` (W),
-    ``sum m de_corr`` (W), ``sum contact_force`` (N or N/m) and the pair count.  Partial sums
-    per chunk, added in a fixed order (independent of the number of threads)."""
+@nb.njit(inline="always", cache=True)
+def _chunk_totals(chunk, n, m, v, de_visc, dv_corr, de_corr, contact_force, pair_count,
+                  corrected, part):
+    """:func:`rate_totals`' partial sums of one chunk of particles into ``part[chunk]``."""
     dim = v.shape[1]
-    n_chunks = max(1, (n + CHUNK - 1) // CHUNK)
-    part = np.zeros((n_chunks, 7))
-    for chunk in nb.prange(n_chunks):
-        heat = work = corr_heat = pairs = 0.0
-        f = np.zeros(3)
-        for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n)):
-            heat += m[i] * de_visc[i]
-            pairs += pair_count[i]
-            if contact_force.shape[0] > 0:
-                for a in range(dim):
-                    f[a] += contact_force[i, a]
-            if corrected:
-                corr_heat += m[i] * de_corr[i]
-                for a in range(dim):
-                    work += m[i] * v[i, a] * dv_corr[i, a]
-        part[chunk, 0] = heat
-        part[chunk, 1] = work
-        part[chunk, 2] = corr_heat
-        part[chunk, 3] = pairs
-        for a in range(3):
-            part[chunk, 4 + a] = f[a]
+    heat = work = corr_heat = pairs = 0.0
+    f = np.zeros(3)
+    for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n)):
+        heat += m[i] * de_visc[i]
+        pairs += pair_count[i]
+        if contact_force.shape[0] > 0:
+            for a in range(dim):
+                f[a] += contact_force[i, a]
+        if corrected:
+            corr_heat += m[i] * de_corr[i]
+            for a in range(dim):
+                work += m[i] * v[i, a] * dv_corr[i, a]
+    part[chunk, 0] = heat
+    part[chunk, 1] = work
+    part[chunk, 2] = corr_heat
+    part[chunk, 3] = pairs
+    for a in range(3):
+        part[chunk, 4 + a] = f[a]
+
+
+@nb.njit(inline="always", cache=True)
+def _added_parts(part):
     totals = np.zeros(7)
-    for chunk in range(n_chunks):
+    for chunk in range(part.shape[0]):
         for k in range(7):
             totals[k] += part[chunk, k]
     return totals
 
 
-#: :func:`rate_totals` compiled without threads, for runs of one chunk
-serial_rate_totals = nb.njit(cache=True)(rate_totals.py_func)
+@nb.njit(parallel=True, cache=True)
+def rate_totals(n, m, v, de_visc, dv_corr, de_corr, contact_force, pair_count, corrected):
+    """Sums over the first ``n`` particles: ``sum m de_visc`` (W), ``sum m v . dv_corr`` (W),
+    ``sum m de_corr`` (W), ``sum contact_force`` (N or N/m) and the pair count.  Partial sums
+    per chunk, added in a fixed order (independent of the number of threads)."""
+    part = np.zeros((max(1, (n + CHUNK - 1) // CHUNK), 7))
+    for chunk in nb.prange(part.shape[0]):
+        _chunk_totals(chunk, n, m, v, de_visc, dv_corr, de_corr, contact_force, pair_count,
+                      corrected, part)
+    return _added_parts(part)
+
+
+@nb.njit(cache=True)
+def serial_rate_totals(n, m, v, de_visc, dv_corr, de_corr, contact_force, pair_count,
+                       corrected):
+    """:func:`rate_totals` without threads, the same sums in the same order: for a run of
+    one chunk, where starting a parallel region costs more than it gives.  (A function of
+    its own: numba's cache would give a second compilation of the same Python function the
+    first one's code.)"""
+    part = np.zeros((max(1, (n + CHUNK - 1) // CHUNK), 7))
+    for chunk in range(part.shape[0]):
+        _chunk_totals(chunk, n, m, v, de_visc, dv_corr, de_corr, contact_force, pair_count,
+                      corrected, part)
+    return _added_parts(part)
 
 
 class Solver:
@@ -135,7 +157,9 @@ class Solver:
         positions = self._allocate(state, src, wall)
         builds = self.neighbours.builds if self.neighbours is not None else 0
         self.neighbours = None  # free the old list first: the peak memory is one list
-        reach = self.viscosity.correction_reach if self.corrected else 1.0
+        # an inner list for the CPU's correction pass (the GPU's kernels read the whole list)
+        reach = (self.viscosity.correction_reach
+                 if self.corrected and getattr(self.backend, "device", "cpu") == "cpu" else 1.0)
         self.neighbours = NeighbourList.build(positions, support, skin, reach)
         self.neighbours.builds += builds
         self._positions = None

@@ -183,10 +183,12 @@ class ViscosityScheme:
     #: place of ``v_ij . r_ij``; the passes then compute every particle's velocity gradient
     #: before the pair pass
     reconstruction: bool = False
-    #: how far ``correction`` reads its neighbours, as a fraction of the kernel support
-    #: ``2 h`` (None: the whole support); a correction that reaches less is handed the
-    #: neighbour list's inner list (:mod:`impactsph.neighbours`), whose pairs beyond that
-    #: reach it would have skipped by their distance
+    #: how far ``correction`` reads its neighbours: ``correction_reach(viscosity)`` is a
+    #: fraction ``f`` of the kernel support such that the correction never uses a pair at
+    #: ``r_ij >= f 2 h_max`` (``h_max`` the largest smoothing length of the run; None: the
+    #: whole support).  The CPU's correction pass is then handed the neighbour list's inner
+    #: list (:mod:`impactsph.neighbours`), which holds every pair closer than that; a reach
+    #: too short drops pairs silently, so a correction must skip the pairs beyond it itself
     correction_reach: Callable[[Any], float] | None = None
 
 
