@@ -189,40 +189,45 @@ def test_ac_momentum_drift_is_measured_not_hidden():
 
 def test_the_inner_list_changes_no_bit(monkeypatch):
     """The correction pass reads the neighbour list's inner list (pairs within h_c's support
-    plus the skin): the paper's Taylor bar (AC, a wall, plasticity; the list rebuilt several
-    times) ends on the same bits as with the whole list, and so does the same bar with
-    ``h_c = 0.3 h``; with ``h_c = h`` the list has no inner part."""
+    plus the skin), and so does the pairwise AC's switch pass: the paper's Taylor bar (a
+    wall, plasticity; the list rebuilt several times) ends on the same bits as with the
+    whole list, with AC at ``h_c = h/2`` and ``0.3 h`` and with the pairwise AC; with ``h_c =
+    h`` the list has no inner part."""
     from impactsph import load_case
     from impactsph.simulation import Simulation
 
-    def final(overrides, whole_list):
+    def final(overrides, whole_list, pass_name):
         with monkeypatch.context() as patch:
             if whole_list:
                 patch.setattr(NeighbourList, "within",
                               lambda self, reach: (self.offsets, self.indices))
             sim = Simulation(load_case("taylor", ["time.end=3e-6", *overrides]))
             passes = sim.solver.backend.passes
-            read = []  # the lists the correction pass was given: inner (True) or whole
+            read = []  # the lists the pass was given: inner (True) or whole
+            run = getattr(passes, pass_name)
 
-            def correction_pass(*args, run=passes.correction_pass):
+            def counted(*args):
                 nl = sim.solver.neighbours
                 read.append(args[4] is nl.inner_indices is not None)
                 assert read[-1] or args[4] is nl.indices
                 return run(*args)
 
-            patch.setattr(passes, "correction_pass", correction_pass)
+            patch.setattr(passes, pass_name, counted)
             sim.run()
         nl = sim.solver.neighbours
         assert nl.builds > 2
         assert set(read) == {nl.inner_offsets is not None and not whole_list}
         return sim.state.arrays(), nl
 
-    for overrides, reach in (([], 0.5), (["viscosity.correction_h_ratio=0.3"], 0.3)):
-        inner, nl = final(overrides, False)
-        whole, _ = final(overrides, True)
+    for overrides, reach, pass_name in (
+            ([], 0.5, "correction_pass"),
+            (["viscosity.correction_h_ratio=0.3"], 0.3, "correction_pass"),
+            (['viscosity.scheme="ac_pairwise"'], 0.5, "switch_pass")):
+        inner, nl = final(overrides, False, pass_name)
+        whole, _ = final(overrides, True, pass_name)
         assert nl.inner_reach == reach
         assert nl.inner_indices.size < 0.5 * nl.indices.size  # what the pass is spared
         for name, arr in whole.items():
             np.testing.assert_array_equal(inner[name], arr, err_msg=name)
-    _, nl = final(["viscosity.correction_h_ratio=1.0"], False)
+    _, nl = final(["viscosity.correction_h_ratio=1.0"], False, "correction_pass")
     assert nl.inner_offsets is None and nl.inner_reach == 1.0

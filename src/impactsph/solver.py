@@ -157,9 +157,10 @@ class Solver:
         positions = self._allocate(state, src, wall)
         builds = self.neighbours.builds if self.neighbours is not None else 0
         self.neighbours = None  # free the old list first: the peak memory is one list
-        # an inner list for the CPU's correction pass (the GPU's kernels read the whole list)
-        reach = (self.viscosity.correction_reach
-                 if self.corrected and getattr(self.backend, "device", "cpu") == "cpu" else 1.0)
+        # an inner list for the CPU's correction and switch passes (the GPU's kernels read the
+        # whole list)
+        reach = (self.viscosity.inner_reach
+                 if getattr(self.backend, "device", "cpu") == "cpu" else 1.0)
         self.neighbours = NeighbourList.build(positions, support, skin, reach)
         self.neighbours.builds += builds
         self._positions = None

@@ -190,6 +190,9 @@ class ViscosityScheme:
     #: list (:mod:`impactsph.neighbours`), which holds every pair closer than that; a reach
     #: too short drops pairs silently, so a correction must skip the pairs beyond it itself
     correction_reach: Callable[[Any], float] | None = None
+    #: the same for ``switch``: ``switch_reach(viscosity) -> f``, no pair at ``r_ij >= f 2
+    #: h_max`` used by the switch (None: the whole support)
+    switch_reach: Callable[[Any], float] | None = None
 
 
 M = TypeVar("M", EquationOfState, StrengthModel, DamageModel, ViscosityScheme)

@@ -53,6 +53,19 @@ class ViscositySettings:
     #: how far the correction reads its neighbours, a fraction of the support (the correction
     #: pass gets the neighbour list's inner list where it has one that reaches so far)
     correction_reach: float = 1.0
+    #: the same for the switch pass
+    switch_reach: float = 1.0
+
+    @property
+    def inner_reach(self) -> float:
+        """The reach of the neighbour list's inner list that the passes read: the shorter
+        of the correction's and the switch's (1: none needed)."""
+        reach = 1.0
+        if self.correction is not None:
+            reach = min(reach, self.correction_reach)
+        if self.switch is not None:
+            reach = min(reach, self.switch_reach)
+        return reach
 
     @classmethod
     def of(cls, viscosity: Any) -> ViscositySettings:
@@ -66,9 +79,12 @@ class ViscositySettings:
         reach = (float(scheme.correction_reach(viscosity))
                  if scheme.correction is not None and scheme.correction_reach is not None
                  else 1.0)
+        switch_reach = (float(scheme.switch_reach(viscosity))
+                        if scheme.switch is not None and scheme.switch_reach is not None
+                        else 1.0)
         return cls(VISCOSITY.index(scheme.name),
                    tuple(float(c) for c in scheme.pair_parameters(viscosity)), correction,
-                   switch, bool(scheme.reconstruction), reach)
+                   switch, bool(scheme.reconstruction), reach, switch_reach)
 
     def check_compiled(self, reconstruction: bool) -> None:
         """Refuse passes compiled for the other kind of velocity jump (a reconstructing
@@ -189,7 +205,8 @@ class CpuRates:
             if b.factor.shape[0] < n_active or not k.VISCOSITY_FACTOR:
                 raise ValueError("a viscosity switch needs RateBuffers(..., switched=True) and "
                                  "passes compiled with PassOptions(viscosity_factor=True)")
-            k.switch_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
+            near_offsets, near_indices = nl.within(viscosity.switch_reach)
+            k.switch_pass(n_active, nl.order, self._packed, near_offsets, near_indices,
                           viscosity.kind, viscosity.switch, float(switch_elapsed), b.factor,
                           b.memory, chunk)
         if hourglass > 0.0:

@@ -391,6 +391,8 @@ AC_PAIRWISE = VISCOSITY.register(ViscosityScheme(
     name="ac_pairwise", pair_viscosity=unit_viscosity, parameters=PairwiseCorrectionParameters,
     pair_parameters=lambda v: (1.0, 1.0, float(v.epsilon), 0.0),
     switch=ac_pairwise_factor,
+    # the correction kernel's support 2 h_c = h_ratio 2 h_ij: the inner list suffices
+    switch_reach=lambda v: float(v.correction_h_ratio),
     switch_parameters=lambda v: (float(v.correction_h_ratio), float(VARIANTS[v.correction]),
                                  0.0, 0.0),
     source="Shaw & Reid (2009) eqs 31-36, as a symmetric factor (docs/dissipation.md)",
