@@ -58,6 +58,21 @@ def cell_keys(x, lo, cell, ncell):
     return key, morton
 
 
+@nb.njit(inline="always", cache=True)
+def distance2(xp0, xp1, xp2, xs, q, dim):
+    """``|x_p - xs[q]|^2`` for the builder's sweeps (``dim`` a compile-time constant there:
+    inlined, the branches fold away)."""
+    d = xp0 - xs[q, 0]
+    r2 = d * d
+    if dim > 1:
+        d = xp1 - xs[q, 1]
+        r2 += d * d
+    if dim > 2:
+        d = xp2 - xs[q, 2]
+        r2 += d * d
+    return r2
+
+
 @cache
 def _build_functions(dim: int):
     """Compile the cell-list builder for one dimension (``dim`` is a compile-time constant;
@@ -154,14 +169,7 @@ def _build_functions(dim: int):
                                 cnt = 0
                                 cnt_inner = 0
                                 for q in range(q0, q1):
-                                    d = xp0 - xs[q, 0]
-                                    r2 = d * d
-                                    if dim > 1:
-                                        d = xp1 - xs[q, 1]
-                                        r2 += d * d
-                                    if dim > 2:
-                                        d = xp2 - xs[q, 2]
-                                        r2 += d * d
+                                    r2 = distance2(xp0, xp1, xp2, xs, q, dim)
                                     other = q != p
                                     cnt += 1 if (r2 < r2max) & other else 0
                                     cnt_inner += 1 if (r2 < r2inner) & other else 0
@@ -171,14 +179,7 @@ def _build_functions(dim: int):
                             for q in range(q0, q1):
                                 if q == p:
                                     continue
-                                d = xp0 - xs[q, 0]
-                                r2 = d * d
-                                if dim > 1:
-                                    d = xp1 - xs[q, 1]
-                                    r2 += d * d
-                                if dim > 2:
-                                    d = xp2 - xs[q, 2]
-                                    r2 += d * d
+                                r2 = distance2(xp0, xp1, xp2, xs, q, dim)
                                 if r2 < r2max:
                                     indices[pos + found] = q
                                     found += 1
@@ -288,9 +289,8 @@ class NeighbourList:
         built from (the real particles, whose ghosts follow them)."""
         if self._moved_past_skin(x):
             return True
-        if self.inner_offsets is not None and (self.inner_reach * support + self.skin
-                                               > self.inner_radius * (1 + RADIUS_TOLERANCE)):
-            return True
+        # (the inner list, at ``reach * support + skin``, needs no test of its own: a support
+        # that outgrows it, reach < 1, has outgrown the whole list's radius first)
         return support + self.skin > self.radius * (1 + RADIUS_TOLERANCE)
 
     def _moved_past_skin(self, x: np.ndarray) -> bool:

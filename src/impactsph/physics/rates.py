@@ -76,12 +76,11 @@ class ViscositySettings:
                       if scheme.correction is not None else None)
         switch = (tuple(float(c) for c in scheme.switch_parameters(viscosity))
                   if scheme.switch is not None else None)
+        # (a reach without its pass is ignored by inner_reach)
         reach = (float(scheme.correction_reach(viscosity))
-                 if scheme.correction is not None and scheme.correction_reach is not None
-                 else 1.0)
+                 if scheme.correction_reach is not None else 1.0)
         switch_reach = (float(scheme.switch_reach(viscosity))
-                        if scheme.switch is not None and scheme.switch_reach is not None
-                        else 1.0)
+                        if scheme.switch_reach is not None else 1.0)
         return cls(VISCOSITY.index(scheme.name),
                    tuple(float(c) for c in scheme.pair_parameters(viscosity)), correction,
                    switch, bool(scheme.reconstruction), reach, switch_reach)
