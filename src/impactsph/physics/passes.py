@@ -73,7 +73,7 @@ from impactsph.physics.energy import viscous_heating_pair
 from impactsph.physics.momentum import viscous_acceleration_pair
 from impactsph.physics.reconstruction import reconstructed_approach
 from impactsph.physics.records import record_columns, symmetric_index
-from impactsph.physics.stress_rate import jaumann_stress_rate
+from impactsph.physics.stress_rate import jaumann_stress_rate_nd
 
 # >>> binding: replaced by impactsph.codegen in each generated copy
 DIM = 3
@@ -647,8 +647,10 @@ def stress_rate(L, S_i, shear, dS_i):
     """:func:`impactsph.physics.stress_rate.jaumann_stress_rate` as a call of its own, not
     inlined into the pair pass: with the pass's reassociating flags (PAIR_FASTMATH) on it, a
     process that compiled the passes and one that loaded them from numba's cache gave stress
-    rates that differed in the last bit."""
-    jaumann_stress_rate(L, S_i, shear, dS_i)
+    rates that differed in the last bit.  ``DIM`` is passed as a constant, so the loops unroll
+    (a quarter of the 2D pair pass's time went on them when the dimension was read from
+    ``L``'s shape)."""
+    jaumann_stress_rate_nd(L, S_i, shear, dS_i, DIM)
 
 
 @JIT(inline="always", cache=True)

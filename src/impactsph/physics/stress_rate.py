@@ -17,9 +17,12 @@ import numba as nb
 
 
 @nb.njit(inline="always", cache=True)
-def jaumann_stress_rate(L, S, shear_modulus: float, dS) -> None:
-    """Write ``dS/dt`` for velocity gradient ``L`` (dim x dim) and deviator ``S`` into ``dS``."""
-    dim = L.shape[0]
+def jaumann_stress_rate_nd(L, S, shear_modulus: float, dS, dim: int) -> None:
+    """Write ``dS/dt`` for velocity gradient ``L`` (``dim x dim``) and deviator ``S`` into
+    ``dS``.  A caller with ``dim`` a compile-time constant (a generated pass's ``DIM``) gets
+    the loops unrolled and the tests on ``dim`` folded away: the same arithmetic in the same
+    order, about 5 times cheaper (the 2D pair pass spent a quarter of its time here with
+    ``dim`` read from ``L``'s shape; benchmarks/README.md)."""
     trace = 0.0
     for a in range(dim):
         trace += L[a, a]
@@ -38,3 +41,10 @@ def jaumann_stress_rate(L, S, shear_modulus: float, dS) -> None:
                 if b < dim:
                     rot -= S[a, c] * 0.5 * (L[c, b] - L[b, c])
             dS[a, b] = 2.0 * shear_modulus * eps + rot
+
+
+@nb.njit(inline="always", cache=True)
+def jaumann_stress_rate(L, S, shear_modulus: float, dS) -> None:
+    """Write ``dS/dt`` for velocity gradient ``L`` (dim x dim) and deviator ``S`` into ``dS``
+    (:func:`jaumann_stress_rate_nd` with ``dim`` read from ``L``'s shape)."""
+    jaumann_stress_rate_nd(L, S, shear_modulus, dS, L.shape[0])

@@ -44,7 +44,7 @@ import numpy as np
 from impactsph.kernels import cubic_spline, cubic_spline_gradient_factor
 from impactsph.materials import RHO0, SHEAR, WAVE_MODULUS, YOUNGS
 from impactsph.models.viscosity.monaghan import monaghan_viscosity
-from impactsph.physics.stress_rate import jaumann_stress_rate
+from impactsph.physics.stress_rate import jaumann_stress_rate_nd
 
 #: a reference moment matrix whose determinant is below this (its eigenvalues' geometric mean
 #: below 0.05: a particle with one or two neighbours) is not inverted: the particle is refused
@@ -170,7 +170,7 @@ def deform_particle(i, x, v, V0, m, rho, pressure, S, damage, material, table, o
         trace += L[a, a]
     k = material[i]
     drho[i] = -rho[i] * trace
-    jaumann_stress_rate(L, S[i], table[k, SHEAR], dS[i])
+    jaumann_stress_rate_nd(L, S[i], table[k, SHEAR], dS[i], dim)
     intact = 1.0 - damage[i]
     p = pressure[i] * intact if pressure[i] < 0.0 else pressure[i]
     # P = J sigma F^-T: Pk[a, b] = J sum_c sigma[a, c] Finv[b, c]
