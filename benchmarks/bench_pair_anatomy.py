@@ -1,0 +1,256 @@
+"""Where the pair pass's time goes: the compiled pass against variants of itself, one thread.
+
+    .venv/bin/python benchmarks/bench_pair_anatomy.py [--dims 2 3] [--n 1e5] [--rounds 3]
+        [--repeat 7] [--threads 1] [--variants base self contiguous scratch no_division empty]
+
+The case is ``bench_ac_cost.py``'s lattice with the paper's artificial viscosity (random
+velocities of about 1 m/s). One step captures the arguments of the solver's ``pair_pass``;
+each variant is the generated passes module (``impactsph.codegen``) with one edit inside
+``particle_rates``, compiled in this process (no cache, so its assembly can be read), and
+timed on those arguments, the variants alternating within each round so that a busy spell of
+a shared machine falls on all of them. The variants change the results (except ``base``):
+they are measurements of cost, nothing else.
+
+- ``base``: the pass as the solver runs it.
+- ``self``: the same code handed a list in which every neighbour index is the particle's own
+  position. The loop runs the same instructions (it has no branches) and its gathers all hit
+  one row in L1: what the time owes to where the neighbours lie in memory.
+- ``contiguous``: the neighbours' columns read from a transposed copy (one row per column,
+  made once, outside the timing) at consecutive positions ``p, p + 1, ...``: contiguous
+  vector loads in place of gathers, as a cluster-pair list (GROMACS's) would give.
+- ``scratch``: before each particle's loop, its neighbours' columns from the position to
+  ``A`` copied row by row (scalar loads and stores) into a scratch of one row per column,
+  which the loop then reads at consecutive positions: the ``contiguous`` loop with the
+  transposition paid inside the pass, particle by particle (rows of at most 256
+  neighbours).
+- ``no_division``: the artificial viscosity's two divisions made multiplications (the
+  kernel's remain).
+- ``empty``: the neighbour loop removed: the per-particle part of the pass.
+
+Each row gives the best time of ``--repeat`` calls in each round, the list entries per second
+and, from the assembly, the vector gathers, divisions and square roots the pass contains.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import importlib.util
+import re
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+LOOP = "    for k in range(offsets[p], offsets[p + 1]):\n        j = indices[k]"
+CALL = "            particle_rates(p, i, P, offsets, indices, visc_kind"
+
+
+def _first_loop(text: str) -> tuple[int, int]:
+    """The span of ``particle_rates``'s vectorised neighbour loop in the generated text."""
+    start = text.index(LOOP, text.index("def particle_rates"))
+    return start, text.index("    # Second loop", start)
+
+
+def _edit_loop(text: str, edit) -> str:
+    start, end = _first_loop(text)
+    return text[:start] + edit(text[start:end]) + text[end:]
+
+
+def _contiguous(text: str) -> str:
+    def edit(body: str) -> str:
+        # an unsigned index: numba adds no wraparound test, so LLVM sees consecutive loads
+        body = body.replace("        j = indices[k]",
+                            "        j = indices[k]\n        jj = np.uint64(p + k - offsets[p])", 1)
+        body = re.sub(r"P\[j, ([^\]]+)\]", r"PT[\1, jj]", body)
+        return body.replace("neighbour_separation(xi0, xi1, xi2, hi, P, j)",
+                            "neighbour_separation_t(xi0, xi1, xi2, hi, PT, jj)")
+    text = _edit_loop(text, edit)
+    text = text.replace("dS, L, L_sorted):\n    \"\"\"Pass 2 for the active",
+                        "dS, L, L_sorted, PT):\n    \"\"\"Pass 2 for the active", 1)
+    pass_head = "              chunk_size):\n    \"\"\"Pass 2 over the active particles"
+    text = text.replace(pass_head, pass_head.replace("chunk_size)", "chunk_size, PT)"), 1)
+    call_end = "dS, L, L_sorted)\n\n\n@JIT(parallel=True, cache=True)\ndef correction_pass"
+    text = text.replace(call_end, call_end.replace("L_sorted)", "L_sorted, PT)"), 1)
+    return text + SEPARATION
+
+
+SEPARATION = '''
+
+@JIT(inline="always")
+def neighbour_separation_t(xi0, xi1, xi2, hi, PT, j):
+    d0 = xi0 - PT[X, j]
+    r2 = d0 * d0
+    d1 = d2 = 0.0
+    if DIM > 1:
+        d1 = xi1 - PT[X + 1, j]
+        r2 += d1 * d1
+    if DIM > 2:
+        d2 = xi2 - PT[X + 2, j]
+        r2 += d2 * d2
+    h_ij = 0.5 * (hi + PT[H, j])
+    inv_h = 1.0 / h_ij
+    return d0, d1, d2, r2, h_ij, inv_h, r2 * inv_h * inv_h
+'''
+
+
+def _scratch(text: str) -> str:
+    """The neighbours' first columns (position to ``A``) copied, row by row, into a scratch of
+    one row per column, which the loop then reads at consecutive positions."""
+    def edit(body: str) -> str:
+        body = body.replace(LOOP, """    n_read = A0 + DIM * (DIM + 1) // 2
+    for kk in range(offsets[p + 1] - offsets[p]):
+        jc = indices[offsets[p] + kk]
+        for c in range(n_read):
+            Q[c, kk] = P[jc, c]
+""" + LOOP, 1)
+        body = body.replace("        j = indices[k]",
+                            "        j = indices[k]\n        jj = np.uint64(k - offsets[p])", 1)
+        body = re.sub(r"P\[j, (X|V|H|M|VOL|RHO|C|BODY|A\d\d)( \+ \d)?\]", r"Q[\1\2, jj]", body)
+        return body.replace("neighbour_separation(xi0, xi1, xi2, hi, P, j)",
+                            "neighbour_separation_t(xi0, xi1, xi2, hi, Q, jj)")
+    text = _edit_loop(text, edit)
+    text = text.replace("dS, L, L_sorted):\n    \"\"\"Pass 2 for the active",
+                        "dS, L, L_sorted, Q):\n    \"\"\"Pass 2 for the active", 1)
+    call_end = "dS, L, L_sorted)\n\n\n@JIT(parallel=True, cache=True)\ndef correction_pass"
+    text = text.replace(call_end, call_end.replace("L_sorted)", "L_sorted, Q)"), 1)
+    scratch = "        L = np.empty((DIM, DIM))  # scratch: the velocity gradient of one particle"
+    rows = "\n        Q = np.empty((A0 + DIM * (DIM + 1) // 2, 256))"
+    text = text.replace(scratch, scratch + rows, 1)
+    return text + SEPARATION
+
+
+def _empty(text: str) -> str:
+    return _edit_loop(text, lambda b: b.replace("range(offsets[p], offsets[p + 1])",
+                                                "range(offsets[p], offsets[p])", 1))
+
+
+def _no_division(text: str) -> str:
+    return text  # the edit is the injected viscosity (see _injected)
+
+
+VARIANTS = {"base": lambda t: t, "self": lambda t: t, "contiguous": _contiguous,
+            "scratch": _scratch, "no_division": _no_division, "empty": _empty}
+
+
+def _injected(name: str, inject: dict) -> dict:
+    if name != "no_division":
+        return inject
+    import numba as nb
+
+    @nb.njit(inline="always")
+    def viscosity(vr, r2, h_ij, c_ij, rho_ij, params):
+        mu = h_ij * min(vr, 0.0) * (r2 + params[2] * h_ij * h_ij)
+        return (-params[0] * c_ij * mu + params[1] * mu * mu) * rho_ij
+
+    return {**inject, "_viscosity_0": viscosity}
+
+
+def _load(name: str, text: str, inject: dict, folder: Path):
+    text = VARIANTS[name](text).replace("cache=True", "cache=False")
+    path = folder / f"anatomy_{name}.py"
+    path.write_text(text)
+    spec = importlib.util.spec_from_file_location(f"anatomy_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    module.__dict__.update(_injected(name, inject))
+    sys.modules[spec.name] = module
+    exec(compile(text, str(path), "exec"), module.__dict__)
+    return module
+
+
+def _assembly_counts(function) -> dict[str, int]:
+    asm = "\n".join(function.inspect_asm().values())
+    ops = collections.Counter(line.split()[0] for line in asm.splitlines()
+                              if line.startswith("\t") and line.split())
+    return {"gathers": ops["vgatherqpd"] + ops["vgatherdpd"],
+            "divisions": ops["vdivpd"], "square roots": ops["vsqrtpd"]}
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--dims", type=int, nargs="+", default=[2, 3], choices=(1, 2, 3))
+    parser.add_argument("--n", type=float, default=1e5, help="target particle count")
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--repeat", type=int, default=7)
+    parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
+    args = parser.parse_args(argv)
+
+    import numba as nb
+    import numpy as np
+
+    sys.path.insert(0, str(HERE))
+    from bench_ac_cost import lattice_case
+
+    from impactsph.integrate import stable_time_step
+    from impactsph.loading import validate_case
+    from impactsph.simulation import Simulation
+
+    folder = Path(tempfile.mkdtemp(prefix="impactsph-anatomy-"))
+    for dim in args.dims:
+        sim = Simulation(validate_case(lattice_case(dim, int(args.n), "av")))
+        sim.state.velocity[:] = np.random.default_rng(1).normal(size=sim.state.velocity.shape)
+        dt = 0.1 * stable_time_step(sim.state, sim.problem.table, 0.3)
+        passes = sim.solver.backend.passes
+        captured = {}
+        solver_pass = passes.pair_pass
+
+        def grab(*a, _captured=captured, _solver_pass=solver_pass):
+            _captured["args"] = a
+            return _solver_pass(*a)
+
+        passes.pair_pass = grab
+        sim.integrator.step(sim.state, dt)
+        passes.pair_pass = solver_pass
+        call = list(captured["args"])
+        record = call[2]
+        transposed = np.zeros((record.shape[1], record.shape[0] + 256))
+        transposed[:, :record.shape[0]] = record.T
+        entries = int(call[4].shape[0])
+        offsets = call[3]
+        if "scratch" in args.variants and int(np.diff(offsets).max()) > 256:
+            sys.exit("bench_pair_anatomy: a neighbour row is longer than the scratch's 256")
+        own = np.repeat(np.arange(offsets.shape[0] - 1, dtype=call[4].dtype), np.diff(offsets))
+
+        def arguments(name, _call=call, _own=own, _transposed=transposed):
+            if name == "self":
+                return _call[:4] + [_own] + _call[5:]
+            return _call + [_transposed] if name == "contiguous" else _call
+
+        text = Path(passes.__file__).read_text()
+        inject = {k: v for k, v in vars(passes).items()
+                  if k.startswith("_") and hasattr(v, "py_func")}
+        nb.set_num_threads(args.threads)
+        modules, counts, best = {}, {}, collections.defaultdict(list)
+        for name in args.variants:
+            modules[name] = _load(name, text, inject, folder)
+            modules[name].pair_pass(*arguments(name))  # compiles
+            counts[name] = _assembly_counts(modules[name].pair_pass)
+        for _ in range(args.rounds):
+            for name in args.variants:
+                function, given = modules[name].pair_pass, arguments(name)
+                times = []
+                for _ in range(args.repeat):
+                    t0 = time.perf_counter()
+                    function(*given)
+                    times.append(time.perf_counter() - t0)
+                best[name].append(min(times))
+        print(f"\n{dim}D, {record.shape[0]} particles, {entries} list entries, "
+              f"{args.threads} thread(s), best of {args.repeat} in each of {args.rounds} rounds")
+        print(f"{'variant':<12} {'ms per round':<30} {'entries/s (best)':>16} {'/ base':>7} "
+              f"{'gathers':>7} {'vdivpd':>6} {'vsqrtpd':>7}")
+        base = min(best["base"]) if "base" in best else None
+        for name in args.variants:
+            ms = " ".join(f"{t * 1e3:.1f}" for t in best[name])
+            ratio = f"{min(best[name]) / base:7.2f}" if base else f"{'':7}"
+            c = counts[name]
+            print(f"{name:<12} {ms:<30} {entries / min(best[name]):16.3e} {ratio} "
+                  f"{c['gathers']:7d} {c['divisions']:6d} {c['square roots']:7d}")
+        for name in list(sys.modules):
+            if name.startswith("anatomy_"):
+                del sys.modules[name]
+
+
+if __name__ == "__main__":
+    main()
