@@ -1,0 +1,44 @@
+"""``benchmarks/bench_pair_anatomy.py`` edits the generated pair pass's text; these tests
+check that its edits still find the pass they measure (a changed template would otherwise
+leave a variant equal to the pass, or not Python), without compiling anything."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+from impactsph import codegen
+from impactsph.physics import passes
+
+SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_pair_anatomy.py"
+
+
+def _anatomy():
+    spec = importlib.util.spec_from_file_location("bench_pair_anatomy", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_the_variants_edit_the_neighbour_loop(dim):
+    anatomy = _anatomy()
+    text, _ = codegen.generate(passes, dim)
+    start, end = anatomy._first_loop(text)
+    assert "P[j, " in text[start:end]
+    for name in ("contiguous", "scratch", "empty"):
+        edited = anatomy.VARIANTS[name](text)
+        assert edited != text, name
+        compile(edited, name, "exec")
+        if name == "empty":
+            rates = edited[edited.index("def particle_rates"):]
+            assert "range(offsets[p], offsets[p]):\n        j = indices[k]" in rates
+            continue
+        loop = edited[slice(*anatomy._first_loop(edited))]
+        if name == "contiguous":  # every neighbour column from the transposed copy
+            assert "P[j, " not in loop and "PT[V, jj]" in loop and "PT[M, jj]" in loop
+        else:  # the columns up to A from the scratch; the optional ones still from P
+            assert "Q[V, jj]" in loop and "Q[A00, jj]" in loop
+            assert "P[j, X]" not in loop and "P[j, M]" not in loop
