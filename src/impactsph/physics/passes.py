@@ -648,8 +648,7 @@ def stress_rate(L, S_i, shear, dS_i):
     inlined into the pair pass: with the pass's reassociating flags (PAIR_FASTMATH) on it, a
     process that compiled the passes and one that loaded them from numba's cache gave stress
     rates that differed in the last bit.  ``DIM`` is passed as a constant, so the loops unroll
-    (a quarter of the 2D pair pass's time went on them when the dimension was read from
-    ``L``'s shape)."""
+    (:func:`impactsph.physics.stress_rate.jaumann_stress_rate_nd`)."""
     jaumann_stress_rate_nd(L, S_i, shear, dS_i, DIM)
 
 
