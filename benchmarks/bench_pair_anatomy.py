@@ -19,12 +19,13 @@ they are measurements of cost, nothing else.
   made once, outside the timing) at consecutive positions ``p, p + 1, ...``: contiguous
   vector loads in place of gathers, as a cluster-pair list (GROMACS's) would give.
 - ``scratch``: before each particle's loop, its neighbours' columns from the position to
-  ``A`` copied row by row (scalar loads and stores) into a scratch of one row per column,
-  which the loop then reads at consecutive positions: the ``contiguous`` loop with the
-  transposition paid inside the pass, particle by particle (rows of at most 256
-  neighbours).
+  ``A`` (all but ``pc`` read by the loop) copied row by row into a scratch of one row per
+  column, which the loop then reads at consecutive positions: the ``contiguous`` loop with
+  the transposition paid inside the pass, particle by particle (rows of at most 256
+  neighbours). The copy has no gathers (the assembly's count); it has no scatters either, as
+  AVX-512's would be (not counted).
 - ``no_division``: the artificial viscosity's two divisions made multiplications (the
-  kernel's remain).
+  kernel's remain); the lattice's viscosity must be the registry's first, ``av``.
 - ``empty``: the neighbour loop removed: the per-particle part of the pass.
 
 Each row gives the best time of ``--repeat`` calls in each round, the list entries per second
@@ -209,8 +210,10 @@ def main(argv: list[str] | None = None) -> None:
         transposed[:, :record.shape[0]] = record.T
         entries = int(call[4].shape[0])
         offsets = call[3]
-        if "scratch" in args.variants and int(np.diff(offsets).max()) > 256:
-            sys.exit("bench_pair_anatomy: a neighbour row is longer than the scratch's 256")
+        if int(np.diff(offsets).max()) > 256:  # the scratch's rows; PT's padding
+            sys.exit("bench_pair_anatomy: a neighbour row is longer than 256")
+        if "no_division" in args.variants and int(call[5]) != 0:
+            sys.exit("bench_pair_anatomy: no_division replaces viscosity 0, not this case's")
         own = np.repeat(np.arange(offsets.shape[0] - 1, dtype=call[4].dtype), np.diff(offsets))
 
         def arguments(name, _call=call, _own=own, _transposed=transposed):

@@ -30,7 +30,7 @@ def test_the_variants_edit_the_neighbour_loop(dim):
     assert "P[j, " in text[start:end]
     for name in ("contiguous", "scratch", "empty"):
         edited = anatomy.VARIANTS[name](text)
-        assert edited != text, name
+        assert edited != text, name  # (empty's own edit is checked below)
         compile(edited, name, "exec")
         if name == "empty":
             rates = edited[edited.index("def particle_rates"):]
@@ -39,6 +39,11 @@ def test_the_variants_edit_the_neighbour_loop(dim):
         loop = edited[slice(*anatomy._first_loop(edited))]
         if name == "contiguous":  # every neighbour column from the transposed copy
             assert "P[j, " not in loop and "PT[V, jj]" in loop and "PT[M, jj]" in loop
+            assert "neighbour_separation_t(xi0, xi1, xi2, hi, PT, jj)" in loop
+            # the copy reaches particle_rates through the pass's signature and its call
+            assert edited.count("L_sorted, PT)") == 2 and "chunk_size, PT)" in edited
         else:  # the columns up to A from the scratch; the optional ones still from P
             assert "Q[V, jj]" in loop and "Q[A00, jj]" in loop
             assert "P[j, X]" not in loop and "P[j, M]" not in loop
+            assert "neighbour_separation_t(xi0, xi1, xi2, hi, Q, jj)" in loop
+            assert "Q = np.empty(" in edited and edited.count("L_sorted, Q)") == 2
