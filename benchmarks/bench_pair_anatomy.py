@@ -59,67 +59,52 @@ def _edit_loop(text: str, edit) -> str:
     return text[:start] + edit(text[start:end]) + text[end:]
 
 
-def _contiguous(text: str) -> str:
+def _read_from(text: str, array: str, columns: str, position: str) -> str:
+    """The neighbour loop reading ``columns`` (a regex of the record's column names) from
+    ``array[column, jj]`` at ``jj = position``, not from ``P[j, column]``: ``array`` becomes
+    an argument of ``particle_rates`` (passed by ``pair_pass``), and the separation helper a
+    copy of the template's that reads it the same way."""
     def edit(body: str) -> str:
         # an unsigned index: numba adds no wraparound test, so LLVM sees consecutive loads
         body = body.replace("        j = indices[k]",
-                            "        j = indices[k]\n        jj = np.uint64(p + k - offsets[p])", 1)
-        body = re.sub(r"P\[j, ([^\]]+)\]", r"PT[\1, jj]", body)
+                            f"        j = indices[k]\n        jj = np.uint64({position})", 1)
+        body = re.sub(rf"P\[j, ({columns})\]", rf"{array}[\1, jj]", body)
         return body.replace("neighbour_separation(xi0, xi1, xi2, hi, P, j)",
-                            "neighbour_separation_t(xi0, xi1, xi2, hi, PT, jj)")
+                            f"neighbour_separation_t(xi0, xi1, xi2, hi, {array}, jj)")
     text = _edit_loop(text, edit)
     text = text.replace("dS, L, L_sorted):\n    \"\"\"Pass 2 for the active",
-                        "dS, L, L_sorted, PT):\n    \"\"\"Pass 2 for the active", 1)
-    pass_head = "              chunk_size):\n    \"\"\"Pass 2 over the active particles"
-    text = text.replace(pass_head, pass_head.replace("chunk_size)", "chunk_size, PT)"), 1)
+                        f"dS, L, L_sorted, {array}):\n    \"\"\"Pass 2 for the active", 1)
     call_end = "dS, L, L_sorted)\n\n\n@JIT(parallel=True, cache=True)\ndef correction_pass"
-    text = text.replace(call_end, call_end.replace("L_sorted)", "L_sorted, PT)"), 1)
-    return text + SEPARATION
+    text = text.replace(call_end, call_end.replace("L_sorted)", f"L_sorted, {array})"), 1)
+    head = text.index("def neighbour_separation(")
+    helper = text[head:text.index("\n\n\n", head)]
+    helper = re.sub(r"P\[j, ([^\]]+)\]", r"PT[\1, j]", helper)
+    helper = helper.replace("def neighbour_separation(", "def neighbour_separation_t(")
+    helper = helper.replace("hi, P, j):", "hi, PT, j):")
+    return text + '\n\n@JIT(inline="always")\n' + helper + "\n"
 
 
-SEPARATION = '''
-
-@JIT(inline="always")
-def neighbour_separation_t(xi0, xi1, xi2, hi, PT, j):
-    d0 = xi0 - PT[X, j]
-    r2 = d0 * d0
-    d1 = d2 = 0.0
-    if DIM > 1:
-        d1 = xi1 - PT[X + 1, j]
-        r2 += d1 * d1
-    if DIM > 2:
-        d2 = xi2 - PT[X + 2, j]
-        r2 += d2 * d2
-    h_ij = 0.5 * (hi + PT[H, j])
-    inv_h = 1.0 / h_ij
-    return d0, d1, d2, r2, h_ij, inv_h, r2 * inv_h * inv_h
-'''
+def _contiguous(text: str) -> str:
+    text = _read_from(text, "PT", r"[^\]]+", "p + k - offsets[p]")
+    pass_head = "              chunk_size):\n    \"\"\"Pass 2 over the active particles"
+    return text.replace(pass_head, pass_head.replace("chunk_size)", "chunk_size, PT)"), 1)
 
 
 def _scratch(text: str) -> str:
     """The neighbours' first columns (position to ``A``) copied, row by row, into a scratch of
     one row per column, which the loop then reads at consecutive positions."""
-    def edit(body: str) -> str:
-        body = body.replace(LOOP, """    n_read = A0 + DIM * (DIM + 1) // 2
+    copy = """    n_read = A0 + DIM * (DIM + 1) // 2
     for kk in range(offsets[p + 1] - offsets[p]):
         jc = indices[offsets[p] + kk]
         for c in range(n_read):
             Q[c, kk] = P[jc, c]
-""" + LOOP, 1)
-        body = body.replace("        j = indices[k]",
-                            "        j = indices[k]\n        jj = np.uint64(k - offsets[p])", 1)
-        body = re.sub(r"P\[j, (X|V|H|M|VOL|RHO|C|BODY|A\d\d)( \+ \d)?\]", r"Q[\1\2, jj]", body)
-        return body.replace("neighbour_separation(xi0, xi1, xi2, hi, P, j)",
-                            "neighbour_separation_t(xi0, xi1, xi2, hi, Q, jj)")
-    text = _edit_loop(text, edit)
-    text = text.replace("dS, L, L_sorted):\n    \"\"\"Pass 2 for the active",
-                        "dS, L, L_sorted, Q):\n    \"\"\"Pass 2 for the active", 1)
-    call_end = "dS, L, L_sorted)\n\n\n@JIT(parallel=True, cache=True)\ndef correction_pass"
-    text = text.replace(call_end, call_end.replace("L_sorted)", "L_sorted, Q)"), 1)
+"""
+    text = _edit_loop(text, lambda body: body.replace(LOOP, copy + LOOP, 1))
+    text = _read_from(text, "Q", r"(?:X|V|H|M|VOL|RHO|C|BODY|A\d\d)(?: \+ \d)?",
+                      "k - offsets[p]")
     scratch = "        L = np.empty((DIM, DIM))  # scratch: the velocity gradient of one particle"
     rows = "\n        Q = np.empty((A0 + DIM * (DIM + 1) // 2, 256))"
-    text = text.replace(scratch, scratch + rows, 1)
-    return text + SEPARATION
+    return text.replace(scratch, scratch + rows, 1)
 
 
 def _empty(text: str) -> str:
@@ -127,12 +112,9 @@ def _empty(text: str) -> str:
                                                 "range(offsets[p], offsets[p])", 1))
 
 
-def _no_division(text: str) -> str:
-    return text  # the edit is the injected viscosity (see _injected)
-
-
+#: (``self`` edits the list it is handed, ``no_division`` the viscosity injected: not the text)
 VARIANTS = {"base": lambda t: t, "self": lambda t: t, "contiguous": _contiguous,
-            "scratch": _scratch, "no_division": _no_division, "empty": _empty}
+            "scratch": _scratch, "no_division": lambda t: t, "empty": _empty}
 
 
 def _injected(name: str, inject: dict) -> dict:
