@@ -153,3 +153,37 @@ def test_sweep_on_an_existing_cluster_survives_a_lost_worker(tmp_path):
         for p in procs:
             p.kill()
             p.wait()
+
+
+def test_local_cluster_leaves_port_8787_alone():
+    """With the default HTTP port, 8787, held by another process (a second sweep, a user's
+    own Dask cluster), a sweep's local cluster starts without the warning that it moved: its
+    scheduler's HTTP server (its health route) answers on a free loopback port."""
+    import socket
+    import urllib.request
+    import warnings
+
+    from impactsph.sweep import local_cluster
+
+    holder = socket.socket()
+    try:
+        holder.bind(("0.0.0.0", 8787))
+        holder.listen()
+    except OSError:  # something already holds it: the same situation
+        pass
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            cluster = local_cluster(1)
+            try:
+                ports = [s.getsockname() for s in cluster.scheduler.http_server._sockets.values()]
+                with urllib.request.urlopen(f"http://127.0.0.1:{ports[0][1]}/health") as reply:
+                    health = reply.status
+            finally:
+                cluster.close()
+    finally:
+        holder.close()
+    assert not [w for w in caught if "already in use" in str(w.message)], \
+        [str(w.message) for w in caught]
+    assert ports and all(host == "127.0.0.1" and port != 8787 for host, port in ports), ports
+    assert health == 200

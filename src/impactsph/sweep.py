@@ -212,6 +212,18 @@ def run_dir_name(out: Path, name: str, overrides: list[str]) -> str:
     return name
 
 
+def local_cluster(workers: int | None = None) -> Any:
+    """A Dask cluster of ``workers`` single-threaded processes on this machine (None: one per
+    core), without a dashboard.  The scheduler's own HTTP server (its health and metrics
+    routes) listens on a free loopback port: on the default, 8787, a second cluster (another
+    sweep, a user's own) would find it taken and warn."""
+    from distributed import LocalCluster
+
+    return LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
+                        processes=True, dashboard_address=None,
+                        scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
+
+
 def run_many(base: dict[str, Any] | list[dict[str, Any]], run_overrides: list[list[str]],
              out: Path, *,
              scheduler: str | None = None, workers: int | None = None,
@@ -223,7 +235,7 @@ def run_many(base: dict[str, Any] | list[dict[str, Any]], run_overrides: list[li
     ``out/runs/NAME`` (``names``, else :func:`run_id`; see :func:`run_dir_name`).  Returns
     one row per run, in the order given (``run``: the directory's name; ``metrics``: summary
     values added, :func:`run_one`); ``on_result(i, row)`` is called as runs finish."""
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import Client, as_completed
 
     for name in ("distributed", "distributed.nanny", "distributed.scheduler",
                  "distributed.worker", "distributed.core", "distributed.http.proxy"):
@@ -248,8 +260,7 @@ def run_many(base: dict[str, Any] | list[dict[str, Any]], run_overrides: list[li
     if scheduler:
         client = Client(scheduler)
     else:
-        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
-                               processes=True, dashboard_address=None)
+        cluster = local_cluster(workers)
         client = Client(cluster)
     try:
         futures = {}
