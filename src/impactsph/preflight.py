@@ -292,7 +292,7 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
                     hourglass: bool = False,
                     force_correction: bool = False, strength_width: int = 1,
                     snapshots: int = 0, history_values: int = 0,
-                    compatible: bool = False) -> float:
+                    compatible: bool = False, switched: bool = False) -> float:
     """Peak bytes of a run of ``n`` particles (``ghosts`` more in the sums) with ``neighbours``
     stored neighbour-list entries per particle:
 
@@ -309,6 +309,8 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     - with ``compatible`` (the compatible energy update), per particle and ghost: the work
       velocity's record columns, the work pass's rate buffers, the corrector's pair energy
       rates, the work velocity and its sorted copy;
+    - with ``walls`` or ``switched`` (a viscosity scheme with a switch), per particle and
+      ghost: the passes' copy of the common material state (``Solver._arrays``);
 
     times :data:`MEMORY_SAFETY`, plus :data:`BASE_MEMORY` for the process itself."""
     d = dim
@@ -321,9 +323,9 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     records = 8 * record_columns(d, correction_matrix=force_correction and d > 1,
                                  work_velocity=compatible)["width"]
     ghost_arrays = (16 * d + 104) if walls else 0  # x, v, rho, e, S, m, h, material, body
-    # the carried columns the passes read (the common material state and a switch's factor
-    # and memory), for the particles or, with walls, the extended rows
-    carried = 8 * PASS_CARRIED
+    # the passes' copy of the common material state and a switch's factor and memory: the
+    # extended rows' with walls, the particles' with a switch (else they read the state's own)
+    carried = 8 * PASS_CARRIED if walls or switched else 0
     neighbour_list = 12 + 4 * d + 32 + 8 * d  # offsets, order, reference; build temporaries
     if compatible:  # the work pass's rate buffers, the pair energy rates, the velocities
         buffers += (100 + 8 * d) + 8 + 16 * d
@@ -485,6 +487,7 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
         == "velocity_gradient_and_forces",
         strength_width=TableLayout.registered().state_width,
         compatible=case.time.energy_update == "compatible",
+        switched=VISCOSITY[case.viscosity.scheme].switch is not None,
         snapshots=len(case.output.snapshot_times),
         history_values=history_values(case, steps))
     ref = case.output.reference_viscosity

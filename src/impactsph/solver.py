@@ -126,7 +126,9 @@ class Solver:
         self.powers = (0.0, 0.0, 0.0)
         self.wall_force = np.zeros(state.dim)
         self.neighbours: NeighbourList | None = None
-        self._carried: np.ndarray | None = None  # the common material state, contiguous
+        #: the passes' copy of the common material state and the switch's columns, for a
+        #: scheme with a switch and no ghosts (otherwise they read the material state itself)
+        self._carried: np.ndarray | None = None
         #: symmetry planes: their ghosts get the mirror of their sources' pair results
         self._symmetric = self.walls is not None and bool((self.walls.kinds == SYMMETRY).any())
         self._friction = self.walls is not None and bool((self.walls.friction > 0.0).any())
@@ -241,15 +243,21 @@ class Solver:
         """``(x, v, rho, e, S, m, h, material, body, carried)`` of every row, ghosts
         included (``carried``: the common material state, :mod:`impactsph.models.columns`)."""
         if self._ext is None:
-            if self._carried is None or self._carried.shape[0] != state.n:
-                self._carried = np.zeros((state.n, PASS_CARRIED))
-            np.copyto(self._carried[:, :CARRIED], state.material_state[:, :CARRIED])
-            if self.switched:
-                self._carried[:, VISCOSITY_FACTOR] = state.viscosity_factor
-                self._carried[:, VISCOSITY_MEMORY] = state.viscosity_memory
+            carried = state.material_state
+            if self.switched or not carried.flags.c_contiguous:
+                # the passes' own copy: the common columns, then the switch's two
+                if self._carried is None or self._carried.shape[0] != state.n:
+                    self._carried = np.zeros((state.n, PASS_CARRIED))
+                np.copyto(self._carried[:, :CARRIED], carried[:, :CARRIED])
+                if self.switched:
+                    self._carried[:, VISCOSITY_FACTOR] = state.viscosity_factor
+                    self._carried[:, VISCOSITY_MEMORY] = state.viscosity_memory
+                carried = self._carried
+            # else the material state itself: its first CARRIED columns are the common ones,
+            # and only a scheme with a switch reads the columns after them
             return (state.position, state.velocity, state.density, state.specific_energy,
                     state.deviatoric_stress, state.mass, state.smoothing_length, state.material,
-                    state.body, self._carried)
+                    state.body, carried)
         self._fill(state)
         e = self._ext
         return (e["x"], e["v"], e["rho"], e["e"], e["S"], e["m"], e["h"], e["material"],

@@ -1,0 +1,46 @@
+"""What the solver hands the rate passes as each particle's carried state
+(``Solver._arrays``): without ghosts and without a viscosity switch, the material state itself
+(no copy: 56 bytes a particle and a copy an evaluation saved); with a switch, a copy that adds
+the switch's factor and memory.  Either way the passes read the same numbers, so the rates are
+the same to the bit."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from impactsph import load_case
+from impactsph.models.columns import CARRIED, VISCOSITY_FACTOR, VISCOSITY_MEMORY
+from impactsph.simulation import Simulation
+
+CARRIED_ARRAY = 9  # its place in the tuple (x, v, rho, e, S, m, h, material, body, carried)
+
+
+def _rates(sim):
+    return [np.array(r[: sim.state.n]) for r in sim.solver.rates(sim.state)[:4]]
+
+
+def test_without_ghosts_or_a_switch_the_passes_read_the_material_state_in_place():
+    sim = Simulation(load_case("cantilever"))
+    sim.run(2e-6)  # a plastic strain, a stress: state worth reading
+    assert sim.solver._ext is None and not sim.solver.switched
+    carried = sim.solver._arrays(sim.state)[CARRIED_ARRAY]
+    assert carried is sim.state.material_state and sim.solver._carried is None
+    in_place = _rates(sim)
+    # the same state with its material state in Fortran order: the solver copies it
+    sim.state.material_state = np.asfortranarray(sim.state.material_state)
+    copied = sim.solver._arrays(sim.state)[CARRIED_ARRAY]
+    assert copied is sim.solver._carried and copied.flags.c_contiguous
+    np.testing.assert_array_equal(copied[:, :CARRIED], sim.state.material_state[:, :CARRIED])
+    for a, b in zip(in_place, _rates(sim), strict=True):
+        assert a.tobytes() == b.tobytes()
+
+
+def test_a_switch_gets_a_copy_with_its_factor_and_memory():
+    sim = Simulation(load_case("cantilever", ['viscosity.scheme="balsara"']))
+    sim.run(2e-6)
+    assert sim.solver.switched
+    carried = sim.solver._arrays(sim.state)[CARRIED_ARRAY]
+    assert carried is sim.solver._carried
+    np.testing.assert_array_equal(carried[:, :CARRIED], sim.state.material_state[:, :CARRIED])
+    np.testing.assert_array_equal(carried[:, VISCOSITY_FACTOR], sim.state.viscosity_factor)
+    np.testing.assert_array_equal(carried[:, VISCOSITY_MEMORY], sim.state.viscosity_memory)
