@@ -36,7 +36,7 @@ class Timers:
     def __init__(self) -> None:
         self.seconds: Counter[str] = Counter()
         self.calls: Counter[str] = Counter()
-        self._undo: list[tuple[Any, str, Any]] = []
+        self._undo: list[tuple[Any, str, Any, bool]] = []
 
     def wrap(self, owner: Any, name: str, label: str) -> None:
         function = getattr(owner, name)
@@ -106,13 +106,13 @@ def anatomy(case_name: str, overrides: list[str], threads: int) -> dict[str, Any
     warm.run(t_end=1e-3 * case.time.end)
     sim = Simulation(case)
     timers = Timers()
-    parts = instrument(sim, timers)
-    start = time.perf_counter()
     try:
+        parts = instrument(sim, timers)
+        start = time.perf_counter()
         sim.run()
-    finally:
         wall = time.perf_counter() - start
-        timers.restore()
+    finally:
+        timers.restore()  # (also after a failure part way: the passes module is shared)
     timers.seconds["run (wall)"] = wall
     steps = max(timers.calls["step"], 1)
     rows = []

@@ -44,3 +44,17 @@ def test_a_switch_gets_a_copy_with_its_factor_and_memory():
     np.testing.assert_array_equal(carried[:, :CARRIED], sim.state.material_state[:, :CARRIED])
     np.testing.assert_array_equal(carried[:, VISCOSITY_FACTOR], sim.state.viscosity_factor)
     np.testing.assert_array_equal(carried[:, VISCOSITY_MEMORY], sim.state.viscosity_memory)
+
+
+def test_passes_with_a_switch_refuse_a_scheme_without_one():
+    """Passes compiled for a switch read the factor and memory from columns 5 and 6 of
+    ``carried``, which without a switch are the material state's own: refused, not read."""
+    import pytest
+
+    from impactsph.physics.options import PassOptions
+    from impactsph.physics.rates import CpuRates
+
+    sim = Simulation(load_case("cantilever"))
+    sim.solver.backend = CpuRates(sim.state.dim, PassOptions(viscosity_factor=True))
+    with pytest.raises(ValueError, match="viscosity_factor=True"):
+        sim.solver.rates(sim.state)

@@ -117,7 +117,8 @@ def test_sweep_on_an_existing_cluster_survives_a_lost_worker(tmp_path):
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
     procs = [subprocess.Popen([str(bindir / "dask"), "scheduler", "--host", "127.0.0.1",
-                               "--port", str(port), "--no-dashboard"],
+                               "--port", str(port), "--no-dashboard",
+                               "--dashboard-address", "127.0.0.1:0"],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
     try:
         time.sleep(2.0)

@@ -126,8 +126,9 @@ class Solver:
         self.powers = (0.0, 0.0, 0.0)
         self.wall_force = np.zeros(state.dim)
         self.neighbours: NeighbourList | None = None
-        #: the passes' copy of the common material state and the switch's columns, for a
-        #: scheme with a switch and no ghosts (otherwise they read the material state itself)
+        #: the passes' copy of the common material state and the switch's columns, without
+        #: ghosts for a scheme with a switch (or a material state not C-contiguous float64);
+        #: otherwise the passes read the material state itself (with ghosts: ``_ext``)
         self._carried: np.ndarray | None = None
         #: symmetry planes: their ghosts get the mirror of their sources' pair results
         self._symmetric = self.walls is not None and bool((self.walls.kinds == SYMMETRY).any())
@@ -244,7 +245,8 @@ class Solver:
         included (``carried``: the common material state, :mod:`impactsph.models.columns`)."""
         if self._ext is None:
             carried = state.material_state
-            if self.switched or not carried.flags.c_contiguous:
+            if (self.switched or not carried.flags.c_contiguous
+                    or carried.dtype != np.float64):
                 # the passes' own copy: the common columns, then the switch's two
                 if self._carried is None or self._carried.shape[0] != state.n:
                     self._carried = np.zeros((state.n, PASS_CARRIED))

@@ -34,10 +34,12 @@ COMMON_STATE = ("equivalent_plastic_strain", "plastic_strain_rate", "temperature
                 "thickness_ratio")
 #: the number of common columns
 CARRIED = len(COMMON_STATE)
-#: the rate passes' ``carried`` array (every row, ghosts included): the common columns, then
-#: the particle's viscosity factor and its switch's memory (``ParticleState.viscosity_factor``:
-#: 1 unless the viscosity scheme has a switch, ``ParticleState.viscosity_memory``; neither is
-#: a material state, and the integrator touches neither)
+#: the rate passes' ``carried`` array (every row, ghosts included): the common columns, then,
+#: for a viscosity scheme with a switch, the particle's viscosity factor and its switch's
+#: memory (``ParticleState.viscosity_factor``, ``ParticleState.viscosity_memory``; neither is
+#: a material state, and the integrator touches neither).  Without ghosts and without a switch
+#: it is the material state itself (``Solver._arrays``), whose first columns are the common
+#: ones: the passes read columns 5 and 6 only with a switch.
 VISCOSITY_FACTOR = CARRIED
 VISCOSITY_MEMORY = CARRIED + 1
 PASS_CARRIED = CARRIED + 2

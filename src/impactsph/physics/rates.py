@@ -158,6 +158,9 @@ class CpuRates:
         x, v, rho, e, S, m, h, material, body, carried = arrays
         k = self.passes
         viscosity.check_compiled(k.VELOCITY_RECONSTRUCTION)
+        if k.VISCOSITY_FACTOR and viscosity.switch is None:  # they would read columns 5-6
+            raise ValueError("passes compiled with PassOptions(viscosity_factor=True) need a "
+                             "viscosity scheme with a switch; this one has none")
         nl = neighbours
         n = x.shape[0]
         if self._packed is None or self._packed.shape[0] != n:
