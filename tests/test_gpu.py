@@ -297,12 +297,21 @@ def _yielding_simulator() -> bool:
     polled = thread.is_alive
 
     def is_alive(self) -> bool:
+        thread._polls += 1
         time.sleep(0)  # releases the interpreter lock: a simulated thread that waits runs
         return polled(self)
 
     thread.is_alive = is_alive
     thread._yields = True
+    thread._polls = 0  # the polls that went through it (the worker reports them)
     return True
+
+
+def _simulator_polls() -> int:
+    """How many of the simulator's polls went through :func:`_yielding_simulator`'s change."""
+    from numba.cuda.simulator import kernel
+
+    return int(getattr(getattr(kernel, "BlockThread", None), "_polls", 0))
 
 
 def _worker(task: str, folder: Path) -> int:
@@ -409,6 +418,8 @@ def _worker(task: str, folder: Path) -> int:
             report["scans"][size] = bool((device.copy_to_host() == np.cumsum(values)).all())
     else:
         raise SystemExit(f"unknown task {task!r}")
+    if report["yielding"]:
+        report["polls"] = _simulator_polls()
     (folder / "report.json").write_text(json.dumps(report))
     return 0
 
@@ -660,9 +671,12 @@ def test_taylor_run_rebuilds_its_neighbour_list(run_comparison):
 def test_the_simulator_polls_without_holding_the_interpreter(run_comparison):
     """In the simulator the worker's runs had the simulator's poll release the interpreter
     lock (:func:`_yielding_simulator`; without it these files take twice as long): a numba
-    whose simulator no longer has ``BlockThread`` fails here, not by a slow test run."""
+    whose simulator no longer has ``BlockThread``, or no longer polls through its
+    ``is_alive``, fails here, not by a slow test run."""
     mode, report, _, _ = run_comparison
     assert report["yielding"] == (mode == "simulator")
+    if mode == "simulator":  # and the simulator's poll still calls it
+        assert report["polls"] > 1000, report["polls"]
 
 
 def test_what_keeps_the_state_on_the_host_is_named():
