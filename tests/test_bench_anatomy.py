@@ -4,27 +4,15 @@ leave a variant equal to the pass, or not Python), without compiling anything.""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import pytest
 
 from impactsph import codegen
 from impactsph.physics import passes
 
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_pair_anatomy.py"
-
-
-def _anatomy():
-    spec = importlib.util.spec_from_file_location("bench_pair_anatomy", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
 
 @pytest.mark.parametrize("dim", [2, 3])
-def test_the_variants_edit_the_neighbour_loop(dim):
-    anatomy = _anatomy()
+def test_the_variants_edit_the_neighbour_loop(dim, benchmark_script):
+    anatomy = benchmark_script("bench_pair_anatomy")
     text, _ = codegen.generate(passes, dim)
     start, end = anatomy._first_loop(text)
     assert "P[j, " in text[start:end]

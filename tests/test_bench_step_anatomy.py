@@ -4,24 +4,12 @@ leave a part silently untimed), and it must leave the package as it found it."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 from impactsph import solver as solver_module
 from impactsph.neighbours import NeighbourList
 
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_step_anatomy.py"
 
-
-def _script():
-    spec = importlib.util.spec_from_file_location("bench_step_anatomy", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def test_the_parts_of_a_short_run_add_up_and_the_package_is_restored():
-    script = _script()
+def test_the_parts_of_a_short_run_add_up_and_the_package_is_restored(benchmark_script):
+    script = benchmark_script("bench_step_anatomy")
     before = (solver_module.fill_ghosts, solver_module.serial_rate_totals, NeighbourList.stale)
     result = script.anatomy("bars", ["time.end=2e-6"], threads=1)
     assert (solver_module.fill_ghosts, solver_module.serial_rate_totals,

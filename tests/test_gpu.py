@@ -292,7 +292,7 @@ def _yielding_simulator() -> bool:
     except ImportError:
         return False
     thread = getattr(kernel, "BlockThread", None)
-    if thread is None or getattr(thread, "_yields", False):
+    if thread is None or hasattr(thread, "_polls"):  # (already changed: the count is there)
         return thread is not None
     polled = thread.is_alive
 
@@ -302,7 +302,6 @@ def _yielding_simulator() -> bool:
         return polled(self)
 
     thread.is_alive = is_alive
-    thread._yields = True
     thread._polls = 0  # the polls that went through it (the worker reports them)
     return True
 

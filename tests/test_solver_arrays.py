@@ -7,6 +7,7 @@ the same to the bit."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from impactsph import load_case
 from impactsph.models.columns import CARRIED, VISCOSITY_FACTOR, VISCOSITY_MEMORY
@@ -46,15 +47,17 @@ def test_a_switch_gets_a_copy_with_its_factor_and_memory():
     np.testing.assert_array_equal(carried[:, VISCOSITY_MEMORY], sim.state.viscosity_memory)
 
 
-def test_passes_with_a_switch_refuse_a_scheme_without_one():
+@pytest.mark.parametrize("scheme", ["av", "balsara"])
+def test_passes_compiled_for_the_other_answer_to_a_switch_are_refused(scheme):
     """Passes compiled for a switch read the factor and memory from columns 5 and 6 of
-    ``carried``, which without a switch are the material state's own: refused, not read."""
-    import pytest
-
+    ``carried``, which without a switch are the material state's own; passes without it have
+    no switch pass.  Either mismatch is refused (``ViscositySettings.check_compiled``, which
+    the GPU backends call too), not run."""
     from impactsph.physics.options import PassOptions
     from impactsph.physics.rates import CpuRates
 
-    sim = Simulation(load_case("cantilever"))
-    sim.solver.backend = CpuRates(sim.state.dim, PassOptions(viscosity_factor=True))
-    with pytest.raises(ValueError, match="viscosity_factor=True"):
+    sim = Simulation(load_case("cantilever", [f'viscosity.scheme="{scheme}"']))
+    switched = sim.solver.switched
+    sim.solver.backend = CpuRates(sim.state.dim, PassOptions(viscosity_factor=not switched))
+    with pytest.raises(ValueError, match=f"viscosity_factor={switched}"):
         sim.solver.rates(sim.state)

@@ -169,7 +169,7 @@ class GpuRates:
         (particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
          friction_kernel, switch_kernel, gradient_kernel, force_correction, reconstruction,
          record_width) = self._kernels
-        viscosity.check_compiled(reconstruction)
+        viscosity.check_compiled(reconstruction, self.options.viscosity_factor)
         n_rows, dim = rho.shape[0], self.dim
         stream, tpb = self._stream, self.threads_per_block
         up = self._upload

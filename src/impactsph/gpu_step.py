@@ -1001,7 +1001,7 @@ class ResidentStep:
             self._fill()
         (particle_kernel, pair_kernel, correction_kernel, _, moment_kernel, _, _,
          gradient_kernel, force_correction, reconstruction, _) = self.rate_kernels
-        self.viscosity.check_compiled(reconstruction)
+        self.viscosity.check_compiled(reconstruction, self.options.viscosity_factor)
         n, tpb, s = self.n, self.tpb, self.stream
         rows = n + self.n_ghosts
         blocks = max(1, (rows + tpb - 1) // tpb)

@@ -85,13 +85,21 @@ class ViscositySettings:
                    tuple(float(c) for c in scheme.pair_parameters(viscosity)), correction,
                    switch, bool(scheme.reconstruction), reach, switch_reach)
 
-    def check_compiled(self, reconstruction: bool) -> None:
+    def check_compiled(self, reconstruction: bool, viscosity_factor: bool) -> None:
         """Refuse passes compiled for the other kind of velocity jump (a reconstructing
-        scheme's pair term is a compile-time variant of the passes)."""
+        scheme's pair term is a compile-time variant of the passes), or for the other answer
+        to whether the scheme has a switch (passes with the factor read it from columns
+        ``VISCOSITY_FACTOR`` and ``VISCOSITY_MEMORY`` of ``carried``, which without a switch
+        may be the material state's own columns: ``Solver._arrays``)."""
         if self.reconstruction != reconstruction:
             raise ValueError(f"a viscosity scheme with reconstruction = {self.reconstruction} "
                              f"needs passes compiled with "
                              f"PassOptions(velocity_reconstruction={self.reconstruction})")
+        switched = self.switch is not None
+        if switched != viscosity_factor:
+            raise ValueError(f"a viscosity scheme {'with' if switched else 'without'} a switch "
+                             f"needs passes compiled with "
+                             f"PassOptions(viscosity_factor={switched})")
 
 
 class RateBuffers:
@@ -157,10 +165,7 @@ class CpuRates:
         of a body index at or above it are rigid walls' ghosts) is added after the pairs."""
         x, v, rho, e, S, m, h, material, body, carried = arrays
         k = self.passes
-        viscosity.check_compiled(k.VELOCITY_RECONSTRUCTION)
-        if k.VISCOSITY_FACTOR and viscosity.switch is None:  # they would read columns 5-6
-            raise ValueError("passes compiled with PassOptions(viscosity_factor=True) need a "
-                             "viscosity scheme with a switch; this one has none")
+        viscosity.check_compiled(k.VELOCITY_RECONSTRUCTION, k.VISCOSITY_FACTOR)
         nl = neighbours
         n = x.shape[0]
         if self._packed is None or self._packed.shape[0] != n:
@@ -204,9 +209,8 @@ class CpuRates:
                               viscosity.kind, viscosity.correction, b.dv_corr, b.de_corr,
                               b.dv, b.de, chunk)
         if viscosity.switch is not None:
-            if b.factor.shape[0] < n_active or not k.VISCOSITY_FACTOR:
-                raise ValueError("a viscosity switch needs RateBuffers(..., switched=True) and "
-                                 "passes compiled with PassOptions(viscosity_factor=True)")
+            if b.factor.shape[0] < n_active:
+                raise ValueError("a viscosity switch needs RateBuffers(..., switched=True)")
             near_offsets, near_indices = nl.within(viscosity.switch_reach)
             k.switch_pass(n_active, nl.order, self._packed, near_offsets, near_indices,
                           viscosity.kind, viscosity.switch, float(switch_elapsed), b.factor,
