@@ -19,6 +19,7 @@ import json
 import platform
 import time
 from collections import Counter
+from types import SimpleNamespace
 from typing import Any
 
 from impactsph import Simulation, __version__, load_case
@@ -54,6 +55,23 @@ class Timers:
         self._undo.append((owner, name, own[name] if name in own else None, name in own))
         setattr(owner, name, timed)
 
+    def wrap_returned(self, owner: Any, name: str, label: str) -> None:
+        """A timer around what the attribute returns (a method that hands out a compiled
+        function, such as the CPU backend's ``switch_pass(kind)``)."""
+        hand_out = getattr(owner, name)
+        timed: dict[Any, Any] = {}
+
+        def timed_hand_out(*args: Any) -> Any:
+            if args not in timed:
+                holder = SimpleNamespace(function=hand_out(*args))
+                self.wrap(holder, "function", label)
+                timed[args] = holder.function
+            return timed[args]
+
+        own = vars(owner)
+        self._undo.append((owner, name, own[name] if name in own else None, name in own))
+        setattr(owner, name, timed_hand_out)
+
     def restore(self) -> None:
         """Every wrapped attribute as it was."""
         for owner, name, original, had_own in reversed(self._undo):
@@ -71,7 +89,10 @@ def instrument(sim: Simulation, timers: Timers) -> list[tuple[str, str]]:
     passes = solver.backend.passes
     for name in sorted(dir(passes)):  # every compiled pass this module has
         if name.endswith("_pass") and callable(getattr(passes, name)):
-            timers.wrap(passes, name, name)
+            if name == "switch_pass" and hasattr(solver.backend, name):
+                timers.wrap_returned(solver.backend, name, name)  # the switch's own module
+            else:
+                timers.wrap(passes, name, name)
             parts.append((name, "step"))
     steps: list[tuple[Any, str, str]] = [
         (integrator, "_advance", "advance (update, return map)"),

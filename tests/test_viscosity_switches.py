@@ -2,8 +2,8 @@
 computation, the pair term with the factors against a pair-by-pair sum, and conservation in
 runs (momentum to round-off: the scaled pair force stays antisymmetric).
 
-In 1D and 2D only: the switch pass inlines every registered switch and takes about 40 s to
-compile cold per dimension, and the suite's time is limited.  The bodies are written for any
+In 1D and 2D only, for the suite's time (each switch's pass is compiled on its own for each
+dimension, 5-10 s cold).  The bodies are written for any
 dimension (their 3D terms run in `validation/taylor3d.py` and `validation/taylor_measured.py`
 with `ac_pairwise` and `balsara`)."""
 
@@ -407,3 +407,40 @@ def test_cullen_dehnen_factor_against_hand_computation(dim):
     same = switch_only(x, v, m, rho, h, body, c, nl, np.zeros((n, dim)), cd, f_now, 0.0,
                        kept)
     np.testing.assert_array_equal(same, f_now)
+
+
+def test_a_run_compiles_the_switch_pass_of_its_own_switch_only():
+    """``PassOptions.switch_kind``: the CPU's switch pass comes from a module whose dispatch
+    names the run's switch alone (numba inlines every switch a dispatch names: all five took
+    42 s to compile, one 5-10 s); the module of the run's other passes never compiles its own
+    switch pass."""
+    from impactsph.codegen import binding
+    from impactsph.models import VISCOSITY
+
+    kinds = {m.name: k for k, m in enumerate(VISCOSITY)}
+    sim = Simulation(load_case("bars", ['viscosity.scheme="balsara"', "time.end=2e-7"]))
+    sim.run()
+    backend = sim.solver.backend
+    assert set(backend._switch_passes) == {kinds["balsara"]}
+    assert backend._switch_passes[kinds["balsara"]].signatures  # it ran
+    assert not backend.passes.switch_pass.signatures  # the all-switches one never compiled
+    module_file = backend.switch_pass(kinds["balsara"]).py_func.__code__.co_filename
+    assert f"_vf{kinds['balsara']}_" in module_file
+
+    source, inject = binding(1, PassOptions(viscosity_factor=True, switch_kind=kinds["balsara"]))
+    named = [name for name in inject if name.startswith("_switch_")]
+    assert named == [f"_switch_{kinds['balsara']}"]
+    every, every_inject = binding(1, PassOptions(viscosity_factor=True))
+    assert sum(name.startswith("_switch_") for name in every_inject) == sum(
+        m.switch is not None for m in VISCOSITY)
+    assert source.count("return _switch_") == 1 < every.count("return _switch_")
+
+
+@pytest.mark.parametrize("options", [dict(viscosity_factor=True, switch_kind=0),
+                                     dict(switch_kind=2), dict(viscosity_factor=True,
+                                                               switch_kind=99)])
+def test_switch_kind_must_name_a_switch(options):
+    """One line naming the field and what is allowed: a scheme without a switch (``av`` is
+    kind 0), no ``viscosity_factor``, a kind not registered."""
+    with pytest.raises(ValueError, match=r"switch_kind = \d+: allowed are -1"):
+        PassOptions(**options)

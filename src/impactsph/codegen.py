@@ -153,12 +153,13 @@ def binding(dim: int, options: PassOptions | str | None = None) -> tuple[str, di
         described.append(f"#   damage {k}: {m.name} ({_qualified(m.update)})")
     viscosity = list(enumerate(VISCOSITY))
     corrections = [(k, m) for k, m in viscosity if m.correction is not None]
-    switches = [(k, m) for k, m in viscosity if m.switch is not None]
+    switches = [(k, m) for k, m in viscosity if m.switch is not None
+                and options.switch_kind in (-1, k)]
     for k, m in viscosity:
         inject[f"_viscosity_{k}"] = m.pair_viscosity
         if m.correction is not None:
             inject[f"_correction_{k}"] = m.correction
-        if m.switch is not None:
+        if m.switch is not None and options.switch_kind in (-1, k):
             inject[f"_switch_{k}"] = m.switch
         described.append(f"#   viscosity {k}: {m.name} ({_qualified(m.pair_viscosity)}, "
                          f"{_qualified(m.correction)}, {_qualified(m.switch)})")

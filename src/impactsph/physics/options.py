@@ -50,7 +50,13 @@ class PassOptions:
     - ``compatible_energy``: the records carry a second velocity, the *work velocity*, which
       the pair pass's energy terms (and only they) read; the ordinary evaluations set it to
       the velocity, and the step's work pass to the step's mean velocity
-      (``time.energy_update = "compatible"``, :meth:`impactsph.solver.Solver.work_rates`).
+      (``time.energy_update = "compatible"``, :meth:`impactsph.solver.Solver.work_rates`);
+    - ``switch_kind``: the one viscosity switch (its scheme's kind code, the position in the
+      registry) the module's ``viscosity_switch`` calls, -1 for all the registered ones
+      (dispatched on the kind at run time).  The CPU's switch pass comes from a module of its
+      own with this set (:meth:`impactsph.physics.rates.CpuRates.switch_pass`): numba inlines
+      every switch a dispatch names into the pass, and one switch compiles in a quarter of
+      the time of all five, with the same machine code for the one that runs.
     """
 
     gradient_correction: str = "none"
@@ -65,6 +71,7 @@ class PassOptions:
     viscosity_factor: bool = False
     velocity_reconstruction: bool = False
     compatible_energy: bool = False
+    switch_kind: int = -1
 
     def __post_init__(self) -> None:
         if self.gradient_correction not in GRADIENT_CORRECTIONS:
@@ -73,6 +80,12 @@ class PassOptions:
         if self.contact_traction not in CONTACT_TRACTIONS:
             raise ValueError(f"contact_traction = {self.contact_traction!r}: allowed are "
                              f"{', '.join(map(repr, CONTACT_TRACTIONS))}")
+        if self.switch_kind != -1:
+            switches = [k for k, m in enumerate(VISCOSITY) if m.switch is not None]
+            if self.switch_kind not in switches or not self.viscosity_factor:
+                raise ValueError(f"switch_kind = {self.switch_kind!r}: allowed are -1 (all) "
+                                 f"and, with viscosity_factor, the kind codes of the schemes "
+                                 f"with a switch {switches}")
 
     @classmethod
     def coerce(cls, options: PassOptions | str | None) -> PassOptions:
@@ -121,7 +134,7 @@ class PassOptions:
         if self.plane_stress:
             tag += "_ps"
         if self.viscosity_factor:
-            tag += "_vf"
+            tag += "_vf" if self.switch_kind == -1 else f"_vf{self.switch_kind}"
         if self.axisymmetric:
             tag += "_ax"
         if self.velocity_reconstruction:

@@ -8,7 +8,7 @@ same ``evaluate`` and the same results to round-off.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import ModuleType
 from typing import Any
 
@@ -140,6 +140,17 @@ class CpuRates:
         self._packed: np.ndarray | None = None  # the packed particle records (.records)
         self._chunk: tuple[int, int] | None = None  # (rows, particles per work item)
         self._gradients: np.ndarray | None = None  # velocity gradients, for the hourglass pass
+        self._switch_passes: dict[int, Any] = {}
+
+    def switch_pass(self, kind: int) -> Any:
+        """The switch pass of the scheme of kind code ``kind``: from a passes module that
+        names only that switch (``PassOptions.switch_kind``; the module's other functions are
+        never called, so never compiled)."""
+        if kind not in self._switch_passes:
+            options = replace(self.options.compiled(), switch_kind=kind)
+            self._switch_passes[kind] = compiled_passes(self.dim,
+                                                        options=options).switch_pass
+        return self._switch_passes[kind]
 
     def evaluate(self, n_active: int, arrays: tuple, table: np.ndarray, neighbours,
                  viscosity: ViscositySettings, b: RateBuffers, hourglass: float = 0.0,
@@ -212,9 +223,9 @@ class CpuRates:
             if b.factor.shape[0] < n_active:
                 raise ValueError("a viscosity switch needs RateBuffers(..., switched=True)")
             near_offsets, near_indices = nl.within(viscosity.switch_reach)
-            k.switch_pass(n_active, nl.order, self._packed, near_offsets, near_indices,
-                          viscosity.kind, viscosity.switch, float(switch_elapsed), b.factor,
-                          b.memory, chunk)
+            self.switch_pass(viscosity.kind)(
+                n_active, nl.order, self._packed, near_offsets, near_indices, viscosity.kind,
+                viscosity.switch, float(switch_elapsed), b.factor, b.memory, chunk)
         if hourglass > 0.0:
             k.hourglass_pass(n_active, nl.order, self._packed, self._gradients, nl.offsets,
                              nl.indices, material, table, hourglass, hourglass_acceleration,
@@ -309,7 +320,8 @@ def switch_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray, h:
     packed = _records_of(x, v, m, rho, h, body, neighbours, u, c, factor, memory)
     settings = ViscositySettings.of(viscosity)
     out, new_memory = np.zeros(n), np.zeros(n)
-    compiled_passes(dim, options=PassOptions(viscosity_factor=True)).switch_pass(
+    compiled_passes(dim, options=PassOptions(viscosity_factor=True,
+                                             switch_kind=settings.kind)).switch_pass(
         n, neighbours.order, packed, neighbours.offsets, neighbours.indices, settings.kind,
         settings.switch, float(elapsed), out, new_memory, chunk_size(n))
     return (out, new_memory) if with_memory else out
