@@ -9,6 +9,7 @@ with `ac_pairwise` and `balsara`)."""
 
 from __future__ import annotations
 
+import sys
 from types import SimpleNamespace
 
 import numpy as np
@@ -102,6 +103,43 @@ def test_balsara_factor_against_hand_computation(dim):
     f_squeeze = switch_only(x, squeeze, m, rho, np.full(n, H), np.zeros(n, np.int32), c, nl,
                             np.zeros((n, dim)), viscosity)
     assert f_squeeze.min() > 0.99
+
+
+@pytest.mark.parametrize("dim", [1, 2])
+def test_balsara_factor_sums_over_its_own_body_only(dim):
+    """Two bodies side by side: each particle's div and curl from the pairs of its own body
+    only (the switch's neighbour loop masks the others: no branch, for the vectoriser), to
+    round-off against the brute-force sums."""
+    n_side = {1: 20, 2: 9}[dim]
+    x = jittered(dim, n_side, 7 + dim)
+    n = x.shape[0]
+    body = (x[:, 0] > np.median(x[:, 0])).astype(np.int32)
+    v = velocity_field(x, 3 + dim)
+    v[body == 1] *= -2.0  # the bodies approach: cross pairs would add divergence
+    m = np.full(n, RHO * DX**dim)
+    rho = np.full(n, RHO)
+    c = np.full(n, 5000.0)
+    nl = NeighbourList.build(x, 2 * H)
+    viscosity = SimpleNamespace(scheme="balsara", alpha1=1.0, alpha2=1.0, epsilon=0.01,
+                                balsara_epsilon=1e-4)
+    got = switch_only(x, v, m, rho, np.full(n, H), body, c, nl, np.zeros((n, dim)),
+                      viscosity)
+    i, j, _, g = pairs(x, H)
+    same = body[i] == body[j]
+    assert (~same).any()  # the bodies touch
+
+    def factor(keep):
+        ii, jj, gg = i[keep], j[keep], g[keep]
+        vol = (m / rho)[jj][:, None]
+        u = v[ii] - v[jj]
+        div = -np.bincount(ii, (vol * u * gg).sum(1), n)
+        g3, u3 = np.zeros((len(ii), 3)), np.zeros((len(ii), 3))
+        g3[:, :dim], u3[:, :dim] = vol * gg, u
+        curl = -np.stack([np.bincount(ii, w, n) for w in np.cross(g3, u3).T], 1)
+        return np.abs(div) / (np.abs(div) + np.linalg.norm(curl, axis=1) + 1e-4 * c / H)
+
+    np.testing.assert_allclose(got, factor(same), rtol=1e-12, atol=1e-14)
+    assert np.abs(got - factor(np.ones_like(same))).max() > 0.01  # the cross pairs matter
 
 
 @pytest.mark.parametrize("dim", [1, 2])
@@ -434,6 +472,16 @@ def test_a_run_compiles_the_switch_pass_of_its_own_switch_only():
     assert sum(name.startswith("_switch_") for name in every_inject) == sum(
         m.switch is not None for m in VISCOSITY)
     assert source.count("return _switch_") == 1 < every.count("return _switch_")
+    # the pass of a switch whose loop is written for the vectoriser gets the pair pass's flags
+    assert "SWITCH_VECTORISED = True" in source
+    assert "SWITCH_VECTORISED = False" in every
+    pairwise, _ = binding(1, PassOptions(viscosity_factor=True,
+                                         switch_kind=kinds["ac_pairwise"]))
+    assert "SWITCH_VECTORISED = False" in pairwise
+    module = backend.passes  # (not the switch's) and the switch's own
+    switch_module = sys.modules[backend.switch_pass(kinds["balsara"]).py_func.__module__]
+    assert not module.SWITCH_VECTORISED and switch_module.SWITCH_VECTORISED
+    assert switch_module.SWITCH_FASTMATH == switch_module.PAIR_FASTMATH
 
 
 @pytest.mark.parametrize("options", [dict(viscosity_factor=True, switch_kind=0),

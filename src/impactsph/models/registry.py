@@ -178,6 +178,11 @@ class ViscosityScheme:
     switch_parameters: Callable[[Any], tuple[float, float, float, float]] | None = None
     #: the factor every particle starts a run with (a scheme with a switch)
     initial_factor: Callable[[Any], float] = lambda viscosity: 1.0
+    #: ``switch``'s neighbour loop is written for LLVM's vectoriser (no branch: a pair to
+    #: skip is a mask; the neighbour's columns read as ``P[j, col]``), so its CPU pass is
+    #: compiled with reassociation and without zero-division checks (the pair pass's flags;
+    #: the factors then move at round-off with the order of the sums)
+    switch_vectorises: bool = False
     #: ``pair_viscosity`` gets, for a pair of the same body, the velocity jump reconstructed
     #: to the pair's midpoint with a limiter (:mod:`impactsph.physics.reconstruction`) in
     #: place of ``v_ij . r_ij``; the passes then compute every particle's velocity gradient

@@ -173,4 +173,11 @@ class PassOptions:
             f"AXISYMMETRIC = {bool(self.axisymmetric)}",
             f"VELOCITY_RECONSTRUCTION = {bool(self.velocity_reconstruction)}",
             f"COMPATIBLE_ENERGY = {bool(self.compatible_energy)}",
+            f"SWITCH_VECTORISED = {self.switch_vectorised}",
         ]
+
+    @property
+    def switch_vectorised(self) -> bool:
+        """The module's one switch has a neighbour loop written for the vectoriser
+        (``ViscosityScheme.switch_vectorises``; False for all switches, ``switch_kind`` -1)."""
+        return self.switch_kind != -1 and bool(list(VISCOSITY)[self.switch_kind].switch_vectorises)

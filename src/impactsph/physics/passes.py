@@ -92,6 +92,9 @@ AXISYMMETRIC = False
 #: the records carry the work velocity, which the pair pass's energy terms read
 #: (``time.energy_update = "compatible"``: :func:`particle_rates`)
 COMPATIBLE_ENERGY = False
+#: the module's one switch (``PassOptions.switch_kind``) has a neighbour loop written for
+#: LLVM's vectoriser (``ViscosityScheme.switch_vectorises``): its pass gets SWITCH_FASTMATH
+SWITCH_VECTORISED = False
 JIT = nb.njit
 EOS_PARAMS = STRENGTH_PARAMS = DAMAGE_PARAMS = STATE_WIDTH = 6
 STRENGTH_STATE = DAMAGE_STATE = 4
@@ -113,6 +116,14 @@ FASTMATH = {"arcp", "nsz"}
 #: ``error_model="numpy"`` (no zero-division checks, which are branches) this is what lets
 #: the loop vectorise: 2.3x on the 2D pair loop alone (benchmarks/README.md).
 PAIR_FASTMATH = {"reassoc", "arcp", "nsz"}
+#: the switch pass's flags: the pair pass's where the switch's neighbour loop is written for
+#: the vectoriser (Balsara and Morris-Monaghan: their velocity-gradient loop,
+#: :func:`impactsph.models.viscosity.switches.neighbour_fields`; the pass 40% faster on the
+#: cantilever, benchmarks/README.md), none otherwise (Cullen-Dehnen's, with the same loop,
+#: gained nothing; the AC switches' loops skip the pairs beyond their reach, like the
+#: correction pass, and were 4% slower with them)
+SWITCH_FASTMATH = PAIR_FASTMATH if SWITCH_VECTORISED else False
+SWITCH_ERROR_MODEL = "numpy" if SWITCH_VECTORISED else "python"
 
 _COLUMNS = record_columns(DIM, correction_matrix=FORCE_CORRECTION,
                           artificial_stress=ARTIFICIAL_STRESS > 0.0,
@@ -1374,7 +1385,7 @@ def correction_pass(n_active, order, P, offsets, indices, visc_kind, correction_
                                      DIM, correction_params, dv_corr, de_corr, dv, de)
 
 
-@JIT(parallel=True, cache=True)
+@JIT(parallel=True, cache=True, fastmath=SWITCH_FASTMATH, error_model=SWITCH_ERROR_MODEL)
 def switch_pass(n_active, order, P, offsets, indices, visc_kind, switch_params, elapsed,
                 factor, memory, chunk_size):
     """The viscosity switch (a scheme with one) over the active particles, after the pair

@@ -94,32 +94,43 @@ def neighbour_fields(p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, M, d
     (``grad W`` with the pair's mean smoothing length; nine components, row by row), ``rho_i
     R = sum_j sign(D_j) m_j W_ij`` (``j = i`` included, ``D_j`` the divergences the switch kept
     at the last evaluation) and ``v_sig = max_j (c_ij - min(0, v_ij . r_ij / |r_ij|))`` (``c_i``
-    at least)."""
-    Pi_ = P[p]
-    h_i = Pi_[H]
+    at least).
+
+    Written as the pair pass's first loop (:func:`impactsph.physics.passes.particle_rates`),
+    so that LLVM vectorises it under the switch pass's flags (``SWITCH_FASTMATH``): no branch
+    (a pair outside the support, or of another body, is a mask, ``fq = 0``, its terms exactly
+    zero), the neighbour's columns read as ``P[j, col]``, no zero-division checks."""
+    h_i = P[p, H]
+    body_i = P[p, BODY]
+    c_i = P[p, C]
+    xi0 = P[p, X]
+    xi1 = P[p, X + 1] if dim > 1 else 0.0
+    xi2 = P[p, X + 2] if dim > 2 else 0.0
+    vi0 = P[p, V]
+    vi1 = P[p, V + 1] if dim > 1 else 0.0
+    vi2 = P[p, V + 2] if dim > 2 else 0.0
     L00 = L01 = L02 = L10 = L11 = L12 = L20 = L21 = L22 = 0.0
-    sign_i = 1.0 if Pi_[MEMORY] > 0.0 else (-1.0 if Pi_[MEMORY] < 0.0 else 0.0)
-    R = sign_i * Pi_[M] * cubic_spline(0.0, h_i, dim)
-    v_sig = Pi_[C]
+    memory_i = P[p, MEMORY]
+    sign_i = 1.0 if memory_i > 0.0 else (-1.0 if memory_i < 0.0 else 0.0)
+    R = sign_i * P[p, M] * cubic_spline(0.0, h_i, dim)
+    v_sig = c_i
     for k in range(offsets[p], offsets[p + 1]):
-        Pj = P[indices[k]]
-        if Pj[BODY] != Pi_[BODY]:
-            continue
-        d0 = Pi_[X] - Pj[X]
-        d1 = Pi_[X + 1] - Pj[X + 1] if dim > 1 else 0.0
-        d2 = Pi_[X + 2] - Pj[X + 2] if dim > 2 else 0.0
+        j = indices[k]  # P[j, col], not a row view: the view stops the vectoriser
+        d0 = xi0 - P[j, X]
+        d1 = xi1 - P[j, X + 1] if dim > 1 else 0.0
+        d2 = xi2 - P[j, X + 2] if dim > 2 else 0.0
         r2 = d0 * d0 + d1 * d1 + d2 * d2
-        h_ij = 0.5 * (h_i + Pj[H])
+        h_ij = 0.5 * (h_i + P[j, H])
         inv_h = 1.0 / h_ij
         q2 = r2 * inv_h * inv_h
-        if q2 >= 4.0 or r2 == 0.0:
-            continue
+        inside = (q2 < 4.0) & (r2 > 0.0) & (P[j, BODY] == body_i)
         r = math.sqrt(r2)
-        fq = Pj[VOL] * cubic_spline_gradient_factor(math.sqrt(q2), inv_h, dim)
+        fq = P[j, VOL] * cubic_spline_gradient_factor(math.sqrt(q2), inv_h, dim) if inside \
+            else 0.0
         g0, g1, g2 = fq * d0, fq * d1, fq * d2
-        u0 = Pi_[V] - Pj[V]
-        u1 = Pi_[V + 1] - Pj[V + 1] if dim > 1 else 0.0
-        u2 = Pi_[V + 2] - Pj[V + 2] if dim > 2 else 0.0
+        u0 = vi0 - P[j, V]
+        u1 = vi1 - P[j, V + 1] if dim > 1 else 0.0
+        u2 = vi2 - P[j, V + 2] if dim > 2 else 0.0
         L00 -= u0 * g0
         L01 -= u0 * g1
         L02 -= u0 * g2
@@ -129,11 +140,11 @@ def neighbour_fields(p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, M, d
         L20 -= u2 * g0
         L21 -= u2 * g1
         L22 -= u2 * g2
-        mj = Pj[MEMORY]
+        mj = P[j, MEMORY]
         sign_j = 1.0 if mj > 0.0 else (-1.0 if mj < 0.0 else 0.0)
-        R += sign_j * Pj[M] * cubic_spline(r, h_ij, dim)
-        approach = (u0 * d0 + u1 * d1 + u2 * d2) / r
-        v_sig = max(v_sig, 0.5 * (Pi_[C] + Pj[C]) - min(0.0, approach))
+        R += sign_j * P[j, M] * cubic_spline(r, h_ij, dim) if inside else 0.0
+        approach = (u0 * d0 + u1 * d1 + u2 * d2) / r if inside else 0.0
+        v_sig = max(v_sig, 0.5 * (c_i + P[j, C]) - min(0.0, approach)) if inside else v_sig
     return L00, L01, L02, L10, L11, L12, L20, L21, L22, R, v_sig
 
 
@@ -357,7 +368,7 @@ def cullen_dehnen_factor(p, i, P, offsets, indices, layout, dim, params, elapsed
 BALSARA = VISCOSITY.register(ViscosityScheme(
     name="balsara", pair_viscosity=monaghan_pair, parameters=BalsaraParameters,
     pair_parameters=lambda v: (float(v.alpha1), float(v.alpha2), float(v.epsilon), 0.0),
-    switch=balsara_factor,
+    switch=balsara_factor, switch_vectorises=True,
     switch_parameters=lambda v: (float(v.balsara_epsilon), 0.0, 0.0, 0.0),
     source="Balsara (1995) J Comput Phys 121:357, eq 4.1",
     description="Monaghan's viscosity with Balsara's shear switch"))
@@ -371,7 +382,7 @@ def _floor(viscosity) -> float:
 MORRIS_MONAGHAN = VISCOSITY.register(ViscosityScheme(
     name="morris_monaghan", pair_viscosity=monaghan_pair, parameters=MorrisMonaghanParameters,
     pair_parameters=lambda v: (float(v.alpha1), float(v.alpha2), float(v.epsilon), 0.0),
-    switch=morris_monaghan_factor,
+    switch=morris_monaghan_factor, switch_vectorises=True,
     switch_parameters=lambda v: (_floor(v), float(v.decay), 0.0, 0.0),
     initial_factor=lambda v: _floor(v),
     source="Morris & Monaghan (1997) J Comput Phys 136:41; the source term of Rosswog et al. "
