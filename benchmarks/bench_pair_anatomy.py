@@ -44,7 +44,7 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-LOOP = "    for k in range(offsets[p], offsets[p + 1]):\n        j = indices[k]"
+LOOP = "    for k in range(first, last):\n        j = listed[k]"
 CALL = "            particle_rates(p, i, P, offsets, indices, visc_kind"
 
 
@@ -66,16 +66,17 @@ def _read_from(text: str, array: str, columns: str, position: str) -> str:
     copy of the template's that reads it the same way."""
     def edit(body: str) -> str:
         # an unsigned index: numba adds no wraparound test, so LLVM sees consecutive loads
-        body = body.replace("        j = indices[k]",
-                            f"        j = indices[k]\n        jj = np.uint64({position})", 1)
+        body = body.replace("        j = listed[k]",
+                            f"        j = listed[k]\n        jj = np.uint64({position})", 1)
         body = re.sub(rf"P\[j, ({columns})\]", rf"{array}[\1, jj]", body)
         return body.replace("neighbour_separation(xi0, xi1, xi2, hi, P, j)",
                             f"neighbour_separation_t(xi0, xi1, xi2, hi, {array}, jj)")
     text = _edit_loop(text, edit)
-    text = text.replace("dS, L, L_sorted):\n    \"\"\"Pass 2 for the active",
-                        f"dS, L, L_sorted, {array}):\n    \"\"\"Pass 2 for the active", 1)
-    call_end = "dS, L, L_sorted)\n\n\n@JIT(parallel=True, cache=True)\ndef correction_pass"
-    text = text.replace(call_end, call_end.replace("L_sorted)", f"L_sorted, {array})"), 1)
+    text = text.replace("listed, filter_skin):\n    \"\"\"Pass 2 for the active",
+                        f"listed, filter_skin, {array}):\n    \"\"\"Pass 2 for the active", 1)
+    call_end = "listed, SKIN_FILTER)\n\n\n@JIT(parallel=True, cache=True)\ndef correction_pass"
+    text = text.replace(call_end, call_end.replace("SKIN_FILTER)", f"SKIN_FILTER, {array})", 1),
+                        1)
     head = text.index("def neighbour_separation(")
     helper = text[head:text.index("\n\n\n", head)]
     helper = re.sub(r"P\[j, ([^\]]+)\]", r"PT[\1, j]", helper)
@@ -85,7 +86,7 @@ def _read_from(text: str, array: str, columns: str, position: str) -> str:
 
 
 def _contiguous(text: str) -> str:
-    text = _read_from(text, "PT", r"[^\]]+", "p + k - offsets[p]")
+    text = _read_from(text, "PT", r"[^\]]+", "p + k - first")
     pass_head = "              chunk_size):\n    \"\"\"Pass 2 over the active particles"
     return text.replace(pass_head, pass_head.replace("chunk_size)", "chunk_size, PT)"), 1)
 
@@ -94,22 +95,22 @@ def _scratch(text: str) -> str:
     """The neighbours' first columns (position to ``A``) copied, row by row, into a scratch of
     one row per column, which the loop then reads at consecutive positions."""
     copy = """    n_read = A0 + DIM * (DIM + 1) // 2
-    for kk in range(offsets[p + 1] - offsets[p]):
-        jc = indices[offsets[p] + kk]
+    for kk in range(last - first):
+        jc = listed[first + kk]
         for c in range(n_read):
             Q[c, kk] = P[jc, c]
 """
     text = _edit_loop(text, lambda body: body.replace(LOOP, copy + LOOP, 1))
     text = _read_from(text, "Q", r"(?:X|V|H|M|VOL|RHO|C|BODY|A\d\d)(?: \+ \d)?",
-                      "k - offsets[p]")
+                      "k - first")
     scratch = "        L = np.empty((DIM, DIM))  # scratch: the velocity gradient of one particle"
     rows = "\n        Q = np.empty((A0 + DIM * (DIM + 1) // 2, 256))"
     return text.replace(scratch, scratch + rows, 1)
 
 
 def _empty(text: str) -> str:
-    return _edit_loop(text, lambda b: b.replace("range(offsets[p], offsets[p + 1])",
-                                                "range(offsets[p], offsets[p])", 1))
+    return _edit_loop(text, lambda b: b.replace("range(first, last)",
+                                                "range(first, first)", 1))
 
 
 #: (``self`` edits the list it is handed, ``no_division`` the viscosity injected: not the text)

@@ -124,6 +124,14 @@ PAIR_FASTMATH = {"reassoc", "arcp", "nsz"}
 #: correction pass, and were 4% slower with them)
 SWITCH_FASTMATH = PAIR_FASTMATH if SWITCH_VECTORISED else False
 SWITCH_ERROR_MODEL = "numpy" if SWITCH_VECTORISED else "python"
+#: the CPU's vectorised neighbour loops (pair, moment, velocity gradient, hourglass) run over
+#: the neighbours within the support only, gathered first (:func:`support_range`), in 3D: a
+#: quarter of a 3D list row is its Verlet skin, which the masked loops would evaluate in full
+#: (the pair pass 0.75-0.84 of its time, the moment and hourglass passes 0.73-0.76, at 1e5
+#: particles on two threads).  Not in 1D and 2D: the 2D lattice's rows have no skin entries
+#: at h = 1.2 dx, and there the gathering cost the pair pass 3-5% and the lighter moment and
+#: hourglass loops 20-40% (benchmarks/README.md, "The skin's pairs left out of the 3D loops").
+SKIN_FILTER = DIM == 3
 
 _COLUMNS = record_columns(DIM, correction_matrix=FORCE_CORRECTION,
                           artificial_stress=ARTIFICIAL_STRESS > 0.0,
@@ -511,7 +519,46 @@ def neighbour_separation(xi0, xi1, xi2, hi, P, j):
 
 
 @JIT(inline="always", cache=True)
-def moment_correction(p, P, offsets, indices):
+def support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, filter_skin):
+    """The neighbours of sorted position ``p`` for a vectorised pair loop, as the range
+    ``(first, last)`` of ``listed`` to run over: ``for k in range(first, last): j =
+    listed[k]``.
+
+    With ``filter_skin`` (the CPU passes in 3D, :data:`SKIN_FILTER`; ``listed`` is then a
+    scratch, :func:`row_scratch`) only the neighbours within the kernel support (``q < 2``,
+    the loops' own test, by :func:`neighbour_separation`), gathered into ``listed`` in the
+    list's order; otherwise (1D and 2D, and the GPU's kernels, which have no such scratch;
+    ``listed`` is then ``indices``) the list's whole row.  The list also holds the pairs of
+    its Verlet skin, a quarter of a 3D row at a skin of 0.1 of the support, which a
+    vectorised loop would evaluate in full and mask; this loop is a few operations a pair
+    against some 60 in the pair loop (issue 16, benchmarks/README.md).  It is branch-free:
+    each entry is written, and the count moves past it only if it is inside.  The pairs left
+    out contribute nothing to any sum (their kernel gradient is zero), so only the grouping
+    of the sums' partial sums changes (round-off)."""
+    if SKIN_FILTER:  # a constant: in 1D and 2D numba prunes the branch
+        if filter_skin:
+            count = 0
+            for k in range(offsets[p], offsets[p + 1]):
+                j = indices[k]
+                q2 = neighbour_separation(xi0, xi1, xi2, hi, P, j)[6]
+                listed[count] = j
+                count += 1 if q2 < 4.0 else 0
+            return 0, count
+    return offsets[p], offsets[p + 1]
+
+
+@JIT(inline="always", cache=True)
+def row_scratch(offsets, indices, start, stop):
+    """A scratch for :func:`support_range` as long as the longest list row of the sorted
+    positions ``start`` to ``stop - 1`` (one per chunk of a parallel pass)."""
+    longest = 0
+    for p in range(start, stop):
+        longest = max(longest, offsets[p + 1] - offsets[p])
+    return np.empty(longest, dtype=indices.dtype)
+
+
+@JIT(inline="always", cache=True)
+def moment_correction(p, P, offsets, indices, listed, filter_skin):
     """The correction matrix of the particle at sorted position ``p`` into its record:
     ``C = B^-T`` with the moment matrix ``B = -sum_j V_j r_ij (x) grad W_ij`` over the
     neighbours of the same body (see :func:`correct_velocity_gradient`), so that ``C grad
@@ -526,8 +573,9 @@ def moment_correction(p, P, offsets, indices):
     B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
     # one loop without branches, vectorised as particle_rates' first loop (the support and
     # the body as a mask on the weight; moment_pass's flags)
-    for k in range(offsets[p], offsets[p + 1]):
-        j = indices[k]
+    first, last = support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, filter_skin)
+    for k in range(first, last):
+        j = listed[k]
         d0, d1, d2, r2, _, inv_h, q2 = neighbour_separation(xi0, xi1, xi2, hi, P, j)
         inside = (q2 < 4.0) & (r2 > 0.0) & (P[j, BODY] == bi)
         fq = cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM) if inside else 0.0
@@ -552,7 +600,7 @@ def moment_correction(p, P, offsets, indices):
 
 
 @JIT(inline="always", cache=True)
-def velocity_gradient_record(p, P, offsets, indices):
+def velocity_gradient_record(p, P, offsets, indices, listed, filter_skin):
     """The symmetric part ``(L + L^T) / 2`` of the velocity gradient of the row at sorted
     position ``p`` into its record (VELOCITY_RECONSTRUCTION only; the slopes ``r . L r`` of
     :mod:`impactsph.physics.reconstruction` see only that part), with the kernel gradient
@@ -576,8 +624,9 @@ def velocity_gradient_record(p, P, offsets, indices):
     hi = Pi_[H]
     B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
     L00 = L01 = L02 = L10 = L11 = L12 = L20 = L21 = L22 = 0.0
-    for k in range(offsets[p], offsets[p + 1]):
-        j = indices[k]
+    first, last = support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, filter_skin)
+    for k in range(first, last):
+        j = listed[k]
         d0, d1, d2, r2, _, inv_h, q2 = neighbour_separation(xi0, xi1, xi2, hi, P, j)
         inside = (q2 < 4.0) & (r2 > 0.0) & (P[j, BODY] == bi)
         fq = cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM) if inside else 0.0
@@ -665,13 +714,15 @@ def stress_rate(L, S_i, shear, dS_i):
 
 @JIT(inline="always", cache=True)
 def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_stress, S, material,
-                   table, drho, dv, de, de_visc, contact_force, pair_count, dS, L, L_sorted):
+                   table, drho, dv, de, de_visc, contact_force, pair_count, dS, L, L_sorted,
+                   listed, filter_skin):
     """Pass 2 for the active particle ``i`` at sorted position ``p``: the sums over its
     neighbours (eqs 22, 27, 28) and its stress rate
     (eq 14, into ``dS[i]``, with ``L`` as scratch for the velocity gradient); its viscous
     acceleration is also stored in its packed record, for a correction pass.
     ``contact_force`` is written only if it has a row per particle (several bodies or walls),
     ``L_sorted[p]`` (the velocity gradient, for the hourglass control) only if it has rows.
+    The first loop runs over :func:`support_range`'s neighbours (``listed``, ``filter_skin``).
 
     The stress terms are regrouped, exactly in arithmetic: ``sum_j m_j A_i . grad W_ij =
     A_i . (sum_j m_j grad W_ij)`` and ``sum_j m_j A_i : (v_ij (x) grad W_ij) = A_i : (sum_j
@@ -802,8 +853,9 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     # division); the neighbour's columns read as ``P[j, col]`` (a row view ``P[j]`` stops the
     # vectoriser); and reassociation on the sums, which then run as one partial sum per
     # vector lane (results move at round-off: tests/test_pinned_results.py).
-    for k in range(offsets[p], offsets[p + 1]):
-        j = indices[k]  # P[j, col], not a row view: the view stops the vectoriser
+    first, last = support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, filter_skin)
+    for k in range(first, last):
+        j = listed[k]  # P[j, col], not a row view: the view stops the vectoriser
         d0, d1, d2, r2, h_ij, inv_h, q2 = neighbour_separation(xi0, xi1, xi2, hi, P, j)
         inside = (q2 < 4.0) & (r2 > 0.0)
         q = math.sqrt(q2)
@@ -1241,7 +1293,7 @@ def unexplained_velocity(a, p, q, P, L_sorted, d0, d1, d2):
 
 @JIT(inline="always", cache=True)
 def hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zeta, hg, dv, de,
-                       dhg):
+                       dhg, listed, filter_skin):
     """Hourglass control of the active particle ``i`` at sorted position ``p``
     (docs/stabilisation.md).  The relative velocity of each neighbour ``j`` of the same body
     that the velocity gradients do not explain, ``e_ij = v_ij - (L_i + L_j) r_ij / 2`` (zero
@@ -1275,8 +1327,9 @@ def hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zet
     b0 = b1 = b2 = 0.0  # the Laplacian of tau e
     # one loop without branches, vectorised as particle_rates' first loop (the support and
     # the body as a mask on the pair's coefficient; hourglass_pass's flags)
-    for k in range(offsets[p], offsets[p + 1]):
-        q = indices[k]
+    first, last = support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, filter_skin)
+    for k in range(first, last):
+        q = listed[k]
         d0, d1, d2, r2, h_ij, inv_h, q2 = neighbour_separation(xi0, xi1, xi2, hi, P, q)
         inside = (q2 < 4.0) & (r2 > 0.0) & (P[q, BODY] == bi)
         fq = cubic_spline_gradient_factor(math.sqrt(q2), inv_h, DIM) if inside else 0.0
@@ -1333,8 +1386,13 @@ def moment_pass(order, P, offsets, indices, chunk_size):
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
     for chunk in nb.prange(n_chunks):
-        for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
-            moment_correction(p, P, offsets, indices)
+        start = chunk * chunk_size
+        stop = min((chunk + 1) * chunk_size, n)
+        listed = indices  # the list's rows (1D, 2D), or a scratch for their support (3D)
+        if SKIN_FILTER:
+            listed = row_scratch(offsets, indices, start, stop)
+        for p in range(start, stop):
+            moment_correction(p, P, offsets, indices, listed, SKIN_FILTER)
 
 
 @JIT(parallel=True, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
@@ -1344,8 +1402,13 @@ def gradient_pass(order, P, offsets, indices, chunk_size):
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
     for chunk in nb.prange(n_chunks):
-        for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
-            velocity_gradient_record(p, P, offsets, indices)
+        start = chunk * chunk_size
+        stop = min((chunk + 1) * chunk_size, n)
+        listed = indices  # the list's rows (1D, 2D), or a scratch for their support (3D)
+        if SKIN_FILTER:
+            listed = row_scratch(offsets, indices, start, stop)
+        for p in range(start, stop):
+            velocity_gradient_record(p, P, offsets, indices, listed, SKIN_FILTER)
 
 
 @JIT(parallel=True, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
@@ -1360,7 +1423,12 @@ def pair_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, norm
     n_chunks = (n + chunk_size - 1) // chunk_size
     for chunk in nb.prange(n_chunks):
         L = np.empty((DIM, DIM))  # scratch: the velocity gradient of one particle
-        for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
+        start = chunk * chunk_size
+        stop = min((chunk + 1) * chunk_size, n)
+        listed = indices  # the list's rows (1D, 2D), or a scratch for their support (3D)
+        if SKIN_FILTER:
+            listed = row_scratch(offsets, indices, start, stop)
+        for p in range(start, stop):
             i = order[p]
             if i >= n_active:
                 for a in range(DIM):
@@ -1368,7 +1436,7 @@ def pair_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, norm
                 continue
             particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_stress, S,
                            material, table, drho, dv, de, de_visc, contact_force, pair_count,
-                           dS, L, L_sorted)
+                           dS, L, L_sorted, listed, SKIN_FILTER)
 
 
 @JIT(parallel=True, cache=True)
@@ -1430,11 +1498,16 @@ def hourglass_pass(n_active, order, P, L_sorted, offsets, indices, material, tab
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
     for chunk in nb.prange(n_chunks):
-        for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
+        start = chunk * chunk_size
+        stop = min((chunk + 1) * chunk_size, n)
+        listed = indices  # the list's rows (1D, 2D), or a scratch for their support (3D)
+        if SKIN_FILTER:
+            listed = row_scratch(offsets, indices, start, stop)
+        for p in range(start, stop):
             i = order[p]
             if i < n_active:
                 hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zeta,
-                                   hg, dv, de, dhg)
+                                   hg, dv, de, dhg, listed, SKIN_FILTER)
 
 
 @JIT(parallel=True, cache=True)
@@ -1490,7 +1563,7 @@ def cuda_kernels():
         L = cuda.local.array((DIM, DIM), nb.float64)
         particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_stress, S,
                        material, table, drho, dv, de, de_visc, contact_force, pair_count, dS, L,
-                       L_sorted)
+                       L_sorted, indices, False)
 
     @cuda.jit
     def correction_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind,
@@ -1514,13 +1587,13 @@ def cuda_kernels():
     def moment_kernel(n_rows, P, offsets, indices):
         p = cuda.grid(1)
         if p < n_rows:
-            moment_correction(p, P, offsets, indices)
+            moment_correction(p, P, offsets, indices, indices, False)
 
     @cuda.jit
     def gradient_kernel(n_rows, P, offsets, indices):
         p = cuda.grid(1)
         if p < n_rows:
-            velocity_gradient_record(p, P, offsets, indices)
+            velocity_gradient_record(p, P, offsets, indices, indices, False)
 
     @cuda.jit
     def hourglass_kernel(n_rows, n_active, order, P, L_sorted, offsets, indices, material,
@@ -1528,7 +1601,7 @@ def cuda_kernels():
         p = cuda.grid(1)
         if p < n_rows and order[p] < n_active:
             hourglass_particle(p, order[p], P, L_sorted, offsets, indices, material, table,
-                               zeta, hg, dv, de, dhg)
+                               zeta, hg, dv, de, dhg, indices, False)
 
     @cuda.jit
     def friction_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind, visc_params,
