@@ -1,0 +1,110 @@
+"""Memory per particle, array by array: every numpy array reachable from a ``Simulation``
+after a few steps, each array's memory counted once (views are counted with their base),
+in bytes per particle, largest first (issue 16's target: 1 kB per particle in 3D).
+
+    .venv/bin/python benchmarks/bench_memory.py [--dim 3] [--n 1e5] [--scheme av]
+        [--steps 2] [--json PATH]
+
+The case is ``bench_ac_cost.py``'s lattice (dx = 1 mm, h = 1.2 dx, elastic steel, random
+velocities of about 1 m/s, the paper's scheme: no stabilisation), ``--scheme`` its viscosity.
+Unlike ``bench_rates.py``'s peak-RSS growth this counts only the run's own arrays (not numba's
+or numpy's workspace, nor memory the allocator keeps), and says which object holds each.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+import types
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+#: objects whose insides are not the run's arrays
+SKIPPED = (str, bytes, int, float, complex, bool, type, types.ModuleType, types.FunctionType,
+           types.BuiltinFunctionType, types.MethodType)
+
+
+def _base(array: np.ndarray) -> np.ndarray:
+    while isinstance(array.base, np.ndarray):
+        array = array.base
+    return array
+
+
+def arrays_of(root: object, name: str = "sim", depth: int = 14) -> dict[int, tuple[int, str]]:
+    """``{id(base): (bytes, path)}`` for every array reachable from ``root`` through
+    attributes, dict values and list or tuple items (the first path that reaches it)."""
+    found: dict[int, tuple[int, str]] = {}
+    seen: set[int] = set()
+    stack = [(root, name, 0)]
+    while stack:
+        obj, path, level = stack.pop()
+        if id(obj) in seen or level > depth or isinstance(obj, SKIPPED):
+            continue
+        seen.add(id(obj))
+        if isinstance(obj, np.ndarray):
+            base = _base(obj)
+            found.setdefault(id(base), (base.nbytes, path))
+            continue
+        if type(obj) is dict:
+            stack.extend((v, f"{path}[{k!r}]", level + 1) for k, v in obj.items())
+        elif type(obj) in (list, tuple):
+            stack.extend((v, f"{path}[{k}]", level + 1) for k, v in enumerate(obj))
+        else:
+            attributes = getattr(obj, "__dict__", None)
+            if type(attributes) is dict:
+                stack.extend((v, f"{path}.{k}", level + 1) for k, v in attributes.items())
+            for slot in getattr(type(obj), "__slots__", ()):
+                if hasattr(obj, slot):
+                    stack.append((getattr(obj, slot), f"{path}.{slot}", level + 1))
+    return found
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--dim", type=int, default=3, choices=(1, 2, 3))
+    parser.add_argument("--n", type=float, default=1e5, help="target particle count")
+    parser.add_argument("--scheme", default="av", help="viscosity scheme (default av)")
+    parser.add_argument("--steps", type=int, default=2)
+    parser.add_argument("--json", type=Path, default=None, help="also write the table here")
+    args = parser.parse_args(argv)
+
+    sys.path.insert(0, str(HERE))
+    from bench_ac_cost import lattice_case
+    from llvmlite.binding import get_host_cpu_name as host_cpu_name
+
+    from impactsph import __version__
+    from impactsph.integrate import stable_time_step
+    from impactsph.loading import validate_case
+    from impactsph.simulation import Simulation
+
+    sim = Simulation(validate_case(lattice_case(args.dim, int(args.n), args.scheme)))
+    sim.state.velocity[:] = np.random.default_rng(1).normal(size=sim.state.velocity.shape)
+    dt = 0.1 * stable_time_step(sim.state, sim.problem.table, 0.3)
+    for _ in range(args.steps):
+        sim.integrator.step(sim.state, dt)
+    n = sim.state.n
+    rows = sorted(arrays_of(sim).values(), reverse=True)
+    total = sum(size for size, _ in rows)
+    print(f"impactsph {__version__}: {args.dim}D lattice, {n} particles, {args.scheme}, "
+          f"after {args.steps} steps: {total / n:.0f} B per particle in "
+          f"{len(rows)} arrays")
+    print(f"{'B/particle':>10}  array")
+    for size, path in rows:
+        if size >= 2 * n:  # the per-particle arrays (the rest: tables, small buffers)
+            print(f"{size / n:10.1f}  {path}")
+    small = [size for size, _ in rows if size < 2 * n]
+    print(f"{sum(small) / n:10.1f}  (the rest: {len(small)} small arrays)")
+    if args.json is not None:
+        args.json.write_text(json.dumps({
+            "version": __version__, "machine": platform.machine(), "cpu": host_cpu_name(),
+            "dim": args.dim, "particles": n, "scheme": args.scheme,
+            "bytes_per_particle": total / n,
+            "arrays": [{"path": p, "bytes_per_particle": s / n} for s, p in rows]}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
