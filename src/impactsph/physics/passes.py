@@ -127,10 +127,11 @@ SWITCH_ERROR_MODEL = "numpy" if SWITCH_VECTORISED else "python"
 #: the CPU's vectorised neighbour loops (pair, moment, velocity gradient, hourglass) run over
 #: the neighbours within the support only, gathered first (:func:`support_range`), in 3D: a
 #: quarter of a 3D list row is its Verlet skin, which the masked loops would evaluate in full
-#: (the pair pass 0.75-0.84 of its time, the moment and hourglass passes 0.73-0.76, at 1e5
-#: particles on two threads).  Not in 1D and 2D: the 2D lattice's rows have no skin entries
-#: at h = 1.2 dx, and there the gathering cost the pair pass 3-5% and the lighter moment and
-#: hourglass loops 20-40% (benchmarks/README.md, "The skin's pairs left out of the 3D loops").
+#: (with the gathering the pair pass takes 0.77-0.84 of its time, the moment and hourglass
+#: passes 0.67-0.76, at 1e5 particles).  Not in 1D and 2D: the 2D lattice's rows have no
+#: skin entries at h = 1.2 dx, and there the gathering cost the pair pass 3-5% and the
+#: lighter moment and hourglass loops 20-40% (benchmarks/README.md, "The skin's pairs left
+#: out of the 3D loops").
 SKIN_FILTER = DIM == 3
 
 _COLUMNS = record_columns(DIM, correction_matrix=FORCE_CORRECTION,
