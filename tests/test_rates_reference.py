@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from fields import random_deviator
 
 from impactsph.kernels import cubic_spline_dwdr
 from impactsph.loading import validate_case
@@ -70,13 +71,7 @@ def two_blocks(dim: int, scheme: str) -> Simulation:
     s.velocity += rng.normal(0.0, 20.0, s.velocity.shape)
     s.density *= 1.0 + rng.normal(0.0, 2e-3, s.n)
     s.specific_energy[:] = rng.uniform(0.0, 1e3, s.n)
-    S = rng.normal(0.0, 2e8, (s.n, 3, 3))
-    S = 0.5 * (S + S.transpose(0, 2, 1))
-    S -= np.trace(S, axis1=1, axis2=2)[:, None, None] * np.eye(3) / 3.0
-    if dim < 3:  # plane strain / uniaxial: no shear out of the plane
-        S[:, dim:, :dim] = 0.0
-        S[:, :dim, dim:] = 0.0
-    s.deviatoric_stress[:] = S
+    s.deviatoric_stress[:] = random_deviator(rng, s.n, dim, 2e8)
     s.smoothing_length *= 1.0 + rng.uniform(-0.05, 0.05, s.n)  # unequal h: the general branch
     return sim
 

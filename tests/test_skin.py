@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from fields import random_deviator
 
 from impactsph.loading import validate_case
 from impactsph.simulation import Simulation
@@ -45,13 +46,7 @@ def jittered_block(dim: int, skin: float, scheme: str) -> Simulation:
     s.position += rng.normal(0.0, 0.08 * DX, s.position.shape)
     s.velocity += rng.normal(0.0, 20.0, s.velocity.shape)
     s.density *= 1.0 + rng.normal(0.0, 2e-3, s.n)
-    S = rng.normal(0.0, 2e8, (s.n, 3, 3))
-    S = 0.5 * (S + S.transpose(0, 2, 1))
-    S -= np.trace(S, axis1=1, axis2=2)[:, None, None] * np.eye(3) / 3.0
-    if dim < 3:
-        S[:, dim:, :dim] = 0.0
-        S[:, :dim, dim:] = 0.0
-    s.deviatoric_stress[:] = S
+    s.deviatoric_stress[:] = random_deviator(rng, s.n, dim, 2e8)
     s.smoothing_length *= 1.0 + rng.uniform(-0.05, 0.05, s.n)
     s.hourglass_acceleration[:] = rng.normal(0.0, 1e3, s.hourglass_acceleration.shape)
     sim.solver.neighbours = None  # the list for the perturbed state, with this run's skin

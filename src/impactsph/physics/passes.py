@@ -526,7 +526,7 @@ def support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, filter_skin
     listed[k]``.
 
     With ``filter_skin`` (the CPU passes in 3D, :data:`SKIN_FILTER`; ``listed`` is then a
-    scratch, :func:`row_scratch`) only the neighbours within the kernel support (``q < 2``,
+    scratch, :func:`chunk_listed`) only the neighbours within the kernel support (``q < 2``,
     the loops' own test, by :func:`neighbour_separation`), gathered into ``listed`` in the
     list's order; otherwise (1D and 2D, and the GPU's kernels, which have no such scratch;
     ``listed`` is then ``indices``) the list's whole row.  The list also holds the pairs of
@@ -549,13 +549,17 @@ def support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, filter_skin
 
 
 @JIT(inline="always", cache=True)
-def row_scratch(offsets, indices, start, stop):
-    """A scratch for :func:`support_range` as long as the longest list row of the sorted
-    positions ``start`` to ``stop - 1`` (one per chunk of a parallel pass)."""
-    longest = 0
-    for p in range(start, stop):
-        longest = max(longest, offsets[p + 1] - offsets[p])
-    return np.empty(longest, dtype=indices.dtype)
+def chunk_listed(offsets, indices, start, stop):
+    """What the vectorised loops of the sorted positions ``start`` to ``stop - 1`` (one
+    chunk of a parallel pass) read their neighbours from, :func:`support_range`'s
+    ``listed``: in 3D (:data:`SKIN_FILTER`) a scratch as long as the chunk's longest list row,
+    in 1D and 2D the list itself."""
+    if SKIN_FILTER:  # a constant: in 1D and 2D numba prunes the branch
+        longest = 0
+        for p in range(start, stop):
+            longest = max(longest, offsets[p + 1] - offsets[p])
+        return np.empty(longest, dtype=indices.dtype)
+    return indices
 
 
 @JIT(inline="always", cache=True)
@@ -1389,9 +1393,7 @@ def moment_pass(order, P, offsets, indices, chunk_size):
     for chunk in nb.prange(n_chunks):
         start = chunk * chunk_size
         stop = min((chunk + 1) * chunk_size, n)
-        listed = indices  # the list's rows (1D, 2D), or a scratch for their support (3D)
-        if SKIN_FILTER:
-            listed = row_scratch(offsets, indices, start, stop)
+        listed = chunk_listed(offsets, indices, start, stop)
         for p in range(start, stop):
             moment_correction(p, P, offsets, indices, listed, SKIN_FILTER)
 
@@ -1405,9 +1407,7 @@ def gradient_pass(order, P, offsets, indices, chunk_size):
     for chunk in nb.prange(n_chunks):
         start = chunk * chunk_size
         stop = min((chunk + 1) * chunk_size, n)
-        listed = indices  # the list's rows (1D, 2D), or a scratch for their support (3D)
-        if SKIN_FILTER:
-            listed = row_scratch(offsets, indices, start, stop)
+        listed = chunk_listed(offsets, indices, start, stop)
         for p in range(start, stop):
             velocity_gradient_record(p, P, offsets, indices, listed, SKIN_FILTER)
 
@@ -1426,9 +1426,7 @@ def pair_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, norm
         L = np.empty((DIM, DIM))  # scratch: the velocity gradient of one particle
         start = chunk * chunk_size
         stop = min((chunk + 1) * chunk_size, n)
-        listed = indices  # the list's rows (1D, 2D), or a scratch for their support (3D)
-        if SKIN_FILTER:
-            listed = row_scratch(offsets, indices, start, stop)
+        listed = chunk_listed(offsets, indices, start, stop)
         for p in range(start, stop):
             i = order[p]
             if i >= n_active:
@@ -1501,9 +1499,7 @@ def hourglass_pass(n_active, order, P, L_sorted, offsets, indices, material, tab
     for chunk in nb.prange(n_chunks):
         start = chunk * chunk_size
         stop = min((chunk + 1) * chunk_size, n)
-        listed = indices  # the list's rows (1D, 2D), or a scratch for their support (3D)
-        if SKIN_FILTER:
-            listed = row_scratch(offsets, indices, start, stop)
+        listed = chunk_listed(offsets, indices, start, stop)
         for p in range(start, stop):
             i = order[p]
             if i < n_active:
