@@ -206,12 +206,6 @@ def test_bad_input_exit_code_2_one_line(tmp_path, args, named):
     assert not (tmp_path / "x").exists()
 
 
-def test_two_bodies_refused(tmp_path):
-    res = runner.invoke(app, ["check", "bars", "--set", "formulation=total_lagrangian"])
-    assert res.exit_code == 2, res.output
-    assert "bodies" in res.output and len(res.output.strip().splitlines()) == 1
-
-
 @pytest.fixture(scope="module")
 def tl_beam():
     # 1.12 periods, as the UL beam test: the crossing at T of a period up to ~10% long (TL

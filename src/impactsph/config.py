@@ -513,6 +513,17 @@ class Contact(_Model):
         "pushing pair sliding past each other is slowed by mu times its push, the work booked "
         "as heat in the two particles (impactsph.physics.contact); 0 is frictionless. A "
         "wall's friction is the wall's own 'friction'")
+    penalty_stiffness: PositiveFloat = Field(
+        1.0, description="factor k on the penalty contact between total-Lagrangian bodies "
+        "(impactsph.physics.penalty_contact): a pair of particles of different bodies closer "
+        "than their contact diameter is pushed apart by Hertz's force 2/3 k K* d^(dim-1) "
+        "(delta/d)^(3/2), K* the two bulk moduli in series, its work booked in their internal "
+        "energies; used by formulation = 'total_lagrangian' only")
+    penalty_distance: PositiveFloat = Field(
+        1.0, description="contact diameter of the penalty contact between total-Lagrangian "
+        "bodies, in particle spacings (m/rho0)^(1/dim): 1 puts the contact where the bodies' "
+        "surfaces, half a spacing beyond their outermost particles, touch; used by "
+        "formulation = 'total_lagrangian' only")
 
 
 class Viscosity(_Model):
@@ -850,9 +861,10 @@ class Case(_Model):
         """Refuse what the total-Lagrangian formulation does not do, in one line each."""
         tl = "with formulation = 'total_lagrangian'"
         stab = self.stabilisation
-        if len(self.bodies) > 1:
-            raise ValueError(f"bodies: {tl} a case has one body (contact between "
-                             f"total-Lagrangian bodies is not implemented)")
+        if len(self.bodies) > 1 and self.contact.friction > 0.0:
+            raise ValueError(f"contact.friction = {self.contact.friction!r} is not available "
+                             f"{tl} (its bodies meet through the frictionless penalty "
+                             f"contact); 0")
         if self.compute.device != "cpu":
             raise ValueError(f"compute.device = {self.compute.device!r}: the total-Lagrangian "
                              f"passes run on the CPU only")

@@ -440,7 +440,9 @@ def history_values(case: Case, steps: int) -> int:
 
 def initial_time_step(case: Case) -> float:
     """The CFL step of eq 26 at t = 0, ``courant * min h / (c + |v|)`` over the bodies (a tip
-    mass's velocity counted at its arrival speed, an upper bound)."""
+    mass's velocity counted at its arrival speed, an upper bound), and in the
+    total-Lagrangian formulation at most its hourglass penalty's step
+    (:func:`impactsph.tl_solver.lattice_hourglass_step`)."""
     from .materials import resolve_material
 
     dt = math.inf
@@ -452,6 +454,12 @@ def initial_time_step(case: Case) -> float:
             speed = max(speed, float(np.linalg.norm(body.tip_mass.velocity)))
         h = case.kernel.h_over_dx * body_spacing(body.geometry)
         dt = min(dt, case.time.courant * h / (c + speed))
+        if case.formulation == "total_lagrangian" and case.stabilisation.tl_hourglass > 0.0:
+            from .tl_solver import lattice_hourglass_step  # its penalty's own limit
+
+            dt = min(dt, lattice_hourglass_step(
+                case.dimension, body_spacing(body.geometry), h,
+                case.stabilisation.tl_hourglass, mat.youngs_modulus, mat.density))
     return dt
 
 

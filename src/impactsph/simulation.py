@@ -114,7 +114,9 @@ class Simulation:
             self.solver = TotalLagrangianSolver(
                 self.state, self.problem.table, ViscositySettings.of(case.viscosity),
                 walls=self.walls, hourglass=case.stabilisation.tl_hourglass,
-                wall_layer=case.contact.wall_layer)
+                wall_layer=case.contact.wall_layer,
+                penalty_stiffness=case.contact.penalty_stiffness,
+                penalty_distance=case.contact.penalty_distance)
         else:
             self.solver = Solver(self.state, self.problem.table,
                                  ViscositySettings.of(case.viscosity), walls=self.walls,
@@ -283,7 +285,9 @@ class Simulation:
             s.n, s.position, s.velocity, s.material_density, s.specific_energy,
             s.deviatoric_stress, s.mass, s.added_mass, s.smoothing_length, s.material,
             self.problem.table, self.case.time.courant, float(self.case.stabilisation.hourglass))
-        return Survey(float(dt), float(sums[0]), float(sums[1]), sums[2: 2 + s.dim].copy(),
+        # a solver's own limit (the total-Lagrangian hourglass penalty's)
+        dt = min(float(dt), getattr(self.solver, "max_time_step", math.inf))
+        return Survey(dt, float(sums[0]), float(sums[1]), sums[2: 2 + s.dim].copy(),
                       int(bad))
 
     def _record_row(self, dt: float, survey: Survey) -> None:

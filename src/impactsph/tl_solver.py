@@ -8,12 +8,14 @@ midpoint integrator and its compiled ``advance`` stage (the EOS, the strength mo
 map, the heating and the damage) are the same.  Rigid walls act through a penalty layer
 (:func:`impactsph.boundaries.layer_push` with ``soft``, softer than
 the updated-Lagrangian layer and with a continuous dashpot) and the integrator's
-constraint; there are no wall ghosts.  One body per case (the case schema refuses more); it
+constraint; there are no wall ghosts.  Bodies meet through a penalty contact
+(:mod:`impactsph.physics.penalty_contact`), as LAMMPS SMD's total-Lagrangian bodies do.  A body
 does not fragment: its neighbours are those of t = 0 for the whole run.  CPU only.
 """
 
 from __future__ import annotations
 
+import math
 from types import SimpleNamespace
 
 import numpy as np
@@ -21,12 +23,57 @@ import numpy as np
 from .boundaries import Walls, layer_push
 from .errors import CaseError
 from .kernels import SUPPORT_RADIUS
-from .materials import carried_pressure
+from .materials import YOUNGS, carried_pressure
 from .models.columns import DAMAGE
 from .neighbours import NeighbourList
 from .physics import total_lagrangian as tl
+from .physics.penalty_contact import PenaltyContact
 from .physics.rates import RateBuffers, ViscositySettings, compiled_passes
 from .state import ParticleState
+
+#: the hourglass penalty's largest ``omega dt`` (:func:`hourglass_frequency`).  The penalty is
+#: undamped, and the midpoint rule amplifies an undamped oscillation by ``1 + (omega dt)^4 / 8``
+#: a step.  Measured on the 1D bars of Example 1 (total-Lagrangian, alpha = 10, AV (0.3, 0.3),
+#: 20 us of a rod struck at 50 m/s): energy error 3.5e-4 at omega dt = 0.54, 1.0e-2 at 0.71,
+#: and the run blows up at 1.07 (Courant 0.3 without this limit).
+HOURGLASS_STEP = 0.5
+
+
+def hourglass_frequency(ref: SimpleNamespace, m: np.ndarray, material: np.ndarray,
+                        table: np.ndarray, alpha: float) -> np.ndarray:
+    """Each particle's frequency (rad/s) in a zig-zag mode held by the hourglass penalty alone
+    (:func:`impactsph.physics.total_lagrangian.hourglass_pair`: a spring ``k_ij = alpha E
+    V0_i V0_j W_ij / |X_ij|^2`` per reference pair, and a neighbour's displacement opposite to
+    the particle's own doubling the stretch)::
+
+        omega_i^2 = 2 sum_j k_ij / m_i
+
+    The step is held to ``omega dt <= HOURGLASS_STEP`` (:class:`TotalLagrangianSolver`): with
+    the default alpha = 10 that is 0.37-0.47 of the CFL step at Courant 0.3 (h = 1.2-1.3 dx,
+    1D to 3D)."""
+    n = m.shape[0]
+    rows = np.repeat(np.arange(n), np.diff(ref.offsets))
+    cols = ref.neighbours
+    R2 = ((ref.X[rows] - ref.X[cols]) ** 2).sum(axis=1)
+    youngs = table[material, YOUNGS]
+    k = alpha * youngs[rows] * ref.V0[rows] * ref.V0[cols] * ref.w / R2
+    return np.sqrt(2.0 * np.bincount(rows, weights=k, minlength=n) / m)
+
+
+def lattice_hourglass_step(dim: int, spacing: float, h: float, alpha: float, youngs: float,
+                           density: float) -> float:
+    """The hourglass penalty's step limit ``HOURGLASS_STEP / omega`` inside a full square
+    (cubic) lattice of ``spacing`` (:func:`hourglass_frequency` summed over the lattice; the
+    run's own limit is taken from its particles), for the pre-flight estimate."""
+    from .kernels import cubic_spline
+
+    reach = int(math.ceil(SUPPORT_RADIUS * h / spacing))
+    grid = np.stack(np.meshgrid(*[np.arange(-reach, reach + 1)] * dim, indexing="ij"),
+                    -1).reshape(-1, dim)
+    r = np.linalg.norm(grid, axis=1) * spacing
+    total = sum(spacing**dim * cubic_spline(float(d), h, dim) / d**2 for d in r if d > 0.0)
+    omega = math.sqrt(2.0 * alpha * youngs / density * total)
+    return HOURGLASS_STEP / omega if omega > 0.0 else math.inf
 
 
 class TotalLagrangianSolver:
@@ -36,10 +83,14 @@ class TotalLagrangianSolver:
     ``viscosity``: Monaghan's artificial viscosity (its ``pair`` parameters ``(alpha1, alpha2,
     epsilon, _)``); ``hourglass``: the coefficient alpha of the hourglass penalty
     (:func:`impactsph.physics.total_lagrangian.hourglass_pair`), 0 for none; ``wall_layer``:
-    the walls' penalty layer in particle spacings (needed with walls)."""
+    the walls' penalty layer in particle spacings (needed with walls);
+    ``penalty_stiffness`` and ``penalty_distance``: the contact between bodies
+    (:class:`~impactsph.physics.penalty_contact.PenaltyContact`, used when there are two
+    bodies or more)."""
 
     def __init__(self, state: ParticleState, table: np.ndarray, viscosity: ViscositySettings,
-                 walls: Walls | None = None, hourglass: float = 0.0, wall_layer: float = 0.0):
+                 walls: Walls | None = None, hourglass: float = 0.0, wall_layer: float = 0.0,
+                 penalty_stiffness: float = 1.0, penalty_distance: float = 1.0):
         self.table = table
         self.viscosity = viscosity
         self.visc = np.array(viscosity.pair[:3], dtype=np.float64)
@@ -56,7 +107,8 @@ class TotalLagrangianSolver:
         self.rate_evaluations = 0
         self.powers = (0.0, 0.0, 0.0)
         self.wall_force = np.zeros(dim)
-        self.buffers = RateBuffers(n, dim, contact=False, corrected=False, hourglass=False)
+        several = np.unique(state.body).size > 1
+        self.buffers = RateBuffers(n, dim, contact=several, corrected=False, hourglass=False)
         self._pressure = np.empty(n)
         self._damage = np.empty(n)
         self.F = np.zeros((n, dim, dim))
@@ -78,8 +130,19 @@ class TotalLagrangianSolver:
         self._ghost_src = np.zeros(0, dtype=np.int64)
         self._ghost_wall = np.zeros(0, dtype=np.int64)
         self._pairs = int(self.ref.neighbours.shape[0])
+        #: the longest stable step (s) for the hourglass penalty (:func:`hourglass_frequency`)
+        self.max_time_step = math.inf
+        if self.hourglass > 0.0 and n:
+            omega = hourglass_frequency(self.ref, state.mass, state.material, table,
+                                        self.hourglass)
+            self.max_time_step = HOURGLASS_STEP / float(omega.max())
         #: m / (m + added mass), None without added mass (see :class:`~impactsph.solver.Solver`)
         self._inertia = state.inertia_fraction()
+        #: the contact between bodies, None with one body
+        self.contact = None
+        if several:
+            self.contact = PenaltyContact(state.mass, state.material, state.body, table, dim,
+                                          scale=penalty_distance, stiffness=penalty_stiffness)
 
     def restore(self, state: ParticleState, neighbours: NeighbourList, ghost_src: np.ndarray,
                 ghost_wall: np.ndarray) -> None:
@@ -102,6 +165,9 @@ class TotalLagrangianSolver:
                       ref.offsets, ref.neighbours, ref.grad, ref.w, ref.dw, self.F, self._Q,
                       self.visc, self.hourglass, b.dv, b.de, b.de_visc)
         self.powers = (float(state.mass @ b.de_visc), 0.0, 0.0)
+        if self.contact is not None:
+            self.contact.add(n, state.position, state.velocity, state.mass, state.material,
+                             b.dv, b.de, b.contact_force)
         if self.walls is not None:
             w = self.walls
             self.wall_force = layer_push(n, state.position, state.velocity, state.mass,

@@ -1,0 +1,222 @@
+"""Contact between total-Lagrangian bodies (``impactsph.physics.penalty_contact``;
+docs/stabilisation.md, "Contact between total-Lagrangian bodies"): the pair force and its
+balances, the hourglass penalty's time step, the paper's colliding bars against the exact
+elastic solution at three spacings, and the rubber rings."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from impactsph import Simulation
+from impactsph.cli import app
+from impactsph.kernels import cubic_spline
+from impactsph.loading import load_case, validate_case
+from impactsph.materials import BULK, RHO0, YOUNGS
+from impactsph.physics.penalty_contact import PenaltyContact, contact_pairs, hertz_contact
+from impactsph.problems.rings import CLUMPED_DISTANCE_OVER_DX, TORN_GAP_OVER_H
+from impactsph.runner import finished_summary
+from impactsph.tl_solver import HOURGLASS_STEP, hourglass_frequency
+
+runner = CliRunner()
+
+
+def two_body_table(k1: float = 160e9, k2: float = 40e9) -> np.ndarray:
+    table = np.zeros((2, 64))
+    table[:, RHO0] = 7800.0
+    table[0, BULK], table[1, BULK] = k1, k2
+    return table
+
+
+def test_one_pair_pushes_with_hertz_force():
+    """1D: two particles of spacing dx, one of each body, closer than dx by delta."""
+    table = two_body_table()
+    dx, delta = 1e-3, 1e-4
+    m = np.full(2, 7800.0 * dx)  # kg/m^2 in 1D
+    x = np.array([[0.0], [dx - delta]])
+    v = np.array([[3.0], [-1.0]])
+    contact = PenaltyContact(m, np.array([0, 1]), np.array([0, 1]), table, 1)
+    dv, de, force = np.zeros((2, 1)), np.zeros(2), np.zeros((2, 1))
+    contact.add(2, x, v, m, np.array([0, 1]), dv, de, force)
+    k_star = 160e9 * 40e9 / 200e9
+    expected = 2.0 / 3.0 * k_star * (delta / dx) ** 1.5  # N/m^2 in 1D
+    assert force[0, 0] == pytest.approx(-expected, rel=1e-12)  # pushed to -x
+    assert force[1, 0] == pytest.approx(expected, rel=1e-12)
+    assert dv[0, 0] == pytest.approx(-expected / m[0], rel=1e-12)
+    # closing at 4 m/s: the potential grows at F * 4, booked half in each
+    assert m @ de == pytest.approx(expected * 4.0, rel=1e-12)
+    assert de[0] == pytest.approx(de[1], rel=1e-12)
+    # apart: nothing
+    x[1, 0] = dx * 1.0001
+    dv[:], de[:] = 0.0, 0.0
+    contact.add(2, x, v, m, np.array([0, 1]), dv, de, force)
+    assert not dv.any() and not de.any() and not force.any()
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_random_overlaps_keep_momentum_and_energy(dim):
+    """Two interpenetrating jittered blocks of different materials, random velocities: the
+    contact's forces add up to zero (momentum) and their power to minus its heating (the
+    total energy), to round-off; same-body pairs do not push."""
+    rng = np.random.default_rng(dim)
+    dx = 1e-3
+    n_side = 6
+    grid = np.stack(np.meshgrid(*[np.arange(n_side) * dx] * dim, indexing="ij"),
+                    -1).reshape(-1, dim)
+    a = grid + rng.uniform(-0.3, 0.3, grid.shape) * dx
+    b = grid + 0.5 * dx + rng.uniform(-0.3, 0.3, grid.shape) * dx
+    x = np.concatenate([a, b])
+    n = x.shape[0]
+    body = np.repeat([0, 1], grid.shape[0]).astype(np.int32)
+    material = body.copy()
+    table = two_body_table()
+    m = 7800.0 * dx**dim * rng.uniform(0.8, 1.2, n)
+    v = rng.normal(0.0, 10.0, (n, dim))
+    contact = PenaltyContact(m, material, body, table, dim, scale=1.0, stiffness=2.0)
+    dv, de, force = np.zeros((n, dim)), np.zeros(n), np.zeros((n, dim))
+    contact.add(n, x, v, m, material, dv, de, force)
+    scale = np.abs(force).sum()
+    assert scale > 0.0
+    np.testing.assert_allclose(force, m[:, None] * dv, rtol=1e-12, atol=1e-12 * scale)
+    assert np.abs(force.sum(axis=0)).max() <= 1e-12 * scale
+    power = float(np.sum(m[:, None] * v * dv))
+    heat = float(m @ de)
+    assert abs(power + heat) <= 1e-12 * np.abs(m * de).sum()
+    # every candidate is of the other body, each row increasing
+    offsets, partners = contact.offsets, contact.partners
+    rows = np.repeat(np.arange(n), np.diff(offsets))
+    assert (body[rows] != body[partners]).all()
+    assert all((np.diff(partners[offsets[i]:offsets[i + 1]]) > 0).all() for i in range(n))
+    # one body alone feels nothing
+    dv[:] = 0.0
+    same = PenaltyContact(m, material, np.zeros(n, np.int32), table, dim)
+    same.add(n, x, v, m, material, dv, de, force)
+    assert not dv.any()
+
+
+def test_candidates_do_not_depend_on_the_build():
+    """The list's rows are in particle order, so the forces are the same to the bit whether
+    the list was built at these positions or a little earlier (a restart rebuilds it)."""
+    rng = np.random.default_rng(7)
+    x = rng.uniform(0.0, 8e-3, (300, 2))
+    body = (x[:, 0] > 4e-3).astype(np.int32)
+    m = np.full(300, 7800.0 * 1e-6)
+    table = two_body_table()
+    v = rng.normal(0.0, 5.0, (300, 2))
+    out = []
+    for start in (x, x + rng.uniform(-1e-4, 1e-4, x.shape)):
+        contact = PenaltyContact(m, body, body, table, 2)
+        contact._refresh(start)  # the list as built at `start`
+        dv, de, force = np.zeros((300, 2)), np.zeros(300), np.zeros((300, 2))
+        hertz_contact(300, x, v, m, body, table, contact.diameter, *contact_pairs(
+            contact.list, body), 1.0, dv, de, force)
+        out.append((dv, de))
+    np.testing.assert_array_equal(out[0][0], out[1][0])
+    np.testing.assert_array_equal(out[0][1], out[1][1])
+
+
+def test_hourglass_frequency_on_a_1d_lattice():
+    """omega^2 = 2 alpha E/rho0 sum_j dx W(j dx) / (j dx)^2 in the middle of a uniform rod."""
+    from impactsph.physics import total_lagrangian as tl
+
+    dx, h, alpha, E, rho = 1e-3, 1.2e-3, 10.0, 200e9, 8000.0
+    X = (np.arange(41) * dx)[:, None]
+    V0 = np.full(41, dx)
+    ref = tl.reference(X, V0, np.full(41, h), np.zeros(41, np.int32))
+    table = np.zeros((1, 64))
+    table[0, YOUNGS] = E
+    omega = hourglass_frequency(ref, rho * V0, np.zeros(41, np.int32), table, alpha)
+    expected = math.sqrt(2.0 * alpha * E / rho * sum(
+        2.0 * dx * cubic_spline(j * dx, h, 1) / (j * dx) ** 2 for j in (1, 2)))
+    assert omega[20] == pytest.approx(expected, rel=1e-12)
+
+
+def bars_summary(spacing: float) -> tuple[dict, Simulation]:
+    case = load_case("bars", ["formulation=total_lagrangian", "output.figures=false",
+                              f"bodies.0.geometry.spacing={spacing}",
+                              f"bodies.1.geometry.spacing={spacing}"])
+    sim = Simulation(case)
+    sim.run()
+    return finished_summary(sim), sim
+
+
+@pytest.fixture(scope="module")
+def tl_bars():
+    return {spacing: bars_summary(spacing) for spacing in (2e-4, 1e-4)}
+
+
+def test_tl_bars_meet_and_part_as_the_exact_solution(tl_bars):
+    """The paper's Example 1 (two steel bars at +-50 m/s, its AV (0.3, 0.3)) in the
+    total-Lagrangian formulation: the bars part after 2 L / c, their velocity profile
+    converging on the exact one, with the default hourglass penalty stable (it blew up at the
+    CFL step alone) and the energy and momentum kept."""
+    (coarse, sim), (fine, _) = tl_bars[2e-4], tl_bars[1e-4]
+    assert sim.solver.contact is not None and sim.solver.contact.builds >= 1
+    for run in (coarse, fine):
+        assert run["failure"] is None
+        assert run["total_energy_relative_error"] <= 1e-3
+        assert run["momentum_drift"] <= 1e-12
+    error = {k: abs(run["contact_time_us"] / run["contact_time_theory_us"] - 1.0)
+             for k, run in (("coarse", coarse), ("fine", fine))}
+    assert error["coarse"] <= 0.05  # measured +3.2% and +1.4%
+    assert error["fine"] < error["coarse"]
+    assert fine["velocity_profile_l1_error"] < coarse["velocity_profile_l1_error"]
+    assert fine["mid_velocity_l1_error"] < coarse["mid_velocity_l1_error"]
+    for run in (coarse, fine):  # the bars' velocities reversed
+        assert run["final_velocity_left"] == pytest.approx(-50.0, rel=0.03)
+        assert run["final_velocity_right"] == pytest.approx(50.0, rel=0.03)
+    # they separate elastically: most of the kinetic energy comes back (0.970, 0.973)
+    assert fine["kinetic_energy_ratio_final"] >= coarse["kinetic_energy_ratio_final"] >= 0.95
+
+
+def test_tl_time_step_holds_the_hourglass_penalty(tl_bars):
+    _, sim = tl_bars[2e-4]
+    assert math.isfinite(sim.solver.max_time_step)
+    dt = np.array([row["dt"] for row in sim.record.history[1:]])
+    assert dt.max() <= sim.solver.max_time_step
+    omega = hourglass_frequency(sim.solver.ref, sim.state.mass, sim.state.material,
+                                sim.problem.table, sim.case.stabilisation.tl_hourglass)
+    assert sim.solver.max_time_step == pytest.approx(HOURGLASS_STEP / omega.max())
+
+
+@pytest.mark.slow
+def test_tl_rings_bounce_off_whole_without_artificial_stress():
+    """Gray et al.'s rubber rings in the total-Lagrangian formulation and its penalty contact,
+    no artificial stress: whole, unclumped, rebounding, energy and momentum kept (the
+    updated-Lagrangian rings tear and clump without it: docs/stabilisation.md)."""
+    case = load_case("rings", ["formulation=total_lagrangian", "output.figures=false",
+                               "stabilisation.artificial_stress=0"])
+    sim = Simulation(case)
+    sim.run()
+    summary = finished_summary(sim)
+    assert summary["failure"] is None
+    assert summary["max_neighbour_gap_over_h"] < TORN_GAP_OVER_H
+    assert summary["min_distance_over_dx"] > CLUMPED_DISTANCE_OVER_DX
+    assert summary["restitution"] >= 0.6  # measured 0.78
+    assert summary["total_energy_relative_error"] <= 1e-3
+    assert summary["momentum_drift"] <= 1e-12
+
+
+def test_two_tl_bodies_run_and_friction_is_refused(tmp_path):
+    ok = runner.invoke(app, ["check", "bars", "--set", "formulation=total_lagrangian"])
+    assert ok.exit_code == 0, ok.output
+    res = runner.invoke(app, ["check", "bars", "--set", "formulation=total_lagrangian",
+                              "--set", "contact.friction=0.2"])
+    assert res.exit_code == 2, res.output
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "contact.friction" in lines[0]
+
+
+@pytest.mark.parametrize("field", ["penalty_stiffness", "penalty_distance"])
+def test_penalty_settings_must_be_positive(field):
+    with pytest.raises(Exception, match=field):
+        validate_case({"name": "x", "dimension": 1, "formulation": "total_lagrangian",
+                       "materials": {"s": {"model": "elastic", "density": 1.0,
+                                           "youngs_modulus": 1.0, "poisson_ratio": 0.0}},
+                       "bodies": [{"name": "b", "material": "s", "velocity": [0.0],
+                                   "geometry": {"origin": [0.0], "size": [1.0],
+                                                "spacing": 0.1}}],
+                       "contact": {field: 0.0}, "time": {"end": 1.0}})
