@@ -459,7 +459,8 @@ def initial_time_step(case: Case) -> float:
 
             dt = min(dt, lattice_hourglass_step(
                 case.dimension, body_spacing(body.geometry), h,
-                case.stabilisation.tl_hourglass, mat.youngs_modulus, mat.density))
+                case.stabilisation.tl_hourglass, mat.youngs_modulus, mat.density,
+                case.stabilisation.tl_hourglass_damping))
     return dt
 
 

@@ -37,6 +37,33 @@ from .state import ParticleState
 #: 20 us of a rod struck at 50 m/s): energy error 3.5e-4 at omega dt = 0.54, 1.0e-2 at 0.71,
 #: and the run blows up at 1.07 (Courant 0.3 without this limit).
 HOURGLASS_STEP = 0.5
+#: with the penalty's dashpot (``stabilisation.tl_hourglass_damping`` zeta > 0) the step is
+#: held to this fraction of the midpoint rule's stability limit for a mode of damping ratio
+#: zeta (:func:`midpoint_stability_limit`: omega dt = 2.0 at zeta = 0.5, so 1.5, and the CFL
+#: step at Courant 0.3, omega dt = 1.07-1.35 at alpha = 10, stands)
+HOURGLASS_STEP_DAMPED = 0.75
+
+
+def midpoint_stability_limit(zeta: float) -> float:
+    """The largest ``omega dt`` for which the midpoint rule (two-stage Runge-Kutta, growth
+    factor ``1 + z + z^2 / 2`` for ``z = lambda dt``) does not amplify a mode of frequency
+    ``omega`` and damping ratio ``zeta`` (its eigenvalues ``lambda = omega (-zeta +- sqrt(zeta^2
+    - 1))``); 0 for ``zeta = 0``, 2.0 at 0.5, 1.53 at 0.25, 1 / zeta for large zeta."""
+    if zeta <= 0.0:
+        return 0.0
+    root = np.sqrt(complex(zeta * zeta - 1.0))
+    roots = (-zeta + root, -zeta - root)
+
+    def stable(w: float) -> bool:
+        return all(abs(1 + z + z * z / 2) <= 1.0 + 1e-12 for z in (w * r for r in roots))
+
+    low, high = 0.0, 1.0
+    while stable(high):
+        high *= 2.0
+    for _ in range(60):
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if stable(mid) else (low, mid)
+    return low
 
 
 def hourglass_frequency(ref: SimpleNamespace, m: np.ndarray, material: np.ndarray,
@@ -48,9 +75,9 @@ def hourglass_frequency(ref: SimpleNamespace, m: np.ndarray, material: np.ndarra
 
         omega_i^2 = 2 sum_j k_ij / m_i
 
-    The step is held to ``omega dt <= HOURGLASS_STEP`` (:class:`TotalLagrangianSolver`): with
-    the default alpha = 10 that is 0.37-0.47 of the CFL step at Courant 0.3 (h = 1.2-1.3 dx,
-    1D to 3D)."""
+    The step is held to ``omega dt <= hourglass_step(zeta)`` (:class:`TotalLagrangianSolver`):
+    without the dashpot that is 0.37-0.47 of the CFL step at Courant 0.3 with the default alpha
+    = 10 (h = 1.2-1.3 dx, 1D to 3D); with the default zeta = 0.5 the CFL step stands."""
     n = m.shape[0]
     rows = np.repeat(np.arange(n), np.diff(ref.offsets))
     cols = ref.neighbours
@@ -60,8 +87,16 @@ def hourglass_frequency(ref: SimpleNamespace, m: np.ndarray, material: np.ndarra
     return np.sqrt(2.0 * np.bincount(rows, weights=k, minlength=n) / m)
 
 
+def hourglass_step(damping: float) -> float:
+    """The largest ``omega dt`` allowed to the hourglass penalty of damping ratio ``damping``
+    (:data:`HOURGLASS_STEP`, :data:`HOURGLASS_STEP_DAMPED`)."""
+    if damping <= 0.0:
+        return HOURGLASS_STEP
+    return HOURGLASS_STEP_DAMPED * midpoint_stability_limit(damping)
+
+
 def lattice_hourglass_step(dim: int, spacing: float, h: float, alpha: float, youngs: float,
-                           density: float) -> float:
+                           density: float, damping: float = 0.0) -> float:
     """The hourglass penalty's step limit ``HOURGLASS_STEP / omega`` inside a full square
     (cubic) lattice of ``spacing`` (:func:`hourglass_frequency` summed over the lattice; the
     run's own limit is taken from its particles), for the pre-flight estimate."""
@@ -73,7 +108,7 @@ def lattice_hourglass_step(dim: int, spacing: float, h: float, alpha: float, you
     r = np.linalg.norm(grid, axis=1) * spacing
     total = sum(spacing**dim * cubic_spline(float(d), h, dim) / d**2 for d in r if d > 0.0)
     omega = math.sqrt(2.0 * alpha * youngs / density * total)
-    return HOURGLASS_STEP / omega if omega > 0.0 else math.inf
+    return hourglass_step(damping) / omega if omega > 0.0 else math.inf
 
 
 class TotalLagrangianSolver:
@@ -90,7 +125,8 @@ class TotalLagrangianSolver:
 
     def __init__(self, state: ParticleState, table: np.ndarray, viscosity: ViscositySettings,
                  walls: Walls | None = None, hourglass: float = 0.0, wall_layer: float = 0.0,
-                 penalty_stiffness: float = 1.0, penalty_distance: float = 1.0):
+                 penalty_stiffness: float = 1.0, penalty_distance: float = 1.0,
+                 hourglass_damping: float = 0.0):
         self.table = table
         self.viscosity = viscosity
         self.visc = np.array(viscosity.pair[:3], dtype=np.float64)
@@ -132,10 +168,14 @@ class TotalLagrangianSolver:
         self._pairs = int(self.ref.neighbours.shape[0])
         #: the longest stable step (s) for the hourglass penalty (:func:`hourglass_frequency`)
         self.max_time_step = math.inf
+        #: the hourglass penalty's dashpot time per particle, 2 zeta / omega_i (s)
+        self._tau = np.zeros(n)
         if self.hourglass > 0.0 and n:
             omega = hourglass_frequency(self.ref, state.mass, state.material, table,
                                         self.hourglass)
-            self.max_time_step = HOURGLASS_STEP / float(omega.max())
+            self.max_time_step = hourglass_step(hourglass_damping) / float(omega.max())
+            if hourglass_damping > 0.0:
+                self._tau = 2.0 * hourglass_damping / omega
         #: m / (m + added mass), None without added mass (see :class:`~impactsph.solver.Solver`)
         self._inertia = state.inertia_fraction()
         #: the contact between bodies, None with one body
@@ -163,7 +203,7 @@ class TotalLagrangianSolver:
         tl.force_pass(n, state.position, state.velocity, ref.X, ref.V0, state.mass,
                       state.smoothing_length, state.density, state.material, self.table,
                       ref.offsets, ref.neighbours, ref.grad, ref.w, ref.dw, self.F, self._Q,
-                      self.visc, self.hourglass, b.dv, b.de, b.de_visc)
+                      self.visc, self.hourglass, b.dv, b.de, b.de_visc, self.Fdot, self._tau)
         self.powers = (float(state.mass @ b.de_visc), 0.0, 0.0)
         if self.contact is not None:
             self.contact.add(n, state.position, state.velocity, state.mass, state.material,

@@ -196,18 +196,23 @@ def deform_particle(i, x, v, V0, m, rho, pressure, S, damage, material, table, o
 
 
 @nb.njit(inline="always", cache=True)
-def hourglass_pair(alpha, youngs, V0i, V0j, w0, X, x, F, i, j, out, dim) -> float:
+def hourglass_pair(alpha, youngs, V0i, V0j, w0, X, x, F, i, j, out, dim, v, Fdot,
+                   tau) -> float:
     """Ganzenmueller's (2015, section 3) hourglass penalty of the pair ``ij`` on ``i`` into
     ``out``, returns its magnitude: with ``X_ij = X_j - X_i``, ``x_ij = x_j - x_i`` and the
     error of each particle's linear prediction ``eps_ij^i = F_i X_ij - x_ij`` projected on the
     current direction ``e = x_ij / |x_ij|``::
 
         delta_ij = (eps_ij^i - eps_ji^j) . e = ((F_i + F_j) X_ij - 2 x_ij) . e
-        f_i = -alpha/2 E V0_i V0_j W_ij / |X_ij|^2 delta_ij e,     f_j = -f_i
+        f_i = -alpha/2 E V0_i V0_j W_ij / |X_ij|^2 (delta_ij + tau_ij ddelta_ij/dt) e,
+        f_j = -f_i,     ddelta_ij/dt = ((Fdot_i + Fdot_j) X_ij - 2 v_ij) . e
 
     (N, or N/m in 2D).  A linear field gives ``delta = 0`` (no force); a zig-zag mode, which
     the collocated F of (TL-2) cannot see, is pulled back with a spring about ``alpha`` times
-    the material's own stiffness.  ``dim``: the caller's compile-time dimension."""
+    the material's own stiffness.  ``tau`` (s) adds a dashpot on the same error's rate
+    (``stabilisation.tl_hourglass_damping``: ``tau_ij = 2 zeta / omega_ij``, 0 for
+    Ganzenmueller's spring alone); a linear velocity field gives ``ddelta/dt = 0`` too (the
+    direction's own rate is left out).  ``dim``: the caller's compile-time dimension."""
     R2 = 0.0
     r2 = 0.0
     for a in range(dim):
@@ -224,6 +229,14 @@ def hourglass_pair(alpha, youngs, V0i, V0j, w0, X, x, F, i, j, out, dim) -> floa
         for b in range(dim):
             pred += (F[i, a, b] + F[j, a, b]) * (X[j, b] - X[i, b])
         delta += (pred - 2.0 * (x[j, a] - x[i, a])) * (x[j, a] - x[i, a]) * inv_r
+    if tau > 0.0:
+        rate = 0.0
+        for a in range(dim):
+            pred = 0.0
+            for b in range(dim):
+                pred += (Fdot[i, a, b] + Fdot[j, a, b]) * (X[j, b] - X[i, b])
+            rate += (pred - 2.0 * (v[j, a] - v[i, a])) * (x[j, a] - x[i, a]) * inv_r
+        delta += tau * rate
     coef = -0.5 * alpha * youngs * V0i * V0j * w0 / R2 * delta
     for a in range(dim):
         out[a] = coef * (x[j, a] - x[i, a]) * inv_r
@@ -232,7 +245,7 @@ def hourglass_pair(alpha, youngs, V0i, V0j, w0, X, x, F, i, j, out, dim) -> floa
 
 @nb.njit(inline="always", cache=True)
 def force_particle(i, x, v, X, V0, m, h, rho, material, table, offsets, neighbours, grad, w,
-                   dw, F, Q, visc, alpha, dv, de, de_visc, acc, fh, dim):
+                   dw, F, Q, visc, alpha, dv, de, de_visc, acc, fh, dim, Fdot, tau):
     """:func:`force_pass` for particle ``i`` (``acc``, ``fh``: scratch; ``dim`` as in
     :func:`deform_particle`)."""
     a1, a2, eps = visc[0], visc[1], visc[2]
@@ -267,7 +280,8 @@ def force_particle(i, x, v, X, V0, m, h, rho, material, table, offsets, neighbou
             heat += 0.5 * m[j] * pi_ij * g * vr
         if alpha > 0.0:
             youngs = 0.5 * (table[ki, YOUNGS] + table[material[j], YOUNGS])
-            hourglass_pair(alpha, youngs, V0[i], V0[j], w[k], X, x, F, i, j, fh, dim)
+            hourglass_pair(alpha, youngs, V0[i], V0[j], w[k], X, x, F, i, j, fh, dim, v, Fdot,
+                           0.5 * (tau[i] + tau[j]))
             for a in range(dim):
                 acc[a] += fh[a] / m[i]
                 hg_power += fh[a] * (v[i, a] - v[j, a])
@@ -302,13 +316,14 @@ def compiled_passes(dim: int) -> SimpleNamespace:
 
     @nb.njit(parallel=True, cache=True)
     def force(n_active, x, v, X, V0, m, h, rho, material, table, offsets, neighbours, grad, w,
-              dw, F, Q, visc, alpha, dv, de, de_visc):  # pragma: no cover
+              dw, F, Q, visc, alpha, dv, de, de_visc, Fdot, tau):  # pragma: no cover
         for chunk in nb.prange((n_active + CHUNK - 1) // CHUNK):
             acc = np.empty(dim)
             fh = np.empty(dim)
             for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n_active)):
                 force_particle(i, x, v, X, V0, m, h, rho, material, table, offsets, neighbours,
-                               grad, w, dw, F, Q, visc, alpha, dv, de, de_visc, acc, fh, dim)
+                               grad, w, dw, F, Q, visc, alpha, dv, de, de_visc, acc, fh, dim,
+                               Fdot, tau)
 
     return SimpleNamespace(deformation_pass=deformation, force_pass=force)
 
@@ -324,7 +339,7 @@ def deformation_pass(n_active, x, v, V0, m, rho, pressure, S, damage, material, 
 
 
 def force_pass(n_active, x, v, X, V0, m, h, rho, material, table, offsets, neighbours, grad,
-               w, dw, F, Q, visc, alpha, dv, de, de_visc) -> None:
+               w, dw, F, Q, visc, alpha, dv, de, de_visc, Fdot=None, tau=None) -> None:
     """(TL-7), the artificial viscosity and the hourglass penalty for every active particle:
     sets ``dv`` and ``de_visc``, adds to ``de``.
 
@@ -338,10 +353,13 @@ def force_pass(n_active, x, v, X, V0, m, h, rho, material, table, offsets, neigh
     antisymmetric, its power exactly the heating.  Hourglass penalty (``alpha`` > 0):
     :func:`hourglass_pair`, its power shared by the pair and taken from their internal
     energies, ``de_i/dt -= 1/2 f_i . (v_i - v_j) / m_i``, so the total energy is kept and a
-    rigid translation is not heated."""
+    rigid translation is not heated.  ``Fdot`` and ``tau`` (per particle, s): the penalty's
+    dashpot (:func:`hourglass_pair`; None: none)."""
+    if tau is None:
+        Fdot, tau = F, np.zeros(x.shape[0])
     compiled_passes(x.shape[1]).force_pass(
         n_active, x, v, X, V0, m, h, rho, material, table, offsets, neighbours, grad, w, dw, F,
-        Q, visc, alpha, dv, de, de_visc)
+        Q, visc, alpha, dv, de, de_visc, Fdot, tau)
 
 
 def reference_pairs(X: np.ndarray, h: np.ndarray, body: np.ndarray
