@@ -285,3 +285,11 @@ def test_penalty_settings_must_be_positive(field):
                                    "geometry": {"origin": [0.0], "size": [1.0],
                                                 "spacing": 0.1}}],
                        "contact": {field: 0.0}, "time": {"end": 1.0}})
+
+
+def test_figures_say_total_lagrangian():
+    from impactsph.plotting import label_of
+
+    assert label_of(load_case("bars", ["formulation=total_lagrangian"])) == \
+        "AV (0.3, 0.3), total-Lagrangian"
+    assert label_of(load_case("bars")) == "AV (0.3, 0.3)"

@@ -90,7 +90,8 @@ ENERGY_PANELS = 4
 
 def label_of(case: Any) -> str:
     """Short label of a run's viscosity settings, e.g. ``AV (0.3, 0.3)``, ``AC (shepard)``,
-    ``balsara (1, 1)``: another scheme by its name and the coefficients its pair term uses."""
+    ``balsara (1, 1)``: another scheme by its name and the coefficients its pair term uses;
+    ``, total-Lagrangian`` after it for that formulation."""
     from .models import VISCOSITY
 
     v = case.viscosity
@@ -100,7 +101,9 @@ def label_of(case: Any) -> str:
     name = "AV" if v.scheme == "av" else v.scheme
     limiter = getattr(v, "limiter", "van_leer")
     suffix = f", {limiter}" if limiter != "van_leer" else ""
-    return f"{name} ({alpha1:g}, {alpha2:g}{suffix})"
+    formulation = (", total-Lagrangian"
+                   if getattr(case, "formulation", "") == "total_lagrangian" else "")
+    return f"{name} ({alpha1:g}, {alpha2:g}{suffix}){formulation}"
 
 
 def shapes_figure(runs: list[dict[str, Any]], path: Path, title: str, *,
