@@ -196,6 +196,21 @@ def deform_particle(i, x, v, V0, m, rho, pressure, S, damage, material, table, o
 
 
 @nb.njit(inline="always", cache=True)
+def pair_error(G, y, X, x, i, j, inv_r, dim) -> float:
+    """``((G_i + G_j) X_ij - 2 y_ij) . e`` with ``X_ij = X_j - X_i``, ``y_ij = y_j - y_i`` and
+    ``e = (x_j - x_i) inv_r``: the pair's error against the two particles' linear predictions
+    (``G = F``, ``y = x``: :func:`hourglass_pair`'s ``delta``; ``G = Fdot``, ``y = v``: its
+    rate, the direction held)."""
+    error = 0.0
+    for a in range(dim):
+        pred = 0.0
+        for b in range(dim):
+            pred += (G[i, a, b] + G[j, a, b]) * (X[j, b] - X[i, b])
+        error += (pred - 2.0 * (y[j, a] - y[i, a])) * (x[j, a] - x[i, a]) * inv_r
+    return error
+
+
+@nb.njit(inline="always", cache=True)
 def hourglass_pair(alpha, youngs, V0i, V0j, w0, X, x, F, i, j, out, dim, v, Fdot,
                    tau) -> float:
     """Ganzenmueller's (2015, section 3) hourglass penalty of the pair ``ij`` on ``i`` into
@@ -223,20 +238,9 @@ def hourglass_pair(alpha, youngs, V0i, V0j, w0, X, x, F, i, j, out, dim, v, Fdot
             out[a] = 0.0
         return 0.0
     inv_r = 1.0 / math.sqrt(r2)
-    delta = 0.0
-    for a in range(dim):
-        pred = 0.0
-        for b in range(dim):
-            pred += (F[i, a, b] + F[j, a, b]) * (X[j, b] - X[i, b])
-        delta += (pred - 2.0 * (x[j, a] - x[i, a])) * (x[j, a] - x[i, a]) * inv_r
+    delta = pair_error(F, x, X, x, i, j, inv_r, dim)
     if tau > 0.0:
-        rate = 0.0
-        for a in range(dim):
-            pred = 0.0
-            for b in range(dim):
-                pred += (Fdot[i, a, b] + Fdot[j, a, b]) * (X[j, b] - X[i, b])
-            rate += (pred - 2.0 * (v[j, a] - v[i, a])) * (x[j, a] - x[i, a]) * inv_r
-        delta += tau * rate
+        delta += tau * pair_error(Fdot, v, X, x, i, j, inv_r, dim)
     coef = -0.5 * alpha * youngs * V0i * V0j * w0 / R2 * delta
     for a in range(dim):
         out[a] = coef * (x[j, a] - x[i, a]) * inv_r
