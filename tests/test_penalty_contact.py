@@ -302,3 +302,14 @@ def test_figures_say_total_lagrangian():
     assert label_of(load_case("bars", ["formulation=total_lagrangian"])) == \
         "AV (0.3, 0.3), total-Lagrangian"
     assert label_of(load_case("bars")) == "AV (0.3, 0.3)"
+
+
+def test_preflight_counts_the_hourglass_limit():
+    """The estimate's step is the run's: eq 26 with the dashpot, the penalty's limit without."""
+    damped = runner.invoke(app, ["check", "bars", "--set", "formulation=total_lagrangian"])
+    undamped = runner.invoke(app, ["check", "bars", "--set", "formulation=total_lagrangian",
+                                   "--set", "stabilisation.tl_hourglass_damping=0"])
+    assert "by eq 26" in damped.output
+    assert "by the hourglass penalty's limit" in undamped.output
+    _, sim = bars_summary(2e-4, "stabilisation.tl_hourglass_damping=0", "time.end=1e-7")
+    assert f"of dt = {sim.solver.max_time_step:.3g} s" in undamped.output

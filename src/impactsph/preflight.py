@@ -129,6 +129,7 @@ class Estimate:
     pair_rate_source: str
     seconds: float  #: wall time of the steps (compilation excluded)
     runs: int = 1  #: 2 with a reference run (output.reference_viscosity)
+    dt_source: str = "eq 26"  #: what set ``dt``
 
     @property
     def total(self) -> int:
@@ -148,7 +149,8 @@ class Estimate:
             + ("two runs, the case's and its reference_viscosity's, each " if self.runs > 1
                else "")
             + f"{self.steps:,} steps of "
-            f"dt = {self.dt:.3g} s by eq 26, {self.pairs_per_particle:.3g} pairs per particle, "
+            f"dt = {self.dt:.3g} s by {self.dt_source}, {self.pairs_per_particle:.3g} pairs per "
+            f"particle, "
             f"{self.pair_rate:.3g} pairs/s {self.pair_rate_source}; an estimate, compilation "
             f"excluded)",
         ]
@@ -438,11 +440,11 @@ def history_values(case: Case, steps: int) -> int:
     return rows * columns + (steps + 1) * probes + (steps + 1) * gauges
 
 
-def initial_time_step(case: Case) -> float:
+def initial_time_step(case: Case, *, cfl_only: bool = False) -> float:
     """The CFL step of eq 26 at t = 0, ``courant * min h / (c + |v|)`` over the bodies (a tip
     mass's velocity counted at its arrival speed, an upper bound), and in the
     total-Lagrangian formulation at most its hourglass penalty's step
-    (:func:`impactsph.tl_solver.lattice_hourglass_step`)."""
+    (:func:`impactsph.tl_solver.lattice_hourglass_step`; ``cfl_only``: eq 26 alone)."""
     from .materials import resolve_material
 
     dt = math.inf
@@ -454,7 +456,8 @@ def initial_time_step(case: Case) -> float:
             speed = max(speed, float(np.linalg.norm(body.tip_mass.velocity)))
         h = case.kernel.h_over_dx * body_spacing(body.geometry)
         dt = min(dt, case.time.courant * h / (c + speed))
-        if case.formulation == "total_lagrangian" and case.stabilisation.tl_hourglass > 0.0:
+        if (case.formulation == "total_lagrangian" and case.stabilisation.tl_hourglass > 0.0
+                and not cfl_only):
             from .tl_solver import lattice_hourglass_step  # its penalty's own limit
 
             dt = min(dt, lattice_hourglass_step(
@@ -513,7 +516,8 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
                     neighbours=neighbours, pairs_per_particle=pairs_per_particle,
                     ghosts=ghosts, memory=memory, available=available_memory(), dt=dt,
                     steps=steps, pair_rate=rate, pair_rate_source=source, seconds=seconds,
-                    runs=runs)
+                    runs=runs, dt_source="eq 26" if dt >= initial_time_step(case, cfl_only=True)
+                    else "the hourglass penalty's limit")
 
 
 def memory_check(case: Case, est: Estimate) -> Finding | None:
