@@ -74,3 +74,30 @@ def test_sphere_geometry_volume():
         p = sphere_particles([0.0, 0.0, 0.0], radius, spacing)
         assert p.volume.sum() == pytest.approx(4 / 3 * math.pi * radius**3, rel=0.03)
         assert np.allclose(p.position.mean(axis=0), 0.0, atol=1e-15)
+
+
+def test_sphere_shells_are_round_and_exact():
+    """The shell arrangement: the volume exact, the outermost particles on a round surface
+    half a spacing inside, neighbours about a spacing apart, the centre of mass at the
+    centre."""
+    from scipy.spatial import cKDTree
+
+    from impactsph.geometry import sphere_shell_particles
+
+    for radius, spacing in ((0.005, 0.0005), (0.005, 0.00025)):
+        p = sphere_shell_particles([1.0, 2.0, 3.0], radius, spacing)
+        assert p.volume.sum() == pytest.approx(4 / 3 * math.pi * radius**3, rel=1e-12)
+        r = np.linalg.norm(p.position - [1.0, 2.0, 3.0], axis=1)
+        assert r.max() == pytest.approx(radius - p.spacing / 2, rel=1e-12)
+        assert np.allclose(p.position.mean(axis=0), [1.0, 2.0, 3.0], atol=0.05 * spacing)
+        nearest, _ = cKDTree(p.position).query(p.position, k=2)
+        assert 0.7 * p.spacing < nearest[:, 1].min() and nearest[:, 1].max() < 1.05 * p.spacing
+        assert p.volume.min() > 0.98 * p.spacing**3 and p.volume.max() < 1.06 * p.spacing**3
+        # round: the outermost shell on one sphere, and no facet: one particle lowest, where
+        # the lattice's lowest layer is flat (32 particles at r = 10 dx)
+        outer = r > radius - p.spacing
+        np.testing.assert_allclose(r[outer], radius - p.spacing / 2, rtol=1e-12)
+        z = p.position[:, 2]
+        assert (z < z.min() + 1e-9 * spacing).sum() == 1
+    lattice = sphere_particles([0.0, 0.0, 0.0], 0.005, 0.0005).position[:, 2]
+    assert (lattice < lattice.min() + 1e-12).sum() == 32

@@ -231,12 +231,19 @@ class Ring(_Model):
 class Sphere(_Model):
     """A ball of particles (3D): the cell centres of a cubic lattice of spacing ``spacing``,
     with a cell corner at ``centre``, that lie within ``radius`` of it (each of volume
-    ``dx^3``)."""
+    ``dx^3``); or, with ``arrangement = "shells"``, concentric shells whose outermost lies half
+    a spacing inside the sphere (:func:`impactsph.geometry.sphere_shell_particles`)."""
 
     type: Literal["sphere"] = "sphere"
     centre: list[FiniteFloat] = Field(description="centre of the sphere (m)")
     radius: PositiveFloat = Field(description="radius (m)")
     spacing: PositiveFloat = Field(description="particle spacing dx (m)")
+    arrangement: Literal["lattice", "shells"] = Field(
+        "lattice", description="'lattice': the cubic lattice's cells within the radius (a "
+        "staircase surface, flat facets at the poles); 'shells': round(radius / spacing) "
+        "concentric shells of equal thickness, each with points spread evenly over it (a "
+        "Fibonacci spiral) and its volume shared among them, so that the surface is round "
+        "and the volume exact (a body whose curved surface meets another: contact)")
 
     def spacings(self) -> list[float]:
         """Particle spacing along each axis (m)."""

@@ -112,6 +112,39 @@ def sphere_particles(centre: list[float], radius: float, spacing: float) -> Part
     return Particles(x, np.full(x.shape[0], spacing**3), float(spacing))
 
 
+def fibonacci_sphere(n: int, turn: float = 0.0) -> np.ndarray:
+    """``n`` points spread evenly over the unit sphere (n, 3): the Fibonacci spiral, each point
+    at an equal share of the area (``z = 1 - (2i + 1) / n``) and the golden angle from the
+    last, the whole turned by ``turn`` (rad) about z."""
+    i = np.arange(n)
+    z = 1.0 - (2.0 * i + 1.0) / n
+    rho = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = i * math.pi * (3.0 - math.sqrt(5.0)) + turn
+    return np.stack([rho * np.cos(phi), rho * np.sin(phi), z], axis=1)
+
+
+def sphere_shell_particles(centre: list[float], radius: float, spacing: float) -> Particles:
+    """A ball (3D) of ``K = round(radius / spacing)`` concentric shells of thickness ``dr =
+    radius / K``: shell ``k`` (0 to K - 1) at ``(k + 1/2) dr`` from the centre holds ``round(V_k
+    / dr^3)`` points (at least one) of a Fibonacci spiral (:func:`fibonacci_sphere`, each
+    shell turned by the golden angle from the last), which share its volume ``V_k = 4/3 pi
+    ((k + 1)^3 - k^3) dr^3``.  The volumes add up to ``4/3 pi r^3`` exactly; the outermost
+    particles lie half a spacing inside the surface, on a round one (the lattice's sphere has
+    flat facets at its poles: docs/stabilisation.md, "Contact between total-Lagrangian
+    bodies")."""
+    shells = max(1, round(radius / spacing))
+    dr = radius / shells
+    points, volumes = [], []
+    for k in range(shells):
+        shell_volume = 4.0 / 3.0 * math.pi * ((k + 1) ** 3 - k**3) * dr**3
+        count = max(1, round(shell_volume / dr**3))
+        turn = k * math.pi * (3.0 - math.sqrt(5.0))
+        points.append(fibonacci_sphere(count, turn) * (k + 0.5) * dr)
+        volumes.append(np.full(count, shell_volume / count))
+    x = np.asarray(centre, dtype=np.float64) + np.concatenate(points)
+    return Particles(x, np.concatenate(volumes), float(dr))
+
+
 def cylinder_particles(centre: list[float], radius: float, length: float, axis: str,
                        spacing: float) -> Particles:
     """A circular cylinder (3D) along ``axis`` (``"x"``, ``"y"`` or ``"z"``) from the base
@@ -193,6 +226,8 @@ def body_particles(geometry: Any, dim: int, where: str = "geometry") -> Particle
         return ring_particles(geometry.centre, geometry.inner_radius, geometry.outer_radius,
                               geometry.spacing)
     if kind == "sphere":
+        if geometry.arrangement == "shells":
+            return sphere_shell_particles(geometry.centre, geometry.radius, geometry.spacing)
         return sphere_particles(geometry.centre, geometry.radius, geometry.spacing)
     if kind == "cylinder":
         return cylinder_particles(geometry.centre, geometry.radius, geometry.length,
