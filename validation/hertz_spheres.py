@@ -13,7 +13,8 @@ valid while the contact lasts many times the time a wave takes to cross a sphere
 spheres are steel-like, elastic with a linear equation of state, 10 mm across, at +-50 m/s,
 starting a quarter spacing apart.
 
-    .venv/bin/python validation/hertz_spheres.py 6 10 15 [--json PATH]
+    .venv/bin/python validation/hertz_spheres.py 6 10 15 [--arrangement lattice|shells]
+        [--formulation total_lagrangian|updated_lagrangian] [--json PATH]
 
 The arguments are the radius in particle spacings.  Prints, per resolution, the contact time,
 the greatest contact force and the rebound against Hertz's, and the energy error.
@@ -51,13 +52,14 @@ def hertz() -> dict[str, float]:
             "max_approach": delta, "contact_radius": math.sqrt(r_star * delta)}
 
 
-def case(radius_in_spacings: float, end: float, arrangement: str = "shells") -> dict:
+def case(radius_in_spacings: float, end: float, arrangement: str = "shells",
+         formulation: str = "total_lagrangian") -> dict:
     dx = RADIUS / radius_in_spacings
     centre = RADIUS + 0.125 * dx
     material = {"model": "elastic", "density": RHO, "youngs_modulus": E, "poisson_ratio": NU,
                 "eos": "linear"}
     return {
-        "name": "hertz_spheres", "dimension": 3, "formulation": "total_lagrangian",
+        "name": "hertz_spheres", "dimension": 3, "formulation": formulation,
         "materials": {"steel": material},
         "bodies": [{"name": name, "material": "steel", "velocity": [0.0, 0.0, speed],
                     "geometry": {"type": "sphere", "centre": [0.0, 0.0, z], "radius": RADIUS,
@@ -70,13 +72,14 @@ def case(radius_in_spacings: float, end: float, arrangement: str = "shells") -> 
         "output": {"figures": False, "history_every": 1}}
 
 
-def measure(radius_in_spacings: float, arrangement: str = "shells") -> dict:
+def measure(radius_in_spacings: float, arrangement: str = "shells",
+            formulation: str = "total_lagrangian") -> dict:
     from impactsph import Simulation
     from impactsph.loading import validate_case
 
     theory = hertz()
     sim = Simulation(validate_case(case(radius_in_spacings, 1.6 * theory["contact_time"],
-                                        arrangement)))
+                                        arrangement, formulation)))
     start = time.perf_counter()
     sim.run()
     seconds = time.perf_counter() - start
@@ -90,6 +93,7 @@ def measure(radius_in_spacings: float, arrangement: str = "shells") -> dict:
     v_upper = float(np.average(s.velocity[upper, 2], weights=s.mass[upper]))
     summary = sim.summary()
     return {"radius_in_spacings": radius_in_spacings, "arrangement": arrangement,
+            "formulation": formulation,
             "particles": int(s.n),
             "steps": int(s.step), "contact_time": contact_time,
             "contact_time_error": contact_time / theory["contact_time"] - 1.0,
@@ -105,6 +109,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("radii", nargs="+", type=float, help="sphere radius in spacings")
     parser.add_argument("--arrangement", choices=("shells", "lattice"), default="shells",
                         help="the spheres' particles (geometry.arrangement; default shells)")
+    parser.add_argument("--formulation", choices=("total_lagrangian", "updated_lagrangian"),
+                        default="total_lagrangian",
+                        help="the case's formulation (default total_lagrangian; "
+                        "updated_lagrangian: the kernel's contact, the elastic defaults)")
     parser.add_argument("--json", help="write the rows here")
     args = parser.parse_args(argv)
     theory = hertz()
@@ -113,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
           f"contact radius {theory['contact_radius'] / RADIUS:.3f} R")
     rows = []
     for radius in args.radii:
-        row = measure(radius, args.arrangement)
+        row = measure(radius, args.arrangement, args.formulation)
         rows.append(row)
         print(json.dumps(row), flush=True)
     if args.json:
