@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 
 from impactsph import Simulation
 from impactsph.cli import app
+from impactsph.errors import CaseError
 from impactsph.kernels import cubic_spline
 from impactsph.loading import load_case, validate_case
 from impactsph.materials import BULK, RHO0, YOUNGS
@@ -286,7 +287,7 @@ def test_two_tl_bodies_run_and_friction_is_refused(tmp_path):
 
 @pytest.mark.parametrize("field", ["penalty_stiffness", "penalty_distance"])
 def test_penalty_settings_must_be_positive(field):
-    with pytest.raises(Exception, match=field):
+    with pytest.raises(CaseError, match=field):
         validate_case({"name": "x", "dimension": 1, "formulation": "total_lagrangian",
                        "materials": {"s": {"model": "elastic", "density": 1.0,
                                            "youngs_modulus": 1.0, "poisson_ratio": 0.0}},

@@ -311,16 +311,31 @@ class NeighbourList:
             self.inner_offsets, self.inner_indices = new.inner_offsets, new.inner_indices
             self.builds += 1
 
+    def particle_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every stored ordered pair as particle numbers ``(rows, cols)`` (int64 arrays)."""
+        rows = np.repeat(self.order, np.diff(self.offsets)).astype(np.int64)
+        return rows, self.order[self.indices].astype(np.int64)
+
     def pairs(self) -> set[tuple[int, int]]:
         """All stored ordered pairs ``(i, j)`` of particle numbers (for tests: O(pairs))."""
-        rows = np.repeat(self.order, np.diff(self.offsets))
-        cols = self.order[self.indices]
+        rows, cols = self.particle_pairs()
         return set(zip(rows.tolist(), cols.tolist(), strict=True))
 
     @property
     def n_pairs(self) -> int:
         """Number of ordered pairs (i, j) stored."""
         return int(self.indices.shape[0])
+
+
+def particle_order_list(rows: np.ndarray, cols: np.ndarray, n: int
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """The ordered pairs ``(rows, cols)`` of ``n`` particles as a list in particle order (CSR:
+    the neighbours of ``i`` are ``indices[offsets[i]:offsets[i + 1]]``, increasing), so that a
+    sum over them does not depend on the order in which a cell list found them."""
+    sort = np.lexsort((cols, rows))
+    offsets = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(rows, minlength=n), out=offsets[1:])
+    return offsets, cols[sort].astype(np.int32)
 
 
 def brute_force_pairs(x: np.ndarray, radius: float) -> set[tuple[int, int]]:

@@ -287,7 +287,7 @@ class Simulation:
             s.deviatoric_stress, s.mass, s.added_mass, s.smoothing_length, s.material,
             self.problem.table, self.case.time.courant, float(self.case.stabilisation.hourglass))
         # a solver's own limit (the total-Lagrangian hourglass penalty's)
-        dt = min(float(dt), getattr(self.solver, "max_time_step", math.inf))
+        dt = min(float(dt), self.solver.max_time_step)
         return Survey(dt, float(sums[0]), float(sums[1]), sums[2: 2 + s.dim].copy(),
                       int(bad))
 

@@ -106,6 +106,9 @@ class Solver:
     (:func:`impactsph.boundaries.layer_push`), 0 for none.
     """
 
+    #: no step limit of its own beyond eq 26 (the total-Lagrangian solver has one)
+    max_time_step: float = float("inf")
+
     def __init__(self, state: ParticleState, table: np.ndarray, viscosity: ViscositySettings,
                  walls: Walls | None = None, skin_fraction: float = 0.1, backend=None,
                  hourglass: float = 0.0, wall_layer: float = 0.0):

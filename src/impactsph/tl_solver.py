@@ -70,8 +70,9 @@ def hourglass_frequency(ref: SimpleNamespace, m: np.ndarray, material: np.ndarra
                         table: np.ndarray, alpha: float) -> np.ndarray:
     """Each particle's frequency (rad/s) in a zig-zag mode held by the hourglass penalty alone
     (:func:`impactsph.physics.total_lagrangian.hourglass_pair`: a spring ``k_ij = alpha E
-    V0_i V0_j W_ij / |X_ij|^2`` per reference pair, and a neighbour's displacement opposite to
-    the particle's own doubling the stretch)::
+    V0_i V0_j W_ij / |X_ij|^2`` per reference pair, ``E`` the pair's mean Young's modulus as
+    there, and a neighbour's displacement opposite to the particle's own doubling the
+    stretch)::
 
         omega_i^2 = 2 sum_j k_ij / m_i
 
@@ -83,7 +84,7 @@ def hourglass_frequency(ref: SimpleNamespace, m: np.ndarray, material: np.ndarra
     cols = ref.neighbours
     R2 = ((ref.X[rows] - ref.X[cols]) ** 2).sum(axis=1)
     youngs = table[material, YOUNGS]
-    k = alpha * youngs[rows] * ref.V0[rows] * ref.V0[cols] * ref.w / R2
+    k = alpha * 0.5 * (youngs[rows] + youngs[cols]) * ref.V0[rows] * ref.V0[cols] * ref.w / R2
     return np.sqrt(2.0 * np.bincount(rows, weights=k, minlength=n) / m)
 
 

@@ -39,7 +39,7 @@ import numba as nb
 import numpy as np
 
 from ..materials import BULK, RHO0
-from ..neighbours import NeighbourList
+from ..neighbours import NeighbourList, particle_order_list
 
 
 def contact_diameters(m: np.ndarray, material: np.ndarray, table: np.ndarray, dim: int,
@@ -51,15 +51,9 @@ def contact_diameters(m: np.ndarray, material: np.ndarray, table: np.ndarray, di
 def contact_pairs(nl: NeighbourList, body: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The pairs of different bodies of a neighbour list, as a list in particle order (CSR:
     the candidates of ``i`` are ``partners[offsets[i]:offsets[i + 1]]``, increasing)."""
-    n = nl.offsets.shape[0] - 1
-    rows = np.repeat(nl.order, np.diff(nl.offsets)).astype(np.int64)
-    cols = nl.order[nl.indices].astype(np.int64)
+    rows, cols = nl.particle_pairs()
     keep = body[rows] != body[cols]
-    rows, cols = rows[keep], cols[keep]
-    sort = np.lexsort((cols, rows))
-    offsets = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(rows, minlength=n), out=offsets[1:])
-    return offsets, cols[sort].astype(np.int32)
+    return particle_order_list(rows[keep], cols[keep], nl.offsets.shape[0] - 1)
 
 
 @nb.njit(inline="always", cache=True)

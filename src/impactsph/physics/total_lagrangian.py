@@ -343,7 +343,7 @@ def deformation_pass(n_active, x, v, V0, m, rho, pressure, S, damage, material, 
 
 
 def force_pass(n_active, x, v, X, V0, m, h, rho, material, table, offsets, neighbours, grad,
-               w, dw, F, Q, visc, alpha, dv, de, de_visc, Fdot=None, tau=None) -> None:
+               w, dw, F, Q, visc, alpha, dv, de, de_visc, Fdot, tau) -> None:
     """(TL-7), the artificial viscosity and the hourglass penalty for every active particle:
     sets ``dv`` and ``de_visc``, adds to ``de``.
 
@@ -357,10 +357,8 @@ def force_pass(n_active, x, v, X, V0, m, h, rho, material, table, offsets, neigh
     antisymmetric, its power exactly the heating.  Hourglass penalty (``alpha`` > 0):
     :func:`hourglass_pair`, its power shared by the pair and taken from their internal
     energies, ``de_i/dt -= 1/2 f_i . (v_i - v_j) / m_i``, so the total energy is kept and a
-    rigid translation is not heated.  ``Fdot`` and ``tau`` (per particle, s): the penalty's
-    dashpot (:func:`hourglass_pair`; None: none)."""
-    if tau is None:
-        Fdot, tau = F, np.zeros(x.shape[0])
+    rigid translation is not heated.  ``Fdot`` and ``tau`` (per particle, s; zeros for none):
+    the penalty's dashpot (:func:`hourglass_pair`)."""
     compiled_passes(x.shape[1]).force_pass(
         n_active, x, v, X, V0, m, h, rho, material, table, offsets, neighbours, grad, w, dw, F,
         Q, visc, alpha, dv, de, de_visc, Fdot, tau)
@@ -372,19 +370,13 @@ def reference_pairs(X: np.ndarray, h: np.ndarray, body: np.ndarray
     ``neighbours[offsets[i]:offsets[i + 1]]``): the pairs of the same body with ``|X_i -
     X_j| < 2 h_ij``, found once (``impactsph.neighbours.NeighbourList``)."""
     from impactsph.kernels import SUPPORT_RADIUS
-    from impactsph.neighbours import NeighbourList
+    from impactsph.neighbours import NeighbourList, particle_order_list
 
-    n = X.shape[0]
     nl = NeighbourList.build(X, SUPPORT_RADIUS * float(h.max()), 0.0)
-    rows = np.repeat(nl.order, np.diff(nl.offsets)).astype(np.int64)
-    cols = nl.order[nl.indices].astype(np.int64)
+    rows, cols = nl.particle_pairs()
     r = np.linalg.norm(X[rows] - X[cols], axis=1)
     keep = (body[rows] == body[cols]) & (r < SUPPORT_RADIUS * 0.5 * (h[rows] + h[cols]))
-    rows, cols = rows[keep], cols[keep]
-    sort = np.lexsort((cols, rows))
-    offsets = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(rows, minlength=n), out=offsets[1:])
-    return offsets, cols[sort].astype(np.int32)
+    return particle_order_list(rows[keep], cols[keep], X.shape[0])
 
 
 def reference_volumes(m: np.ndarray, material: np.ndarray, table: np.ndarray) -> np.ndarray:
