@@ -6,6 +6,8 @@ elastic solution at three spacings, and the rubber rings."""
 from __future__ import annotations
 
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -162,15 +164,18 @@ def test_tl_bars_meet_and_part_as_the_exact_solution(tl_bars):
         assert run["momentum_drift"] <= 1e-12
     error = {k: abs(run["contact_time_us"] / run["contact_time_theory_us"] - 1.0)
              for k, run in (("coarse", coarse), ("fine", fine))}
-    assert error["coarse"] <= 0.05  # measured +3.2% and +1.4%
+    # measured +0.38% and -0.07% (with Hertz's law between the particles, k = 1: +3.0% and
+    # +1.3%, the contact's compliance parting them late)
+    assert error["coarse"] <= 0.01
     assert error["fine"] < error["coarse"]
     assert fine["velocity_profile_l1_error"] < coarse["velocity_profile_l1_error"]
     assert fine["mid_velocity_l1_error"] < coarse["mid_velocity_l1_error"]
     for run in (coarse, fine):  # the bars' velocities reversed
         assert run["final_velocity_left"] == pytest.approx(-50.0, rel=0.03)
         assert run["final_velocity_right"] == pytest.approx(50.0, rel=0.03)
-    # they separate elastically: most of the kinetic energy comes back (0.970, 0.973)
-    assert fine["kinetic_energy_ratio_final"] >= coarse["kinetic_energy_ratio_final"] >= 0.95
+    # they separate elastically: most of the kinetic energy comes back, more at the finer
+    # spacing (0.946, 0.959; the viscosity takes the rest from the stiff contact's ringing)
+    assert fine["kinetic_energy_ratio_final"] > coarse["kinetic_energy_ratio_final"] >= 0.94
     # while they push, the contact carries the exact impact stress rho c V (per unit area in
     # 1D; measured 1.0048 of it at both spacings)
     history = sim.record.history
@@ -314,3 +319,23 @@ def test_preflight_counts_the_hourglass_limit():
     assert "by the hourglass penalty's limit" in undamped.output
     _, sim = bars_summary(2e-4, "stabilisation.tl_hourglass_damping=0", "time.end=1e-7")
     assert f"of dt = {sim.solver.max_time_step:.3g} s" in undamped.output
+
+
+@pytest.mark.slow
+def test_tl_spheres_approach_hertz():
+    """Two round elastic spheres (validation/hertz_spheres.py: 10 mm across, 100 m/s apart) in
+    the total-Lagrangian formulation with the default penalty contact: the contact time and
+    the greatest force converge on Hertz's impact theory as the spheres are refined (measured
+    +15.7% and +5.9% at 6 and 8 spacings per radius, +1.0% at 10, -0.1% at 20; with Hertz's
+    law between the particles, k = 1: +35%, +25%, +22%, +37%)."""
+    sys.path.insert(0, str(Path(__file__).parent.parent / "validation"))
+    import hertz_spheres
+
+    rows = [hertz_spheres.measure(radius) for radius in (6.0, 8.0)]
+    for row in rows:
+        assert row["total_energy_relative_error"] <= 1e-3
+        assert row["momentum_drift"] <= 1e-12
+    coarse, fine = (abs(row["contact_time_error"]) for row in rows)
+    assert fine < coarse
+    assert fine <= 0.10
+    assert abs(rows[1]["max_force_error"]) < abs(rows[0]["max_force_error"])

@@ -447,6 +447,12 @@ AUTO_HOURGLASS = 2.0
 TL_HOURGLASS = 10.0
 #: the dashpot's damping ratio beside it (docs/stabilisation.md, "Total-Lagrangian formulation")
 TL_HOURGLASS_DAMPING = 0.5
+#: the factor k of the penalty contact between total-Lagrangian bodies: Hertz's law between
+#: the particles' spheres (k = 1) is too soft where the bodies press at a sizeable share of
+#: their bulk modulus; k = 4 meets Hertz's contact time between two spheres within 1% at
+#: 10-20 spacings per radius and the colliding bars' 2 L / c within 0.4% (docs/stabilisation.md,
+#: "Contact between total-Lagrangian bodies")
+PENALTY_STIFFNESS = 4.0
 
 
 class Stabilisation(_Model):
@@ -530,11 +536,13 @@ class Contact(_Model):
         "as heat in the two particles (impactsph.physics.contact); 0 is frictionless. A "
         "wall's friction is the wall's own 'friction'")
     penalty_stiffness: PositiveFloat = Field(
-        1.0, description="factor k on the penalty contact between total-Lagrangian bodies "
-        "(impactsph.physics.penalty_contact): a pair of particles of different bodies closer "
-        "than their contact diameter is pushed apart by Hertz's force 2/3 k K* d^(dim-1) "
-        "(delta/d)^(3/2), K* the two bulk moduli in series, its work booked in their internal "
-        "energies; used by formulation = 'total_lagrangian' only")
+        PENALTY_STIFFNESS, description="factor k on the penalty contact between "
+        "total-Lagrangian bodies (impactsph.physics.penalty_contact): a pair of particles of "
+        "different bodies closer than their contact diameter is pushed apart by Hertz's "
+        "force 2/3 k K* d^(dim-1) (delta/d)^(3/2), K* the two bulk moduli in series, its "
+        "work booked in their internal energies; 4 (chosen on Hertz's spheres and the "
+        "colliding bars) is stiffer than Hertz's law between the particles (1); used by "
+        "formulation = 'total_lagrangian' only")
     penalty_distance: PositiveFloat = Field(
         1.0, description="contact diameter of the penalty contact between total-Lagrangian "
         "bodies, in particle spacings (m/rho0)^(1/dim): 1 puts the contact where the bodies' "

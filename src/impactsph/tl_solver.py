@@ -21,6 +21,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from .boundaries import Walls, layer_push
+from .config import PENALTY_STIFFNESS
 from .errors import CaseError
 from .kernels import SUPPORT_RADIUS
 from .materials import YOUNGS, carried_pressure
@@ -126,7 +127,7 @@ class TotalLagrangianSolver:
 
     def __init__(self, state: ParticleState, table: np.ndarray, viscosity: ViscositySettings,
                  walls: Walls | None = None, hourglass: float = 0.0, wall_layer: float = 0.0,
-                 penalty_stiffness: float = 1.0, penalty_distance: float = 1.0,
+                 penalty_stiffness: float = PENALTY_STIFFNESS, penalty_distance: float = 1.0,
                  hourglass_damping: float = 0.0):
         self.table = table
         self.viscosity = viscosity
