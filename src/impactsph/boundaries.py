@@ -378,7 +378,7 @@ LAYER_DAMPING = 0.5
 
 
 @nb.njit(inline="always", cache=True)
-def layer_push_particle(i, x, v, m, material, table, points, normals, layer, dv, de, soft,
+def layer_push_particle(i, x, v, m, material, table, points, normals, layer, dv, de,
                         per_radian, force):
     """:func:`layer_push` on particle ``i``: its push added to ``dv[i]``, ``de[i]`` and its
     force (N) to ``force`` (the CPU loop and the kernel of :mod:`impactsph.gpu_step` call
@@ -398,13 +398,8 @@ def layer_push_particle(i, x, v, m, material, table, points, normals, layer, dv,
             vn += v[i, a] * normals[w, a]
         if d >= r0:
             continue
-        if soft:
-            omega = 0.5 * math.sqrt(table[k, BULK] / rho0) / dx
-            push = omega * omega * (r0 - d) - (2.0 * LAYER_DAMPING * omega * vn
-                                               * (r0 - d) / r0)
-        else:
-            omega = math.sqrt(table[k, BULK] / (rho0 * r0 * dx))
-            push = omega * omega * (r0 - d) - 2.0 * LAYER_DAMPING * omega * vn
+        omega = math.sqrt(table[k, BULK] / (rho0 * r0 * dx))
+        push = omega * omega * (r0 - d) - 2.0 * LAYER_DAMPING * omega * vn
         if push <= 0.0:
             continue
         for a in range(dim):
@@ -414,7 +409,7 @@ def layer_push_particle(i, x, v, m, material, table, points, normals, layer, dv,
 
 
 @nb.njit(parallel=True, cache=True)
-def layer_push(n, x, v, m, material, table, points, normals, layer, dv, de, soft=False,
+def layer_push(n, x, v, m, material, table, points, normals, layer, dv, de,
                per_radian=False):
     """The wall layer's push on the first ``n`` particles, added to ``dv`` and ``de``; returns
     the total force on them (N, or N per metre of depth in 2D).
@@ -434,18 +429,8 @@ def layer_push(n, x, v, m, material, table, points, normals, layer, dv, de, soft
     leaves; the dashpot's work stays there as heat.
 
     ``per_radian``: an axisymmetric run, whose masses are per radian (the spacing is then ``(m_i /
-    (rho0_i r_i))^(1/2)``).  ``soft``: the layer of a total-Lagrangian body, which has no wall
-    ghosts, so the layer carries the whole load.  The spring is a quarter of one spacing's bulk
-    stiffness and the dashpot grows with the penetration (Hunt & Crossley 1975), so the push starts
-    from zero at the layer's edge::
-
-        omega = c_K / (2 dx_i),   c_K^2 = K / rho0
-        dv_i/dt += max(0, omega^2 delta - 2 zeta omega v_n delta / r0) n
-
-    With the stiff layer alone a steel block thrown at a wall lost 8-12% of its energy to the
-    midpoint rule (its bottom row rang in 4-6 steps); with this one 9e-4 at 10 and at
-    100 m/s (``tests/test_total_lagrangian.py``).  A particle reaches the plane only above a
-    contact stress of about ``K/16`` (the integrator's constraint then holds it)."""
+    (rho0_i r_i))^(1/2)``).  (A total-Lagrangian body, which has no wall ghosts, meets a wall
+    through :func:`impactsph.physics.penalty_contact.hertz_wall` instead.)"""
     dim = x.shape[1]
     chunk = 1024
     n_chunks = max(1, (n + chunk - 1) // chunk)
@@ -453,7 +438,7 @@ def layer_push(n, x, v, m, material, table, points, normals, layer, dv, de, soft
     for c in nb.prange(n_chunks):
         for i in range(c * chunk, min((c + 1) * chunk, n)):
             layer_push_particle(i, x, v, m, material, table, points, normals, layer, dv, de,
-                                soft, per_radian, part[c])
+                                per_radian, part[c])
     total = np.zeros(dim)
     for c in range(n_chunks):
         for a in range(dim):

@@ -529,7 +529,9 @@ class Contact(_Model):
         "penalty layer: a spring as stiff as the material (bulk modulus) and a dashpot that "
         "push a particle closer than this to a wall back off it, their work booked in its "
         "internal energy (impactsph.boundaries.layer_push); it holds a layer that thins as it "
-        "spreads along the wall, which the ghosts alone let through; 0 switches it off")
+        "spreads along the wall, which the ghosts alone let through; 0 switches it off. "
+        "Updated-Lagrangian only: a total-Lagrangian body meets a wall through the penalty "
+        "contact (penalty_stiffness, penalty_distance)")
     friction: float = Field(
         0.0, ge=0.0, description="Coulomb friction coefficient between bodies in contact: a "
         "pushing pair sliding past each other is slowed by mu times its push, the work booked "
@@ -542,7 +544,8 @@ class Contact(_Model):
         "force 2/3 k K* d^(dim-1) (delta/d)^(3/2), K* the two bulk moduli in series, its "
         "work booked in their internal energies; 4 (chosen on Hertz's spheres and the "
         "colliding bars) is stiffer than Hertz's law between the particles (1); used by "
-        "formulation = 'total_lagrangian' only")
+        "formulation = 'total_lagrangian' only, between bodies and against rigid walls (a "
+        "particle pushed as by its mirror image)")
     penalty_distance: PositiveFloat = Field(
         1.0, description="contact diameter of the penalty contact between total-Lagrangian "
         "bodies, in particle spacings (m/rho0)^(1/dim): 1 puts the contact where the bodies' "
@@ -906,9 +909,6 @@ class Case(_Model):
             raise ValueError(f"stabilisation.artificial_stress = {stab.artificial_stress!r} is "
                              f"an updated-Lagrangian option (a total-Lagrangian body has no "
                              f"tensile instability)")
-        if self.boundaries and self.contact.wall_layer == 0.0:
-            raise ValueError(f"contact.wall_layer = 0: {tl} the walls' penalty layer is what "
-                             f"holds a wall (there are no wall ghosts)")
         for k, boundary in enumerate(self.boundaries):
             if boundary.type == "symmetry":
                 raise ValueError(f"boundaries.{k}: type = 'symmetry' is not available {tl} "

@@ -242,7 +242,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
             for a in range(DIM):
                 force[i, a] = 0.0
             layer_push_particle(i, x, v, m, material, table, points, normals, layer, dv, de,
-                                False, False, force[i])
+                                False, force[i])
 
     @cuda.jit
     def totals_kernel(n, m, v, de_visc, dv_corr, de_corr, pair_count, contact_force,

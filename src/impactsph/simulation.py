@@ -114,7 +114,6 @@ class Simulation:
             self.solver = TotalLagrangianSolver(
                 self.state, self.problem.table, ViscositySettings.of(case.viscosity),
                 walls=self.walls, hourglass=case.stabilisation.tl_hourglass,
-                wall_layer=case.contact.wall_layer,
                 penalty_stiffness=case.contact.penalty_stiffness,
                 penalty_distance=case.contact.penalty_distance,
                 hourglass_damping=case.stabilisation.tl_hourglass_damping)

@@ -317,7 +317,7 @@ class Solver:
                 self.wall_force += layer_push(n, state.position, state.velocity, state.mass,
                                               state.material, self.table, self._rigid_points,
                                               self._rigid_normals, self.wall_layer, b.dv, b.de,
-                                              False, self._axisymmetric)
+                                              self._axisymmetric)
         if self._inertia is not None:  # forces per own mass -> accelerations
             b.dv[:n] *= self._inertia[:, None]
         self.pair_evaluations += int(totals[3])

@@ -5,11 +5,10 @@ formulation").
 
 It returns the same ``(dv, drho, de, dS, dhg)`` as the updated-Lagrangian solver, so the
 midpoint integrator and its compiled ``advance`` stage (the EOS, the strength model's return
-map, the heating and the damage) are the same.  Rigid walls act through a penalty layer
-(:func:`impactsph.boundaries.layer_push` with ``soft``, softer than
-the updated-Lagrangian layer and with a continuous dashpot) and the integrator's
-constraint; there are no wall ghosts.  Bodies meet through a penalty contact
-(:mod:`impactsph.physics.penalty_contact`), as LAMMPS SMD's total-Lagrangian bodies do.  A body
+map, the heating and the damage) are the same.  Bodies meet through a penalty contact
+(:mod:`impactsph.physics.penalty_contact`), as LAMMPS SMD's total-Lagrangian bodies do, and a
+rigid wall pushes a body as its mirror image would (:func:`~impactsph.physics.penalty_contact.
+hertz_wall`), with the integrator's constraint behind it; there are no wall ghosts.  A body
 does not fragment: its neighbours are those of t = 0 for the whole run.  CPU only.
 """
 
@@ -20,7 +19,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .boundaries import Walls, layer_push
+from .boundaries import Walls
 from .config import PENALTY_STIFFNESS
 from .errors import CaseError
 from .kernels import SUPPORT_RADIUS
@@ -28,7 +27,7 @@ from .materials import YOUNGS, carried_pressure
 from .models.columns import DAMAGE
 from .neighbours import NeighbourList
 from .physics import total_lagrangian as tl
-from .physics.penalty_contact import PenaltyContact
+from .physics.penalty_contact import PenaltyContact, contact_diameters, hertz_wall
 from .physics.rates import RateBuffers, ViscositySettings, compiled_passes
 from .state import ParticleState
 
@@ -113,20 +112,28 @@ def lattice_hourglass_step(dim: int, spacing: float, h: float, alpha: float, you
     return hourglass_step(damping) / omega if omega > 0.0 else math.inf
 
 
+#: the largest ``omega dt`` of a particle on the walls' push, ``omega^2 = (dF/dz) / m``
+#: (:func:`~impactsph.physics.penalty_contact.hertz_wall`), set for the next step from the
+#: last evaluation: a block of steel thrown at a wall at 100 m/s keeps its energy to 2.8e-3
+#: at the CFL step alone (omega dt about 0.3), 1.2e-3 with 0.2 and 8.1e-4 with 0.15
+#: (docs/stabilisation.md, "Contact between total-Lagrangian bodies")
+WALL_STEP = 0.15
+
+
 class TotalLagrangianSolver:
     """Evaluates ``(dv/dt, drho/dt, de/dt, dS/dt, dhg/dt)`` (the last with no rows) for a
     state, on the reference configuration ``state.initial_position``.
 
     ``viscosity``: Monaghan's artificial viscosity (its ``pair`` parameters ``(alpha1, alpha2,
     epsilon, _)``); ``hourglass``: the coefficient alpha of the hourglass penalty
-    (:func:`impactsph.physics.total_lagrangian.hourglass_pair`), 0 for none; ``wall_layer``:
-    the walls' penalty layer in particle spacings (needed with walls);
+    (:func:`impactsph.physics.total_lagrangian.hourglass_pair`), 0 for none;
     ``penalty_stiffness`` and ``penalty_distance``: the contact between bodies
     (:class:`~impactsph.physics.penalty_contact.PenaltyContact`, used when there are two
-    bodies or more)."""
+    bodies or more) and with the rigid walls
+    (:func:`~impactsph.physics.penalty_contact.hertz_wall`)."""
 
     def __init__(self, state: ParticleState, table: np.ndarray, viscosity: ViscositySettings,
-                 walls: Walls | None = None, hourglass: float = 0.0, wall_layer: float = 0.0,
+                 walls: Walls | None = None, hourglass: float = 0.0,
                  penalty_stiffness: float = PENALTY_STIFFNESS, penalty_distance: float = 1.0,
                  hourglass_damping: float = 0.0):
         self.table = table
@@ -134,10 +141,6 @@ class TotalLagrangianSolver:
         self.visc = np.array(viscosity.pair[:3], dtype=np.float64)
         self.hourglass = float(hourglass)
         self.walls = walls if walls is not None and len(walls) else None
-        self.wall_layer = float(wall_layer)
-        if self.walls is not None and self.wall_layer <= 0.0:
-            raise ValueError("the total-Lagrangian solver holds walls by their penalty layer: "
-                             "wall_layer must be positive")
         self.n_active = n = state.n
         self.dim = dim = state.dim
         self.backend = SimpleNamespace(device="cpu")
@@ -178,6 +181,7 @@ class TotalLagrangianSolver:
             self.max_time_step = hourglass_step(hourglass_damping) / float(omega.max())
             if hourglass_damping > 0.0:
                 self._tau = 2.0 * hourglass_damping / omega
+        self._hourglass_step = self.max_time_step
         #: m / (m + added mass), None without added mass (see :class:`~impactsph.solver.Solver`)
         self._inertia = state.inertia_fraction()
         #: the contact between bodies, None with one body
@@ -185,6 +189,33 @@ class TotalLagrangianSolver:
         if several:
             self.contact = PenaltyContact(state.mass, state.material, state.body, table, dim,
                                           scale=penalty_distance, stiffness=penalty_stiffness)
+        self.penalty_stiffness = float(penalty_stiffness)
+        if self.walls is not None:  # the walls' push (hertz_wall): each particle's diameter
+            self._diameter = contact_diameters(state.mass, state.material, table, dim,
+                                               penalty_distance)
+            self._wall_push = np.zeros((n, dim))
+            self._wall_spring = np.zeros(n)
+            self._refuse_overlaps(state)
+
+    #: the overlap with a wall, in contact diameters, beyond which a particle's start is
+    #: refused: (PC-4) would start it with an elastic energy it never had
+    START_OVERLAP = 0.01
+
+    def _refuse_overlaps(self, state: ParticleState) -> None:
+        """Refuse, in one line, a body whose surface starts inside a wall (a particle within
+        half its contact diameter of the plane, less :data:`START_OVERLAP`)."""
+        w = self.walls
+        for k in range(w.points.shape[0]):
+            z = (state.position - w.points[k]) @ w.normals[k]
+            overlap = (self._diameter - 2.0 * z) / self._diameter
+            worst = int(np.argmax(overlap))
+            if overlap[worst] > self.START_OVERLAP:
+                raise CaseError(
+                    f"boundaries.{k}: particle {worst} of body {int(state.body[worst])} starts "
+                    f"{z[worst]:.4g} m from the wall, its surface {overlap[worst]:.2f} of a "
+                    f"contact diameter ({self._diameter[worst]:.4g} m) inside it; a "
+                    f"total-Lagrangian body must start with its surface, half a contact "
+                    f"diameter beyond its particles, clear of the wall")
 
     def restore(self, state: ParticleState, neighbours: NeighbourList, ghost_src: np.ndarray,
                 ghost_wall: np.ndarray) -> None:
@@ -212,9 +243,14 @@ class TotalLagrangianSolver:
                              b.dv, b.de, b.contact_force)
         if self.walls is not None:
             w = self.walls
-            self.wall_force = layer_push(n, state.position, state.velocity, state.mass,
-                                         state.material, self.table, w.points, w.normals,
-                                         self.wall_layer, b.dv, b.de, True)
+            hertz_wall(n, state.position, state.velocity, state.mass, state.material,
+                       self.table, self._diameter, w.points, w.normals, self.penalty_stiffness,
+                       b.dv, b.de, self._wall_push, self._wall_spring)
+            self.wall_force = self._wall_push.sum(axis=0)
+            # the next step's limit: the stiffest particle on a wall now
+            omega2 = float((self._wall_spring / state.mass).max()) if n else 0.0
+            self.max_time_step = min(self._hourglass_step, WALL_STEP / math.sqrt(omega2)
+                                     if omega2 > 0.0 else math.inf)
         if self._inertia is not None:  # forces per own mass -> accelerations
             b.dv[:n] *= self._inertia[:, None]
         self.pair_evaluations += self._pairs

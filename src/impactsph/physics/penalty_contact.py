@@ -101,6 +101,55 @@ def hertz_contact(n, x, v, m, material, table, diameter, offsets, partners, stif
                        contact_force)
 
 
+@nb.njit(parallel=True, cache=True)
+def hertz_wall(n, x, v, m, material, table, diameter, points, normals, stiffness, dv, de,
+               wall_force, spring):
+    """The rigid walls' push on the first ``n`` particles of a total-Lagrangian run, added to
+    ``dv`` and ``de``; ``wall_force[i]`` is set to the force (N; N/m in 2D) that the walls
+    exert on particle ``i`` and ``spring[i]`` to the push's stiffness ``-dF_i/dz_i`` (N/m;
+    N/m^2 in 2D), from which :class:`~impactsph.tl_solver.TotalLagrangianSolver` limits the
+    time step.
+
+    A frictionless rigid wall is the mirror plane of two identical bodies pressed together,
+    so a particle at the distance ``z_i = (x_i - p) . n`` from a wall through ``p`` with unit
+    normal ``n`` (into the material) is pushed as by (PC-1) from its mirror image, ``2 z_i``
+    away, of its own material (``K* = K_i / 2``)::
+
+        (PC-4) delta = d_i - 2 z_i,   F_i = 2/3 k (K_i / 2) d_i^(dim-1) (delta / d_i)^(3/2)
+        (PC-5) dv_i/dt += F_i n / m_i,   de_i/dt -= F_i (n . v_i) / m_i
+
+    while ``delta > 0``: the push starts as the particle's surface, half its contact diameter
+    ahead of it, meets the wall.  (PC-4) is minus the derivative in ``z_i`` of half the mirror
+    pair's potential; (PC-5) books its change in the particle's internal energy, so the
+    semi-discrete equations keep the total energy, and a body on a wall moves as one of two
+    identical bodies meeting head-on."""
+    dim = x.shape[1]
+    for i in nb.prange(n):
+        k_i = table[material[i], BULK]
+        d_i = diameter[i]
+        for a in range(dim):
+            wall_force[i, a] = 0.0
+        spring[i] = 0.0
+        for w in range(points.shape[0]):
+            z = 0.0
+            vn = 0.0
+            for a in range(dim):
+                z += (x[i, a] - points[w, a]) * normals[w, a]
+                vn += v[i, a] * normals[w, a]
+            overlap = (d_i - 2.0 * z) / d_i
+            if overlap <= 0.0:
+                continue
+            force = (2.0 / 3.0) * stiffness * 0.5 * k_i * d_i ** (dim - 1) * overlap \
+                * math.sqrt(overlap)
+            # (PC-6): the spring's stiffness dF/dz, for the time step
+            spring[i] += 2.0 * stiffness * 0.5 * k_i * d_i ** (dim - 2) * math.sqrt(overlap)
+            per_mass = force / m[i]
+            for a in range(dim):
+                dv[i, a] += per_mass * normals[w, a]
+                wall_force[i, a] += force * normals[w, a]
+            de[i] -= per_mass * vn
+
+
 class PenaltyContact:
     """The contact between the bodies of a total-Lagrangian run: its candidate list (rebuilt
     when a particle has moved half its skin) and :func:`hertz_contact`.
