@@ -87,6 +87,8 @@ def final_arrays(sim):
     # total-Lagrangian bodies in contact: the contact list is rebuilt after a restart
     ("bars", ["time.end=6e-6", 'formulation="total_lagrangian"']),
     ("taylor", ["time.end=6e-6"]),  # walls (ghosts), plasticity, AC
+    # a total-Lagrangian body on a wall: the walls' step limit is read from the state
+    ("taylor", ["time.end=6e-6", 'formulation="total_lagrangian"', 'viscosity.scheme="av"']),
     # a viscosity switch: its factors are state that the next evaluation reads
     ("taylor", ["time.end=6e-6", 'viscosity.scheme="balsara"']),
     # the three-stage integrator, with a switch whose memory and clock are state

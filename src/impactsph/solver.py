@@ -109,6 +109,10 @@ class Solver:
     #: no step limit of its own beyond eq 26 (the total-Lagrangian solver has one)
     max_time_step: float = float("inf")
 
+    def step_limit(self, state: ParticleState) -> float:
+        """The solver's own limit on the step at ``state`` (s): none."""
+        return self.max_time_step
+
     def __init__(self, state: ParticleState, table: np.ndarray, viscosity: ViscositySettings,
                  walls: Walls | None = None, skin_fraction: float = 0.1, backend=None,
                  hourglass: float = 0.0, wall_layer: float = 0.0):

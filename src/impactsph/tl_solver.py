@@ -27,7 +27,7 @@ from .materials import YOUNGS, carried_pressure
 from .models.columns import DAMAGE
 from .neighbours import NeighbourList
 from .physics import total_lagrangian as tl
-from .physics.penalty_contact import PenaltyContact, contact_diameters, hertz_wall
+from .physics.penalty_contact import PenaltyContact, contact_diameters, hertz_wall, wall_frequency
 from .physics.rates import RateBuffers, ViscositySettings, compiled_passes
 from .state import ParticleState
 
@@ -113,10 +113,10 @@ def lattice_hourglass_step(dim: int, spacing: float, h: float, alpha: float, you
 
 
 #: the largest ``omega dt`` of a particle on the walls' push, ``omega^2 = (dF/dz) / m``
-#: (:func:`~impactsph.physics.penalty_contact.hertz_wall`), set for the next step from the
-#: last evaluation: a block of steel thrown at a wall at 100 m/s keeps its energy to 2.8e-3
-#: at the CFL step alone (omega dt about 0.3), 1.2e-3 with 0.2 and 8.1e-4 with 0.15
-#: (docs/stabilisation.md, "Contact between total-Lagrangian bodies")
+#: (:func:`~impactsph.physics.penalty_contact.hertz_wall`), at the start of each step: a
+#: block of steel thrown at a wall at 100 m/s keeps its energy to 2.8e-3 at the CFL step
+#: alone (omega dt about 0.3), 1.2e-3 with 0.2 and 8.1e-4 with 0.15 (docs/stabilisation.md,
+#: "Total-Lagrangian formulation", Walls)
 WALL_STEP = 0.15
 
 
@@ -181,7 +181,6 @@ class TotalLagrangianSolver:
             self.max_time_step = hourglass_step(hourglass_damping) / float(omega.max())
             if hourglass_damping > 0.0:
                 self._tau = 2.0 * hourglass_damping / omega
-        self._hourglass_step = self.max_time_step
         #: m / (m + added mass), None without added mass (see :class:`~impactsph.solver.Solver`)
         self._inertia = state.inertia_fraction()
         #: the contact between bodies, None with one body
@@ -194,19 +193,32 @@ class TotalLagrangianSolver:
             self._diameter = contact_diameters(state.mass, state.material, table, dim,
                                                penalty_distance)
             self._wall_push = np.zeros((n, dim))
-            self._wall_spring = np.zeros(n)
             self._refuse_overlaps(state)
+
+    def step_limit(self, state: ParticleState) -> float:
+        """The longest stable step (s) at ``state``: the hourglass penalty's
+        (:attr:`max_time_step`) and, with walls, :data:`WALL_STEP` over the largest frequency
+        of a particle on the walls' push at ``state`` (a function of the state alone, so a
+        run continued from a checkpoint takes the same steps)."""
+        if self.walls is None:
+            return self.max_time_step
+        w = self.walls
+        omega = wall_frequency(self.n_active, state.position, state.mass, state.material,
+                               self.table, self._diameter, w.points, w.normals,
+                               self.penalty_stiffness)
+        return min(self.max_time_step, WALL_STEP / omega if omega > 0.0 else math.inf)
 
     #: the overlap with a wall, in contact diameters, beyond which a particle's start is
     #: refused: (PC-4) would start it with an elastic energy it never had
     START_OVERLAP = 0.01
 
     def _refuse_overlaps(self, state: ParticleState) -> None:
-        """Refuse, in one line, a body whose surface starts inside a wall (a particle within
-        half its contact diameter of the plane, less :data:`START_OVERLAP`)."""
+        """Refuse, in one line, a body whose surface starts inside a wall (a particle of the
+        reference configuration, the start, within half its contact diameter of the plane,
+        less :data:`START_OVERLAP`; a run continued from a checkpoint may be on a wall)."""
         w = self.walls
         for k in range(w.points.shape[0]):
-            z = (state.position - w.points[k]) @ w.normals[k]
+            z = (state.initial_position - w.points[k]) @ w.normals[k]
             overlap = (self._diameter - 2.0 * z) / self._diameter
             worst = int(np.argmax(overlap))
             if overlap[worst] > self.START_OVERLAP:
@@ -245,12 +257,8 @@ class TotalLagrangianSolver:
             w = self.walls
             hertz_wall(n, state.position, state.velocity, state.mass, state.material,
                        self.table, self._diameter, w.points, w.normals, self.penalty_stiffness,
-                       b.dv, b.de, self._wall_push, self._wall_spring)
+                       b.dv, b.de, self._wall_push)
             self.wall_force = self._wall_push.sum(axis=0)
-            # the next step's limit: the stiffest particle on a wall now
-            omega2 = float((self._wall_spring / state.mass).max()) if n else 0.0
-            self.max_time_step = min(self._hourglass_step, WALL_STEP / math.sqrt(omega2)
-                                     if omega2 > 0.0 else math.inf)
         if self._inertia is not None:  # forces per own mass -> accelerations
             b.dv[:n] *= self._inertia[:, None]
         self.pair_evaluations += self._pairs

@@ -101,14 +101,25 @@ def hertz_contact(n, x, v, m, material, table, diameter, offsets, partners, stif
                        contact_force)
 
 
+@nb.njit(inline="always", cache=True)
+def wall_law(bulk, diameter, z, stiffness, dim):
+    """(PC-4) for a particle of bulk modulus ``bulk`` and contact diameter ``diameter`` at
+    the distance ``z`` from a wall: ``(F, dF/dz)``, the push (N; N/m in 2D) and its
+    stiffness, both 0 off the wall."""
+    overlap = (diameter - 2.0 * z) / diameter
+    if overlap <= 0.0:
+        return 0.0, 0.0
+    root = math.sqrt(overlap)
+    force = (2.0 / 3.0) * stiffness * 0.5 * bulk * diameter ** (dim - 1) * overlap * root
+    return force, 2.0 * stiffness * 0.5 * bulk * diameter ** (dim - 2) * root
+
+
 @nb.njit(parallel=True, cache=True)
 def hertz_wall(n, x, v, m, material, table, diameter, points, normals, stiffness, dv, de,
-               wall_force, spring):
+               wall_force):
     """The rigid walls' push on the first ``n`` particles of a total-Lagrangian run, added to
     ``dv`` and ``de``; ``wall_force[i]`` is set to the force (N; N/m in 2D) that the walls
-    exert on particle ``i`` and ``spring[i]`` to the push's stiffness ``-dF_i/dz_i`` (N/m;
-    N/m^2 in 2D), from which :class:`~impactsph.tl_solver.TotalLagrangianSolver` limits the
-    time step.
+    exert on particle ``i``.
 
     A frictionless rigid wall is the mirror plane of two identical bodies pressed together,
     so a particle at the distance ``z_i = (x_i - p) . n`` from a wall through ``p`` with unit
@@ -126,28 +137,40 @@ def hertz_wall(n, x, v, m, material, table, diameter, points, normals, stiffness
     dim = x.shape[1]
     for i in nb.prange(n):
         k_i = table[material[i], BULK]
-        d_i = diameter[i]
         for a in range(dim):
             wall_force[i, a] = 0.0
-        spring[i] = 0.0
         for w in range(points.shape[0]):
             z = 0.0
             vn = 0.0
             for a in range(dim):
                 z += (x[i, a] - points[w, a]) * normals[w, a]
                 vn += v[i, a] * normals[w, a]
-            overlap = (d_i - 2.0 * z) / d_i
-            if overlap <= 0.0:
+            force, _ = wall_law(k_i, diameter[i], z, stiffness, dim)
+            if force == 0.0:
                 continue
-            force = (2.0 / 3.0) * stiffness * 0.5 * k_i * d_i ** (dim - 1) * overlap \
-                * math.sqrt(overlap)
-            # (PC-6): the spring's stiffness dF/dz, for the time step
-            spring[i] += 2.0 * stiffness * 0.5 * k_i * d_i ** (dim - 2) * math.sqrt(overlap)
             per_mass = force / m[i]
             for a in range(dim):
                 dv[i, a] += per_mass * normals[w, a]
                 wall_force[i, a] += force * normals[w, a]
             de[i] -= per_mass * vn
+
+
+@nb.njit(cache=True)
+def wall_frequency(n, x, m, material, table, diameter, points, normals, stiffness):
+    """The largest ``omega = sqrt((dF/dz) / m)`` (1/s) of the first ``n`` particles on the
+    walls' push (PC-4) at ``x``, 0 with none on a wall (the time step's limit,
+    :meth:`impactsph.tl_solver.TotalLagrangianSolver.step_limit`)."""
+    dim = x.shape[1]
+    largest = 0.0
+    for i in range(n):
+        spring = 0.0
+        for w in range(points.shape[0]):
+            z = 0.0
+            for a in range(dim):
+                z += (x[i, a] - points[w, a]) * normals[w, a]
+            spring += wall_law(table[material[i], BULK], diameter[i], z, stiffness, dim)[1]
+        largest = max(largest, spring / m[i])
+    return math.sqrt(largest)
 
 
 class PenaltyContact:
