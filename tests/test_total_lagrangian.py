@@ -157,6 +157,16 @@ def test_a_body_started_inside_a_wall_is_refused():
         Simulation(case)
 
 
+def test_check_refuses_a_body_started_inside_a_wall():
+    """``impactsph check`` refuses what ``run`` would: the same line, exit code 2."""
+    res = runner.invoke(app, ["check", "taylor", "--set", "formulation=total_lagrangian",
+                              "--set", "viscosity.scheme=av",
+                              "--set", "bodies.0.geometry.origin=[-0.0038, -0.0001]"])
+    assert res.exit_code == 2, res.output
+    assert "boundaries.0: particle 0 of body 0 starts" in res.output
+    assert "of a contact diameter" in res.output
+
+
 def test_rod_in_tension_stays_whole_and_waves_travel_at_the_bar_speed():
     """A 2D rod (nu = 0: plate, bar and P-wave speeds all sqrt(E/rho)) whose halves are pulled
     apart at +-V: two tensile fronts leave the middle at c; behind them the rod is at rest
@@ -207,6 +217,8 @@ BAD = [
      "stabilisation.gradient_correction"),
     (["--set", "stabilisation.artificial_stress=0.3"], "stabilisation.artificial_stress"),
     (["--set", "formulation=total_lagrangian_x"], "formulation"),
+    # the bar's surface starts half a contact diameter inside the wall
+    (["--set", "bodies.0.geometry.origin=[-0.0038, -0.0001]"], "boundaries.0"),
 ]
 
 

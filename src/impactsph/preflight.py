@@ -706,6 +706,16 @@ def particle_checks(case: Case, problem: Any) -> tuple[list[Finding], np.ndarray
                     f"coordinates written in mm? (then {_g(extent * 1e-3)} m)")))
     # walls: particles behind a plane at t = 0
     walls = walls_of(case.boundaries, dim)
+    if case.formulation == "total_lagrangian" and len(walls):  # its walls' push (PC-4)
+        from .physics.penalty_contact import contact_diameters
+        from .tl_solver import wall_start_overlap
+
+        diameter = contact_diameters(s.mass, s.material, problem.table, dim,
+                                     case.contact.penalty_distance)
+        message = wall_start_overlap(s.position, s.body, diameter, walls.points,
+                                     walls.normals)
+        if message is not None:
+            out.append(Finding("error", message.split(":", 1)[0], message))
     ghosts = 0
     reach = SUPPORT_RADIUS * float(h.max()) * (1.0 + case.time.neighbour_skin)
     for w in range(len(walls)):

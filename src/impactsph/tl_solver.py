@@ -120,6 +120,30 @@ def lattice_hourglass_step(dim: int, spacing: float, h: float, alpha: float, you
 WALL_STEP = 0.15
 
 
+#: the overlap with a wall, in contact diameters, beyond which a particle's start is
+#: refused: (PC-4) would start it with an elastic energy it never had
+START_OVERLAP = 0.01
+
+
+def wall_start_overlap(x: np.ndarray, body: np.ndarray, diameter: np.ndarray,
+                       points: np.ndarray, normals: np.ndarray) -> str | None:
+    """The one-line refusal of a total-Lagrangian body whose surface starts inside a wall (a
+    particle at ``x`` within half its contact ``diameter`` of a plane, less
+    :data:`START_OVERLAP`), naming the wall (``boundaries.K``) and the particle; None if
+    every body starts clear of the walls."""
+    for k in range(points.shape[0]):
+        z = (x - points[k]) @ normals[k]
+        overlap = (diameter - 2.0 * z) / diameter
+        worst = int(np.argmax(overlap)) if overlap.size else 0
+        if overlap.size and overlap[worst] > START_OVERLAP:
+            return (f"boundaries.{k}: particle {worst} of body {int(body[worst])} starts "
+                    f"{z[worst]:.4g} m from the wall, its surface {overlap[worst]:.2f} of a "
+                    f"contact diameter ({diameter[worst]:.4g} m) inside it; a "
+                    f"total-Lagrangian body must start with its surface, half a contact "
+                    f"diameter beyond its particles, clear of the wall")
+    return None
+
+
 class TotalLagrangianSolver:
     """Evaluates ``(dv/dt, drho/dt, de/dt, dS/dt, dhg/dt)`` (the last with no rows) for a
     state, on the reference configuration ``state.initial_position``.
@@ -208,26 +232,15 @@ class TotalLagrangianSolver:
                                self.penalty_stiffness)
         return min(self.max_time_step, WALL_STEP / omega if omega > 0.0 else math.inf)
 
-    #: the overlap with a wall, in contact diameters, beyond which a particle's start is
-    #: refused: (PC-4) would start it with an elastic energy it never had
-    START_OVERLAP = 0.01
-
     def _refuse_overlaps(self, state: ParticleState) -> None:
-        """Refuse, in one line, a body whose surface starts inside a wall (a particle of the
-        reference configuration, the start, within half its contact diameter of the plane,
-        less :data:`START_OVERLAP`; a run continued from a checkpoint may be on a wall)."""
+        """Refuse, in one line, a body whose surface starts inside a wall
+        (:func:`wall_start_overlap`, on the reference configuration: a run continued from a
+        checkpoint may be on a wall)."""
         w = self.walls
-        for k in range(w.points.shape[0]):
-            z = (state.initial_position - w.points[k]) @ w.normals[k]
-            overlap = (self._diameter - 2.0 * z) / self._diameter
-            worst = int(np.argmax(overlap))
-            if overlap[worst] > self.START_OVERLAP:
-                raise CaseError(
-                    f"boundaries.{k}: particle {worst} of body {int(state.body[worst])} starts "
-                    f"{z[worst]:.4g} m from the wall, its surface {overlap[worst]:.2f} of a "
-                    f"contact diameter ({self._diameter[worst]:.4g} m) inside it; a "
-                    f"total-Lagrangian body must start with its surface, half a contact "
-                    f"diameter beyond its particles, clear of the wall")
+        message = wall_start_overlap(state.initial_position, state.body, self._diameter,
+                                     w.points, w.normals)
+        if message is not None:
+            raise CaseError(message)
 
     def restore(self, state: ParticleState, neighbours: NeighbourList, ghost_src: np.ndarray,
                 ghost_wall: np.ndarray) -> None:
