@@ -173,9 +173,14 @@ def test_tl_bars_meet_and_part_as_the_exact_solution(tl_bars):
     for run in (coarse, fine):  # the bars' velocities reversed
         assert run["final_velocity_left"] == pytest.approx(-50.0, rel=0.03)
         assert run["final_velocity_right"] == pytest.approx(50.0, rel=0.03)
-    # they separate elastically: most of the kinetic energy comes back, more at the finer
-    # spacing (0.946, 0.959; the viscosity takes the rest from the stiff contact's ringing)
-    assert fine["kinetic_energy_ratio_final"] > coarse["kinetic_energy_ratio_final"] >= 0.94
+    # they separate elastically: most of the kinetic energy comes back (0.946, 0.959; the
+    # viscosity takes the rest from the stiff contact's ringing), and the loss, which the
+    # exact bars do not have, falls by at least a fifth at each halving (measured 0.054,
+    # 0.041, then 0.031 at 0.05 mm)
+    loss = {k: 1.0 - run["kinetic_energy_ratio_final"]
+            for k, run in (("coarse", coarse), ("fine", fine))}
+    assert loss["coarse"] <= 0.06
+    assert loss["fine"] <= 0.8 * loss["coarse"]
     # while they push, the contact carries the exact impact stress rho c V (per unit area in
     # 1D; measured 1.0048 of it at both spacings)
     history = sim.record.history

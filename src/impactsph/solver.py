@@ -106,12 +106,10 @@ class Solver:
     (:func:`impactsph.boundaries.layer_push`), 0 for none.
     """
 
-    #: no step limit of its own beyond eq 26 (the total-Lagrangian solver has one)
-    max_time_step: float = float("inf")
-
     def step_limit(self, state: ParticleState) -> float:
-        """The solver's own limit on the step at ``state`` (s): none."""
-        return self.max_time_step
+        """The solver's own limit on the step at ``state`` (s): none beyond eq 26 (the
+        total-Lagrangian solver has one)."""
+        return float("inf")
 
     def __init__(self, state: ParticleState, table: np.ndarray, viscosity: ViscositySettings,
                  walls: Walls | None = None, skin_fraction: float = 0.1, backend=None,

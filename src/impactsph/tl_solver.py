@@ -131,11 +131,13 @@ def wall_start_overlap(x: np.ndarray, body: np.ndarray, diameter: np.ndarray,
     particle at ``x`` within half its contact ``diameter`` of a plane, less
     :data:`START_OVERLAP`), naming the wall (``boundaries.K``) and the particle; None if
     every body starts clear of the walls."""
+    if x.shape[0] == 0:
+        return None
     for k in range(points.shape[0]):
         z = (x - points[k]) @ normals[k]
         overlap = (diameter - 2.0 * z) / diameter
-        worst = int(np.argmax(overlap)) if overlap.size else 0
-        if overlap.size and overlap[worst] > START_OVERLAP:
+        worst = int(np.argmax(overlap))
+        if overlap[worst] > START_OVERLAP:
             return (f"boundaries.{k}: particle {worst} of body {int(body[worst])} starts "
                     f"{z[worst]:.4g} m from the wall, its surface {overlap[worst]:.2f} of a "
                     f"contact diameter ({diameter[worst]:.4g} m) inside it; a "
