@@ -5,10 +5,11 @@ from __future__ import annotations
 from functools import cache
 
 import numpy as np
+import pytest
 
 from impactsph.loading import load_case
 from impactsph.problems import analyse
-from impactsph.problems.taylor import LENGTH_RATIO_BAND
+from impactsph.problems.taylor import FOOT_LIFT, LENGTH_RATIO_BAND, bar_measures
 from impactsph.simulation import Simulation
 
 
@@ -50,3 +51,46 @@ def test_av3_dissipates_more_than_ac():
         assert ke_at(sim_av3, t) < 0.9 * ke_at(sim_ac, t)
     # and deforms the bar less (paper Fig 11: less bulging as alpha grows)
     assert s_av3["final_length_ratio"] > s_ac["final_length_ratio"]
+
+
+def curled_foot(dx: float, half: float = 3.8e-3, flat: float = 4.5e-3, tip: float = 9.0e-3,
+                rise: float = 1.7e-3):
+    """A bar of half-width ``half`` sampled at spacing ``dx`` (initial lattice ``x0``), and a
+    foot whose lower surface lies on the wall out to ``flat`` and curls up beyond it as
+    ``rise ((r - flat) / (tip - flat))^2``, as the plane-strain bar's does in finite elements
+    (docs/validation.md): its lowest particles lie half a spacing above that surface, with a
+    block of particles above them.  Returns ``(x0, x, exact)``: ``exact(lift)`` is the
+    half-width at which the surface is ``lift`` above the wall."""
+    curl = rise / (tip - flat) ** 2
+    lateral0 = np.arange(-half + dx / 2, half, dx)
+    x0 = np.array([(a, b) for a in lateral0 for b in np.arange(dx / 2, 10 * half, dx)])
+    lateral = np.arange(dx / 2, tip, dx)
+    surface = np.where(lateral > flat, curl * (lateral - flat) ** 2, 0.0)
+    layer = np.column_stack([lateral, surface + dx / 2])
+    block = np.array([(a, b) for a in lateral0 for b in np.arange(dx / 2 + 2 * rise, 6 * half, dx)])
+    x = np.vstack([layer, layer * [-1.0, 1.0], block])
+    return x0, x, lambda lift: (flat + np.sqrt(lift / curl)) / half
+
+
+def test_the_fixed_band_footprint_does_not_move_with_the_spacing():
+    """The footprint in a band of one spacing moves as the spacing halves, for a foot whose
+    shape does not change (its band is half as high); the one in a band of fixed height
+    (``footprint_half_width_ratio_fixed``) finds the same half-width, within a spacing of
+    the exact one, at both spacings."""
+    found = {}
+    for dx in (0.38e-3, 0.19e-3, 0.095e-3):
+        x0, x, exact = curled_foot(dx)
+        m = bar_measures(x0, x, 1, [dx, dx], 0.0, np.zeros(1))
+        lift = FOOT_LIFT * 3.8e-3
+        assert m["footprint_lift"] == pytest.approx(lift, rel=1e-12)
+        assert abs(m["footprint_half_width_ratio_fixed"] - exact(lift)) <= dx / 3.8e-3
+        # one spacing: the lower surface within half a spacing of the wall
+        assert abs(m["footprint_half_width_ratio"] - exact(dx / 2)) <= dx / 3.8e-3
+        found[dx] = m
+    one_spacing = [m["footprint_half_width_ratio"] for m in found.values()]
+    fixed = [m["footprint_half_width_ratio_fixed"] for m in found.values()]
+    # the band alone moves the one-spacing measure (exactly: by 0.116, then 0.082)
+    assert one_spacing[0] - one_spacing[1] > 0.1 and one_spacing[1] - one_spacing[2] > 0.07
+    # the fixed band's moves by less than the coarser spacing (0.1, then 0.05)
+    for (dx, coarse), finer in zip(list(found.items())[:2], fixed[1:], strict=True):
+        assert abs(coarse["footprint_half_width_ratio_fixed"] - finer) < dx / 3.8e-3

@@ -26,7 +26,8 @@ from impactsph.output import load_run
 from impactsph.sweep import run_many
 
 KEYS = {
-    "taylor": ["final_length_ratio", "footprint_half_width_ratio", "plastic_work",
+    "taylor": ["final_length_ratio", "footprint_half_width_ratio",
+               "footprint_half_width_ratio_fixed", "plastic_work",
                "kinetic_energy_ratio_final", "total_energy_relative_error"],
     "cantilever": ["tip_deflection", "tip_deflection_ratio", "plastic_work",
                    "max_neighbour_gap_over_h", "kinetic_energy_ratio_final",

@@ -33,7 +33,10 @@ rebounded has left the wall), the footprint
 the foot's rim (the bottom outer corner) is, the widest section (outermost node at any
 height), the plastic work (J/m of the whole bar in plane strain, J per radian in
 axisymmetry, as the SPH run's ``plastic_work``) and the energy balance.  Nodes are the body's
-boundary, so no half spacing is added.
+boundary, so no half spacing is added.  ``footprint_half_width_ratio_fixed``: the SPH
+measure of the same name (``impactsph.problems.taylor``, a band of fixed height): the
+outermost point of the outline within ``FOOT_LIFT`` half-widths of the wall, the outline's
+crossing of that height interpolated along its edges.
 
     .venv/bin/python validation/taylor_fem.py 8 16 32 64       # the paper's bar, plane strain
     .venv/bin/python validation/taylor_fem.py 8 16 --sph runs/taylor runs/taylor-x2  # drawn over
@@ -67,6 +70,7 @@ from impactsph.models.columns import (
 )
 from impactsph.models.eos.mie_gruneisen import mie_gruneisen_pressure
 from impactsph.models.strength.hardening import hardening_return, thermal_factor
+from impactsph.problems.taylor import FOOT_LIFT
 
 Q_LINEAR, Q_QUADRATIC = 0.06, 1.5
 COURANT = 0.5
@@ -357,6 +361,8 @@ def run(bar: Bar, n_across: int) -> dict:
                 "lift_off": float(x[:, 1].min()),  # m: the lowest node's height
                 "footprint_half_width_ratio": (float(x[contact, 0].max() / bar.half_width)
                                                if np.any(contact) else 0.0),
+                "footprint_half_width_ratio_fixed": footprint_within(
+                    boundary(x, n_across), FOOT_LIFT * bar.half_width) / bar.half_width,
                 "corner": [float(c) for c in x[n_across] / bar.half_width],  # the foot's rim
                 "widest_section_ratio": float(x[:, 0].max() / bar.half_width),
                 "plastic_work": whole * plastic,
@@ -370,6 +376,21 @@ def run(bar: Bar, n_across: int) -> dict:
     out["wall_seconds"] = time.perf_counter() - start
     out["boundary_final"] = boundary(x, n_across).tolist()
     return out
+
+
+def footprint_within(outline: np.ndarray, lift: float) -> float:
+    """The outermost point (largest x) of the ``outline`` (points ``(x, y)`` in order, the wall
+    at ``y = 0``) within ``lift`` of the wall, where an edge crosses the height ``lift`` the
+    crossing itself; 0 if no point is that low."""
+    x, y = outline[:, 0], outline[:, 1]
+    low = y <= lift
+    best = float(x[low].max()) if low.any() else 0.0
+    x1, y1, x2, y2 = x[:-1], y[:-1], x[1:], y[1:]
+    cross = (y1 - lift) * (y2 - lift) < 0.0
+    if cross.any():
+        at = x1[cross] + (lift - y1[cross]) / (y2[cross] - y1[cross]) * (x2[cross] - x1[cross])
+        best = max(best, float(at.max()))
+    return best
 
 
 def boundary(x: np.ndarray, n_across: int) -> np.ndarray:

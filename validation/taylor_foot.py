@@ -1,10 +1,19 @@
 """The plane-strain Taylor bar's foot, snapshot by snapshot (docs/validation.md, "Why the
 plane-strain footprint moves so much"): the footprint as the Taylor analysis defines it (the
-particles within one spacing of the wall), the same in a band of fixed height, the widest
+particles within one spacing of the wall), the same in its fixed band
+(``footprint_half_width_ratio_fixed``: lower surfaces within 0.05 B/2 of the wall), the same
+with particle centres in a band of a given height (``--band``), the widest
 section of the bar, and the mean vertical speed of the foot's rim (the particles beyond
 ``--rim`` half-widths from the axis).
 
     .venv/bin/python validation/taylor_foot.py RUN_DIR [RUN_DIR ...] [--band 0.18e-3]
+    .venv/bin/python validation/taylor_foot.py RUN_DIR ... --fem FEM_DIR/taylor-64.json
+
+With ``--fem`` (a result of ``validation/taylor_fem.py --out FEM_DIR``, whose final outline
+it reads) it also prints the height of the foot's lower surface above the wall at the end
+of each run, at radii from 4 to 9.5 mm, beside the finite-element one: for the particles, the lowest
+centre within one spacing of that distance from the axis, less half a spacing; for the
+finite elements, the bottom row of nodes interpolated.
 
 Each ``RUN_DIR`` is a finished run of the built-in ``taylor`` case or a variant of it (its
 ``snapshots.npz``), e.g. the runs of ``validation/resolution.py taylor``.
@@ -13,6 +22,7 @@ Each ``RUN_DIR`` is a finished run of the built-in ``taylor`` case or a variant 
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 
 import numpy as np
@@ -40,16 +50,45 @@ def foot_rows(run: Path, band: float, rim: float) -> list[dict[str, float]]:
         lateral = np.abs(x[:, 0] - centre)
         in_band = x[:, 1] < band
         outer = lateral > rim * half0
+        measures = bar_measures(x0, x, 1, [across, along], 0.0)
         rows.append({
             "particles": len(x), "t_us": float(z["times"][n]) * 1e6,
-            "footprint": bar_measures(x0, x, 1, [across, along], 0.0)[
-                "footprint_half_width_ratio"],
+            "footprint": measures["footprint_half_width_ratio"],
+            "footprint_fixed": measures["footprint_half_width_ratio_fixed"],
             "footprint_in_band": (float(lateral[in_band].max() + across / 2) / half0
                                   if band >= 0.99 * across and in_band.any() else float("nan")),
             "widest": float(lateral.max() + across / 2) / half0,
             "rim_vertical_speed": float(v[outer, 1].mean()) if outer.any() else float("nan"),
         })
     return rows
+
+
+#: where the lower surface is compared (m from the axis)
+RADII = np.arange(4.0e-3, 9.6e-3, 0.5e-3)
+
+
+def lower_surface(run: Path) -> np.ndarray:
+    """The foot's lower surface at :data:`RADII` at the run's last snapshot (m above the
+    wall; nan where no particle is that far out)."""
+    z = np.load(run / "snapshots.npz")
+    n = len(z["times"]) - 1
+    bar = z[f"s{n}_body"] == 0
+    x, x0 = z[f"s{n}_position"][bar], z[f"s{n}_initial_position"][bar]
+    across, along = spacing_of(x0, 0), spacing_of(x0, 1)
+    r = np.abs(x[:, 0] - x0[:, 0].mean())
+    out = np.full(RADII.shape, np.nan)
+    for k, radius in enumerate(RADII):
+        near = np.abs(r - radius) < across
+        if near.any():
+            out[k] = x[near, 1].min() - along / 2
+    return out
+
+
+def fem_lower_surface(path: Path) -> np.ndarray:
+    """The finite-element bar's lower surface (its bottom row of nodes) at :data:`RADII`."""
+    result = json.loads(path.read_text())
+    bottom = np.array(result["boundary_final"])[: result["n_across"] + 1]
+    return np.interp(RADII, bottom[:, 0], bottom[:, 1], right=np.nan)
 
 
 def main() -> None:
@@ -60,15 +99,29 @@ def main() -> None:
                          "x2 spacing); not shown for a run whose spacing is larger")
     ap.add_argument("--rim", type=float, default=1.6,
                     help="the rim: particles beyond this many initial half-widths")
+    ap.add_argument("--fem", type=Path, default=None,
+                    help="a finite-element result (validation/taylor_fem.py's JSON) to "
+                         "compare the foot's lower surface with")
     args = ap.parse_args()
-    print("| run | particles | t (us) | footprint | in the fixed band | widest | rim speed "
-          "(m/s) |")
-    print("|---|---|---|---|---|---|---|")
+    print("| run | particles | t (us) | footprint | fixed (0.05 B/2) | centres in the band | "
+          "widest | rim speed (m/s) |")
+    print("|---|---|---|---|---|---|---|---|")
     for run in args.runs:
         for r in foot_rows(run, args.band, args.rim):
             print(f"| {run.name} | {r['particles']} | {r['t_us']:.0f} | {r['footprint']:.3f} | "
-                  f"{r['footprint_in_band']:.3f} | {r['widest']:.3f} | "
+                  f"{r['footprint_fixed']:.3f} | {r['footprint_in_band']:.3f} | "
+                  f"{r['widest']:.3f} | "
                   f"{r['rim_vertical_speed']:+.1f} |")
+
+    if args.fem is not None:
+        fem = fem_lower_surface(args.fem)
+        print("\n| r (mm) | " + " | ".join(run.name for run in args.runs)
+              + f" | finite elements ({args.fem.name}) |")
+        print("|---" * (len(args.runs) + 2) + "|")
+        surfaces = [lower_surface(run) for run in args.runs]
+        for k, radius in enumerate(RADII):
+            print(f"| {radius * 1e3:.1f} | " + " | ".join(f"{s[k] * 1e3:.3f}" for s in surfaces)
+                  + f" | {fem[k] * 1e3:.3f} |")
 
 
 if __name__ == "__main__":

@@ -20,6 +20,15 @@ about the axis, centred on the lateral coordinate axes and their diagonals;
 ``footprint_radius_ratio_min_sector`` is the smallest of their radii, so it equals
 ``footprint_radius_ratio`` for a round footprint and falls below it where the foot spreads unevenly.
 
+The footprint as defined above looks in a band of one spacing, so the band's height halves
+with every doubling of the resolution, and a foot whose rim curls up off the wall (as the
+plane-strain bar's does, in finite elements too: docs/validation.md) has a footprint that
+moves with the resolution for that reason alone.  ``footprint_half_width_ratio_fixed`` (in 3D
+``footprint_radius_ratio_fixed``) is the same measure in a band of fixed height: the particles
+whose lower surface (their centre less half a spacing) is within ``footprint_lift`` of the
+wall, ``footprint_lift`` = :data:`FOOT_LIFT` times the initial half-width or radius.  At the
+paper's resolution (x1, half a spacing 0.18 mm) the two bands are nearly the same (0.19 mm).
+
 ``profile``: the mushroom, ``[height, half-width or radius]`` in 20 slices of the final bar
 (:func:`bar_profile`), to set beside a measured outline (``validation/taylor_measured.py``).
 On a half or quarter model (symmetry planes) the axis is taken on the planes.
@@ -42,6 +51,11 @@ if TYPE_CHECKING:
 #: docstring).
 LENGTH_RATIO_BAND = (0.75, 0.87)
 
+#: The fixed band of the footprint ``*_fixed``: the height of the foot's lower surface above
+#: the wall, over the bar's initial half-width (or radius), within which it counts as the
+#: footprint (see the module docstring).
+FOOT_LIFT = 0.05
+
 
 def bar_measures(x0: np.ndarray, x: np.ndarray, axis: int, spacing: list[float],
                  wall_level: float, centre: np.ndarray | None = None) -> dict[str, float]:
@@ -55,20 +69,29 @@ def bar_measures(x0: np.ndarray, x: np.ndarray, axis: int, spacing: list[float],
     if centre is None:
         centre = x0[:, lateral].mean(axis=0)
     half0 = np.max(np.linalg.norm(x0[:, lateral] - centre, axis=1)) + 0.5 * spacing[lateral[0]]
+    across = spacing[lateral[0]]
+    distance = np.linalg.norm(x[:, lateral] - centre, axis=1)
     foot = x[:, axis] < foot_level(x, axis, along, wall_level)
-    half = np.max(np.linalg.norm(x[foot][:, lateral] - centre, axis=1)) + 0.5 * spacing[
-        lateral[0]]
+    half = np.max(distance[foot]) + 0.5 * across
+    lift = FOOT_LIFT * half0
+    fixed = x[:, axis] < foot_level(x, axis, along, wall_level, lift)
+    half_fixed = np.max(distance[fixed]) + 0.5 * across
     return {"final_length_ratio": float(Lf / L0), "footprint_half_width_ratio": float(half / half0),
+            "footprint_half_width_ratio_fixed": float(half_fixed / half0),
+            "footprint_lift": float(lift),
             "final_length": float(Lf), "initial_length": float(L0),
             "lift_off": lift_off(x, axis, along, wall_level)}
 
 
-def foot_level(x: np.ndarray, axis: int, along: float, wall_level: float) -> float:
-    """The level below which particles are the bar's foot: one spacing above the wall, or,
-    for a bar that has rebounded off it (no particle within one spacing of the wall), half a
-    spacing above its lowest particle."""
+def foot_level(x: np.ndarray, axis: int, along: float, wall_level: float,
+               lift: float | None = None) -> float:
+    """The level below which particles are the bar's foot: one spacing above the wall (with
+    ``lift``: the particles' centres within ``lift`` plus half a spacing of it, that is their
+    lower surfaces within ``lift``), or, for a bar that has rebounded off it (no particle that
+    close to the wall), half a spacing above its lowest particle."""
     lowest = float(x[:, axis].min())
-    return wall_level + along if lowest < wall_level + along else lowest + 0.5 * along
+    level = wall_level + (along if lift is None else lift + 0.5 * along)
+    return level if lowest < level else lowest + 0.5 * along
 
 
 def lift_off(x: np.ndarray, axis: int, along: float, wall_level: float) -> float:
@@ -100,12 +123,16 @@ def cylinder_measures(x0: np.ndarray, x: np.ndarray, axis: int, spacing: list[fl
     d = x[x[:, axis] < foot_level(x, axis, along, wall_level)][:, lateral] - centre
     r = np.hypot(d[:, 0], d[:, 1])
     Rf = float(r.max()) + 0.5 * across
+    lift = FOOT_LIFT * R0
+    fixed = x[x[:, axis] < foot_level(x, axis, along, wall_level, lift)][:, lateral] - centre
+    Rf_fixed = float(np.hypot(fixed[:, 0], fixed[:, 1]).max()) + 0.5 * across
     sector = np.rint(np.arctan2(d[:, 1], d[:, 0]) / (2 * np.pi / N_SECTORS)).astype(int)
     sector %= N_SECTORS
     by_sector = np.zeros(N_SECTORS)
     np.maximum.at(by_sector, sector, r + 0.5 * across)
     return {"final_length_ratio": float(Lf / L0), "footprint_radius_ratio": Rf / R0,
             "footprint_radius_ratio_min_sector": float(by_sector.min()) / R0,
+            "footprint_radius_ratio_fixed": Rf_fixed / R0, "footprint_lift": lift,
             "footprint_radius": Rf, "initial_radius": R0,
             "final_length": float(Lf), "initial_length": float(L0),
             "lift_off": lift_off(x, axis, along, wall_level)}
@@ -191,6 +218,7 @@ def taylor_metrics(sim: Any) -> dict[str, Any]:
     if getattr(sim.case, "two_dimensional", "") == "axisymmetric" \
             and "footprint_half_width_ratio" in out:  # the half-width is the radius
         out["footprint_radius_ratio"] = out["footprint_half_width_ratio"]
+        out["footprint_radius_ratio_fixed"] = out["footprint_half_width_ratio_fixed"]
     out.update(attempt(notes, "profile", lambda: {"profile": bar_profile(
         x, axis, spacing, centre)}, {}))
     if "final_length_ratio" in out:
@@ -328,10 +356,11 @@ class TaylorProblem(ProblemKind):
         return "footprint_radius_ratio" if case.dimension == 3 else "footprint_half_width_ratio"
 
     def summary_keys(self, case: Case) -> tuple[str, ...]:
-        """Length ratio (and whether it is in the 1D band), footprint ratio, plastic work."""
+        """Length ratio (and whether it is in the 1D band), footprint ratio (in a band of one
+        spacing and of fixed height), plastic work."""
         extra = ("footprint_radius_ratio_min_sector",) if case.dimension == 3 else ()
-        return ("final_length_ratio", "length_ratio_in_1d_band", self._footprint(case), *extra,
-                "plastic_work")
+        return ("final_length_ratio", "length_ratio_in_1d_band", self._footprint(case),
+                f"{self._footprint(case)}_fixed", *extra, "plastic_work")
 
     def table_keys(self, case: Case) -> tuple[str, ...]:
         """Length ratio, footprint ratio (a half-width in 2D, a radius in 3D), plastic
