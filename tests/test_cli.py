@@ -134,3 +134,29 @@ def test_nan_is_reported_with_step_time_and_particle(tmp_path):
     assert info.value.step == 50 and info.value.particle == 17
     rows = (tmp_path / "n" / "history.csv").read_text().splitlines()
     assert len(rows) == 1 + 51  # header, t = 0 and steps 1-50: all kept
+
+
+@pytest.mark.parametrize(("scheme", "surge", "noted"), [("ac", True, True), ("ac", False, False),
+                                                        ("av", True, False)])
+def test_a_failure_after_the_correction_surges_says_so(tmp_path, scheme, surge, noted):
+    """A run with the acceleration correction that fails after the correction's work on the
+    particles has surged (here booked by hand from step 100) says so in its failure message,
+    with the numbers and the scheme that holds such runs; a run whose correction did not surge,
+    or a run without a correction, does not."""
+    case = load_case("bars", [f'viscosity.scheme="{scheme}"'])
+
+    def surge_then_poison(sim):
+        if surge and sim.state.step >= 100:
+            sim.correction_work += 10.0 * (sim.state.step - 99)
+        if sim.state.step == 160:
+            sim.state.velocity[17, 0] = np.nan
+
+    with pytest.raises(SimulationError) as info:
+        run_case(case, tmp_path / "n", callback=surge_then_poison, figures=False)
+    msg = str(info.value)
+    assert "non-finite velocity" in msg and "step 160" in msg and info.value.particle == 17
+    assert ("acceleration correction's work on the particles rose" in msg) == noted
+    if noted:
+        assert "over the last 50 steps" in msg and 'viscosity.scheme = "ac_pairwise"' in msg
+    summary = json.loads((tmp_path / "n" / "summary.json").read_text())
+    assert summary["failure"] == msg

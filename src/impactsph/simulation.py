@@ -411,6 +411,40 @@ class Simulation:
             raise SimulationError(f"time step collapsed to {dt:.3e} s (initial {dt0:.3e} s) at "
                                   f"step {s.step}, t = {s.time:.6e} s", s.step, s.time, None)
 
+    #: :meth:`correction_note`: the history rows it looks back over, and how many times the
+    #: correction's mean rate of work before them its rate over them must be
+    CORRECTION_WINDOW = 50
+    CORRECTION_SURGE = 5.0
+
+    def correction_note(self) -> str:
+        """Why a run with an acceleration correction (the paper's AC) may have failed: "" or a
+        sentence for the failure message, when the correction's work on the particles
+        (``correction_work``) rose over the last :data:`CORRECTION_WINDOW` history rows at
+        more than :data:`CORRECTION_SURGE` times its mean rate before them (and by more than
+        1% of what it was).  Eq 34 has no
+        bound: where the smoothed viscous acceleration exceeds a particle's own, the
+        correction turns internal energy into motion, and the run ends with a collapsed step
+        or a non-finite value (docs/dissipation.md, "Why AC's 3D runs blow up")."""
+        history = self.record.history
+        if not getattr(self.solver, "corrected", False) or len(history) <= self.CORRECTION_WINDOW:
+            return ""
+        start, end = history[0], history[-1]
+        before = history[-1 - self.CORRECTION_WINDOW]
+        rise = end["correction_work"] - before["correction_work"]
+        span = end["time"] - before["time"]
+        mean_rate = (before["correction_work"] - start["correction_work"]) / max(
+            before["time"] - start["time"], 1e-300)
+        if not (rise > 0.01 * abs(before["correction_work"])
+                and rise > self.CORRECTION_SURGE * max(mean_rate, 0.0) * span):
+            return ""
+        steps = end["step"] - before["step"]
+        return (f"the acceleration correction's work on the particles rose from "
+                f"{before['correction_work']:.4g} J to {end['correction_work']:.4g} J over the "
+                f"last {steps} steps, faster than {self.CORRECTION_SURGE:g} times its mean rate "
+                f"before: eq 34 can turn internal energy into motion where the smoothed viscous "
+                f"acceleration exceeds a particle's own (docs/dissipation.md, \"Why AC's 3D runs "
+                f"blow up\"); viscosity.scheme = \"ac_pairwise\" or \"av\" holds such runs")
+
     # -- the loop ------------------------------------------------------------------------
     def run(self, t_end: float | None = None,
             callback: Callable[[Simulation], None] | None = None) -> RunRecord:
@@ -465,8 +499,11 @@ class Simulation:
                     survey = self._survey()  # the callback may have changed the state
             self._check(survey, dt0)
         except SimulationError as exc:
+            note = self.correction_note()
+            if note:
+                exc = SimulationError(f"{exc}; {note}", exc.step, exc.time, exc.particle)
             self.record.failure = str(exc)
-            raise
+            raise exc from None
         finally:
             if resident is not None and not resident.host_current:  # the state back
                 self._sync()
