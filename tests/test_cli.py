@@ -136,27 +136,37 @@ def test_nan_is_reported_with_step_time_and_particle(tmp_path):
     assert len(rows) == 1 + 51  # header, t = 0 and steps 1-50: all kept
 
 
-@pytest.mark.parametrize(("scheme", "surge", "noted"), [("ac", True, True), ("ac", False, False),
-                                                        ("av", True, False)])
-def test_a_failure_after_the_correction_surges_says_so(tmp_path, scheme, surge, noted):
+@pytest.mark.parametrize(("scheme", "surge", "fail", "every", "noted"), [
+    ("ac", 100, 160, 1, True),      # a surge over the last 60 steps
+    ("ac", None, 160, 1, False),    # none: the correction's own work
+    ("av", 100, 160, 1, False),     # no correction
+    ("ac", 10, 50, 1, False),       # too short a history to tell (51 rows)
+    ("ac", 1550, 1605, 10, True),   # rows every 10 steps: the books since the last row count
+])
+def test_a_failure_after_the_correction_surges_says_so(tmp_path, scheme, surge, fail, every,
+                                                         noted):
     """A run with the acceleration correction that fails after the correction's work on the
-    particles has surged (here booked by hand from step 100) says so in its failure message,
-    with the numbers and the scheme that holds such runs; a run whose correction did not surge,
-    or a run without a correction, does not."""
-    case = load_case("bars", [f'viscosity.scheme="{scheme}"'])
+    particles has surged (here booked by hand from step ``surge``) says so in its failure
+    message, with the numbers and the scheme that holds such runs; a run whose correction did
+    not surge, a run without a correction, or one too short to tell, does not."""
+    case = load_case("bars", [f'viscosity.scheme="{scheme}"', f"output.history_every={every}"])
 
     def surge_then_poison(sim):
-        if surge and sim.state.step >= 100:
-            sim.correction_work += 10.0 * (sim.state.step - 99)
-        if sim.state.step == 160:
+        if surge is not None and sim.state.step >= surge:
+            sim.correction_work += 10.0 * (sim.state.step - surge + 1)
+        if sim.state.step == fail:
             sim.state.velocity[17, 0] = np.nan
 
     with pytest.raises(SimulationError) as info:
         run_case(case, tmp_path / "n", callback=surge_then_poison, figures=False)
     msg = str(info.value)
-    assert "non-finite velocity" in msg and "step 160" in msg and info.value.particle == 17
+    assert "non-finite velocity" in msg and f"step {fail}" in msg and info.value.particle == 17
+    assert info.value.step == fail
     assert ("acceleration correction's work on the particles rose" in msg) == noted
     if noted:
-        assert "over the last 50 steps" in msg and 'viscosity.scheme = "ac_pairwise"' in msg
+        assert 'viscosity.scheme = "ac_pairwise"' in msg
+        # the last window: 50 rows back from the books at the failure (every 10 steps: from
+        # the row of step 1110 to step 1605)
+        assert f"over the last {50 if every == 1 else 495} steps" in msg
     summary = json.loads((tmp_path / "n" / "summary.json").read_text())
     assert summary["failure"] == msg

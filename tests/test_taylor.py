@@ -9,7 +9,12 @@ import pytest
 
 from impactsph.loading import load_case
 from impactsph.problems import analyse
-from impactsph.problems.taylor import FOOT_LIFT, LENGTH_RATIO_BAND, bar_measures
+from impactsph.problems.taylor import (
+    FOOT_LIFT,
+    LENGTH_RATIO_BAND,
+    bar_measures,
+    cylinder_measures,
+)
 from impactsph.simulation import Simulation
 
 
@@ -94,3 +99,42 @@ def test_the_fixed_band_footprint_does_not_move_with_the_spacing():
     # the fixed band's moves by less than the coarser spacing (0.1, then 0.05)
     for (dx, coarse), finer in zip(list(found.items())[:2], fixed[1:], strict=True):
         assert abs(coarse["footprint_half_width_ratio_fixed"] - finer) < dx / 3.8e-3
+
+
+def test_the_fixed_band_follows_a_bar_that_has_left_the_wall():
+    """Lifted off the wall, the foot's fixed band starts at its lowest surface: the same
+    half-width at every height of the lift (the one-spacing band falls back to half a spacing
+    above the lowest particle once no particle is within a spacing of the wall)."""
+    dx = 0.19e-3
+    x0, x, _ = curled_foot(dx)
+    on_wall = bar_measures(x0, x, 1, [dx, dx], 0.0, np.zeros(1))
+    for lift in (0.05e-3, 0.1e-3, 0.18e-3, 0.19e-3, 0.2e-3, 0.5e-3):
+        m = bar_measures(x0, x + [0.0, lift], 1, [dx, dx], 0.0, np.zeros(1))
+        assert m["footprint_half_width_ratio_fixed"] == on_wall[
+            "footprint_half_width_ratio_fixed"], lift
+
+
+def test_the_fixed_band_footprint_of_a_cylinder():
+    """The 3D measure: a cylinder's foot curled as :func:`curled_foot`'s, revolved about the
+    axis, on a lattice; its radius within the fixed band is the exact one within a spacing."""
+    dx, radius, flat, tip, rise = 0.25e-3, 3.8e-3, 4.5e-3, 9.0e-3, 1.7e-3
+    curl = rise / (tip - flat) ** 2
+    grid = np.arange(-tip, tip + dx / 2, dx)
+    a, b = (g.ravel() for g in np.meshgrid(grid, grid, indexing="ij"))
+    r = np.hypot(a, b)
+    inside = r < radius - dx / 2
+    x0 = np.column_stack([a[inside], b[inside], np.full(inside.sum(), dx / 2)])
+    x0 = np.vstack([x0 + [0.0, 0.0, k * dx] for k in range(10)])
+    foot = r < tip
+    surface = np.where(r > flat, curl * (r - flat) ** 2, 0.0)
+    layer = np.column_stack([a[foot], b[foot], surface[foot] + dx / 2])
+    block = x0 + [0.0, 0.0, 2 * rise]
+    m = cylinder_measures(x0, np.vstack([layer, block]), 2, [dx, dx, dx], 0.0, np.zeros(2))
+    R0 = m["initial_radius"]
+    assert m["footprint_lift"] == pytest.approx(FOOT_LIFT * R0, rel=1e-12)
+    def exact(lift):
+        return (flat + np.sqrt(lift / curl)) / R0
+
+    assert abs(m["footprint_radius_ratio_fixed"] - exact(m["footprint_lift"])) <= dx / R0
+    # the one-spacing band: lower surfaces within half a spacing (0.125 mm against 0.19 mm)
+    assert abs(m["footprint_radius_ratio"] - exact(dx / 2)) <= dx / R0

@@ -181,11 +181,12 @@ def test_sph_cylinder_converges_onto_the_finite_element_length(tmp_path):
 def test_footprint_within_a_height_interpolates_the_outline():
     """The outline's outermost point within a height of the wall, its crossing of that height
     interpolated along an edge: a foot flat to x = 2 that rises at 45 degrees to x = 4, then
-    goes up."""
+    goes up; lifted off the wall, the band starts at its lowest point."""
     outline = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 1.0], [4.0, 2.0], [4.0, 5.0],
                         [0.0, 5.0]])
     assert fem.footprint_within(outline, 0.0) == 2.0
     assert fem.footprint_within(outline, 0.5) == pytest.approx(2.5, rel=1e-15)
     assert fem.footprint_within(outline, 1.0) == 3.0
     assert fem.footprint_within(outline, 1.25) == pytest.approx(3.25, rel=1e-15)
-    assert fem.footprint_within(outline + [0.0, 0.1], 0.05) == 0.0  # off the wall
+    # off the wall: from its lowest point, as the particles' measure
+    assert fem.footprint_within(outline + [0.0, 0.1], 0.05) == pytest.approx(2.05, rel=1e-14)

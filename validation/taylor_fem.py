@@ -380,15 +380,16 @@ def run(bar: Bar, n_across: int) -> dict:
 
 def footprint_within(outline: np.ndarray, lift: float) -> float:
     """The outermost point (largest x) of the ``outline`` (points ``(x, y)`` in order, the wall
-    at ``y = 0``) within ``lift`` of the wall, where an edge crosses the height ``lift`` the
-    crossing itself; 0 if no point is that low."""
+    at ``y = 0``) within ``lift`` of the wall or, once the bar has left it, of its lowest
+    point (as the SPH measure's fixed band); where an edge crosses that height, the crossing
+    itself."""
     x, y = outline[:, 0], outline[:, 1]
-    low = y <= lift
-    best = float(x[low].max()) if low.any() else 0.0
+    level = max(0.0, float(y.min())) + lift
+    best = float(x[y <= level].max())
     x1, y1, x2, y2 = x[:-1], y[:-1], x[1:], y[1:]
-    cross = (y1 - lift) * (y2 - lift) < 0.0
+    cross = (y1 - level) * (y2 - level) < 0.0
     if cross.any():
-        at = x1[cross] + (lift - y1[cross]) / (y2[cross] - y1[cross]) * (x2[cross] - x1[cross])
+        at = x1[cross] + (level - y1[cross]) / (y2[cross] - y1[cross]) * (x2[cross] - x1[cross])
         best = max(best, float(at.max()))
     return best
 

@@ -12,8 +12,10 @@ section of the bar, and the mean vertical speed of the foot's rim (the particles
 With ``--fem`` (a result of ``validation/taylor_fem.py --out FEM_DIR``, whose final outline
 it reads) it also prints the height of the foot's lower surface above the wall at the end
 of each run, at radii from 4 to 9.5 mm, beside the finite-element one: for the particles, the lowest
-centre within one spacing of that distance from the axis, less half a spacing; for the
-finite elements, the bottom row of nodes interpolated.
+centre within one spacing of that distance from the axis, less half a spacing (on a surface
+that rises at a slope s this reads low by up to s times a spacing; a window of half a spacing
+would not, but reads a hole in the foot's lowest row, where the tensile instability opens
+them, as a bump); for the finite elements, the bottom row of nodes interpolated.
 
 Each ``RUN_DIR`` is a finished run of the built-in ``taylor`` case or a variant of it (its
 ``snapshots.npz``), e.g. the runs of ``validation/resolution.py taylor``.

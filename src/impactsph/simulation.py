@@ -411,39 +411,53 @@ class Simulation:
             raise SimulationError(f"time step collapsed to {dt:.3e} s (initial {dt0:.3e} s) at "
                                   f"step {s.step}, t = {s.time:.6e} s", s.step, s.time, None)
 
-    #: :meth:`correction_note`: the history rows it looks back over, and how many times the
-    #: correction's mean rate of work before them its rate over them must be
+    #: :meth:`correction_note`: the window of history rows it looks at, and how many times the
+    #: correction's largest rate of work over any earlier such window its rate over the last
+    #: one must be
     CORRECTION_WINDOW = 50
     CORRECTION_SURGE = 5.0
 
     def correction_note(self) -> str:
         """Why a run with an acceleration correction (the paper's AC) may have failed: "" or a
-        sentence for the failure message, when the correction's work on the particles
-        (``correction_work``) rose over the last :data:`CORRECTION_WINDOW` history rows at
-        more than :data:`CORRECTION_SURGE` times its mean rate before them (and by more than
-        1% of what it was).  Eq 34 has no
-        bound: where the smoothed viscous acceleration exceeds a particle's own, the
-        correction turns internal energy into motion, and the run ends with a collapsed step
-        or a non-finite value (docs/dissipation.md, "Why AC's 3D runs blow up")."""
-        history = self.record.history
-        if not getattr(self.solver, "corrected", False) or len(history) <= self.CORRECTION_WINDOW:
+        sentence for the failure message.  Eq 34 has no bound: where the smoothed viscous
+        acceleration exceeds a particle's own, the correction turns internal energy into
+        motion, and the run ends with a collapsed step or a non-finite value
+        (docs/dissipation.md, "Why AC's 3D runs blow up").  The note is given when the
+        correction's work on the particles (``correction_work``, its last finite values: the
+        history rows and the books since the last row) rose over the last
+        :data:`CORRECTION_WINDOW` rows by more than 1% of what it was and at more than
+        :data:`CORRECTION_SURGE` times the largest rate it had over any earlier window of as
+        many rows, after it had been at work for at least one such window."""
+        if not getattr(self.solver, "corrected", False):
             return ""
-        start, end = history[0], history[-1]
-        before = history[-1 - self.CORRECTION_WINDOW]
-        rise = end["correction_work"] - before["correction_work"]
-        span = end["time"] - before["time"]
-        mean_rate = (before["correction_work"] - start["correction_work"]) / max(
-            before["time"] - start["time"], 1e-300)
-        if not (rise > 0.01 * abs(before["correction_work"])
-                and rise > self.CORRECTION_SURGE * max(mean_rate, 0.0) * span):
+        rows = [(r["time"], r["step"], r["correction_work"]) for r in self.record.history]
+        s = self._state
+        if not rows or s.step > rows[-1][1]:  # the books since the last row
+            rows.append((s.time, s.step, self.correction_work))
+        rows = [r for r in rows if math.isfinite(r[2])]
+        window = self.CORRECTION_WINDOW
+        if len(rows) <= 2 * window:
             return ""
-        steps = end["step"] - before["step"]
+        t, step, work = (np.array(c, dtype=float) for c in zip(*rows, strict=True))
+        end = len(rows) - 1
+        before = end - window
+        active = np.flatnonzero(work != work[0])
+        if active.size == 0 or before - active[0] < window:
+            return ""
+        k = np.arange(active[0] + window, before + 1)
+        earlier = np.max((work[k] - work[k - window])
+                         / np.maximum(t[k] - t[k - window], 1e-300))
+        rise = work[end] - work[before]
+        if not (rise > 0.01 * abs(work[before])
+                and rise > self.CORRECTION_SURGE * max(earlier, 0.0) * (t[end] - t[before])):
+            return ""
         return (f"the acceleration correction's work on the particles rose from "
-                f"{before['correction_work']:.4g} J to {end['correction_work']:.4g} J over the "
-                f"last {steps} steps, faster than {self.CORRECTION_SURGE:g} times its mean rate "
-                f"before: eq 34 can turn internal energy into motion where the smoothed viscous "
-                f"acceleration exceeds a particle's own (docs/dissipation.md, \"Why AC's 3D runs "
-                f"blow up\"); viscosity.scheme = \"ac_pairwise\" or \"av\" holds such runs")
+                f"{work[before]:.4g} J to {work[end]:.4g} J over the last "
+                f"{int(step[end] - step[before])} steps, faster than {self.CORRECTION_SURGE:g} "
+                f"times its largest rate before: eq 34 can turn internal energy into motion where "
+                f"the smoothed viscous acceleration exceeds a particle's own (docs/dissipation.md, "
+                f"\"Why AC's 3D runs blow up\"); viscosity.scheme = \"ac_pairwise\" or \"av\" "
+                f"holds such runs")
 
     # -- the loop ------------------------------------------------------------------------
     def run(self, t_end: float | None = None,
@@ -501,9 +515,9 @@ class Simulation:
         except SimulationError as exc:
             note = self.correction_note()
             if note:
-                exc = SimulationError(f"{exc}; {note}", exc.step, exc.time, exc.particle)
+                exc.args = (f"{exc}; {note}", *exc.args[1:])
             self.record.failure = str(exc)
-            raise exc from None
+            raise
         finally:
             if resident is not None and not resident.host_current:  # the state back
                 self._sync()
