@@ -26,7 +26,8 @@ from impactsph.loading import read_case_dict  # noqa: E402
 from impactsph.output import load_run  # noqa: E402
 from impactsph.sweep import run_many  # noqa: E402
 
-KEYS = ["final_length_ratio", "footprint_radius_ratio", "plastic_work",
+KEYS = ["final_length_ratio", "footprint_radius_ratio", "footprint_radius_ratio_fixed",
+        "plastic_work",
         "kinetic_energy_initial", "total_energy_relative_error", "momentum_drift",
         "wall_constraint_events", "n_steps", "wall_seconds"]
 
@@ -57,7 +58,8 @@ def main() -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "taylor3d.json").write_text(json.dumps(rows, indent=2, default=float))
     cols = ["run", "n_particles", "final_length_ratio", "footprint_radius_ratio",
-            "plastic_work_over_ke0", "total_energy_relative_error", "momentum_drift",
+            "footprint_radius_ratio_fixed", "plastic_work_over_ke0",
+            "total_energy_relative_error", "momentum_drift",
             "wall_constraint_events", "n_steps", "wall_seconds"]
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))

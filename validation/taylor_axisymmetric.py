@@ -20,8 +20,8 @@ from impactsph.loading import load_case
 from impactsph.runner import run_case
 
 KEYS = ["n_particles", "n_steps", "final_length_ratio", "footprint_radius_ratio",
-        "footprint_radius_ratio_fixed", "plastic_work", "kinetic_energy_ratio_final", "total_energy_relative_error",
-        "momentum_drift", "wall_seconds"]
+        "footprint_radius_ratio_fixed", "plastic_work", "kinetic_energy_ratio_final",
+        "total_energy_relative_error", "momentum_drift", "wall_seconds"]
 
 
 def main() -> None:
