@@ -169,14 +169,22 @@ def _enforce(x, v, m, points, normals, impulse):
     return moved
 
 
+@nb.njit(inline="always", cache=True)
+def plane_distance(x, i, points, normals, w):
+    """Signed distance of ``x[i]`` from plane ``w`` (m), positive on the side its normal
+    points to (the material's).  For the CPU's loops; the kernels shared with
+    :mod:`impactsph.gpu_step` write the sum out, as CUDA compiles them."""
+    d = 0.0
+    for a in range(x.shape[1]):
+        d += (x[i, a] - points[w, a]) * normals[w, a]
+    return d
+
+
 @nb.njit(cache=True)
 def _first_behind(x, points, normals):
     for i in range(x.shape[0]):
         for w in range(points.shape[0]):
-            d = 0.0
-            for a in range(x.shape[1]):
-                d += (x[i, a] - points[w, a]) * normals[w, a]
-            if d < 0.0:
+            if plane_distance(x, i, points, normals, w) < 0.0:
                 return i
     return -1
 

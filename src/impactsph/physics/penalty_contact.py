@@ -38,6 +38,7 @@ import math
 import numba as nb
 import numpy as np
 
+from ..boundaries import plane_distance
 from ..materials import BULK, RHO0
 from ..neighbours import NeighbourList, particle_order_list
 
@@ -140,14 +141,13 @@ def hertz_wall(n, x, v, m, material, table, diameter, points, normals, stiffness
         for a in range(dim):
             wall_force[i, a] = 0.0
         for w in range(points.shape[0]):
-            z = 0.0
-            vn = 0.0
-            for a in range(dim):
-                z += (x[i, a] - points[w, a]) * normals[w, a]
-                vn += v[i, a] * normals[w, a]
+            z = plane_distance(x, i, points, normals, w)
             force, _ = wall_law(k_i, diameter[i], z, stiffness, dim)
             if force == 0.0:
                 continue
+            vn = 0.0
+            for a in range(dim):
+                vn += v[i, a] * normals[w, a]
             per_mass = force / m[i]
             for a in range(dim):
                 dv[i, a] += per_mass * normals[w, a]
@@ -165,9 +165,7 @@ def wall_frequency(n, x, m, material, table, diameter, points, normals, stiffnes
     for i in range(n):
         spring = 0.0
         for w in range(points.shape[0]):
-            z = 0.0
-            for a in range(dim):
-                z += (x[i, a] - points[w, a]) * normals[w, a]
+            z = plane_distance(x, i, points, normals, w)
             spring += wall_law(table[material[i], BULK], diameter[i], z, stiffness, dim)[1]
         largest = max(largest, spring / m[i])
     return math.sqrt(largest)
