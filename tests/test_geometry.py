@@ -143,6 +143,61 @@ def test_cylinder_volume_and_points_inside(axis, r_over_dx, l_over_dx):
     assert p.n == len(layers) * disk_particles([0.0, 0.0], r, dx).n
 
 
+@pytest.mark.parametrize("axis", ["x", "z"])
+@pytest.mark.parametrize(("r_over_dx", "l_over_dx"), [(10.3, 15.4), (1.2, 3)])
+def test_cylinder_of_rings(axis, r_over_dx, l_over_dx):
+    """``arrangement = "rings"``: the volume exact, the outermost particles on one round
+    surface half a ring inside the radius, each ring's points evenly spaced, the section the
+    same at every layer, and mirror-symmetric about both lateral axes with no particle on
+    them (the quarter of the Taylor cylinder)."""
+    dx = 0.002
+    r, length = r_over_dx * dx, l_over_dx * dx
+    centre = np.array([0.1, -0.05, 0.3])
+    p = cylinder_particles(centre.tolist(), r, length, axis, dx, "rings")
+    rings, layers = max(1, round(r_over_dx)), round(l_over_dx)
+    dr, dz = r / rings, length / layers
+    assert p.volume.sum() == pytest.approx(math.pi * r**2 * length, rel=1e-12)
+    assert p.spacing == pytest.approx((dr * dr * dz) ** (1 / 3), rel=1e-12)
+    a = "xyz".index(axis)
+    across = [k for k in range(3) if k != a]
+    rel = p.position - centre
+    radius = np.linalg.norm(rel[:, across], axis=1)
+    assert radius.max() == pytest.approx(r - dr / 2, rel=1e-12)
+    assert np.allclose(np.unique(np.round(radius / dr - 0.5, 9)), np.arange(rings))
+    assert np.allclose(np.unique(np.round(rel[:, a] / dz - 0.5, 9)), np.arange(layers))
+    section = rel[np.isclose(rel[:, a], dz / 2)][:, across]
+    assert p.n == layers * section.shape[0]
+    for k in range(rings):  # evenly round each ring, a multiple of 4 points
+        ring = section[np.isclose(np.hypot(*section.T), (k + 0.5) * dr)]
+        assert ring.shape[0] % 4 == 0
+        gaps = np.diff(np.sort(np.arctan2(ring[:, 1], ring[:, 0])))
+        assert np.allclose(gaps, 2 * math.pi / ring.shape[0])
+    assert np.abs(section).min() > 0.1 * dr
+    for mirror in ([-1.0, 1.0], [1.0, -1.0]):
+        image = section * np.array(mirror)
+        distance = np.linalg.norm(image[:, None, :] - section[None, :, :], axis=2).min(axis=1)
+        assert distance.max() < 1e-12 * dr
+    q = section[(section[:, 0] > 0) & (section[:, 1] > 0)]
+    assert 4 * q.shape[0] == section.shape[0]
+
+
+def test_a_case_cylinder_of_rings_and_its_spacings(tmp_path):
+    """The case file's ``arrangement = "rings"`` reaches the particles; the measures' per-axis
+    spacings are the rings' width across the axis and the layers' thickness along it."""
+    cyl = ('type = "cylinder"\ncentre = [0.0, 0.0, 0.0]\nradius = 0.0038\nlength = 0.0254\n'
+           'axis = "y"\nspacing = 0.0005\narrangement = "rings"')
+    case = load_case(write_case(tmp_path, body("c", "steel", cyl, dim=3), dimension=3))
+    g = case.bodies[0].geometry
+    assert g.spacings() == pytest.approx([0.0038 / 8, 0.0254 / 51, 0.0038 / 8])
+    problem = build_problem(case)
+    assert problem.state.n == body_particles(g, 3).n
+    assert problem.state.mass.sum() == pytest.approx(7800.0 * math.pi * 0.0038**2 * 0.0254,
+                                                     rel=1e-12)
+    with pytest.raises(CaseError, match="arrangement"):
+        load_case(write_case(tmp_path, body("c", "steel", cyl.replace('"rings"', '"hex"'),
+                                            dim=3), dimension=3))
+
+
 def test_block_particles_match_the_lattice():
     p = block_particles([0.0, 1.0], [0.004, 0.002], [0.001, 0.0005])
     assert p.n == 16

@@ -90,12 +90,15 @@ def test_symmetry_plane_is_refused_on_the_gpu_and_checked():
         validate_case(data)
 
 
-def test_quarter_cylinder_equals_the_whole(tmp_path):
+@pytest.mark.parametrize("arrangement", ["lattice", "rings"])
+def test_quarter_cylinder_equals_the_whole(tmp_path, arrangement):
     """The 3D Taylor cylinder (10 particles across, 1 us): the quarter x > 0, y > 0 (its
-    particles read from a file) with two symmetry planes against the whole cylinder."""
+    particles read from a file) with two symmetry planes against the whole cylinder, of the
+    square lattice's layers or of concentric rings."""
     data = read_case_dict(EXAMPLES / "taylor3d.toml")
     geometry = data["bodies"][0]["geometry"]
     geometry["spacing"] = 0.0254 / 33
+    geometry["arrangement"] = arrangement
     overrides = ["time.end=1e-6", "output.snapshot_times=[]", "output.figures=false"]
     whole = Simulation(validate_case(apply_overrides(data, overrides)))
     part = quarter_cylinder_case(copy.deepcopy(data), tmp_path)  # what the lab runs at x2

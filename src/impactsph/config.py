@@ -261,7 +261,8 @@ class Cylinder(_Model):
     """A circular cylinder of particles (3D): layers of the :class:`Disk` lattice across
     ``axis``, ``round(length / spacing)`` of them (at least 1) at ``(k + 1/2) dx`` from the
     base, whose centre is ``centre``; the cylinder extends from the base in the positive
-    direction of ``axis``."""
+    direction of ``axis``.  Or, with ``arrangement = "rings"``, layers of concentric rings
+    (:func:`impactsph.geometry.cylinder_particles`)."""
 
     type: Literal["cylinder"] = "cylinder"
     centre: list[FiniteFloat] = Field(description="centre of the base (m)")
@@ -269,14 +270,28 @@ class Cylinder(_Model):
     length: PositiveFloat = Field(description="length along the axis (m)")
     axis: Literal["x", "y", "z"] = Field("z", description="direction of the axis")
     spacing: PositiveFloat = Field(description="particle spacing dx (m)")
+    arrangement: Literal["lattice", "rings"] = Field(
+        "lattice", description="'lattice': layers of the square lattice's cells within the "
+        "radius (a staircase surface; rows, columns and diagonals of particles across the "
+        "section); 'rings': layers of round(length / spacing) equal thicknesses, each of "
+        "round(radius / spacing) concentric rings of equal width, the points of each spread "
+        "evenly round it and its area shared among them, so that the surface is round and "
+        "the volume exact (a foot that spreads on a wall: docs/validation.md)")
 
     def spacings(self) -> list[float]:
-        """Particle spacing along each axis (m)."""
-        return [float(self.spacing)] * 3
+        """Particle spacing along each axis (m): ``spacing`` for the lattice; for the rings
+        their width ``radius / round(radius / spacing)`` across the axis and the layers'
+        thickness ``length / round(length / spacing)`` along it."""
+        if self.arrangement == "lattice":
+            return [float(self.spacing)] * 3
+        across = self.radius / max(1, round(self.radius / self.spacing))
+        along = self.length / max(1, round(self.length / self.spacing))
+        return [float(along if a == self.axis else across) for a in "xyz"]
 
     @model_validator(mode="after")
     def _not_empty(self) -> Cylinder:
-        if not _lattice_holds_a_particle(self.radius, self.spacing):
+        if self.arrangement == "lattice" and not _lattice_holds_a_particle(self.radius,
+                                                                           self.spacing):
             raise ValueError(f"radius = {self.radius!r} holds no particle at spacing = "
                              f"{self.spacing!r} (needs radius >= spacing / sqrt(2))")
         return self

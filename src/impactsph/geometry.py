@@ -146,22 +146,62 @@ def sphere_shell_particles(centre: list[float], radius: float, spacing: float) -
 
 
 def cylinder_particles(centre: list[float], radius: float, length: float, axis: str,
-                       spacing: float) -> Particles:
+                       spacing: float, arrangement: str = "lattice") -> Particles:
     """A circular cylinder (3D) along ``axis`` (``"x"``, ``"y"`` or ``"z"``) from the base
-    centred at ``centre`` in the positive direction: ``round(length / spacing)`` layers (at
-    least 1) at ``(k + 1/2) dx`` from the base, each the lattice of :func:`disk_particles` across
-    the axis (the other two axes in the order x, y, z).  Each particle has the volume ``dx^3``;
-    the total is ``pi r^2 L`` up to the disk's lattice error and the rounding of ``L`` to whole
-    layers."""
+    centred at ``centre`` in the positive direction.  ``arrangement``:
+
+    - ``"lattice"``: ``round(length / spacing)`` layers (at least 1) at ``(k + 1/2) dx`` from
+      the base, each the lattice of :func:`disk_particles` across the axis (the other two axes
+      in the order x, y, z).  Each particle has the volume ``dx^3``; the total is ``pi r^2 L``
+      up to the disk's lattice error and the rounding of ``L`` to whole layers.
+    - ``"rings"``: ``round(length / spacing)`` layers of thickness ``dz = L / layers``, each of
+      ``K = round(radius / spacing)`` concentric rings (:func:`ring_offsets`); the volumes add
+      up to ``pi r^2 L`` exactly, the outermost particles lie half a ring's width inside a
+      round surface, and no line of particles runs across the section (the lattice's rows,
+      columns and diagonals are the directions along which a flattening foot streams out:
+      docs/validation.md, "Taylor bar in 3D").  ``Particles.spacing`` is the geometric mean
+      ``(dr^2 dz)^(1/3)``.
+    """
     along = AXES.index(axis)
     across = [a for a in range(3) if a != along]
-    disk = _disk_offsets(radius, spacing)
     layers = max(1, round(length / spacing))
+    if arrangement == "rings":
+        disk, areas, dr = ring_offsets(radius, spacing)
+        dz = length / layers
+        volume = np.tile(areas * dz, layers)
+        mean_spacing = float((dr * dr * dz) ** (1.0 / 3.0))
+    elif arrangement == "lattice":
+        disk = _disk_offsets(radius, spacing)
+        dz = spacing
+        volume = np.full(layers * disk.shape[0], spacing**3)
+        mean_spacing = float(spacing)
+    else:
+        raise ValueError(f"arrangement = {arrangement!r}: allowed 'lattice' or 'rings'")
     x = np.empty((layers * disk.shape[0], 3))
     x[:, across] = np.tile(disk, (layers, 1))
-    x[:, along] = np.repeat((np.arange(layers) + 0.5) * spacing, disk.shape[0])
+    x[:, along] = np.repeat((np.arange(layers) + 0.5) * dz, disk.shape[0])
     x += np.asarray(centre, dtype=np.float64)
-    return Particles(x, np.full(x.shape[0], spacing**3), float(spacing))
+    return Particles(x, volume, mean_spacing)
+
+
+def ring_offsets(radius: float, spacing: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """A disk of ``K = max(1, round(radius / spacing))`` concentric rings of width ``dr =
+    radius / K``: ring ``k`` (0 to K - 1) at ``(k + 1/2) dr`` from the centre holds ``n_k = 4
+    max(1, round(2 pi (k + 1/2) / 4))`` points at the angles ``(j + 1/2) 2 pi / n_k``, which
+    share its area ``pi ((k + 1)^2 - k^2) dr^2``.  A multiple of 4 with the half-step offset
+    makes each ring mirror-symmetric about both axes with no point on either, so a quarter
+    (x > 0, y > 0) with two symmetry planes is the whole disk (:func:`quarter_cylinder_case`).
+    Returns the offsets (n, 2), the areas (n,) and ``dr``."""
+    rings = max(1, round(radius / spacing))
+    dr = radius / rings
+    offsets, areas = [], []
+    for k in range(rings):
+        count = 4 * max(1, round(2.0 * math.pi * (k + 0.5) / 4.0))
+        angle = (np.arange(count) + 0.5) * (2.0 * math.pi / count)
+        r = (k + 0.5) * dr
+        offsets.append(np.stack([r * np.cos(angle), r * np.sin(angle)], axis=1))
+        areas.append(np.full(count, math.pi * (2 * k + 1) * dr * dr / count))
+    return np.concatenate(offsets), np.concatenate(areas), float(dr)
 
 
 def quarter_planes() -> list[dict[str, Any]]:
@@ -194,9 +234,10 @@ def quarter_cylinder_case(case: dict[str, Any], folder: Path) -> dict[str, Any]:
         raise CaseError("bodies.0.geometry: the quarter needs a cylinder along z with its "
                         f"axis at x = y = 0, not {g!r}")
     particles = cylinder_particles(g["centre"], g["radius"], g["length"], g["axis"],
-                                   g["spacing"])
+                                   g["spacing"], g.get("arrangement", "lattice"))
     case["bodies"][0]["geometry"] = quarter_file_geometry(
-        particles, folder / f"{case['name']}-{g['spacing']:.4e}-quarter.npz")
+        particles, folder / f"{case['name']}-{g['spacing']:.4e}-{g.get('arrangement', 'lattice')}"
+                            "-quarter.npz")
     case["boundaries"] = [*case.get("boundaries", []), *quarter_planes()]
     return case
 
@@ -231,7 +272,7 @@ def body_particles(geometry: Any, dim: int, where: str = "geometry") -> Particle
         return sphere_particles(geometry.centre, geometry.radius, geometry.spacing)
     if kind == "cylinder":
         return cylinder_particles(geometry.centre, geometry.radius, geometry.length,
-                                  geometry.axis, geometry.spacing)
+                                  geometry.axis, geometry.spacing, geometry.arrangement)
     if kind == "file":
         return file_particles(geometry.path, dim, geometry.spacing, where=f"{where}.path")
     raise ValueError(f"unknown geometry type {kind!r}")
