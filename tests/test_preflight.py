@@ -110,6 +110,11 @@ def test_particle_counts_match_the_placed_particles(tmp_path):
                           "geometry": {"type": "cylinder", "centre": [0.0, 0.0, 0.0],
                                        "radius": 0.002, "length": 0.0031, "axis": "y",
                                        "spacing": 5e-4}}]},
+             {**block_case(dimension=3, bodies__0__velocity=[0.0, 0.0, -1.0]),
+              "bodies": [{"name": "c", "material": "steel", "velocity": [0.0, 0.0, 0.0],
+                          "geometry": {"type": "cylinder", "centre": [0.0, 0.0, 0.0],
+                                       "radius": 0.0031, "length": 0.0031, "axis": "z",
+                                       "spacing": 5e-4, "arrangement": "rings"}}]},
              block_case(bodies__0__geometry={"origin": [0.0, 0.0], "size": [0.0101, 0.003],
                                              "spacing": [5e-4, 3e-4]})]
     for case in cases:

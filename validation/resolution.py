@@ -6,6 +6,7 @@ table.
     .venv/bin/python validation/resolution.py taylor [--workers 2]
     .venv/bin/python validation/resolution.py taylor --schemes AC "AC stabilised" --factors 1 2 4
     .venv/bin/python validation/resolution.py cantilever
+    .venv/bin/python validation/resolution.py taylor --schemes "AC walls" --set kernel.h_over_dx=1.6
 
 Schemes: the paper's AC and AV references; "AC walls": AC with the normal-stress contact and
 the walls' penalty layer; "AC stabilised": those and the kernel gradient correction of the
@@ -66,6 +67,8 @@ def main() -> None:
                         help="schemes to run (default: AC and the AV reference)")
     parser.add_argument("--factors", nargs="+", type=int, default=[1, 2],
                         help="particle-count multipliers per direction (default: 1 2)")
+    parser.add_argument("--set", dest="sets", action="append", default=[],
+                        help="an override for every run (key=value), after the scheme's")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     out = args.out or Path("runs/validation") / f"resolution-{args.case}"
@@ -82,7 +85,8 @@ def main() -> None:
         for factor in args.factors:
             refined = [c * factor for c in count]
             labels.append((scheme, factor))
-            overrides.append([*ov, f"bodies.0.geometry.count={json.dumps(refined)}",
+            overrides.append([*ov, *args.sets,
+                              f"bodies.0.geometry.count={json.dumps(refined)}",
                               "output.figures=false"])
     rows = run_many(base, overrides, out, workers=args.workers)
     result = []

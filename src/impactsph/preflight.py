@@ -224,6 +224,8 @@ def body_spacing(geometry: Any) -> float:
     """The spacing dx the smoothing length is scaled from (a block's geometric mean)."""
     if isinstance(geometry, Block):
         return float(np.prod(geometry.spacings())) ** (1.0 / len(geometry.size))
+    if isinstance(geometry, Cylinder):  # the rings' (dr^2 dz)^(1/3); the lattice's dx
+        return float(np.prod(geometry.spacings())) ** (1.0 / 3.0)
     return float(geometry.spacing)
 
 
@@ -242,7 +244,13 @@ def count_particles(case: Case) -> list[int]:
                                           sizes.shape)
                 n = math.prod(int(c) for c in np.maximum(1, np.rint(sizes / spacing)))
         elif isinstance(g, Cylinder):
-            n = _disk_count(g.radius, g.spacing) * max(1, round(g.length / g.spacing))
+            if g.arrangement == "rings":
+                from .geometry import ring_offsets
+
+                section = ring_offsets(g.radius, g.spacing)[0].shape[0]
+            else:
+                section = _disk_count(g.radius, g.spacing)
+            n = section * max(1, round(g.length / g.spacing))
         elif isinstance(g, Disk):
             n = _disk_count(g.radius, g.spacing)
         elif isinstance(g, Ring | Sphere):
