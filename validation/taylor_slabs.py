@@ -119,22 +119,24 @@ def main() -> None:
                         help="the slabs' edges above the wall (mm)")
     args = parser.parse_args()
     edges = np.array(args.edges) * 1e-3
-    unit = 1e9  # m^3 -> mm^3 (plane strain: m^2 -> mm^2)
-    rows = []
+    rows = []  # (label, volumes, unit: m^3 -> mm^3, or plane strain's m^2 -> mm^2)
     for run in args.runs:
         volumes, info = run_slab_volumes(run, edges)
+        plane = info["dimension"] == 2 and not info["axisymmetric"]
         label = "axisymmetric" if info["axisymmetric"] else f"{info['dimension']}D"
-        rows.append((f"{run.name} ({label}, {info['particles']} particles)", volumes))
+        rows.append((f"{run.name} ({label}, {info['particles']} particles)", volumes,
+                     1e6 if plane else 1e9))
     for path in args.fem:
         result = json.loads(path.read_text())
-        volumes = outline_slab_volumes(np.array(result["boundary_final"]), edges,
-                                       bool(result.get("axisymmetric")))
-        rows.append((f"{path.name} (finite elements, {result['n_across']} across)", volumes))
+        axisymmetric = bool(result.get("axisymmetric"))
+        volumes = outline_slab_volumes(np.array(result["boundary_final"]), edges, axisymmetric)
+        rows.append((f"{path.name} (finite elements, {result['n_across']} across)", volumes,
+                     1e9 if axisymmetric else 1e6))
     reference = rows[-1][1] if args.fem else None
     heads = [f"{a:g}-{b:g} mm" for a, b in zip(args.edges[:-1], args.edges[1:], strict=True)]
     print("| run | " + " | ".join(heads) + " | total |")
     print("|---|" + "---|" * (len(heads) + 1))
-    for name, volumes in rows:
+    for name, volumes, unit in rows:
         cells = []
         for k, value in enumerate(volumes):
             cell = f"{value * unit:.1f}"
@@ -142,8 +144,8 @@ def main() -> None:
                 cell += f" ({100 * (value / reference[k] - 1):+.1f}%)"
             cells.append(cell)
         print(f"| {name} | " + " | ".join(cells) + f" | {volumes.sum() * unit:.1f} |")
-    print("(mm^3; plane strain mm^2 per unit depth; in brackets against the last "
-          "finite-element result)")
+    print("(mm^3; plane strain: mm^2, the volume per unit depth; in brackets against the "
+          "last finite-element result)")
 
 
 if __name__ == "__main__":
