@@ -187,13 +187,25 @@ class Solver:
         self._ghost_src, self._ghost_wall = ghost_src, ghost_wall
         n_ext = n + ghost_src.shape[0]
         if self.walls is not None:
+            # without a switch the passes read the common columns of the material state
+            # only, so its rows can be the carried array's (below)
+            width = (PASS_CARRIED if self.switched
+                     else max(PASS_CARRIED, state.material_state.shape[1]))
             ext = {"x": np.zeros((n_ext, self.dim)), "v": np.zeros((n_ext, self.dim)),
                    "rho": np.zeros(n_ext), "e": np.zeros(n_ext), "S": np.zeros((n_ext, 3, 3)),
-                   "carried": np.zeros((n_ext, PASS_CARRIED)), "m": np.zeros(n_ext),
+                   "carried": np.zeros((n_ext, width)), "m": np.zeros(n_ext),
                    "h": np.zeros(n_ext),
                    "material": np.zeros(n_ext, np.int32), "body": np.zeros(n_ext, np.int32)}
             ext["m"][:n], ext["h"][:n] = state.mass, state.smoothing_length
             ext["material"][:n], ext["body"][:n] = state.material, state.body
+            # the state's integrated fields become views of the extended arrays' first n
+            # rows: the integrator writes where the passes read, and _fill copies nothing
+            # of them (the integrator and the rest write these fields in place)
+            for key, name in self._aliased():
+                field = getattr(state, name)
+                if field.dtype == ext[key].dtype and field.shape[1:] == ext[key].shape[1:]:
+                    ext[key][:n] = field
+                    setattr(state, name, ext[key][:n])
             self._ext = ext
             self._fill(state)
             positions = ext["x"]
@@ -209,14 +221,27 @@ class Solver:
                                        compatible=self.compatible)
         return positions
 
+    def _aliased(self) -> tuple[tuple[str, str], ...]:
+        """The extended arrays whose first rows are the state's fields (key, field name):
+        the material state only without a switch, whose factor and memory take its
+        columns after the common ones."""
+        fields = (("x", "position"), ("v", "velocity"), ("rho", "density"),
+                  ("e", "specific_energy"), ("S", "deviatoric_stress"))
+        return fields if self.switched else (*fields, ("carried", "material_state"))
+
     def _fill(self, state: ParticleState) -> None:
-        """Copy the real particles into the extended arrays and mirror them into ghosts."""
+        """Copy the real particles into the extended arrays (the fields that are not views
+        of them already: :meth:`_allocate`) and mirror them into ghosts."""
         ext, n = self._ext, state.n
-        ext["x"][:n], ext["v"][:n] = state.position, state.velocity
-        ext["rho"][:n], ext["e"][:n] = state.density, state.specific_energy
-        ext["S"][:n] = state.deviatoric_stress
-        ext["carried"][:n, :CARRIED] = state.material_state[:, :CARRIED]
+        for key, name in self._aliased():
+            field = getattr(state, name)
+            if field.base is not ext[key]:  # a state that was handed new arrays
+                if key == "carried":
+                    ext[key][:n, :CARRIED] = field[:, :CARRIED]
+                else:
+                    ext[key][:n] = field
         if self.switched:  # read only by the passes of a scheme with a switch
+            ext["carried"][:n, :CARRIED] = state.material_state[:, :CARRIED]
             ext["carried"][:n, VISCOSITY_FACTOR] = state.viscosity_factor
             ext["carried"][:n, VISCOSITY_MEMORY] = state.viscosity_memory
         w = self.walls
