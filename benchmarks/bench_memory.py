@@ -69,6 +69,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--n", type=float, default=1e5, help="target particle count")
     parser.add_argument("--scheme", default="av", help="viscosity scheme (default av)")
     parser.add_argument("--steps", type=int, default=2)
+    parser.add_argument("--wall", action="store_true",
+                        help="a free-slip wall under the lattice (its ghosts: the extended "
+                        "arrays, whose first rows the state's fields then are)")
     parser.add_argument("--json", type=Path, default=None, help="also write the table here")
     args = parser.parse_args(argv)
 
@@ -81,7 +84,13 @@ def main(argv: list[str] | None = None) -> None:
     from impactsph.loading import validate_case
     from impactsph.simulation import Simulation
 
-    sim = Simulation(validate_case(lattice_case(args.dim, int(args.n), args.scheme)))
+    case = lattice_case(args.dim, int(args.n), args.scheme)
+    if args.wall:
+        normal = [0.0] * args.dim
+        normal[-1] = 1.0
+        case["boundaries"] = [{"type": "wall", "point": [0.0] * args.dim, "normal": normal,
+                               "slip": "free"}]
+    sim = Simulation(validate_case(case))
     sim.state.velocity[:] = np.random.default_rng(1).normal(size=sim.state.velocity.shape)
     dt = 0.1 * stable_time_step(sim.state, sim.problem.table, 0.3)
     for _ in range(args.steps):
@@ -90,6 +99,7 @@ def main(argv: list[str] | None = None) -> None:
     rows = sorted(arrays_of(sim).values(), reverse=True)
     total = sum(size for size, _ in rows)
     print(f"impactsph {__version__}: {args.dim}D lattice, {n} particles, {args.scheme}, "
+          f"{'a wall under it, ' if args.wall else ''}"
           f"after {args.steps} steps: {total / n:.0f} B per particle in "
           f"{len(rows)} arrays")
     print(f"{'B/particle':>10}  array")
@@ -101,7 +111,7 @@ def main(argv: list[str] | None = None) -> None:
     if args.json is not None:
         args.json.write_text(json.dumps({
             "version": __version__, "machine": platform.machine(), "cpu": host_cpu_name(),
-            "dim": args.dim, "particles": n, "scheme": args.scheme,
+            "dim": args.dim, "particles": n, "scheme": args.scheme, "wall": args.wall,
             "bytes_per_particle": total / n,
             "arrays": [{"path": p, "bytes_per_particle": s / n} for s, p in rows]}, indent=1))
 
