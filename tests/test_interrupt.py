@@ -168,6 +168,9 @@ def test_sigterm_stops_the_same_way(tmp_path):
 
 
 def test_signals_ask_for_a_stop_and_a_second_one_stops_at_once():
+    # what the process had before (Python's handler, or SIG_IGN where the test run was
+    # started in the background by a shell without job control): restored on leaving
+    before = signal.getsignal(signal.SIGINT)
     with stop_on_signals() as stop:
         with pytest.raises(KeyboardInterrupt):  # while setting up: nothing to save yet
             signal.raise_signal(signal.SIGINT)
@@ -179,7 +182,7 @@ def test_signals_ask_for_a_stop_and_a_second_one_stops_at_once():
             signal.raise_signal(signal.SIGTERM)
         assert stop()  # taken up: the run now writes its last outputs ...
         signal.raise_signal(signal.SIGINT)  # ... and a further signal does not disturb it
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert signal.getsignal(signal.SIGINT) is before
 
 
 def test_a_stop_asked_in_a_library_run_raises_run_interrupted(tmp_path):

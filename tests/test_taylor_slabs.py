@@ -59,6 +59,21 @@ def test_an_outline_that_crosses_a_slab_twice():
                                rtol=1e-12)
 
 
+def test_a_level_that_cuts_the_outline_into_two_pieces():
+    """A lip that hangs down beside the bar with a gap between them (an overhang): the level
+    z = 1 mm cuts the section into two pieces, the bar and the lip, and each slab holds both
+    (plane strain: twice the half's area)."""
+    mm = 1e-3
+    # the bar r < 3 mm up to 3 mm; a gap 3 < r < 4 mm below 2.5 mm; a lip 4 < r < 5 mm
+    # hanging from 3 mm down to 0.5 mm
+    outline = np.array([[0, 0], [3, 0], [3, 2.5], [4, 2.5], [4, 0.5], [5, 0.5], [5, 3],
+                        [0, 3]], dtype=float) * mm
+    got = slabs.outline_slab_volumes(outline, np.array([0.0, 1.0, 3.0]) * mm, False)
+    below = 3 * 1 + 1 * 0.5  # the bar's and the lip's pieces under 1 mm (mm^2)
+    above = 3 * 2 + 1 * 0.5 + 1 * 2  # the bar, the bridge over the gap, the lip
+    np.testing.assert_allclose(got, [2 * below * mm**2, 2 * above * mm**2], rtol=1e-12)
+
+
 def write_run(folder: Path, case: dict, x: np.ndarray, mass: np.ndarray,
               density: np.ndarray) -> Path:
     folder.mkdir(parents=True)
@@ -89,9 +104,9 @@ def test_particles_of_a_cylinder_whole_and_quarter(tmp_path):
 
 
 def test_particles_of_an_axisymmetric_half_section(tmp_path):
-    """The axisymmetric bar's particles carry their mass per radian and a density per unit
-    radius (``rho r``): ``2 pi r m / density`` is each particle's ring of volume, and the
-    slabs add up to ``pi R^2 dz``."""
+    """The axisymmetric bar's particles carry their mass per radian and the density ``rho
+    r`` (per radian and per unit area of the r-z plane): ``2 pi r m / density`` is each
+    particle's ring of volume, and the slabs add up to ``pi R^2 dz``."""
     p = block_particles([0.0, 0.0], [3.8e-3, 4e-3], [0.19e-3, 0.25e-3])
     r = p.position[:, 0]
     mass = 7850.0 * r * p.volume  # per radian

@@ -14,8 +14,9 @@ resolution rises where the shape does (docs/validation.md, "Taylor bar in 3D").
 Each ``RUN_DIR`` is a finished run of a Taylor case: plane strain (``taylor``, the volume
 per unit depth, m^2), axisymmetric (``taylor_axisymmetric``) or 3D (``examples/taylor3d.toml``,
 whole or a quarter with symmetry planes; the volume of the whole bar). The particles' volumes
-are ``m / rho`` (axisymmetric: ``2 pi r m / rho``, its density being per radian and per unit
-radius), binned by the height of their centres. ``--fem`` reads a result of
+are ``m / rho`` (axisymmetric: ``2 pi r m / rho``, its mass being per radian and its density
+``rho r``, per radian and per unit area of the r-z plane), binned by the height of their
+centres above the wall, which these cases put at 0. ``--fem`` reads a result of
 ``validation/taylor_fem.py`` (``--case taylor`` for plane strain, ``--case
 taylor_axisymmetric`` for the cylinder): its final outline, clipped to each slab, gives the
 area (plane strain: twice the half's) or the volume of revolution.

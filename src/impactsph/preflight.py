@@ -224,8 +224,8 @@ def body_spacing(geometry: Any) -> float:
     """The spacing dx the smoothing length is scaled from (a block's geometric mean)."""
     if isinstance(geometry, Block):
         return float(np.prod(geometry.spacings())) ** (1.0 / len(geometry.size))
-    if isinstance(geometry, Cylinder):  # the rings' (dr^2 dz)^(1/3); the lattice's dx
-        return float(np.prod(geometry.spacings())) ** (1.0 / 3.0)
+    if isinstance(geometry, Cylinder) and geometry.arrangement == "rings":
+        return float(np.prod(geometry.spacings())) ** (1.0 / 3.0)  # (dr^2 dz)^(1/3)
     return float(geometry.spacing)
 
 
@@ -321,6 +321,10 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
       rates, the work velocity and its sorted copy;
     - with ``walls`` or ``switched`` (a viscosity scheme with a switch), per particle and
       ghost: the passes' copy of the common material state (``Solver._arrays``);
+    - with ``walls``, less per particle the state's fields that are views of the extended
+      arrays' rows (``Solver._allocate``): position, velocity, density, energy and
+      deviatoric stress, and without a switch the material state (whose width the extended
+      carried array then takes);
 
     times :data:`MEMORY_SAFETY`, plus :data:`BASE_MEMORY` for the process itself."""
     d = dim
@@ -336,6 +340,11 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     # the passes' copy of the common material state and a switch's factor and memory: the
     # extended rows' with walls, the particles' with a switch (else they read the state's own)
     carried = 8 * PASS_CARRIED if walls or switched else 0
+    if walls:  # the state's integrated fields are the extended rows (Solver._allocate)
+        per_particle -= 16 * d + 88
+        if not switched:
+            per_particle -= 8 * strength_width
+            carried = 8 * max(PASS_CARRIED, strength_width)
     neighbour_list = 12 + 4 * d + 32 + 8 * d  # offsets, order, reference; build temporaries
     if compatible:  # the work pass's rate buffers, the pair energy rates, the velocities
         buffers += (100 + 8 * d) + 8 + 16 * d

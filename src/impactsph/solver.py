@@ -131,6 +131,10 @@ class Solver:
         self.powers = (0.0, 0.0, 0.0)
         self.wall_force = np.zeros(state.dim)
         self.neighbours: NeighbourList | None = None
+        #: with ghosts, the state whose fields are views of the extended arrays' first rows,
+        #: and those views by field name (:meth:`_allocate`)
+        self._bound: ParticleState | None = None
+        self._views: dict[str, np.ndarray] = {}
         #: the passes' copy of the common material state and the switch's columns, without
         #: ghosts for a scheme with a switch (or a material state not C-contiguous float64);
         #: otherwise the passes read the material state itself (with ghosts: ``_ext``)
@@ -200,12 +204,17 @@ class Solver:
             ext["material"][:n], ext["body"][:n] = state.material, state.body
             # the state's integrated fields become views of the extended arrays' first n
             # rows: the integrator writes where the passes read, and _fill copies nothing
-            # of them (the integrator and the rest write these fields in place)
+            # of them (the integrator and the rest write these fields in place).  The solver
+            # is bound to this state: another one handed to rates() is bound in its turn
+            # (_fill), so that neither's values are written into the other's arrays
+            views = {}
             for key, name in self._aliased():
                 field = getattr(state, name)
                 if field.dtype == ext[key].dtype and field.shape[1:] == ext[key].shape[1:]:
                     ext[key][:n] = field
-                    setattr(state, name, ext[key][:n])
+                    views[name] = ext[key][:n]
+                    setattr(state, name, views[name])
+            self._bound, self._views = state, views
             self._ext = ext
             self._fill(state)
             positions = ext["x"]
@@ -231,11 +240,15 @@ class Solver:
 
     def _fill(self, state: ParticleState) -> None:
         """Copy the real particles into the extended arrays (the fields that are not views
-        of them already: :meth:`_allocate`) and mirror them into ghosts."""
+        of them already: :meth:`_allocate`) and mirror them into ghosts.  A state other than
+        the one the arrays were made for is bound to new arrays first."""
+        if state is not self._bound:
+            self._allocate(state, self._ghost_src, self._ghost_wall)  # calls _fill again
+            return
         ext, n = self._ext, state.n
         for key, name in self._aliased():
             field = getattr(state, name)
-            if field.base is not ext[key]:  # a state that was handed new arrays
+            if field is not self._views.get(name):  # a field handed an array of its own
                 if key == "carried":
                     ext[key][:n, :CARRIED] = field[:, :CARRIED]
                 else:

@@ -37,9 +37,10 @@ CARRIED = len(COMMON_STATE)
 #: the rate passes' ``carried`` array (every row, ghosts included): the common columns, then,
 #: for a viscosity scheme with a switch, the particle's viscosity factor and its switch's
 #: memory (``ParticleState.viscosity_factor``, ``ParticleState.viscosity_memory``; neither is
-#: a material state, and the integrator touches neither).  Without ghosts and without a switch
-#: it is the material state itself (``Solver._arrays``), whose first columns are the common
-#: ones: the passes read columns 5 and 6 only with a switch.
+#: a material state, and the integrator touches neither).  Without a switch it is the
+#: material state itself (``Solver._arrays``) or, with ghosts, the extended rows of which the
+#: material state is a view (``Solver._allocate``); its first columns are the common ones:
+#: the passes read columns 5 and 6 only with a switch.
 VISCOSITY_FACTOR = CARRIED
 VISCOSITY_MEMORY = CARRIED + 1
 PASS_CARRIED = CARRIED + 2
