@@ -47,7 +47,11 @@ SCHEMES = {
                # the scheme that came nearest the finite-element bar (docs/validation.md)
                "minmod, artificial stress": ['viscosity.scheme="reconstruction"',
                                              'viscosity.limiter="minmod"',
-                                             "stabilisation.artificial_stress=0.3", *WALLS]},
+                                             "stabilisation.artificial_stress=0.3", *WALLS],
+               # the same with a wider kernel: the footprint's change from x1 to x2 halves
+               "minmod, artificial stress, h 1.6 dx": [
+                   'viscosity.scheme="reconstruction"', 'viscosity.limiter="minmod"',
+                   "stabilisation.artificial_stress=0.3", *WALLS, "kernel.h_over_dx=1.6"]},
     "cantilever": {"AC": ['viscosity.scheme="ac"'],
                    "AV (0.1, 0.1)": ['viscosity.scheme="av"', "viscosity.alpha1=0.1",
                                      "viscosity.alpha2=0.1"],
