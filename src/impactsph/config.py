@@ -284,8 +284,10 @@ class Cylinder(_Model):
         thickness ``length / round(length / spacing)`` along it."""
         if self.arrangement == "lattice":
             return [float(self.spacing)] * 3
-        across = self.radius / max(1, round(self.radius / self.spacing))
-        along = self.length / max(1, round(self.length / self.spacing))
+        from .geometry import whole_count  # the particles' own rounding
+
+        across = self.radius / whole_count(self.radius, self.spacing)
+        along = self.length / whole_count(self.length, self.spacing)
         return [float(along if a == self.axis else across) for a in "xyz"]
 
     @model_validator(mode="after")

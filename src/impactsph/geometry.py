@@ -164,7 +164,7 @@ def cylinder_particles(centre: list[float], radius: float, length: float, axis: 
     """
     along = AXES.index(axis)
     across = [a for a in range(3) if a != along]
-    layers = max(1, round(length / spacing))
+    layers = whole_count(length, spacing)
     if arrangement == "rings":
         disk, areas, dr = ring_offsets(radius, spacing)
         dz = length / layers
@@ -184,6 +184,13 @@ def cylinder_particles(centre: list[float], radius: float, length: float, axis: 
     return Particles(x, volume, mean_spacing)
 
 
+def whole_count(extent: float, spacing: float) -> int:
+    """How many layers (or rings) of about ``spacing`` fill ``extent``: ``round(extent /
+    spacing)``, at least 1 (a cylinder's layers; its rings with ``arrangement = "rings"``,
+    whose width and thickness are then ``extent / whole_count``)."""
+    return max(1, round(extent / spacing))
+
+
 def ring_offsets(radius: float, spacing: float) -> tuple[np.ndarray, np.ndarray, float]:
     """A disk of ``K = max(1, round(radius / spacing))`` concentric rings of width ``dr =
     radius / K``: ring ``k`` (0 to K - 1) at ``(k + 1/2) dr`` from the centre holds ``n_k = 4
@@ -192,7 +199,7 @@ def ring_offsets(radius: float, spacing: float) -> tuple[np.ndarray, np.ndarray,
     makes each ring mirror-symmetric about both axes with no point on either, so a quarter
     (x > 0, y > 0) with two symmetry planes is the whole disk (:func:`quarter_cylinder_case`).
     Returns the offsets (n, 2), the areas (n,) and ``dr``."""
-    rings = max(1, round(radius / spacing))
+    rings = whole_count(radius, spacing)
     dr = radius / rings
     offsets, areas = [], []
     for k in range(rings):

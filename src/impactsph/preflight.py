@@ -244,13 +244,13 @@ def count_particles(case: Case) -> list[int]:
                                           sizes.shape)
                 n = math.prod(int(c) for c in np.maximum(1, np.rint(sizes / spacing)))
         elif isinstance(g, Cylinder):
-            if g.arrangement == "rings":
-                from .geometry import ring_offsets
+            from .geometry import ring_offsets, whole_count
 
+            if g.arrangement == "rings":
                 section = ring_offsets(g.radius, g.spacing)[0].shape[0]
             else:
                 section = _disk_count(g.radius, g.spacing)
-            n = section * max(1, round(g.length / g.spacing))
+            n = section * whole_count(g.length, g.spacing)
         elif isinstance(g, Disk):
             n = _disk_count(g.radius, g.spacing)
         elif isinstance(g, Ring | Sphere):
