@@ -35,7 +35,10 @@ def test_example_is_the_plane_strain_bar_as_a_cylinder():
     g3, g2 = c3.bodies[0].geometry, c2.bodies[0].geometry
     assert 2 * g3.radius == pytest.approx(g2.size[0]) and g3.length == pytest.approx(g2.size[1])
     assert c3.materials == c2.materials and c3.kernel == c2.kernel
-    assert c3.viscosity == c2.viscosity and c3.time == c2.time
+    assert c3.time == c2.time
+    # the correction in its pairwise form: the paper's eq 34 blows up at twice the
+    # resolution in 3D (the example's header; docs/dissipation.md)
+    assert c2.viscosity.scheme == "ac" and c3.viscosity.scheme == "ac_pairwise"
     assert c3.bodies[0].velocity == [0.0, 0.0, c2.bodies[0].velocity[1]]
     assert [w.slip for w in c3.boundaries] == [w.slip for w in c2.boundaries] == ["free"]
     # the spacing lies between the plane-strain lattice's two spacings
@@ -74,7 +77,8 @@ def test_coarse_cylinder_shortens_and_spreads_on_the_wall(run):
         case.materials["iron"].density * np.pi * g.radius**2 * g.length, rel=0.1)
     assert sim.state.position[:, 2].min() > 0  # nothing crossed the wall
     assert s["wall_constraint_events"] == 0  # the ghosts held it off, not the constraint
-    # measured at 15 us: L/L0 0.909, footprint 1.41 R0 (the smallest sector 1.34)
+    # measured at 15 us: L/L0 0.9068, footprint 1.383 R0 (the smallest sector 1.315), energy
+    # error 5.5e-4 (the paper's AC: 0.9068, 1.388, 1.319, 3.0e-4)
     assert 0.85 < s["final_length_ratio"] < 0.95
     assert 1.25 < s["footprint_radius_ratio"] < 1.6
     assert s["footprint_radius_ratio_min_sector"] > 0.9 * s["footprint_radius_ratio"]
@@ -99,13 +103,14 @@ def test_the_wall_layer_holds_the_spreading_foot_off_the_wall(tmp_path):
     reach the wall plane, where only the constraint stops them (measured at 40 us: 1840
     constraint events, energy error 6.6e-4).  With the defaults (the normal-stress contact
     and ``contact.wall_layer = 0.25``) none reaches it and the energy error halves
-    (3.0e-4)."""
+    (3.0e-4).  Both with the paper's AC, which these numbers were measured with (the
+    example's pairwise correction is not what this test is about)."""
     got = {}
     for name, contact in (("paper", ['contact.traction="pressure"', "contact.wall_layer=0"]),
                           ("defaults", [])):
         case = load_case(EXAMPLE, [f"bodies.0.geometry.spacing={DX}", "time.end=40e-6",
                                    "output.snapshot_times=[]", "output.figures=false",
-                                   *contact])
+                                   'viscosity.scheme="ac"', *contact])
         last: dict = {}
         s = run_case(case, tmp_path / name, callback=lambda sim, last=last: last.update(sim=sim))
         got[name] = (s, last["sim"].state.position[:, 2].min())
@@ -124,7 +129,7 @@ def test_the_wall_layer_holds_the_spreading_foot_off_the_wall(tmp_path):
 def test_axisymmetric_bar_has_the_cylinders_length(run, tmp_path):
     """The same bar in 2D axisymmetry (the built-in case taylor_axisymmetric) at this spacing
     (4 x 27 particles: R = 4 dx) to the same time: L_f / L_0 within 2% of the cylinder's
-    (measured 0.90666 against 0.90676; the full runs at two resolutions are in
+    (measured 0.90666 against 0.90682; the full runs at two resolutions are in
     docs/validation.md)."""
     _, summary = run
     case = load_case("taylor_axisymmetric", ["bodies.0.geometry.count=[4, 27]", f"time.end={END}",
