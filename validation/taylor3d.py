@@ -8,7 +8,9 @@ equals the whole cylinder to round-off) or whole.  Writes
     .venv/bin/python validation/taylor3d.py --factors 1 2 --quarter --arrangement rings
 
 Factor k divides the spacing by k: x1 is the example's 0.368 mm (22,908 particles whole),
-x2 0.184 mm (183,000 whole, 45,800 as a quarter).
+x2 0.184 mm (183,000 whole, 45,800 as a quarter).  The example's viscosity is AC's pairwise
+form since 2026-12-03 (the paper's AC blows up at x2); ``--set 'viscosity.scheme="ac"'``
+runs the paper's, as the rows of docs/validation.md marked AC were.
 """
 
 from __future__ import annotations
