@@ -465,13 +465,13 @@ def initial_time_step(case: Case, *, cfl_only: bool = False) -> float:
     from .materials import resolve_material
 
     dt = math.inf
-    for body in case.bodies:
+    for b, body in enumerate(case.bodies):
         mat = resolve_material(body.material, case.materials[body.material])
         c = math.sqrt(mat.wave_modulus(case.time.wave_speed) / mat.density)
         speed = max_speed(body, case.dimension)
         if body.tip_mass is not None:
             speed = max(speed, float(np.linalg.norm(body.tip_mass.velocity)))
-        h = case.kernel.h_over_dx * body_spacing(body.geometry)
+        h = case.h_over_dx_of(b) * body_spacing(body.geometry)
         dt = min(dt, case.time.courant * h / (c + speed))
         if (case.formulation == "total_lagrangian" and case.stabilisation.tl_hourglass > 0.0
                 and not cfl_only):
@@ -497,12 +497,13 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
     n = sum(counts)
     weights = np.asarray(counts, dtype=np.float64) / max(n, 1)
     spacings = np.array([body_spacing(b.geometry) for b in case.bodies])
-    support = SUPPORT_RADIUS * case.kernel.h_over_dx  # in units of a body's own spacing
+    # the kernel's support in units of each body's own spacing
+    support = SUPPORT_RADIUS * np.array([case.h_over_dx_of(b) for b in range(len(counts))])
     # the list's radius is that of the largest h, plus the skin
-    radius = support * float(spacings.max()) * (1.0 + case.time.neighbour_skin)
+    radius = float((support * spacings).max()) * (1.0 + case.time.neighbour_skin)
     neighbours = float(weights @ [lattice_neighbours(radius / dx, dim) for dx in spacings])
     if pairs_per_particle is None:
-        pairs_per_particle = lattice_neighbours(support, dim)
+        pairs_per_particle = float(weights @ [lattice_neighbours(s, dim) for s in support])
     dt = initial_time_step(case)
     steps = max(1, math.ceil(case.time.end / dt * (1 - 1e-12)))
     if case.time.max_steps is not None:
@@ -807,19 +808,32 @@ def particle_checks(case: Case, problem: Any) -> tuple[list[Finding], np.ndarray
     best = np.zeros(len(names), dtype=np.int64)
     np.maximum.at(best, s.body, counts)
     few = [b for b in range(len(names)) if per_body[b] > 1 and best[b] < need]
-    if few and case.kernel.h_over_dx < 1.0:
-        listed = ", ".join(f"{names[b]!r} {int(best[b])}" for b in few)
+    # a width below 1 is the likely cause: said of the field that set it (a body's own width,
+    # else the kernel's, once for every body that takes it)
+    own = [b for b in few if case.bodies[b].h_over_dx is not None]
+    shared = [b for b in few if case.bodies[b].h_over_dx is None]
+    narrow = [b for b in own if case.h_over_dx_of(b) < 1.0]
+    for b in narrow:
+        out.append(Finding("warning", f"bodies.{b}.h_over_dx", (
+            f"bodies.{b}.h_over_dx = {case.bodies[b].h_over_dx!r}: too few neighbours within "
+            f"the kernel support 2h at t = 0 (most of any particle of body {names[b]!r}: "
+            f"{int(best[b])}); the cubic spline needs about {need} in {dim}D (h_over_dx >= 1 "
+            f"on a lattice)")))
+    if shared and case.kernel.h_over_dx < 1.0:
+        listed = ", ".join(f"{names[b]!r} {int(best[b])}" for b in shared)
         out.append(Finding("warning", "kernel.h_over_dx", (
             f"kernel.h_over_dx = {case.kernel.h_over_dx!r}: too few neighbours within the "
             f"kernel support 2h at t = 0 (most of any particle, by body: {listed}); the cubic "
             f"spline needs about {need} in {dim}D (h_over_dx >= 1 on a lattice)")))
-    else:
-        for b in few:
-            out.append(Finding("warning", f"bodies.{b}.geometry", (
-                f"bodies.{b}.geometry: no particle of body {names[b]!r} has more than "
-                f"{int(best[b])} neighbours within the kernel support 2h at t = 0; the cubic "
-                f"spline needs about {need} in {dim}D: the body is too thin or too sparse for "
-                f"its spacing (kernel.h_over_dx = {case.kernel.h_over_dx!r})")))
+        shared = []
+    for b in [*shared, *(b for b in own if b not in narrow)]:
+        field = (f"bodies.{b}.h_over_dx" if case.bodies[b].h_over_dx is not None
+                 else "kernel.h_over_dx")
+        out.append(Finding("warning", f"bodies.{b}.geometry", (
+            f"bodies.{b}.geometry: no particle of body {names[b]!r} has more than "
+            f"{int(best[b])} neighbours within the kernel support 2h at t = 0; the cubic "
+            f"spline needs about {need} in {dim}D: the body is too thin or too sparse for "
+            f"its spacing ({field} = {case.h_over_dx_of(b)!r})")))
     for b in range(len(names)):
         if per_body[b] < 2 or best[b] == 0:  # one particle, or all isolated: said above
             continue

@@ -190,7 +190,7 @@ def build_problem(case: Case) -> Problem:
         parts["S"].append(deviator)
         parts["m"].append(mass)
         # anisotropic lattices: the spacing is the geometric mean of the axes' spacings
-        parts["h"].append(np.full(n, case.kernel.h_over_dx * particles.spacing))
+        parts["h"].append(np.full(n, case.h_over_dx_of(b) * particles.spacing))
         parts["body"].append(np.full(n, b, dtype=np.int32))
         parts["mat"].append(np.full(n, k, dtype=np.int32))
         parts["clamped"].append(clamped)

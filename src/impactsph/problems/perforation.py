@@ -88,7 +88,7 @@ class PerforationProblem(ProblemKind):
 
     def metrics(self, sim: Any) -> dict[str, Any]:
         s = sim.state
-        spacing = float(s.smoothing_length[s.body == 1].mean()) / sim.case.kernel.h_over_dx
+        spacing = float(s.smoothing_length[s.body == 1].mean()) / sim.case.h_over_dx_of(1)
         from ..initial import body_velocity
 
         initial_velocity = np.empty_like(s.velocity)
