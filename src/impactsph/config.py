@@ -405,7 +405,7 @@ class Body(_Model):
         "kernel.h_over_dx.  A pair of particles of different h uses their mean, so the sums "
         "stay symmetric (momentum and energy kept).  Measured (docs/stabilisation.md): a "
         "thick body that is squashed (a Taylor foot) converges with 1.6, a beam a few "
-        "particles thick bends right with 1.3 and too far with 1.6")
+        "particles thick converges with 1.3 and not with 1.6")
 
 
 class Wall(_Model):
