@@ -26,9 +26,10 @@ from impactsph.simulation import Simulation
 
 sys.path.insert(0, str(Path(__file__).parent.parent / "validation"))
 import taylor_slabs as slabs  # noqa: E402
+from resolution import SCHEMES  # noqa: E402
 
-SCHEME = ['viscosity.scheme="ac_pairwise"', 'contact.traction="normal_stress"',
-          "contact.wall_layer=0.25", "kernel.h_over_dx=1.6"]
+#: the named scheme of validation/resolution.py that these runs are
+SCHEME = SCHEMES["taylor"]["AC pairwise walls, h 1.6 dx"]
 #: the finite elements' L_f / L0 and fixed-band footprint (64 across), and volume per unit
 #: depth (m^2) in the slabs 0-1, 1-2, 2-4, 4-8 and 8-30 mm above the wall (32 across)
 FE_LENGTH, FE_FOOTPRINT = 0.8100, 1.651

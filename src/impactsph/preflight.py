@@ -808,32 +808,30 @@ def particle_checks(case: Case, problem: Any) -> tuple[list[Finding], np.ndarray
     best = np.zeros(len(names), dtype=np.int64)
     np.maximum.at(best, s.body, counts)
     few = [b for b in range(len(names)) if per_body[b] > 1 and best[b] < need]
-    # a width below 1 is the likely cause: said of the field that set it (a body's own width,
-    # else the kernel's, once for every body that takes it)
-    own = [b for b in few if case.bodies[b].h_over_dx is not None]
-    shared = [b for b in few if case.bodies[b].h_over_dx is None]
-    narrow = [b for b in own if case.h_over_dx_of(b) < 1.0]
-    for b in narrow:
-        out.append(Finding("warning", f"bodies.{b}.h_over_dx", (
-            f"bodies.{b}.h_over_dx = {case.bodies[b].h_over_dx!r}: too few neighbours within "
-            f"the kernel support 2h at t = 0 (most of any particle of body {names[b]!r}: "
-            f"{int(best[b])}); the cubic spline needs about {need} in {dim}D (h_over_dx >= 1 "
-            f"on a lattice)")))
-    if shared and case.kernel.h_over_dx < 1.0:
-        listed = ", ".join(f"{names[b]!r} {int(best[b])}" for b in shared)
+    # a width below 1 is the likely cause: said of the field that set it (the kernel's, once
+    # for every body that takes it; else the body's own)
+    narrow = [b for b in few if case.h_over_dx_of(b) < 1.0]
+    by_kernel = [b for b in narrow if case.bodies[b].h_over_dx is None]
+    if by_kernel:
+        listed = ", ".join(f"{names[b]!r} {int(best[b])}" for b in by_kernel)
         out.append(Finding("warning", "kernel.h_over_dx", (
             f"kernel.h_over_dx = {case.kernel.h_over_dx!r}: too few neighbours within the "
             f"kernel support 2h at t = 0 (most of any particle, by body: {listed}); the cubic "
             f"spline needs about {need} in {dim}D (h_over_dx >= 1 on a lattice)")))
-        shared = []
-    for b in [*shared, *(b for b in own if b not in narrow)]:
-        field = (f"bodies.{b}.h_over_dx" if case.bodies[b].h_over_dx is not None
-                 else "kernel.h_over_dx")
-        out.append(Finding("warning", f"bodies.{b}.geometry", (
-            f"bodies.{b}.geometry: no particle of body {names[b]!r} has more than "
-            f"{int(best[b])} neighbours within the kernel support 2h at t = 0; the cubic "
-            f"spline needs about {need} in {dim}D: the body is too thin or too sparse for "
-            f"its spacing ({field} = {case.h_over_dx_of(b)!r})")))
+    for b in few:
+        own = case.bodies[b].h_over_dx
+        field = "kernel.h_over_dx" if own is None else f"bodies.{b}.h_over_dx"
+        if b in narrow and own is not None:
+            out.append(Finding("warning", field, (
+                f"{field} = {own!r}: too few neighbours within the kernel support 2h at t = 0 "
+                f"(most of any particle of body {names[b]!r}: {int(best[b])}); the cubic "
+                f"spline needs about {need} in {dim}D (h_over_dx >= 1 on a lattice)")))
+        elif b not in narrow:
+            out.append(Finding("warning", f"bodies.{b}.geometry", (
+                f"bodies.{b}.geometry: no particle of body {names[b]!r} has more than "
+                f"{int(best[b])} neighbours within the kernel support 2h at t = 0; the cubic "
+                f"spline needs about {need} in {dim}D: the body is too thin or too sparse for "
+                f"its spacing ({field} = {case.h_over_dx_of(b)!r})")))
     for b in range(len(names)):
         if per_body[b] < 2 or best[b] == 0:  # one particle, or all isolated: said above
             continue
