@@ -1,7 +1,8 @@
 """Where the pair pass's time goes: the compiled pass against variants of itself, one thread.
 
     .venv/bin/python benchmarks/bench_pair_anatomy.py [--dims 2 3] [--n 1e5] [--rounds 3]
-        [--repeat 7] [--threads 1] [--variants base self contiguous scratch no_division empty]
+        [--repeat 7] [--threads 1] [--jitter 0.3]
+        [--variants base self contiguous scratch no_division padded empty]
 
 The case is ``bench_ac_cost.py``'s lattice with the paper's artificial viscosity (random
 velocities of about 1 m/s). One step captures the arguments of the solver's ``pair_pass``;
@@ -26,7 +27,15 @@ they are measurements of cost, nothing else.
   AVX-512's would be (not counted).
 - ``no_division``: the artificial viscosity's two divisions made multiplications (the
   kernel's remain); the lattice's viscosity must be the registry's first, ``av``.
+- ``padded``: the same code handed a list whose rows are padded to a multiple of 8 entries
+  with a dummy record far away (no mass, no volume, another body: every sum gets exact
+  zeros from it), so that no row leaves a remainder to the loop's scalar epilogue (issue 16's
+  "neighbours padded in blocks of the vector width"). 1D and 2D only: in 3D the pass's skin
+  filter drops the dummies before the loop.
 - ``empty``: the neighbour loop removed: the per-particle part of the pass.
+
+``--jitter`` moves every particle by up to that fraction of the spacing in each direction,
+so that the rows' lengths vary as in a run (the lattice's interior rows are all alike).
 
 Each row gives the best time of ``--repeat`` calls in each round, the list entries per second
 and, from the assembly, the vector gathers, divisions and square roots the pass contains.
@@ -113,9 +122,35 @@ def _empty(text: str) -> str:
                                                 "range(first, first)", 1))
 
 
-#: (``self`` edits the list it is handed, ``no_division`` the viscosity injected: not the text)
+#: (``self`` and ``padded`` edit the list they are handed, ``no_division`` the viscosity
+#: injected: not the text)
 VARIANTS = {"base": lambda t: t, "self": lambda t: t, "contiguous": _contiguous,
-            "scratch": _scratch, "no_division": lambda t: t, "empty": _empty}
+            "scratch": _scratch, "no_division": lambda t: t, "padded": lambda t: t,
+            "empty": _empty}
+#: the block that ``padded`` pads each row to
+PAD_BLOCK = 8
+
+
+def _padded(record, offsets, indices, columns: dict[str, int], dim: int, block: int = PAD_BLOCK):
+    """``record`` with a dummy row appended (far away, no mass or volume, body -1) and the
+    list's rows padded with that row's index to a multiple of ``block`` entries."""
+    import numpy as np
+
+    n = record.shape[0]
+    dummy = np.zeros((1, record.shape[1]))
+    dummy[0, columns["X"]:columns["X"] + dim] = 1e30
+    dummy[0, columns["H"]] = record[0, columns["H"]]
+    dummy[0, columns["RHO"]] = 1.0
+    dummy[0, columns["BODY"]] = -1.0
+    rows = np.diff(offsets)
+    padded_rows = (rows + block - 1) // block * block
+    new_offsets = np.zeros_like(offsets)
+    new_offsets[1:] = np.cumsum(padded_rows)
+    new_indices = np.full(int(new_offsets[-1]), n, dtype=indices.dtype)
+    within = np.arange(new_indices.shape[0]) - np.repeat(new_offsets[:-1], padded_rows)
+    keep = within < np.repeat(rows, padded_rows)
+    new_indices[keep] = indices
+    return np.vstack([record, dummy]), new_offsets, new_indices
 
 
 def _injected(name: str, inject: dict) -> dict:
@@ -158,6 +193,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--repeat", type=int, default=7)
     parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--jitter", type=float, default=0.0,
+                        help="move each particle by up to this fraction of the spacing")
     parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
     args = parser.parse_args(argv)
 
@@ -174,7 +211,12 @@ def main(argv: list[str] | None = None) -> None:
     folder = Path(tempfile.mkdtemp(prefix="impactsph-anatomy-"))
     for dim in args.dims:
         sim = Simulation(validate_case(lattice_case(dim, int(args.n), "av")))
-        sim.state.velocity[:] = np.random.default_rng(1).normal(size=sim.state.velocity.shape)
+        rng = np.random.default_rng(1)
+        sim.state.velocity[:] = rng.normal(size=sim.state.velocity.shape)
+        if args.jitter:
+            spacing = float(sim.state.smoothing_length[0]) / sim.case.kernel.h_over_dx
+            sim.state.position[:] += args.jitter * spacing * rng.uniform(
+                -1.0, 1.0, size=sim.state.position.shape)
         dt = 0.1 * stable_time_step(sim.state, sim.problem.table, 0.3)
         passes = sim.solver.backend.passes
         captured = {}
@@ -198,10 +240,17 @@ def main(argv: list[str] | None = None) -> None:
         if "no_division" in args.variants and int(call[5]) != 0:
             sys.exit("bench_pair_anatomy: no_division replaces viscosity 0, not this case's")
         own = np.repeat(np.arange(offsets.shape[0] - 1, dtype=call[4].dtype), np.diff(offsets))
+        variants = [v for v in args.variants if v != "padded" or dim < 3]
+        padded = []
+        if "padded" in variants:
+            columns = {c: int(getattr(passes, c)) for c in ("X", "H", "RHO", "BODY")}
+            padded = list(_padded(record, offsets, call[4], columns, dim))
 
-        def arguments(name, _call=call, _own=own, _transposed=transposed):
+        def arguments(name, _call=call, _own=own, _transposed=transposed, _padded_=padded):
             if name == "self":
                 return _call[:4] + [_own] + _call[5:]
+            if name == "padded":
+                return _call[:2] + _padded_ + _call[5:]
             return _call + [_transposed] if name == "contiguous" else _call
 
         text = Path(passes.__file__).read_text()
@@ -209,12 +258,12 @@ def main(argv: list[str] | None = None) -> None:
                   if k.startswith("_") and hasattr(v, "py_func")}
         nb.set_num_threads(args.threads)
         modules, counts, best = {}, {}, collections.defaultdict(list)
-        for name in args.variants:
+        for name in variants:
             modules[name] = _load(name, text, inject, folder)
             modules[name].pair_pass(*arguments(name))  # compiles
             counts[name] = _assembly_counts(modules[name].pair_pass)
         for _ in range(args.rounds):
-            for name in args.variants:
+            for name in variants:
                 function, given = modules[name].pair_pass, arguments(name)
                 times = []
                 for _ in range(args.repeat):
@@ -227,7 +276,7 @@ def main(argv: list[str] | None = None) -> None:
         print(f"{'variant':<12} {'ms per round':<30} {'entries/s (best)':>16} {'/ base':>7} "
               f"{'gathers':>7} {'vdivpd':>6} {'vsqrtpd':>7}")
         base = min(best["base"]) if "base" in best else None
-        for name in args.variants:
+        for name in variants:
             ms = " ".join(f"{t * 1e3:.1f}" for t in best[name])
             ratio = f"{min(best[name]) / base:7.2f}" if base else f"{'':7}"
             c = counts[name]

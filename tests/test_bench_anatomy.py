@@ -39,3 +39,26 @@ def test_the_variants_edit_the_neighbour_loop(dim, benchmark_script):
         # the separation helper: the template's, reading the copy
         helper = edited[edited.index("def neighbour_separation_t("):]
         assert "PT[X, j]" in helper and "PT[H, j]" in helper and "P[j, " not in helper
+
+
+def test_padded_rows_keep_their_entries_and_end_in_the_dummy(benchmark_script):
+    """``padded`` hands the pass rows of a multiple of 8 entries: each row's own entries
+    first, in order, then the index of an appended record that no sum can take anything
+    from (far away, no mass or volume, another body)."""
+    import numpy as np
+
+    anatomy = benchmark_script("bench_pair_anatomy")
+    record = np.arange(12.0).reshape(3, 4)
+    offsets = np.array([0, 3, 11, 12])
+    indices = np.array([1, 2, 0, 0, 2, 1, 1, 0, 2, 0, 1, 0], dtype=np.int32)
+    columns = {"X": 0, "H": 2, "RHO": 3, "BODY": 1}
+    padded, new_offsets, new_indices = anatomy._padded(record, offsets, indices, columns, 1)
+    assert padded.shape == (4, 4) and (padded[:3] == record).all()
+    assert padded[3, 0] == 1e30 and padded[3, 1] == -1.0 and padded[3, 2] == record[0, 2]
+    assert new_offsets.tolist() == [0, 8, 16, 24]
+    for p in range(3):
+        row = new_indices[new_offsets[p]:new_offsets[p + 1]]
+        own = indices[offsets[p]:offsets[p + 1]]
+        assert row[:own.shape[0]].tolist() == own.tolist()
+        assert (row[own.shape[0]:] == 3).all()
+    assert new_indices.dtype == indices.dtype
