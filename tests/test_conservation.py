@@ -24,6 +24,8 @@ OPTIONS = {
     "forces+artificial_stress": {"stabilisation": {"gradient_correction":
                                                    "velocity_gradient_and_forces",
                                                    "artificial_stress": 0.3}},
+    # a smoothing length that grows with the stretch (set at each list build; mean h_ij)
+    "max_stretch": {"kernel": {"h_over_dx": 1.3, "max_stretch": 1.25}},
 }
 
 

@@ -91,6 +91,9 @@ def final_arrays(sim):
     ("taylor", ["time.end=6e-6", 'formulation="total_lagrangian"', 'viscosity.scheme="av"']),
     # a viscosity switch: its factors are state that the next evaluation reads
     ("taylor", ["time.end=6e-6", 'viscosity.scheme="balsara"']),
+    # a kernel that follows the stretch: h is state, set at each list build from the
+    # restored list, and h0 comes from the case, not from the restored state
+    ("taylor", ["time.end=6e-6", "kernel.max_stretch=1.25"]),
     # the three-stage integrator, with a switch whose memory and clock are state
     ("taylor", ["time.end=6e-6", 'viscosity.scheme="cullen_dehnen"',
                 'time.integrator="ssp_rk3"', "time.courant=0.45"]),

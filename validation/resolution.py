@@ -12,7 +12,10 @@ table.
 
 Schemes: the paper's AC and AV references; "AC walls": AC with the normal-stress contact and
 the walls' penalty layer; "AC pairwise walls, h 1.6 dx": the correction's pairwise form
-(``ac_pairwise``) with those and ``kernel.h_over_dx = 1.6``; "AC stabilised": the walls'
+(``ac_pairwise``) with those and ``kernel.h_over_dx = 1.6``; "AC pairwise walls, stretch
+1.23": the same at the paper's 1.3 dx with a smoothing length that follows the local stretch
+up to 1.6 dx (``kernel.max_stretch = 1.23``; on the cantilever, whose clamp is no wall, the
+walls' options change nothing); "AC pairwise": the pairwise form alone; "AC stabilised": the walls'
 options and the kernel gradient correction of the velocity gradient and forces
 (docs/stabilisation.md); "AC plane stress" and "AV (0.1, 0.1) plane stress": the cantilever
 as a beam of square section (``two_dimensional = "plane_stress"``, issue 14).  The
@@ -46,6 +49,9 @@ MINMOD_AS = ['viscosity.scheme="reconstruction"', 'viscosity.limiter="minmod"',
              "stabilisation.artificial_stress=0.3", *WALLS]
 #: the stabilisation options of "AC stabilised"
 STABILISED = ['stabilisation.gradient_correction="velocity_gradient_and_forces"', *WALLS]
+#: AC's pairwise form with the walls and a kernel that follows the stretch (h from 1.3 dx up to
+#: 1.6 dx where the body has spread: kernel.max_stretch = 1.6 / 1.3)
+STRETCH = ['viscosity.scheme="ac_pairwise"', *WALLS, "kernel.max_stretch=1.23"]
 SCHEMES = {
     "taylor": {"AC": ['viscosity.scheme="ac"'],
                "AV (0.5, 0.5)": ['viscosity.scheme="av"', "viscosity.alpha1=0.5",
@@ -55,11 +61,15 @@ SCHEMES = {
                # (one spacing) and -7% (fixed band) from x1 to x2 (docs/validation.md)
                "AC pairwise walls, h 1.6 dx": ['viscosity.scheme="ac_pairwise"', *WALLS,
                                                "kernel.h_over_dx=1.6"],
+               # the paper's kernel, growing where the bar spreads to at most 1.6 dx
+               "AC pairwise walls, stretch 1.23": STRETCH,
                "AC stabilised": ['viscosity.scheme="ac"', *STABILISED],
                "minmod, artificial stress": MINMOD_AS,
                # the same with a wider kernel: the footprint's change from x1 to x2 halves
                "minmod, artificial stress, h 1.6 dx": [*MINMOD_AS, "kernel.h_over_dx=1.6"]},
     "cantilever": {"AC": ['viscosity.scheme="ac"'],
+                   "AC pairwise": ['viscosity.scheme="ac_pairwise"'],
+                   "AC pairwise walls, stretch 1.23": STRETCH,
                    "AV (0.1, 0.1)": ['viscosity.scheme="av"', "viscosity.alpha1=0.1",
                                      "viscosity.alpha2=0.1"],
                    "AC stabilised": ['viscosity.scheme="ac"', *STABILISED],

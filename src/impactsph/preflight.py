@@ -499,8 +499,10 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
     spacings = np.array([body_spacing(b.geometry) for b in case.bodies])
     # the kernel's support in units of each body's own spacing
     support = SUPPORT_RADIUS * np.array([case.h_over_dx_of(b) for b in range(len(counts))])
-    # the list's radius is that of the largest h, plus the skin
-    radius = float((support * spacings).max()) * (1.0 + case.time.neighbour_skin)
+    # the list's radius is that of the largest h, plus the skin; with kernel.max_stretch the
+    # largest h grows by up to that factor once any part of a body has stretched
+    radius = (float((support * spacings).max()) * (1.0 + case.time.neighbour_skin)
+              * case.kernel.max_stretch)
     neighbours = float(weights @ [lattice_neighbours(radius / dx, dim) for dx in spacings])
     if pairs_per_particle is None:
         pairs_per_particle = float(weights @ [lattice_neighbours(s, dim) for s in support])

@@ -103,6 +103,9 @@ class Simulation:
         t0 = _time.perf_counter()
         self.case = case
         self.problem = problem or build_problem(case)
+        #: the smoothing lengths at t = 0 (a restart's state carries those of its last list
+        #: build: kernel.max_stretch)
+        h_reference = self.problem.state.smoothing_length.copy()
         if state is not None:
             self.problem.state = state
         self._resident = None  # the state on the GPU between steps (gpu_step.ResidentStep)
@@ -125,7 +128,9 @@ class Simulation:
                                      case.compute.device, case.dimension,
                                      PassOptions.of_case(case), cpu_only=_cpu_only(case)),
                                  hourglass=case.stabilisation.hourglass,
-                                 wall_layer=case.contact.wall_layer)
+                                 wall_layer=case.contact.wall_layer,
+                                 max_stretch=case.kernel.max_stretch,
+                                 h_reference=h_reference)
         if state is None:  # a fresh start: the viscosity switch's initial factors
             scheme = VISCOSITY[case.viscosity.scheme]
             if scheme.switch is not None:
@@ -596,6 +601,9 @@ def _cpu_only(case: Case) -> str | None:
         return f"{what}, which runs on the CPU only"
     if case.time.energy_update == "compatible":
         return "time.energy_update = 'compatible' runs on the CPU only"
+    if case.kernel.max_stretch > 1.0:
+        return "kernel.max_stretch > 1 (a smoothing length set at each list build) runs on " \
+               "the CPU only"
     return None
 
 

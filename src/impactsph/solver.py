@@ -27,6 +27,7 @@ from .models.columns import (
 )
 from .neighbours import NeighbourList
 from .physics.rates import CpuRates, RateBuffers, ViscositySettings, pressures
+from .physics.stretch import stretched_smoothing_length
 from .state import ParticleState
 
 #: Particles per work item of :func:`rate_totals`' partial sums.
@@ -103,7 +104,11 @@ class Solver:
     ``backend`` runs the rate passes: :class:`~impactsph.physics.rates.CpuRates` (default)
     or :class:`impactsph.gpu.GpuRates`.  ``hourglass``: the hourglass control's zeta;
     ``wall_layer``: the thickness (in particle spacings) of the walls' penalty layer
-    (:func:`impactsph.boundaries.layer_push`), 0 for none.
+    (:func:`impactsph.boundaries.layer_push`), 0 for none.  ``max_stretch`` > 1: at each list
+    build after the first, each particle's smoothing length becomes ``h_reference`` (its
+    smoothing length at t = 0; the state's own at the first build if not given) times its
+    neighbourhood's largest principal stretch, clamped to ``[1, max_stretch]``
+    (:mod:`impactsph.physics.stretch`).
     """
 
     def step_limit(self, state: ParticleState) -> float:
@@ -113,8 +118,12 @@ class Solver:
 
     def __init__(self, state: ParticleState, table: np.ndarray, viscosity: ViscositySettings,
                  walls: Walls | None = None, skin_fraction: float = 0.1, backend=None,
-                 hourglass: float = 0.0, wall_layer: float = 0.0):
+                 hourglass: float = 0.0, wall_layer: float = 0.0, max_stretch: float = 1.0,
+                 h_reference: np.ndarray | None = None):
         self.table = table
+        self.max_stretch = float(max_stretch)
+        self._h_reference = (np.array(h_reference, dtype=float) if h_reference is not None
+                             else state.smoothing_length.copy())
         self.wall_layer = float(wall_layer)
         self.hourglass = float(hourglass)
         self.viscosity = viscosity
@@ -159,7 +168,12 @@ class Solver:
         self._build(state)
 
     def _build(self, state: ParticleState) -> None:
-        """Choose the ghosts, size the arrays and build the neighbour list."""
+        """Choose the ghosts, size the arrays and build the neighbour list (with
+        ``max_stretch`` > 1, after setting the smoothing lengths from the old list)."""
+        if self.max_stretch > 1.0 and self.neighbours is not None:
+            state.smoothing_length[:] = stretched_smoothing_length(
+                self.neighbours, state.position, state.initial_position, state.body,
+                state.smoothing_length, self._h_reference, self.max_stretch)
         support = SUPPORT_RADIUS * float(state.smoothing_length.max())
         skin = self.skin_fraction * support
         if self.walls is not None:

@@ -1,0 +1,156 @@
+"""A smoothing length that follows the local stretch (``kernel.max_stretch``; issue 11,
+docs/stabilisation.md, "A kernel that follows the stretch").
+
+Where a solid is squashed along one direction it is stretched along another: the foot of a
+Taylor bar spreads along the wall to twice its radius, so its particles end up twice as far
+apart along the wall (and, in 3D, round the axis) as they started, while they crowd together
+along the axis.  A kernel of fixed ``h`` then has one neighbour or none along the stretched
+direction.  At each neighbour-list build each particle's smoothing length is set to
+
+    (ST-1)  h_i = h0_i clamp(lambda_i, 1, max_stretch)
+
+with ``h0_i`` its smoothing length at t = 0 and ``lambda_i`` the largest principal stretch of
+its neighbourhood's deformation gradient, the least-squares fit to its neighbours'
+separations now and at t = 0 (same body; kernel-weighted with the current ``h_ij``; used
+here only to size the kernel):
+
+    (ST-2)  F_i = (sum_j w_ij x_ij (x) X_ij) (sum_j w_ij X_ij (x) X_ij)^-1
+    (ST-3)  lambda_i = sqrt(largest eigenvalue of F_i F_i^T)
+
+(``x_ij = x_j - x_i`` now, ``X_ij`` at t = 0, ``w_ij = W(|x_ij|, h_ij)``).  (ST-2) is exact
+for any homogeneous deformation whatever the neighbours, at free surfaces too, and (ST-3) is
+1 for any rigid motion.  A neighbourhood whose moment ``sum_j w_ij X_ij (x) X_ij`` is
+singular (fewer neighbours than the dimension needs, or all on one line) keeps ``h0``.
+
+It is an isotropic cousin of adaptive SPH (ASPH; Owen, Villumsen, Shapiro & Martel 1998,
+ApJS 116:155), whose smoothing tensor follows the deformation in every direction: here the
+kernel stays round and grows with the largest stretch only, so the pair terms keep their form.
+Along the squashed direction it then reaches over more particles than before.
+
+Pairs use the mean ``h_ij = (h_i + h_j) / 2`` as with a kernel width per body, so the pair
+forces stay antisymmetric (momentum kept exactly) and the energy terms their power (energy
+kept by the semi-discrete equations).  ``h`` changes only at a build, so the list (built with
+the new ``h``) always covers every pair's support.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from ..kernels import cubic_spline
+
+#: a neighbourhood's moment matrix counts as singular below this share of its trace's power
+SINGULAR = 1e-8
+
+
+@nb.njit(inline="always", cache=True)
+def _largest_eigenvalue_sym3(a00, a01, a02, a11, a12, a22):
+    """The largest eigenvalue of a symmetric 3x3 matrix (the trigonometric form of the cubic's
+    roots; Smith 1961)."""
+    p1 = a01 * a01 + a02 * a02 + a12 * a12
+    mean = (a00 + a11 + a22) / 3.0
+    if p1 == 0.0:
+        return max(a00, max(a11, a22))
+    p2 = (a00 - mean) ** 2 + (a11 - mean) ** 2 + (a22 - mean) ** 2 + 2.0 * p1
+    p = math.sqrt(p2 / 6.0)
+    b00, b11, b22 = (a00 - mean) / p, (a11 - mean) / p, (a22 - mean) / p
+    b01, b02, b12 = a01 / p, a02 / p, a12 / p
+    half_det = 0.5 * (b00 * (b11 * b22 - b12 * b12) - b01 * (b01 * b22 - b12 * b02)
+                      + b02 * (b01 * b12 - b11 * b02))
+    half_det = min(1.0, max(-1.0, half_det))
+    return mean + 2.0 * p * math.cos(math.acos(half_det) / 3.0)
+
+
+@nb.njit(inline="always", cache=True)
+def _principal_stretch(A, B, dim):
+    """Largest principal stretch of ``F = A B^-1`` (``A``, ``B``: ``dim x dim``; ``B``
+    symmetric), or -1 where ``B`` is singular."""
+    if dim == 1:
+        if B[0, 0] <= 0.0:
+            return -1.0
+        return abs(A[0, 0] / B[0, 0])
+    trace = 0.0
+    for a in range(dim):
+        trace += B[a, a]
+    if dim == 2:
+        det = B[0, 0] * B[1, 1] - B[0, 1] * B[1, 0]
+        if not det > SINGULAR * (trace / 2.0) ** 2:
+            return -1.0
+        i00, i01, i11 = B[1, 1] / det, -B[0, 1] / det, B[0, 0] / det
+        f00 = A[0, 0] * i00 + A[0, 1] * i01
+        f01 = A[0, 0] * i01 + A[0, 1] * i11
+        f10 = A[1, 0] * i00 + A[1, 1] * i01
+        f11 = A[1, 0] * i01 + A[1, 1] * i11
+        c00 = f00 * f00 + f01 * f01
+        c01 = f00 * f10 + f01 * f11
+        c11 = f10 * f10 + f11 * f11
+        half = 0.5 * (c00 + c11)
+        return math.sqrt(half + math.sqrt(0.25 * (c00 - c11) ** 2 + c01 * c01))
+    c00 = B[1, 1] * B[2, 2] - B[1, 2] * B[2, 1]
+    c01 = B[0, 2] * B[2, 1] - B[0, 1] * B[2, 2]
+    c02 = B[0, 1] * B[1, 2] - B[0, 2] * B[1, 1]
+    det = B[0, 0] * c00 + B[1, 0] * c01 + B[2, 0] * c02
+    if not det > SINGULAR * (trace / 3.0) ** 3:
+        return -1.0
+    inv = np.empty((3, 3))
+    inv[0, 0], inv[0, 1], inv[0, 2] = c00 / det, c01 / det, c02 / det
+    inv[1, 0] = (B[1, 2] * B[2, 0] - B[1, 0] * B[2, 2]) / det
+    inv[1, 1] = (B[0, 0] * B[2, 2] - B[0, 2] * B[2, 0]) / det
+    inv[1, 2] = (B[0, 2] * B[1, 0] - B[0, 0] * B[1, 2]) / det
+    inv[2, 0] = (B[1, 0] * B[2, 1] - B[1, 1] * B[2, 0]) / det
+    inv[2, 1] = (B[0, 1] * B[2, 0] - B[0, 0] * B[2, 1]) / det
+    inv[2, 2] = (B[0, 0] * B[1, 1] - B[0, 1] * B[1, 0]) / det
+    F = A @ inv
+    C = F @ F.T
+    return math.sqrt(max(_largest_eigenvalue_sym3(C[0, 0], C[0, 1], C[0, 2], C[1, 1],
+                                                  C[1, 2], C[2, 2]), 0.0))
+
+
+@nb.njit(parallel=True, cache=True)
+def principal_stretches(order, offsets, indices, x, x0, body, h, n_real):
+    """(ST-2, ST-3) for the particles ``0 .. n_real - 1`` over a neighbour list (sorted
+    positions, as :class:`impactsph.neighbours.NeighbourList`): ``x`` the rows' positions
+    (ghosts after the real particles; they are skipped), ``x0`` the real particles' positions
+    at t = 0, ``h`` the rows' smoothing lengths now.  -1 where the neighbourhood's moment is
+    singular."""
+    dim = x.shape[1]
+    out = np.full(n_real, -1.0)
+    for p in nb.prange(order.shape[0]):
+        i = order[p]
+        if i >= n_real:
+            continue
+        A = np.zeros((dim, dim))
+        B = np.zeros((dim, dim))
+        for k in range(offsets[p], offsets[p + 1]):
+            j = order[indices[k]]
+            if j >= n_real or body[j] != body[i]:
+                continue
+            r2 = 0.0
+            for a in range(dim):
+                r2 += (x[j, a] - x[i, a]) ** 2
+            w = cubic_spline(math.sqrt(r2), 0.5 * (h[i] + h[j]), dim)
+            if w == 0.0:
+                continue
+            for a in range(dim):
+                dxa = x[j, a] - x[i, a]
+                dXa = x0[j, a] - x0[i, a]
+                for b in range(dim):
+                    dXb = x0[j, b] - x0[i, b]
+                    A[a, b] += w * dxa * dXb
+                    B[a, b] += w * dXa * dXb
+        out[i] = _principal_stretch(A, B, dim)
+    return out
+
+
+def stretched_smoothing_length(neighbours, x: np.ndarray, x0: np.ndarray, body: np.ndarray,
+                               h: np.ndarray, h0: np.ndarray, max_stretch: float) -> np.ndarray:
+    """(ST-1) for the real particles (``x0``, ``h0`` and the result have a row each; ``x``,
+    ``body`` and ``h`` a row per row of ``neighbours``, ghosts after the real particles)."""
+    n = x0.shape[0]
+    stretch = principal_stretches(neighbours.order, neighbours.offsets, neighbours.indices,
+                                  np.ascontiguousarray(x), np.ascontiguousarray(x0), body, h, n)
+    factor = np.where(stretch > 0.0, np.clip(stretch, 1.0, max_stretch), 1.0)
+    return h0 * factor

@@ -1,0 +1,160 @@
+"""A smoothing length that follows the local stretch (``kernel.max_stretch``,
+:mod:`impactsph.physics.stretch`): the neighbourhood's deformation gradient is exact for a
+homogeneous deformation, at free surfaces too; a rigid motion leaves ``h`` alone; the pair
+sums stay conservative; the option is refused where it does not apply."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from impactsph.loading import CaseError, load_case
+from impactsph.neighbours import NeighbourList
+from impactsph.physics.stretch import principal_stretches, stretched_smoothing_length
+from impactsph.simulation import Simulation, _cpu_only
+
+H_OVER_DX = 1.3
+
+
+def _lattice(dim: int, n: int = 7) -> np.ndarray:
+    axes = [np.arange(n, dtype=float)] * dim
+    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, dim) * 1e-3
+
+
+def _stretches(X: np.ndarray, F: np.ndarray, body: np.ndarray | None = None,
+               ghosts: np.ndarray | None = None) -> np.ndarray:
+    """Each particle's largest principal stretch after ``x = F X + c`` (``ghosts``: rows
+    appended after the particles, which the list holds and the estimate must skip)."""
+    x = X @ F.T + 0.37e-3
+    n = X.shape[0]
+    rows = x if ghosts is None else np.vstack([x, ghosts])
+    h = np.full(rows.shape[0], H_OVER_DX * 1e-3 * max(1.0, np.linalg.norm(F, 2)))
+    lst = NeighbourList.build(rows, 2.0 * float(h.max()), 0.0)
+    body = np.zeros(rows.shape[0], np.int32) if body is None else body
+    return principal_stretches(lst.order, lst.offsets, lst.indices, rows, X, body, h, n)
+
+
+@pytest.mark.parametrize("dim, F", [
+    (1, np.array([[1.7]])),
+    (2, np.array([[1.5, 0.2], [0.1, 0.7]])),
+    (3, np.array([[1.3, 0.2, -0.1], [0.05, 0.8, 0.3], [0.0, -0.2, 1.1]])),
+])
+def test_a_homogeneous_deformation_gives_its_stretch_everywhere(dim, F):
+    """(ST-2) is a least-squares fit of a linear map, exact whatever the neighbours: the
+    interior, the faces, the edges and the corners of a block all give F's largest singular
+    value."""
+    stretch = _stretches(_lattice(dim), F)
+    expected = np.linalg.svd(F, compute_uv=False)[0]
+    np.testing.assert_allclose(stretch, expected, rtol=1e-12)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_a_rigid_rotation_stretches_nothing(dim):
+    angle = 0.7
+    c, s = np.cos(angle), np.sin(angle)
+    R = np.array([[c, -s], [s, c]]) if dim == 2 else np.array([[c, -s, 0], [s, c, 0],
+                                                               [0, 0, 1]])
+    np.testing.assert_allclose(_stretches(_lattice(dim), R), 1.0, rtol=1e-12)
+
+
+def test_each_body_and_no_ghost_counts():
+    """Two blocks side by side, one stretched and one not, give each its own stretch: the
+    neighbours of another body are left out, and so are rows beyond the particles (a wall's
+    ghosts) placed among them."""
+    X = _lattice(2)
+    n = X.shape[0]
+    both = np.vstack([X, X + [7e-3, 0.0]])
+    body = np.repeat(np.array([0, 1], np.int32), n)
+    F = np.array([[1.4, 0.0], [0.0, 1.0]])
+    x = both.copy()
+    x[:n] = X @ F.T  # the first block stretched along x; the second one rigid
+    ghosts = both[:10] + [0.3e-3, 0.4e-3]
+    rows = np.vstack([x, ghosts])
+    h = np.full(rows.shape[0], H_OVER_DX * 1.4e-3)
+    lst = NeighbourList.build(rows, 2.0 * float(h.max()), 0.0)
+    all_body = np.concatenate([body, np.full(10, 7, np.int32)])
+    got = principal_stretches(lst.order, lst.offsets, lst.indices, rows, both, all_body, h,
+                              2 * n)
+    np.testing.assert_allclose(got[:n], 1.4, rtol=1e-12)
+    np.testing.assert_allclose(got[n:], 1.0, rtol=1e-12)
+
+
+def test_the_smoothing_length_is_clamped_and_kept_where_undetermined():
+    """``h = h0 clamp(lambda, 1, max_stretch)``: a stretch beyond the limit gives the limit, a
+    uniform compression gives h0, and a neighbourhood that cannot fix F (two particles: a
+    singular moment in 2D) keeps h0."""
+    X = _lattice(2)
+    h0 = np.full(X.shape[0], H_OVER_DX * 1e-3)
+    for F, factor in ((np.diag([1.5, 1.0]), 1.23), (np.diag([0.8, 0.8]), 1.0),
+                      (np.diag([1.1, 0.9]), 1.1)):
+        x = X @ F.T
+        lst = NeighbourList.build(x, 2.0 * float(h0.max()) * 1.5, 0.0)
+        h = stretched_smoothing_length(lst, x, X, np.zeros(X.shape[0], np.int32), h0, h0,
+                                       1.23)
+        np.testing.assert_allclose(h, factor * h0, rtol=1e-12)
+    pair = np.array([[0.0, 0.0], [1e-3, 0.0]])
+    lst = NeighbourList.build(pair, 3e-3, 0.0)
+    h = stretched_smoothing_length(lst, 1.5 * pair, pair, np.zeros(2, np.int32),
+                                   np.full(2, 1.3e-3), np.full(2, 1.3e-3), 1.23)
+    np.testing.assert_array_equal(h, 1.3e-3)
+
+
+def test_a_run_keeps_momentum_and_energy_and_bounds_h():
+    """The paper's Taylor bar to 20 us with AC's pairwise form, the walls and a kernel that
+    follows the stretch: the pair sums stay symmetric (mean h_ij), so momentum is kept to
+    round-off and energy to the time step's error; h grows where the foot spreads, by at most
+    the limit, and nowhere falls below h0."""
+    sim = Simulation(load_case("taylor", [
+        'viscosity.scheme="ac_pairwise"', 'contact.traction="normal_stress"',
+        "contact.wall_layer=0.25", "kernel.max_stretch=1.25", "time.end=20e-6",
+        "output.figures=false"]))
+    h0 = sim.state.smoothing_length.copy()
+    sim.run()
+    summary = sim.summary()
+    assert summary["momentum_drift"] <= 1e-12
+    assert summary["total_energy_relative_error"] <= 1e-3
+    assert summary["wall_constraint_events"] == 0
+    ratio = sim.state.smoothing_length / h0
+    assert ratio.min() >= 1.0 and ratio.max() <= 1.25 + 1e-12
+    low = sim.state.position[:, 1] < sim.state.position[:, 1].min() + 1e-3  # the foot
+    assert ratio[low].max() == pytest.approx(1.25)
+    high = sim.state.position[:, 1] > sim.state.position[:, 1].max() - 5e-3  # the tail
+    assert ratio[high].max() < 1.02
+
+
+@pytest.mark.parametrize("extra, field", [
+    (["stabilisation.artificial_stress=0.3"], "stabilisation.artificial_stress"),
+    (['formulation="total_lagrangian"', 'viscosity.scheme="av"'], "total_lagrangian"),
+])
+def test_what_the_stretch_refuses(extra, field):
+    with pytest.raises(CaseError) as caught:
+        load_case("taylor", ["kernel.max_stretch=1.2", *extra])
+    message = str(caught.value)
+    assert "kernel.max_stretch = 1.2" in message and field in message
+    assert "\n" not in message.strip()
+
+
+def test_the_stretch_runs_on_the_cpu():
+    why = _cpu_only(load_case("taylor", ["kernel.max_stretch=1.2"]))
+    assert why is not None and "kernel.max_stretch" in why
+    assert _cpu_only(load_case("taylor", [])) is None
+
+
+@pytest.mark.parametrize("value", [0.9, 5.0])
+def test_the_limit_is_checked(value):
+    with pytest.raises(CaseError) as caught:
+        load_case("taylor", [f"kernel.max_stretch={value}"])
+    assert "kernel.max_stretch" in str(caught.value)
+
+
+def test_preflight_sizes_the_list_for_the_grown_kernel():
+    """The list's reach grows with the largest h, so pre-flight's memory estimate counts the
+    neighbours within ``max_stretch`` times the reach: about 1.23^2 as many in 2D."""
+    from impactsph.preflight import estimate
+
+    plain, stretched = (load_case("taylor", [f"kernel.max_stretch={s}"]) for s in (1.0, 1.23))
+    a, b = (estimate(c, [c.bodies[0].geometry.count[0] * c.bodies[0].geometry.count[1]])
+            for c in (plain, stretched))
+    assert b.neighbours / a.neighbours == pytest.approx(1.23 ** 2, rel=0.15)
+    assert b.memory > a.memory
+    assert b.pairs_per_particle == a.pairs_per_particle  # the support at t = 0
