@@ -103,8 +103,18 @@ def _principal_stretch(A, B, dim):
     inv[2, 0] = (B[1, 0] * B[2, 1] - B[1, 1] * B[2, 0]) / det
     inv[2, 1] = (B[0, 1] * B[2, 0] - B[0, 0] * B[2, 1]) / det
     inv[2, 2] = (B[0, 0] * B[1, 1] - B[0, 1] * B[1, 0]) / det
-    F = A @ inv
-    C = F @ F.T
+    # F = A B^-1 and C = F F^T written out: numba's matrix product needs SciPy's BLAS,
+    # which is not a dependency
+    F = np.zeros((3, 3))
+    for a in range(3):
+        for b in range(3):
+            for c in range(3):
+                F[a, b] += A[a, c] * inv[c, b]
+    C = np.zeros((3, 3))
+    for a in range(3):
+        for b in range(a, 3):
+            for c in range(3):
+                C[a, b] += F[a, c] * F[b, c]
     return math.sqrt(max(_largest_eigenvalue_sym3(C[0, 0], C[0, 1], C[0, 2], C[1, 1],
                                                   C[1, 2], C[2, 2]), 0.0))
 
