@@ -124,13 +124,16 @@ def choose_writer(out: Path | None, run_dir: Path, field: str) -> tuple[Path, st
     raise CaseError(f"--out {out}: the animation is written as .mp4 or .gif")
 
 
-def _h_over_dx(snapshot: dict[str, Any], case: Any) -> np.ndarray | float:
-    """Each particle's smoothing length over its spacing (its body's, ``bodies.N.h_over_dx``,
-    else the kernel's), to read the spacing back from ``h``."""
+def _spacing(snapshot: dict[str, Any], case: Any) -> np.ndarray | float:
+    """Each particle's spacing: its body's (:func:`impactsph.preflight.body_spacing`, the
+    spacing its smoothing length was scaled from at t = 0; the snapshot's h may have grown
+    since, ``kernel.max_stretch``)."""
+    from .preflight import body_spacing
+
+    spacings = np.array([body_spacing(b.geometry) for b in case.bodies])
     if "body" not in snapshot:
-        return float(case.kernel.h_over_dx)
-    ratios = np.array([case.h_over_dx_of(b) for b in range(len(case.bodies))])
-    return ratios[np.asarray(snapshot["body"], dtype=np.int64)]
+        return float(spacings.min())
+    return spacings[np.asarray(snapshot["body"], dtype=np.int64)]
 
 
 def _frames(run: dict[str, Any], case: Any, field: str, section: str
@@ -145,7 +148,7 @@ def _frames(run: dict[str, Any], case: Any, field: str, section: str
         normal = AXES.index(section)
         plotted = [a for a in range(3) if a != normal]
         x0 = first["initial_position"]
-        dx = first["smoothing_length"] / _h_over_dx(first, case)
+        dx = _spacing(first, case)
         centre = 0.5 * (x0[:, normal].min() + x0[:, normal].max())
         keep = np.abs(x0[:, normal] - centre) < dx
     frames, unit = [], ""
@@ -237,7 +240,7 @@ def animate_run(run_dir: Path | str, field: str | None = None, out: Path | str |
         points_per_mm = min(box.width / (upper[0] - lower[0] + 2 * pad[0]),
                             box.height / (upper[1] - lower[1] + 2 * pad[1])) * 72 / fig.dpi
         first = run["snapshots"][0]
-        dx = float(np.median(first["smoothing_length"] / _h_over_dx(first, case)))
+        dx = float(np.median(_spacing(first, case)))
         size = float(np.clip((0.8 * dx * 1e3 * points_per_mm) ** 2, 0.5, 200.0))
         scatter = ax.scatter(frames[0]["x"][:, 0] * 1e3, frames[0]["x"][:, 1] * 1e3, s=size,
                              c=frames[0]["values"], cmap=cmap, norm=norm, linewidths=0)

@@ -145,7 +145,7 @@ def body_measures(sim: Any, notes: list[str]) -> dict[str, dict[str, Any]]:
 
         def pieces(x: np.ndarray = x, m: np.ndarray = own, members: np.ndarray = members
                    ) -> dict[str, Any]:
-            support = 2.0 * float(s.smoothing_length[members].max())
+            support = 2.0 * float(sim.h_reference[members].max())
             count, _, share = largest_piece(x, m, support)
             return {"pieces": count, "largest_piece_mass_fraction": share}
 

@@ -103,9 +103,10 @@ class Simulation:
         t0 = _time.perf_counter()
         self.case = case
         self.problem = problem or build_problem(case)
-        #: the smoothing lengths at t = 0 (a restart's state carries those of its last list
-        #: build: kernel.max_stretch)
-        h_reference = self.problem.state.smoothing_length.copy()
+        #: each particle's smoothing length at t = 0, the nominal kernel the measures scale
+        #: by (with kernel.max_stretch the state's own grows, and a restart's state carries
+        #: those of its last list build)
+        self.h_reference = self.problem.state.smoothing_length.copy()
         if state is not None:
             self.problem.state = state
         self._resident = None  # the state on the GPU between steps (gpu_step.ResidentStep)
@@ -130,7 +131,7 @@ class Simulation:
                                  hourglass=case.stabilisation.hourglass,
                                  wall_layer=case.contact.wall_layer,
                                  max_stretch=case.kernel.max_stretch,
-                                 h_reference=h_reference)
+                                 h_reference=self.h_reference)
         if state is None:  # a fresh start: the viscosity switch's initial factors
             scheme = VISCOSITY[case.viscosity.scheme]
             if scheme.switch is not None:

@@ -122,7 +122,7 @@ class Solver:
                  h_reference: np.ndarray | None = None):
         self.table = table
         self.max_stretch = float(max_stretch)
-        self._h_reference = (np.array(h_reference, dtype=float) if h_reference is not None
+        self._h_reference = (np.asarray(h_reference, dtype=float) if h_reference is not None
                              else state.smoothing_length.copy())
         self.wall_layer = float(wall_layer)
         self.hourglass = float(hourglass)

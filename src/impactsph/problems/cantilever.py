@@ -69,7 +69,7 @@ def cantilever_metrics(sim: Any) -> dict[str, Any]:
     out.update(attempt(notes, "max_neighbour_gap_over_h", lambda: {
         "max_neighbour_gap_over_h": max_neighbour_gap_over_h(
             s.initial_position[members], s.position[members],
-            float(s.smoothing_length[members].max()))}, {}))
+            float(sim.h_reference[members].max()))}, {}))
     gap = out.get("max_neighbour_gap_over_h")
     if gap is not None and gap > FRACTURE_GAP_OVER_H:
         notes.append(f"the beam has come apart (numerical fracture: two initial neighbours "

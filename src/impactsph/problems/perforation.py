@@ -87,9 +87,11 @@ class PerforationProblem(ProblemKind):
     animation_field = "equivalent_plastic_strain"
 
     def metrics(self, sim: Any) -> dict[str, Any]:
-        s = sim.state
-        spacing = float(s.smoothing_length[s.body == 1].mean()) / sim.case.h_over_dx_of(1)
         from ..initial import body_velocity
+        from ..preflight import body_spacing
+
+        s = sim.state
+        spacing = body_spacing(sim.case.bodies[1].geometry)
 
         initial_velocity = np.empty_like(s.velocity)
         for b, body in enumerate(sim.case.bodies):

@@ -184,7 +184,7 @@ class PlatesProblem(ProblemKind):
                         **profile_measures(sim.state.initial_position[left, 0],
                                            snap.fields["velocity"][left, 0], theory,
                                            snap.time,
-                                           float(sim.state.smoothing_length[left].max()))}
+                                           float(sim.h_reference[left].max()))}
 
             out.update(attempt(notes, "velocity profile", measure, {}))
         if notes:

@@ -84,7 +84,7 @@ def rings_metrics(sim: Any) -> dict[str, Any]:
         gaps, closest = [], []
         for k, body in enumerate(sim.case.bodies[:2]):
             sel = s.body == k
-            h = float(s.smoothing_length[sel].max())
+            h = float(sim.h_reference[sel].max())
             dx = float(body.geometry.spacings()[0])
             i, j = pairs_within(s.initial_position[sel], 1.5 * dx)
             for x in [*states, s.position]:

@@ -206,7 +206,7 @@ def taylor_metrics(sim: Any) -> dict[str, Any]:
     spacing = body.geometry.spacings()
     notes: list[str] = []
     out: dict[str, Any] = {}
-    support = 2.0 * float(s.smoothing_length[members].max())
+    support = 2.0 * float(sim.h_reference[members].max())
     pieces, piece, share = attempt(notes, "pieces", lambda: largest_piece(
         x, s.mass[members], support), (1, np.ones(len(members), dtype=bool), 1.0))
     if pieces > 1:
