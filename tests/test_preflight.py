@@ -228,7 +228,7 @@ def test_body_behind_a_wall_is_refused():
     ({"time__end": 2.0, "time__max_steps": 10}, "time.end",
      "more than 1 s of simulated time for an impact"),
     ({"time__end": 0.5, "output": {"history_every": 1_000_000}}, "time.end",
-     "steps of dt = 3.5e-08 s (eq 26), more than 1e+07"),
+     "steps of dt = 3.79e-08 s (eq 26), more than 1e+07"),
     ({"viscosity": {"limiter": "minmod"}}, "viscosity.limiter",
      "viscosity.limiter = 'minmod': not a parameter of scheme 'av' (alpha1, alpha2, "
      "epsilon); it has no effect"),

@@ -5,9 +5,13 @@ sums stay conservative; the option is refused where it does not apply."""
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+from impactsph.config import AUTO_MAX_STRETCH
 from impactsph.loading import CaseError, load_case
 from impactsph.neighbours import NeighbourList
 from impactsph.physics.stretch import principal_stretches, stretched_smoothing_length
@@ -28,10 +32,11 @@ def _stretches(X: np.ndarray, F: np.ndarray, body: np.ndarray | None = None,
     x = X @ F.T + 0.37e-3
     n = X.shape[0]
     rows = x if ghosts is None else np.vstack([x, ghosts])
+    rows0 = X if ghosts is None else np.vstack([X, ghosts])
     h = np.full(rows.shape[0], H_OVER_DX * 1e-3 * max(1.0, np.linalg.norm(F, 2)))
     lst = NeighbourList.build(rows, 2.0 * float(h.max()), 0.0)
     body = np.zeros(rows.shape[0], np.int32) if body is None else body
-    return principal_stretches(lst.order, lst.offsets, lst.indices, rows, X, body, h, n)
+    return principal_stretches(lst.order, lst.offsets, lst.indices, rows, rows0, body, h, n)
 
 
 @pytest.mark.parametrize("dim, F", [
@@ -57,10 +62,10 @@ def test_a_rigid_rotation_stretches_nothing(dim):
     np.testing.assert_allclose(_stretches(_lattice(dim), R), 1.0, rtol=1e-12)
 
 
-def test_each_body_and_no_ghost_counts():
+def test_each_body_and_no_wall_ghost_counts():
     """Two blocks side by side, one stretched and one not, give each its own stretch: the
-    neighbours of another body are left out, and so are rows beyond the particles (a wall's
-    ghosts) placed among them."""
+    neighbours of another body are left out, and so are a rigid wall's ghosts (body -1)
+    placed among them."""
     X = _lattice(2)
     n = X.shape[0]
     both = np.vstack([X, X + [7e-3, 0.0]])
@@ -72,13 +77,55 @@ def test_each_body_and_no_ghost_counts():
     rows = np.vstack([x, ghosts])
     h = np.full(rows.shape[0], H_OVER_DX * 1.4e-3)
     lst = NeighbourList.build(rows, 2.0 * float(h.max()), 0.0)
-    # the ghosts carry the first body's index, so only their rows (beyond the particles) can
-    # keep them out
-    all_body = np.concatenate([body, np.zeros(10, np.int32)])
-    got = principal_stretches(lst.order, lst.offsets, lst.indices, rows, both, all_body, h,
-                              2 * n)
+    all_body = np.concatenate([body, np.full(10, -1, np.int32)])
+    got = principal_stretches(lst.order, lst.offsets, lst.indices, rows,
+                              np.vstack([both, ghosts]), all_body, h, 2 * n)
     np.testing.assert_allclose(got[:n], 1.4, rtol=1e-12)
     np.testing.assert_allclose(got[n:], 1.0, rtol=1e-12)
+
+
+def test_a_symmetry_plane_gives_the_whole_models_stretch():
+    """A half model's neighbourhoods by a symmetry plane include its mirror images (now and
+    at t = 0), so that its stretches are the whole model's under a deformation symmetric
+    about the plane and far from homogeneous (to round-off); a rigid wall's ghosts count
+    for nothing."""
+    from impactsph.boundaries import FREE_SLIP, SYMMETRY
+    from impactsph.physics.stretch import mirrored_rows
+
+    u = _lattice(2, 10) / 1e-3 - [4.5, 2.0]  # columns at x = -4.5 .. 4.5 mm
+
+    def deformed(u):
+        return np.stack([u[:, 0] * (1.0 + 0.02 * u[:, 0] ** 2),
+                         u[:, 1] + 0.03 * u[:, 0] ** 2 - 0.01 * u[:, 1] ** 2], axis=1) * 1e-3
+
+    X_whole, x_whole = u * 1e-3, deformed(u)
+    h = H_OVER_DX * 1.5e-3
+    whole_list = NeighbourList.build(x_whole, 2.0 * h, 0.0)
+    n_whole = X_whole.shape[0]
+    whole = principal_stretches(whole_list.order, whole_list.offsets, whole_list.indices,
+                                x_whole, X_whole, np.zeros(n_whole, np.int64),
+                                np.full(n_whole, h), n_whole)
+    right = u[:, 0] > 0.0
+    X, x = X_whole[right], x_whole[right]
+    n = X.shape[0]
+    points, normals = np.zeros((2, 2)), np.array([[1.0, 0.0], [0.0, 1.0]])
+    for kind, expected in ((SYMMETRY, whole[right]), (FREE_SLIP, None)):
+        kinds = np.array([kind, FREE_SLIP], np.int8)
+        src, wall = np.arange(n), np.zeros(n, np.int64)  # every particle's mirror image
+        rows = mirrored_rows(x, X, np.zeros(n, np.int64), np.full(n, h), src, wall, points,
+                             normals, kinds)
+        np.testing.assert_allclose(rows[0][n:, 0], -x[:, 0], rtol=0, atol=1e-18)
+        lst = NeighbourList.build(rows[0], 2.0 * h, 0.0)
+        half = principal_stretches(lst.order, lst.offsets, lst.indices, *rows, n)
+        if expected is not None:
+            np.testing.assert_allclose(half, expected, rtol=1e-12)
+            assert half.max() > 1.05  # the deformation does stretch the block
+        else:  # a wall's images: the half's own neighbours only, as with no ghosts
+            own = NeighbourList.build(x, 2.0 * h, 0.0)
+            alone = principal_stretches(own.order, own.offsets, own.indices, x, X,
+                                        np.zeros(n, np.int64), np.full(n, h), n)
+            np.testing.assert_allclose(half, alone, rtol=1e-12)
+            assert np.abs(half - whole[right]).max() > 1e-3  # and the plane's row differs
 
 
 def test_the_smoothing_length_is_clamped_and_kept_where_undetermined():
@@ -91,13 +138,13 @@ def test_the_smoothing_length_is_clamped_and_kept_where_undetermined():
                       (np.diag([1.1, 0.9]), 1.1)):
         x = X @ F.T
         lst = NeighbourList.build(x, 2.0 * float(h0.max()) * 1.5, 0.0)
-        h = stretched_smoothing_length(lst, x, X, np.zeros(X.shape[0], np.int32), h0, h0,
-                                       1.23)
+        h = stretched_smoothing_length(lst, x, X, np.zeros(X.shape[0], np.int32), h0, 1.23,
+                                       h0)
         np.testing.assert_allclose(h, factor * h0, rtol=1e-12)
     pair = np.array([[0.0, 0.0], [1e-3, 0.0]])
     lst = NeighbourList.build(pair, 3e-3, 0.0)
     h = stretched_smoothing_length(lst, 1.5 * pair, pair, np.zeros(2, np.int32),
-                                   np.full(2, 1.3e-3), np.full(2, 1.3e-3), 1.23)
+                                   np.full(2, 1.3e-3), 1.23, np.full(2, 1.3e-3))
     np.testing.assert_array_equal(h, 1.3e-3)
 
 
@@ -162,3 +209,48 @@ def test_preflight_sizes_the_list_for_the_grown_kernel():
     assert b.neighbours / a.neighbours == pytest.approx(1.23 ** 2, rel=0.15)
     assert b.memory > a.memory
     assert b.pairs_per_particle == a.pairs_per_particle  # the support at t = 0
+
+
+sys.path.insert(0, str(Path(__file__).parent.parent / "validation"))
+from resolution import DEFAULTS  # noqa: E402
+
+JC_DAMAGE = ['materials.iron.damage="johnson_cook_damage"',
+             "materials.iron.johnson_cook_damage={d1=0.05, d2=3.44, d3=-2.12}"]
+
+
+@pytest.mark.parametrize("source, extra, expected", [
+    ("taylor", DEFAULTS, AUTO_MAX_STRETCH),                    # a plastic bar of one's own
+    ("cantilever", DEFAULTS, AUTO_MAX_STRETCH),
+    ("taylor3d", [], AUTO_MAX_STRETCH),
+    ("taylor", [], 1.0),                                      # the paper's fixed h
+    ("bars", ['kernel.max_stretch="auto"'], 1.0),              # nothing yields
+    ("taylor", [*DEFAULTS, "kernel.h_over_dx=1.2"], 1.0),      # tore the beam at 1.2 dx
+    ("taylor", [*DEFAULTS, "bodies.0.h_over_dx=1.25"], 1.0),   # one body is enough
+    ("taylor", [*DEFAULTS, *JC_DAMAGE], 1.0),                  # cracks not measured
+    ("taylor", [*DEFAULTS, "stabilisation.artificial_stress=0.3"], 1.0),
+    ("taylor", [*DEFAULTS, 'compute.device="gpu"'], 1.0),      # the GPU step has no stretch
+    ("taylor_axisymmetric", ['kernel.max_stretch="auto"'], 1.0),
+])
+def test_auto_gives_the_stretch_where_it_was_measured(source, extra, expected):
+    """``kernel.max_stretch = "auto"`` (the default) resolves, when the case is validated, to
+    1.23 where it was measured to make the answers converge (a plastic body, updated-
+    Lagrangian, plane strain or 3D, at least 1.3 dx, no damage, no artificial stress, on the
+    CPU), to 1 everywhere else; the case recorded with a run holds the number."""
+    case = load_case(source, extra)
+    assert case.kernel.max_stretch == expected
+    assert case.model_dump()["kernel"]["max_stretch"] == expected
+
+
+@pytest.mark.parametrize("source", ["taylor", "cantilever"])
+def test_the_defaults_scheme_is_a_case_of_ones_own(source):
+    """``validation/resolution.py``'s "defaults" scheme gives the paper's example the tables
+    a case of one's own leaves out: the same resolved case as deleting them."""
+    from impactsph.loading import read_case_dict, validate_case
+
+    raw = read_case_dict(source)
+    for table in ("viscosity", "stabilisation", "contact", "kernel"):
+        raw.pop(table, None)
+    bare = validate_case(raw).model_dump()
+    named = load_case(source, DEFAULTS).model_dump()
+    for table in ("viscosity", "stabilisation", "contact", "kernel"):
+        assert named[table] == bare[table], table

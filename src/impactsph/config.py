@@ -452,20 +452,36 @@ Boundary = Annotated[
 ]
 
 
+#: the largest smoothing length over h0 that ``kernel.max_stretch = "auto"`` gives a case whose
+#: materials yield: 1.6 / 1.3, the kernel width that makes the plane-strain Taylor foot converge
+#: over the paper's (docs/stabilisation.md, "A kernel that follows the stretch")
+AUTO_MAX_STRETCH = 1.23
+
+#: the narrowest kernel (h / dx) with which ``"auto"`` switches the stretch on: with AV (1, 1)
+#: at 1.2 dx the stretch tears the cantilever at x2 (docs/validation.md, Example 3)
+AUTO_STRETCH_MIN_H_OVER_DX = 1.3
+
+
 class Kernel(_Model):
     """Smoothing kernel and length."""
 
     type: Literal["cubic_spline"] = "cubic_spline"
-    h_over_dx: PositiveFloat = Field(1.2, description="smoothing length over particle spacing")
-    max_stretch: float = Field(
-        1.0, ge=1.0, le=4.0, description="the most a particle's smoothing length grows with "
+    h_over_dx: PositiveFloat = Field(
+        1.3, description="smoothing length over particle spacing; 1.3 (the paper's examples' "
+        "width): at 1.2 the cantilever's tip moves +40% from x1 to x2 with AV (1, 1), at 1.3 "
+        "-0.4% (docs/stabilisation.md, 'Defaults')")
+    max_stretch: Annotated[float, Field(ge=1.0, le=4.0)] | Literal["auto"] = Field(
+        "auto", description="the most a particle's smoothing length grows with "
         "the local stretch: at each neighbour-list build h = h0 clamp(lambda, 1, max_stretch), "
         "lambda the largest principal stretch of the least-squares deformation gradient of "
         "the particle's neighbourhood since t = 0 (impactsph.physics.stretch), so that a "
         "kernel keeps its neighbours where a body spreads (a Taylor bar's foot) and keeps h0 "
-        "where it barely deforms (a beam); 1 (the default) keeps h fixed; 1.6 / 1.3 = 1.23 "
-        "measured on the Taylor bar and the cantilever (docs/stabilisation.md)")
-
+        "where it barely deforms (a beam); 1 keeps h fixed; 'auto' (the default): "
+        f"{AUTO_MAX_STRETCH} (1.6 / 1.3, measured on the Taylor bar and the cantilever, "
+        "docs/stabilisation.md) where a material yields, none has a damage model, every "
+        f"body's h_over_dx is at least {AUTO_STRETCH_MIN_H_OVER_DX}, the formulation is "
+        "updated-Lagrangian in plane strain or 3D, without the artificial stress, on the CPU; "
+        "else 1")
 
 
 #: the hourglass coefficient zeta that ``"auto"`` gives a case whose materials do not yield
@@ -762,7 +778,7 @@ class Case(_Model):
                     f"{self.kernel.h_over_dx!r}) is one number for the run; give the body "
                     f"kernel.h_over_dx or switch the artificial stress off")
         stretch = self.kernel.max_stretch
-        if stretch > 1.0:
+        if stretch != "auto" and stretch > 1.0:
             if epsilon > 0.0:
                 raise ValueError(
                     f"kernel.max_stretch = {stretch!r} with stabilisation.artificial_stress = "
@@ -902,6 +918,7 @@ class Case(_Model):
                                  "'total_lagrangian': the update is built for the "
                                  "updated-Lagrangian pair pass; use energy_update = 'rate'")
         self._resolve_stabilisation()
+        self._resolve_stretch()
         return self
 
     def _axisymmetric_limits(self) -> None:
@@ -990,6 +1007,23 @@ class Case(_Model):
             stab.gradient_correction = corrected if elastic else "none"
         if stab.hourglass == "auto":
             stab.hourglass = AUTO_HOURGLASS if elastic and not axisymmetric else 0.0
+
+    def _resolve_stretch(self) -> None:
+        """Replace ``kernel.max_stretch = "auto"`` by the measured choice (see :class:`Kernel`):
+        the stretch where it was measured to make the answers converge (a plastic Taylor bar
+        and cantilever, docs/stabilisation.md), a fixed kernel everywhere else."""
+        kernel = self.kernel
+        if kernel.max_stretch != "auto":
+            return
+        yields = any(STRENGTH[m.model].return_map is not None
+                     for m in self.materials.values())
+        damage = any(m.damage != "none" for m in self.materials.values())
+        wide = all(self.h_over_dx_of(b) >= AUTO_STRETCH_MIN_H_OVER_DX - 1e-12
+                   for b in range(len(self.bodies)))
+        on = (yields and not damage and wide and self.formulation != "total_lagrangian"
+              and self.two_dimensional != "axisymmetric"
+              and self.stabilisation.artificial_stress == 0.0 and self.compute.device == "cpu")
+        kernel.max_stretch = AUTO_MAX_STRETCH if on else 1.0
 
 
 def _optional(info: Any) -> tuple[Any, Any]:

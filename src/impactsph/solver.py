@@ -171,9 +171,12 @@ class Solver:
         """Choose the ghosts, size the arrays and build the neighbour list (with
         ``max_stretch`` > 1, after setting the smoothing lengths from the old list)."""
         if self.max_stretch > 1.0 and self.neighbours is not None:
+            w = self.walls
+            ghosts = None if w is None else (self._ghost_src, self._ghost_wall, w.points,
+                                             w.normals, w.kinds)
             state.smoothing_length[:] = stretched_smoothing_length(
                 self.neighbours, state.position, state.initial_position, state.body,
-                state.smoothing_length, self._h_reference, self.max_stretch)
+                self._h_reference, self.max_stretch, state.smoothing_length, ghosts)
         support = SUPPORT_RADIUS * float(state.smoothing_length.max())
         skin = self.skin_fraction * support
         if self.walls is not None:

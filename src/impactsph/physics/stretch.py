@@ -11,8 +11,9 @@ direction.  At each neighbour-list build each particle's smoothing length is set
 
 with ``h0_i`` its smoothing length at t = 0 and ``lambda_i`` the largest principal stretch of
 its neighbourhood's deformation gradient, the least-squares fit to its neighbours'
-separations now and at t = 0 (same body; kernel-weighted with the current ``h_ij``; used
-here only to size the kernel):
+separations now and at t = 0 (same body, a symmetry plane's mirror images included, so that a
+half or quarter model is the whole one; kernel-weighted with the current ``h_ij``; used here
+only to size the kernel):
 
     (ST-2)  F_i = (sum_j w_ij x_ij (x) X_ij) (sum_j w_ij X_ij (x) X_ij)^-1
     (ST-3)  lambda_i = sqrt(largest eigenvalue of F_i F_i^T)
@@ -40,6 +41,7 @@ import math
 import numba as nb
 import numpy as np
 
+from ..boundaries import SYMMETRY
 from ..kernels import cubic_spline
 
 #: a neighbourhood's moment matrix counts as singular below this share of its trace's power
@@ -122,9 +124,10 @@ def _principal_stretch(A, B, dim):
 @nb.njit(parallel=True, cache=True)
 def principal_stretches(order, offsets, indices, x, x0, body, h, n_real):
     """(ST-2, ST-3) for the particles ``0 .. n_real - 1`` over a neighbour list (sorted
-    positions, as :class:`impactsph.neighbours.NeighbourList`): ``x`` the rows' positions
-    (ghosts after the real particles; they are skipped), ``x0`` the real particles' positions
-    at t = 0, ``h`` the rows' smoothing lengths now.  -1 where the neighbourhood's moment is
+    positions, as :class:`impactsph.neighbours.NeighbourList`): ``x``, ``x0``, ``body`` and
+    ``h`` have a row per row of the list (ghosts after the real particles): the positions now
+    and at t = 0, the body (a neighbour of another body is left out; so is a row whose body is
+    negative) and the smoothing length now.  -1 where the neighbourhood's moment is
     singular."""
     dim = x.shape[1]
     out = np.full(n_real, -1.0)
@@ -136,7 +139,7 @@ def principal_stretches(order, offsets, indices, x, x0, body, h, n_real):
         B = np.zeros((dim, dim))
         for k in range(offsets[p], offsets[p + 1]):
             j = order[indices[k]]
-            if j >= n_real or body[j] != body[i]:
+            if body[j] != body[i]:
                 continue
             r2 = 0.0
             for a in range(dim):
@@ -155,12 +158,46 @@ def principal_stretches(order, offsets, indices, x, x0, body, h, n_real):
     return out
 
 
+@nb.njit(cache=True)
+def mirrored_rows(x, x0, body, h, src, wall, points, normals, kinds):
+    """The rows of a list with ghosts (:func:`principal_stretches`' ``x``, ``x0``, ``body``,
+    ``h``) from the real particles' and the ghosts' sources and planes: a symmetry plane's
+    ghost is its source mirrored across the plane, now and at t = 0 (in order: a ghost may
+    mirror an earlier ghost), and belongs to its source's body, so that a half model's
+    neighbourhoods are the whole model's; a rigid wall's ghost belongs to no body (-1)."""
+    n, dim = x.shape
+    rows = n + src.shape[0]
+    xe, x0e = np.empty((rows, dim)), np.empty((rows, dim))
+    be, he = np.empty(rows, np.int64), np.empty(rows)
+    xe[:n], x0e[:n], be[:n], he[:n] = x, x0, body, h
+    for k in range(src.shape[0]):
+        i, w, g = src[k], wall[k], n + k
+        d = 0.0
+        d0 = 0.0
+        for a in range(dim):
+            d += (xe[i, a] - points[w, a]) * normals[w, a]
+            d0 += (x0e[i, a] - points[w, a]) * normals[w, a]
+        for a in range(dim):
+            xe[g, a] = xe[i, a] - 2.0 * d * normals[w, a]
+            x0e[g, a] = x0e[i, a] - 2.0 * d0 * normals[w, a]
+        be[g] = be[i] if kinds[w] == SYMMETRY else -1
+        he[g] = he[i]
+    return xe, x0e, be, he
+
+
 def stretched_smoothing_length(neighbours, x: np.ndarray, x0: np.ndarray, body: np.ndarray,
-                               h: np.ndarray, h0: np.ndarray, max_stretch: float) -> np.ndarray:
-    """(ST-1) for the real particles (``x0``, ``h0`` and the result have a row each; ``x``,
-    ``body`` and ``h`` a row per row of ``neighbours``, ghosts after the real particles)."""
+                               h0: np.ndarray, max_stretch: float, h: np.ndarray,
+                               ghosts: tuple | None = None) -> np.ndarray:
+    """(ST-1) for the real particles (``x``, ``x0``, ``body``, ``h0``, ``h`` and the result
+    have a row each).  ``ghosts``: ``(src, wall, points, normals, kinds)`` of the ghost rows
+    of ``neighbours`` (:class:`impactsph.boundaries.Walls`), None where it has none."""
     n = x0.shape[0]
+    if ghosts is None:
+        ghosts = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, x.shape[1])),
+                  np.zeros((0, x.shape[1])), np.zeros(0, np.int8))
+    rows = mirrored_rows(np.ascontiguousarray(x), np.ascontiguousarray(x0),
+                         body.astype(np.int64), np.ascontiguousarray(h), *ghosts)
     stretch = principal_stretches(neighbours.order, neighbours.offsets, neighbours.indices,
-                                  np.ascontiguousarray(x), np.ascontiguousarray(x0), body, h, n)
+                                  *rows, n)
     factor = np.where(stretch > 0.0, np.clip(stretch, 1.0, max_stretch), 1.0)
     return h0 * factor
