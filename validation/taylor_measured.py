@@ -77,6 +77,9 @@ def case_of(test: dict, across: int, end: float) -> dict:
     # the paper's AC, with which docs/validation.md's rows were run (the example itself runs
     # AC's pairwise form since 2026-12-03); --set 'viscosity.scheme="..."' picks another
     base["viscosity"] = {"scheme": "ac"}
+    # and the fixed kernel (the example's "auto" grows it where the bar spreads since
+    # 2026-12-03); --set 'kernel.max_stretch="auto"' gives the defaults
+    base["kernel"]["max_stretch"] = 1.0
     return base
 
 
