@@ -170,3 +170,21 @@ def test_a_failure_after_the_correction_surges_says_so(tmp_path, scheme, surge, 
         assert f"over the last {50 if every == 1 else 495} steps" in msg
     summary = json.loads((tmp_path / "n" / "summary.json").read_text())
     assert summary["failure"] == msg
+
+
+@pytest.mark.parametrize("source, extra, expected", [
+    ("taylor", [], "scheme: AC (neighbours_only), updated-Lagrangian; h = 1.3 dx, fixed; "
+     "gradient correction none, hourglass 0; walls: pressure traction, layer 0"),
+    ("taylor3d", [], "h = 1.3 dx, growing with the stretch to 1.23 h0 (kernel.max_stretch)"),
+    ("bars", ['stabilisation.gradient_correction="auto"', 'stabilisation.hourglass="auto"'],
+     "gradient correction velocity gradient and forces, hourglass 2"),
+    ("rings", ['formulation="total_lagrangian"', "stabilisation.artificial_stress=0"],
+     "scheme: AV (1, 1), total-Lagrangian; h = 1.3 dx, fixed"),
+])
+def test_check_says_which_scheme_runs(source, extra, expected):
+    """``check`` (and the run's log) name the discretisation with its "auto" defaults
+    resolved: what a case of one's own gets is not hidden."""
+    res = runner.invoke(app, ["check", source, *(a for s in extra for a in ("--set", s))])
+    assert res.exit_code == 0, res.output
+    line = res.output.splitlines()[1]
+    assert line.startswith("scheme: ") and expected in line, line

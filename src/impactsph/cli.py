@@ -200,7 +200,7 @@ def check(case: Annotated[str, typer.Argument(help="case file or built-in name")
           set_: Annotated[list[str] | None, typer.Option("--set")] = None) -> None:
     """Validate a case without running it: particle counts, estimates of memory and run
     time, and warnings about the set-up (impactsph.preflight)."""
-    from .preflight import check_case
+    from .preflight import check_case, scheme_line
 
     try:
         c = load_case(case, set_ or [])
@@ -209,6 +209,7 @@ def check(case: Annotated[str, typer.Argument(help="case file or built-in name")
         _fail(str(exc))
     model = f" {c.two_dimensional.replace('_', ' ')}" if c.dimension == 2 else ""
     typer.echo(f"{c.name}: valid ({c.dimension}D{model}, {len(c.bodies)} bodies)")
+    typer.echo(scheme_line(c))
     typer.echo("\n".join(report.lines()))
 
 

@@ -176,6 +176,33 @@ class Report:
         return [*self.estimate.lines(), *(f.line() for f in self.findings)]
 
 
+def scheme_line(case: Case) -> str:
+    """One line that says which discretisation the case runs, its ``"auto"`` defaults
+    resolved (docs/stabilisation.md, "Defaults, and why"): the viscosity, the formulation,
+    the kernel, the stabilisation and the walls' contact options."""
+    from .plotting import label_of
+
+    widths = sorted({case.h_over_dx_of(b) for b in range(len(case.bodies))})
+    h = " and ".join(f"{_g(w)}" for w in widths)
+    stretch = case.kernel.max_stretch
+    kernel = (f"h = {h} dx, growing with the stretch to {_g(stretch)} h0 (kernel.max_stretch)"
+              if stretch > 1.0 else f"h = {h} dx, fixed")
+    parts = [label_of(case)]  # says ", total-Lagrangian" for that formulation
+    if case.formulation != "total_lagrangian":
+        parts[0] += ", updated-Lagrangian"
+    parts.append(kernel)
+    if case.formulation != "total_lagrangian":
+        stab = case.stabilisation
+        parts.append(f"gradient correction {stab.gradient_correction.replace('_', ' ')}, "
+                     f"hourglass {_g(stab.hourglass)}")
+        if stab.artificial_stress > 0.0:
+            parts.append(f"artificial stress {_g(stab.artificial_stress)}")
+    if any(b.type == "wall" for b in case.boundaries):
+        parts.append(f"walls: {case.contact.traction.replace('_', ' ')} traction, layer "
+                     f"{_g(case.contact.wall_layer)}")
+    return "scheme: " + "; ".join(parts)
+
+
 # -- formatting ------------------------------------------------------------------------------
 
 def _bytes(n: float) -> str:

@@ -30,6 +30,7 @@ from .output import (
     write_summary,
 )
 from .plotting import label_of
+from .preflight import scheme_line
 from .problems.registry import analyse
 from .rundir import IfExists, RunLock, check_run_dir, clear_outputs, make_run_dir, remove_if_empty
 from .runlog import run_log
@@ -185,6 +186,7 @@ def _run(sim: Simulation, case: Case, out: Path, *,
 
     log.info("%s: %d particles, %dD, to t = %g s", case.name, sim.state.n, sim.state.dim,
              case.time.end)
+    log.info("%s", scheme_line(case))
     try:
         if stop is not None and stop():  # asked while the run was being set up
             raise _Stop
