@@ -68,10 +68,11 @@ def test_check_prints_counts_and_estimates_for_taylor():
     assert res.exit_code == 0, res.output
     lines = res.output.splitlines()
     assert lines[0] == "taylor: valid (2D plane strain, 1 bodies)"
-    assert lines[1] == "particles: bar 1,407; total 1,407 (+ 63 wall ghosts)"
-    assert lines[2].startswith("estimated memory: ") and " MB" in lines[2]
-    assert lines[3].startswith("estimated run time: ") and "an estimate" in lines[3]
-    assert "steps of dt = 2.7e-08 s by eq 26" in lines[3]
+    assert lines[1].startswith("scheme: AC ")  # tests/test_cli.py checks the line
+    assert lines[2] == "particles: bar 1,407; total 1,407 (+ 63 wall ghosts)"
+    assert lines[3].startswith("estimated memory: ") and " MB" in lines[3]
+    assert lines[4].startswith("estimated run time: ") and "an estimate" in lines[4]
+    assert "steps of dt = 2.7e-08 s by eq 26" in lines[4]
     est = pf.preflight(load_case("taylor")).estimate
     assert est.total == 1407 and est.runs == 2  # the reference AV run too
     assert 1800 < est.steps < 1900  # the run takes 1837
