@@ -165,3 +165,30 @@ def test_list_order_is_the_stencil_order(dim):
         np.testing.assert_array_equal(nl.order, order)
         for p, row in enumerate(rows):
             assert nl.indices[nl.offsets[p]:nl.offsets[p + 1]].tolist() == row, p
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_a_radius_per_pair_keeps_each_pairs_own_support(dim):
+    """Built with a smoothing length per particle, the list holds exactly the pairs closer than
+    ``2 h_ij + skin`` (or than the inner list's radius), in the order the whole list has them,
+    and its inner list is the global one's."""
+    rng = np.random.default_rng(20 + dim)
+    x = rng.random((500, dim)) * [1.0, 0.7, 0.5][:dim]
+    h = rng.uniform(0.03, 0.05, x.shape[0])
+    support, skin, reach = 2.0 * h.max(), 0.01, 0.3
+    nl = NeighbourList.build(x, support, skin, inner_reach=reach, h=h)
+    whole = NeighbourList.build(x, support, skin, inner_reach=reach)
+    d = np.linalg.norm(x[:, None, :] - x[None, :, :], axis=-1)
+    own = np.maximum(2.0 * 0.5 * (h[:, None] + h[None, :]) + skin, nl.inner_radius)
+    i, j = np.nonzero((d < own) & (d < nl.radius))
+    expected = {(int(a), int(b)) for a, b in zip(i, j, strict=True) if a != b}
+    assert pairs_of(nl) == expected
+    assert nl.n_pairs < whole.n_pairs  # the rows are shorter
+    np.testing.assert_array_equal(nl.order, whole.order)
+    for p in range(0, x.shape[0], 7):  # each row: the whole row's pairs it keeps, in order
+        row = whole.indices[whole.offsets[p]:whole.offsets[p + 1]]
+        kept = row[np.isin(row, nl.indices[nl.offsets[p]:nl.offsets[p + 1]])]
+        np.testing.assert_array_equal(nl.indices[nl.offsets[p]:nl.offsets[p + 1]], kept)
+    np.testing.assert_array_equal(nl.inner_indices, whole.inner_indices)
+    with pytest.raises(ValueError, match="h has 3 rows"):
+        NeighbourList.build(x, support, skin, h=h[:3])

@@ -12,6 +12,12 @@ was built, or the support has grown past what the radius covers
 (:meth:`NeighbourList.stale`).  Pairs beyond the kernel's support are then skipped by the
 pair loops, whose kernel value is zero there.
 
+A list built with a smoothing length per particle holds, of the pairs within the radius, only
+those closer than their own ``2 h_ij + skin`` (``h_ij`` the pair's mean h): where the smoothing
+lengths differ (a kernel that follows the stretch, ``kernel.max_stretch``) the rows then do
+not carry every pair out to the largest h's reach, which the pair loops would visit and skip.
+The skin's argument is the same: ``h`` is fixed between two builds.
+
 A list may also carry an *inner list*: the same neighbours, in the same order, of those
 closer than a smaller radius ``reach * 2 h_max + skin`` (the same skin), built in the same
 sweeps.  A pass whose kernel reaches only part of the support (the acceleration
@@ -28,6 +34,8 @@ from functools import cache
 
 import numba as nb
 import numpy as np
+
+from .kernels import SUPPORT_RADIUS
 
 #: relative round-off allowed when comparing ``support + skin`` with the list's radius (the
 #: sum recomputed from an unchanged support may differ from the stored radius in its last bit)
@@ -82,8 +90,9 @@ def _build_functions(dim: int):
         raise ValueError(f"dim = {dim!r}: the neighbour list is built for 1, 2 or 3 dimensions")
 
     @nb.njit(parallel=True, cache=True)
-    def build(x, radius, inner_radius):
+    def build(x, radius, inner_radius, h, support_per_h, skin):
         n = x.shape[0]
+        per_pair = h.shape[0] > 0  # a radius per pair: support_per_h h_ij + skin
         lo = np.empty(dim)
         ncell = np.ones(dim, dtype=np.int64)
         if n > 0:
@@ -98,9 +107,12 @@ def _build_functions(dim: int):
         # particles of a cell in their given order (stable sort)
         order = np.argsort(morton, kind="mergesort")
         xs = np.empty((n, dim))
+        hs = np.empty(n if per_pair else 0)
         for p in nb.prange(n):
             for a in range(dim):
                 xs[p, a] = x[order[p], a]
+            if per_pair:
+                hs[p] = h[order[p]]
         cell_start = np.zeros(total_cells, dtype=np.int64)
         cell_end = np.zeros(total_cells, dtype=np.int64)
         for p in range(n):
@@ -138,6 +150,7 @@ def _build_functions(dim: int):
                 xp0 = xs[p, 0]
                 xp1 = xs[p, 1] if dim > 1 else 0.0
                 xp2 = xs[p, 2] if dim > 2 else 0.0
+                hp = hs[p] if per_pair else 0.0
                 c0 = min(max(int((xp0 - lo0) / radius), 0), n0 - 1)
                 c1 = min(max(int((xp1 - lo1) / radius), 0), n1 - 1) if dim > 1 else 0
                 c2 = min(max(int((xp2 - lo2) / radius), 0), n2 - 1) if dim > 2 else 0
@@ -171,7 +184,11 @@ def _build_functions(dim: int):
                                 for q in range(q0, q1):
                                     r2 = distance2(xp0, xp1, xp2, xs, q, dim)
                                     other = q != p
-                                    cnt += 1 if (r2 < r2max) & other else 0
+                                    lim = r2max
+                                    if per_pair:
+                                        rp = 0.5 * support_per_h * (hp + hs[q]) + skin
+                                        lim = min(r2max, max(rp * rp, r2inner))
+                                    cnt += 1 if (r2 < lim) & other else 0
                                     cnt_inner += 1 if (r2 < r2inner) & other else 0
                                 found += cnt
                                 found_inner += cnt_inner
@@ -180,7 +197,11 @@ def _build_functions(dim: int):
                                 if q == p:
                                     continue
                                 r2 = distance2(xp0, xp1, xp2, xs, q, dim)
-                                if r2 < r2max:
+                                lim = r2max
+                                if per_pair:
+                                    rp = 0.5 * support_per_h * (hp + hs[q]) + skin
+                                    lim = min(r2max, max(rp * rp, r2inner))
+                                if r2 < lim:
                                     indices[pos + found] = q
                                     found += 1
                                     if inner and r2 < r2inner:
@@ -250,10 +271,13 @@ class NeighbourList:
 
     @classmethod
     def build(cls, x: np.ndarray, support: float, skin: float = 0.0,
-              inner_reach: float = 1.0) -> NeighbourList:
+              inner_reach: float = 1.0, h: np.ndarray | None = None) -> NeighbourList:
         """All pairs closer than ``support + skin`` (``support`` = 2 h_max for eq 20), and
         with ``inner_reach`` < 1 an inner list of those closer than ``inner_reach * support +
-        skin``."""
+        skin``.  With ``h`` (a smoothing length per row), only the pairs closer than their own
+        ``2 h_ij + skin`` (``h_ij`` the mean; or than the inner list's radius, so that the
+        inner list stays a part of the whole): every pair a pass of support ``2 h_ij`` uses,
+        without the rows' entries out to the largest h's reach."""
         dim = x.shape[1]
         build, _ = _build_functions(dim)
         radius = float(support + skin)
@@ -261,8 +285,12 @@ class NeighbourList:
             raise ValueError(f"inner_reach = {inner_reach!r}: a fraction of the support in "
                              f"(0, 1]")
         inner_radius = float(inner_reach * support + skin) if inner_reach < 1.0 else 0.0
+        per_pair = np.zeros(0) if h is None else np.ascontiguousarray(h, dtype=np.float64)
+        if per_pair.shape[0] not in (0, x.shape[0]):
+            raise ValueError(f"h has {per_pair.shape[0]} rows for {x.shape[0]} positions")
         order, offsets, indices, inner_offsets, inner_indices = build(
-            np.ascontiguousarray(x), radius, inner_radius)
+            np.ascontiguousarray(x), radius, inner_radius, per_pair, float(SUPPORT_RADIUS),
+            float(skin))
         if offsets[-1] < np.iinfo(np.int32).max:  # 4 bytes per particle less
             offsets = offsets.astype(np.int32)
             inner_offsets = inner_offsets.astype(np.int32)

@@ -190,9 +190,26 @@ class Solver:
         # whole list)
         reach = (self.viscosity.inner_reach
                  if getattr(self.backend, "device", "cpu") == "cpu" else 1.0)
-        self.neighbours = NeighbourList.build(positions, support, skin, reach)
+        # with the stretch the smoothing lengths differ: a radius per pair keeps the rows of
+        # the particles that have not stretched as short as before (neighbours.py)
+        h_rows = self._row_smoothing_lengths(state) if self.max_stretch > 1.0 else None
+        self.neighbours = NeighbourList.build(positions, support, skin, reach, h_rows)
         self.neighbours.builds += builds
         self._positions = None
+
+    def _row_smoothing_lengths(self, state: ParticleState) -> np.ndarray:
+        """Each row's h: the particles', then each ghost's source's (a ghost may mirror an
+        earlier ghost, at most one mirror per plane deep)."""
+        n, src = state.n, self._ghost_src
+        rows = np.empty(n + src.shape[0])
+        rows[:n] = state.smoothing_length
+        if src.shape[0]:
+            rows[n:] = np.nan
+            for _ in range(len(self.walls.points) + 1):
+                rows[n:] = rows[src]
+            if np.isnan(rows[n:]).any():
+                raise RuntimeError("a ghost's source chain is longer than the planes allow")
+        return rows
 
     def restore(self, state: ParticleState, neighbours: NeighbourList, ghost_src: np.ndarray,
                 ghost_wall: np.ndarray) -> None:
