@@ -107,3 +107,26 @@ def test_preflight_counts_each_body_with_its_width():
     assert est.pairs_per_particle == pytest.approx(expected)
     assert pf.lattice_neighbours(pf.SUPPORT_RADIUS * 1.6, 2) > pf.lattice_neighbours(
         pf.SUPPORT_RADIUS * 1.3, 2)
+
+
+def test_a_radius_per_pair_changes_nothing_but_the_lists_length(monkeypatch):
+    """Where the bodies' smoothing lengths differ the list keeps each pair's own ``2 h_ij +
+    skin`` (neighbours.py), not the widest body's reach in every row: the same run to
+    round-off (the vectorised sums' grouping follows the rows' lengths), with fewer
+    entries (measured: 6,672 against 7,876 at the end)."""
+    from impactsph.solver import Solver
+
+    def run() -> Simulation:
+        sim = Simulation(validate_case(plate_and_disk(1.6, 1.0, end=3e-6)))
+        assert sim.case.kernel.max_stretch == 1.0  # a fixed kernel: the widths alone differ
+        sim.run()
+        return sim
+
+    short = run()
+    monkeypatch.setattr(Solver, "_row_smoothing_lengths", lambda self, state: None)
+    long = run()
+    for name, array in long.state.arrays().items():
+        if np.issubdtype(array.dtype, np.floating) and array.size:
+            got = short.state.arrays()[name]
+            assert np.abs(got - array).max() <= 1e-11 * max(np.abs(array).max(), 1e-300), name
+    assert short.solver.neighbours.n_pairs < long.solver.neighbours.n_pairs

@@ -14,8 +14,9 @@ pair loops, whose kernel value is zero there.
 
 A list built with a smoothing length per particle holds, of the pairs within the radius, only
 those closer than their own ``2 h_ij + skin`` (``h_ij`` the pair's mean h): where the smoothing
-lengths differ (a kernel that follows the stretch, ``kernel.max_stretch``) the rows then do
-not carry every pair out to the largest h's reach, which the pair loops would visit and skip.
+lengths differ (a kernel that follows the stretch, ``kernel.max_stretch``; bodies of
+different widths, ``bodies.N.h_over_dx``; the solver builds it so then) the rows then do not
+carry every pair out to the largest h's reach, which the pair loops would visit and skip.
 The skin's argument is the same: ``h`` is fixed between two builds.
 
 A list may also carry an *inner list*: the same neighbours, in the same order, of those

@@ -190,9 +190,11 @@ class Solver:
         # whole list)
         reach = (self.viscosity.inner_reach
                  if getattr(self.backend, "device", "cpu") == "cpu" else 1.0)
-        # with the stretch the smoothing lengths differ: a radius per pair keeps the rows of
-        # the particles that have not stretched as short as before (neighbours.py)
-        h_rows = self._row_smoothing_lengths(state) if self.max_stretch > 1.0 else None
+        # where the smoothing lengths differ (the stretch, a width per body) a radius per pair
+        # keeps each row to its own pairs' reach, not the largest h's (neighbours.py)
+        h = state.smoothing_length
+        varied = self.max_stretch > 1.0 or (h.shape[0] > 0 and h.max() > h.min())
+        h_rows = self._row_smoothing_lengths(state) if varied else None
         self.neighbours = NeighbourList.build(positions, support, skin, reach, h_rows)
         self.neighbours.builds += builds
         self._positions = None
