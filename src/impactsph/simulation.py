@@ -105,8 +105,9 @@ class Simulation:
         self.problem = problem or build_problem(case)
         #: each particle's smoothing length at t = 0, the nominal kernel the measures scale
         #: by (with kernel.max_stretch the state's own grows, and a restart's state carries
-        #: those of its last list build)
-        self.h_reference = self.problem.state.smoothing_length.copy()
+        #: those of its last list build: a copy then; without it h never changes)
+        h0 = self.problem.state.smoothing_length
+        self.h_reference = h0.copy() if case.kernel.max_stretch > 1.0 else h0
         if state is not None:
             self.problem.state = state
         self._resident = None  # the state on the GPU between steps (gpu_step.ResidentStep)

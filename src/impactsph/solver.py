@@ -122,8 +122,11 @@ class Solver:
                  h_reference: np.ndarray | None = None):
         self.table = table
         self.max_stretch = float(max_stretch)
-        self._h_reference = (np.asarray(h_reference, dtype=float) if h_reference is not None
-                             else state.smoothing_length.copy())
+        self._h_reference = None  # read only with the stretch
+        if self.max_stretch > 1.0:
+            self._h_reference = (np.asarray(h_reference, dtype=float)
+                                 if h_reference is not None
+                                 else state.smoothing_length.copy())
         self.wall_layer = float(wall_layer)
         self.hourglass = float(hourglass)
         self.viscosity = viscosity
@@ -200,18 +203,9 @@ class Solver:
         self._positions = None
 
     def _row_smoothing_lengths(self, state: ParticleState) -> np.ndarray:
-        """Each row's h: the particles', then each ghost's source's (a ghost may mirror an
-        earlier ghost, at most one mirror per plane deep)."""
-        n, src = state.n, self._ghost_src
-        rows = np.empty(n + src.shape[0])
-        rows[:n] = state.smoothing_length
-        if src.shape[0]:
-            rows[n:] = np.nan
-            for _ in range(len(self.walls.points) + 1):
-                rows[n:] = rows[src]
-            if np.isnan(rows[n:]).any():
-                raise RuntimeError("a ghost's source chain is longer than the planes allow")
-        return rows
+        """Each row of the list's h: the particles', then the ghosts' (their sources', set by
+        :meth:`_allocate`'s fill)."""
+        return state.smoothing_length if self._ext is None else self._ext["h"]
 
     def restore(self, state: ParticleState, neighbours: NeighbourList, ghost_src: np.ndarray,
                 ghost_wall: np.ndarray) -> None:
