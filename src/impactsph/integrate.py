@@ -20,6 +20,7 @@ from types import SimpleNamespace
 import numba as nb
 import numpy as np
 
+from .jitcache import njit_variant
 from .materials import SHEAR, WAVE_MODULUS
 from .physics.options import PassOptions
 from .physics.rates import compiled_passes
@@ -66,7 +67,7 @@ def bad_field(i, x, v, rho, e, S):
 
 @cache
 def _survey_kernel(dim: int):
-    @nb.njit(parallel=True, cache=True)
+    @njit_variant(f"{dim}d", parallel=True)
     def survey(n_active, x, v, rho, e, S, m, added, h, material, table, courant, hourglass):
         """One pass over the state: the CFL step (eq 26, with the hourglass control's
         signal speed added where ``hourglass`` (zeta) > 0: :data:`HOURGLASS_SPEED`), kinetic

@@ -36,6 +36,7 @@ from functools import cache
 import numba as nb
 import numpy as np
 
+from .jitcache import njit_variant
 from .kernels import SUPPORT_RADIUS
 
 #: relative round-off allowed when comparing ``support + skin`` with the list's radius (the
@@ -90,7 +91,7 @@ def _build_functions(dim: int):
     if dim not in (1, 2, 3):
         raise ValueError(f"dim = {dim!r}: the neighbour list is built for 1, 2 or 3 dimensions")
 
-    @nb.njit(parallel=True, cache=True)
+    @njit_variant(f"{dim}d", parallel=True)
     def build(x, radius, inner_radius, h, support_per_h, skin):
         n = x.shape[0]
         per_pair = h.shape[0] > 0  # a radius per pair: support_per_h h_ij + skin
@@ -214,7 +215,7 @@ def _build_functions(dim: int):
                         inner_offsets[p + 1] = found_inner
         return order, offsets, indices, inner_offsets, inner_indices
 
-    @nb.njit(cache=True)
+    @njit_variant(f"{dim}d")
     def max_displacement(x, x_ref, origin):
         largest = 0.0
         for i in range(x.shape[0]):

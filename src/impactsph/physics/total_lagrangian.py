@@ -41,6 +41,7 @@ from types import SimpleNamespace
 import numba as nb
 import numpy as np
 
+from impactsph.jitcache import njit_variant
 from impactsph.kernels import cubic_spline, cubic_spline_gradient_factor
 from impactsph.materials import RHO0, SHEAR, WAVE_MODULUS, YOUNGS
 from impactsph.models.viscosity.monaghan import monaghan_viscosity
@@ -303,7 +304,7 @@ def compiled_passes(dim: int) -> SimpleNamespace:
     particles that allocates its scratch once: an allocation per particle cost more than the
     particle's arithmetic."""
 
-    @nb.njit(parallel=True, cache=True)
+    @njit_variant(f"{dim}d", parallel=True)
     def deformation(n_active, x, v, V0, m, rho, pressure, S, damage, material, table, offsets,
                     neighbours, grad, K, F, Fdot, Q, drho, dS, de):  # pragma: no cover
         for chunk in nb.prange((n_active + CHUNK - 1) // CHUNK):
@@ -318,7 +319,7 @@ def compiled_passes(dim: int) -> SimpleNamespace:
                                 offsets, neighbours, grad, K, F, Fdot, Q, drho, dS, de, raw, Fi,
                                 Fd, Finv, L, Pk, dim)
 
-    @nb.njit(parallel=True, cache=True)
+    @njit_variant(f"{dim}d", parallel=True)
     def force(n_active, x, v, X, V0, m, h, rho, material, table, offsets, neighbours, grad, w,
               dw, F, Q, visc, alpha, dv, de, de_visc, Fdot, tau):  # pragma: no cover
         for chunk in nb.prange((n_active + CHUNK - 1) // CHUNK):
