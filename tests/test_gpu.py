@@ -11,7 +11,6 @@ checks run on it too (``mode = "gpu"``).
 
 from __future__ import annotations
 
-import atexit
 import copy
 import dataclasses
 import importlib.util
@@ -19,10 +18,8 @@ import json
 import logging
 import os
 import pickle
-import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -423,18 +420,14 @@ def _worker(task: str, folder: Path) -> int:
     return 0
 
 
-#: numba's on-disk cache of the workers, apart from the test session's own: a worker process
-#: (other environment: the simulator, one thread) never reads or writes the cache files that
-#: the session's process has loaded.  A CI run once found the session's cached neighbour
-#: builder unreadable in a worker ("'descr' is NULL"), which clearing that cache file cured.
-WORKER_NUMBA_CACHE = Path(tempfile.gettempdir()) / f"impactsph-gpu-workers-{os.getpid()}"
-atexit.register(shutil.rmtree, WORKER_NUMBA_CACHE, ignore_errors=True)
-
-
 def _run_worker(mode: str, task: str, folder: Path) -> dict:
+    # the worker shares the session's numba cache: it loads the CPU kernels the session
+    # compiled (28 s of the run comparison's 42, warm).  It had a cache of its own, made
+    # after a CI run found the session's neighbour builder unreadable in a worker ("'descr'
+    # is NULL"): every dimension's builder then shared one cache index, which concurrent
+    # compilations could leave naming another dimension's code (impactsph.jitcache)
     env = dict(os.environ)
     env.setdefault("NUMBA_NUM_THREADS", "1")
-    env["NUMBA_CACHE_DIR"] = str(WORKER_NUMBA_CACHE)
     if mode == "simulator":
         env["NUMBA_ENABLE_CUDASIM"] = "1"
     else:
