@@ -122,3 +122,29 @@ def test_below_the_weakest_flaw_nothing_breaks(tmp_path, speed):
     c_l = math.sqrt((rock.bulk_modulus + 4.0 / 3.0 * rock.shear_modulus) / rock.density)
     assert speed / c_l < weakest / 2  # the set-up is below threshold, with margin
     assert not first_damage
+
+
+def test_the_material_state_is_sized_to_the_models_in_use(tmp_path):
+    """The material state carries the common columns, then only the blocks of the case's
+    models that have a state of their own (TableLayout.state_width_of): the damaged bar its
+    damage model's, the same bar without damage and the Taylor bar (plastic) the common
+    five (a strength model's own block: tests/test_extension.py); a state too narrow for its
+    models is refused before the kernels index past it."""
+    from impactsph.models.columns import CARRIED
+
+    layout = TableLayout.registered()
+    assert layout.state_width_of(["elastic", "elastic_plastic"], ["none"]) == CARRIED
+    assert layout.state_width_of(["elastic"], ["none", "grady_kipp"]) == layout.state_width
+    path = tmp_path / "bar.toml"
+    path.write_text(CASE.format(speed=1.0))
+    damaged = Simulation(load_case(path))
+    assert damaged.state.material_state.shape[1] == layout.state_width
+    path.write_text(CASE.format(speed=1.0).replace('model = "elastic"',
+                                                   'model = "elastic"\ndamage = "none"'))
+    whole = Simulation(load_case(path))
+    assert whole.state.material_state.shape[1] == CARRIED
+    assert Simulation(load_case("taylor")).state.material_state.shape[1] == CARRIED
+    damaged.state.material_state = np.ascontiguousarray(damaged.state.material_state[:, :CARRIED])
+    with pytest.raises(ValueError, match=r"material_state has shape \(\d+, 5\); the materials' "
+                                         r"models need \(\d+, k\) with 8 <= k <= 8"):
+        damaged.run()

@@ -185,6 +185,8 @@ def test_toy_models_by_hand(toy_models, tmp_path):
     von_mises = np.sqrt(1.5 * np.einsum("iab,iab->i", S, S))
     assert von_mises.max() <= 600e6 * (1 + 1e-12)
     assert von_mises.max() > 0.99 * 600e6  # the cap is reached
+    # the state carries the strength model's block, not the damage models' after it
+    assert s.material_state.shape[1] == TableLayout.registered().damage_state
     capped = s.material_state[:, TableLayout.registered().strength_state]
     assert capped.max() >= 1 and np.all(capped == np.round(capped))
     # plastic work is kept from the final stage of each step only, as the count is

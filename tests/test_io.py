@@ -217,8 +217,10 @@ def test_checkpoint_of_an_older_version_with_more_accumulators_loads(tmp_path):
 
 def test_checkpoint_before_the_thickness_ratio_loads(tmp_path):
     """A 0.2.0 checkpoint written before the thickness ratio joined the common material state
-    (one column fewer, no ``common_state`` attribute, no viscosity factors) continues with
-    ratio 1 and factors 1, as the run it came from; a state of another width is refused."""
+    (the registered width less one column, no ``common_state`` attribute, no viscosity
+    factors) continues with ratio 1 and factors 1, as the run it came from; a state of
+    another width is refused."""
+    from impactsph.materials import TableLayout
     from impactsph.models.columns import THICKNESS_RATIO
 
     case = load_case("taylor", ["time.end=2e-6"])
@@ -230,7 +232,10 @@ def test_checkpoint_before_the_thickness_ratio_loads(tmp_path):
         ms = f["state"]["material_state"][()]
         del f["state"]["material_state"], f["state"]["viscosity_factor"]
         del f["state"].attrs["common_state"]
-        f["state"].create_dataset("material_state", data=np.delete(ms, THICKNESS_RATIO, 1))
+        # 0.2.0 stored the registered models' union of columns
+        old = np.zeros((ms.shape[0], TableLayout.registered().state_width - 1))
+        old[:, :ms.shape[1] - 1] = np.delete(ms, THICKNESS_RATIO, 1)
+        f["state"].create_dataset("material_state", data=old)
     again = load_checkpoint(path, case)
     again.run()
     sim.run()
@@ -243,6 +248,32 @@ def test_checkpoint_before_the_thickness_ratio_loads(tmp_path):
     with pytest.raises(CaseError, match=r"material state has 2 columns, this version's case "
                                         r"needs \d+"):
         load_checkpoint(path, case)
+
+
+def test_checkpoint_of_the_registered_width_loads(tmp_path):
+    """A checkpoint written before the material state was sized to the case's models (the
+    registered models' union of columns, the trailing ones unused) continues as the run it
+    came from, which now carries fewer columns."""
+    from impactsph.materials import TableLayout
+
+    case = load_case("taylor", ["time.end=2e-6"])
+    sim = Simulation(case)
+    assert sim.state.material_state.shape[1] < TableLayout.registered().state_width
+    sim.run(t_end=1e-6)
+    path = write_checkpoint(sim, tmp_path / "checkpoint.h5")
+    with h5py.File(path, "a") as f:
+        del f.attrs["sha256"]
+        ms = f["state"]["material_state"][()]
+        del f["state"]["material_state"]
+        wide = np.zeros((ms.shape[0], TableLayout.registered().state_width))
+        wide[:, :ms.shape[1]] = ms
+        f["state"].create_dataset("material_state", data=wide)
+    again = load_checkpoint(path, case)
+    assert again.state.material_state.shape == sim.state.material_state.shape
+    again.run()
+    sim.run()
+    for name, arr in final_arrays(sim).items():
+        np.testing.assert_array_equal(again.state.arrays()[name], arr, err_msg=name)
 
 
 def test_checkpoint_keeps_the_inner_list_and_loads_without_one(tmp_path):

@@ -29,6 +29,7 @@ from ._version import __version__
 from .atomic import atomic_path
 from .errors import CaseError
 from .loading import validate_case
+from .materials import TableLayout
 from .models.columns import COMMON_STATE, THICKNESS_RATIO
 from .neighbours import NeighbourList
 from .problem import build_problem
@@ -211,13 +212,19 @@ def accumulators(sim: Simulation) -> dict[str, Any]:
 
 def _material_state_now(path: Path, stored: np.ndarray, width: int,
                         common: str | None) -> np.ndarray:
-    """The stored material state in today's column layout.  Checkpoints of 0.2.0 written
+    """The stored material state in today's column layout, ``width`` columns (the case's:
+    :meth:`~impactsph.materials.TableLayout.state_width_of`).  Checkpoints of 0.2.0 written
     before the thickness ratio joined the common state (no ``common_state`` attribute, one
-    column short) get the ratio 1 inserted; any other difference is refused."""
+    column short of the registered width) get the ratio 1 inserted; checkpoints written
+    before the state was sized to the case's models (the registered width) lose the trailing
+    columns that no model of the case uses; any other difference is refused."""
+    registered = TableLayout.registered().state_width
+    if common is None and stored.shape[1] == registered - 1:
+        stored = np.insert(stored, THICKNESS_RATIO, 1.0, axis=1)
     if stored.shape[1] == width:
         return stored
-    if common is None and stored.shape[1] == width - 1:
-        return np.insert(stored, THICKNESS_RATIO, 1.0, axis=1)
+    if width < stored.shape[1] == registered:
+        return np.ascontiguousarray(stored[:, :width])
     raise CaseError(f"--restart {path}: its material state has {stored.shape[1]} columns, "
                     f"this version's case needs {width}; continue it with the version that "
                     "wrote it")

@@ -175,7 +175,6 @@ def binding(dim: int, options: PassOptions | str | None = None) -> tuple[str, di
         f"EOS_PARAMS = {layout.eos_params}",
         f"STRENGTH_PARAMS = {layout.strength_params}",
         f"DAMAGE_PARAMS = {layout.damage_params}",
-        f"STATE_WIDTH = {layout.state_width}",
         f"STRENGTH_STATE = {layout.strength_state}",
         f"DAMAGE_STATE = {layout.damage_state}",
         "",

@@ -21,7 +21,7 @@ import numba as nb
 import numpy as np
 
 from .jitcache import njit_variant
-from .materials import SHEAR, WAVE_MODULUS
+from .materials import SHEAR, WAVE_MODULUS, TableLayout
 from .physics.options import PassOptions
 from .physics.rates import compiled_passes
 from .state import ParticleState
@@ -63,6 +63,12 @@ def bad_field(i, x, v, rho, e, S):
     if not rho[i] > 0.0:
         return 5
     return -1
+
+
+def _inertia(state: ParticleState) -> np.ndarray:
+    """``mass + added_mass`` (kg), what the books' impulses multiply: the masses themselves
+    (no copy: 8 bytes a particle) where no particle carries added mass.  Read only."""
+    return state.inertial_mass if state.added_mass.any() else state.mass
 
 
 @cache
@@ -189,10 +195,14 @@ class MidpointIntegrator:
     def _save_start(self, state: ParticleState) -> SimpleNamespace:
         """The integrated fields at the start of the step, in buffers reused every step."""
         if self._start is None or self._start.position.shape != state.position.shape:
-            width = compiled_passes(state.dim).STATE_WIDTH
-            if state.material_state.shape != (state.n, width):
-                raise ValueError(f"material_state has shape {state.material_state.shape}; the "
-                                 f"registered models need ({state.n}, {width})")
+            # the kernels index the columns of the materials' models without bounds checks
+            width = TableLayout.registered().state_width_of_table(self.table)
+            shape = state.material_state.shape
+            if shape[0] != state.n or not width <= shape[1] <= TableLayout.registered(
+                    ).state_width:
+                raise ValueError(f"material_state has shape {shape}; the materials' models "
+                                 f"need ({state.n}, k) with {width} <= k <= "
+                                 f"{TableLayout.registered().state_width}")
         return self._keep(state, "_start")
 
     def _keep(self, state: ParticleState, name: str) -> SimpleNamespace:
@@ -264,7 +274,7 @@ class MidpointIntegrator:
         """Advance ``state`` by ``dt`` in place."""
         if self._any_clamped is None:
             self._any_clamped = bool(state.clamped.any())
-            self._inertia = state.inertial_mass  # mass + added mass: impulses = inertia dv
+            self._inertia = _inertia(state)  # mass + added mass: impulses = inertia dv
         start = self._save_start(state)
         drivers = self.drivers
         # the predictor's state is discarded: its constraint's impulse has no share
@@ -337,7 +347,7 @@ class SspRk3Integrator(MidpointIntegrator):
         """Advance ``state`` by ``dt`` in place."""
         if self._any_clamped is None:
             self._any_clamped = bool(state.clamped.any())
-            self._inertia = state.inertial_mass
+            self._inertia = _inertia(state)
         start = self._save_start(state)
         drivers = self.drivers
         t = state.time

@@ -92,6 +92,30 @@ class TableLayout:
         """Length of a row (at least one column per block, so that slices are never empty)."""
         return self.damage_params + max(self.damage_width, 1)
 
+    def state_width_of(self, strength: list[str] | tuple[str, ...],
+                       damage: list[str] | tuple[str, ...]) -> int:
+        """Width of the material state for a case whose materials use the strength models
+        ``strength`` and the damage models ``damage`` (registered names): the common
+        columns, then the strength models' block if one of the case's has a state of its
+        own, then the damage models' block if one of the case's has.  The blocks keep
+        their places of the registered layout (the kernels' column constants), so what is
+        left out is the trailing blocks that no material of the case uses: an elastic or
+        plastic case without a damage model carries the 5 common columns, not the
+        registered union's :attr:`state_width` (48 bytes a particle less in the state and
+        the integrator's copy at the step's start)."""
+        if any(DAMAGE[name].state for name in damage):
+            return self.state_width
+        if any(STRENGTH[name].state for name in strength):
+            return self.damage_state
+        return self.strength_state
+
+    def state_width_of_table(self, table: np.ndarray) -> int:
+        """:meth:`state_width_of` for the materials of a material table (their kind codes)."""
+        strength = STRENGTH.names()
+        damage = DAMAGE.names()
+        return self.state_width_of([strength[int(k)] for k in table[:, STRENGTH_KIND]],
+                                   [damage[int(k)] for k in table[:, DAMAGE_KIND]])
+
     def state_names(self, material: MaterialModel) -> dict[str, int]:
         """The material state's columns that mean something for ``material``, by name."""
         names = {name: k for k, name in enumerate(COMMON_STATE)}

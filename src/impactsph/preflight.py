@@ -371,7 +371,7 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
         per_particle -= 16 * d + 88
         if not switched:
             per_particle -= 8 * strength_width
-            carried = 8 * max(PASS_CARRIED, strength_width)
+            carried = 8 * strength_width
     neighbour_list = 12 + 4 * d + 32 + 8 * d  # offsets, order, reference; build temporaries
     if compatible:  # the work pass's rate buffers, the pair energy rates, the velocities
         buffers += (100 + 8 * d) + 8 + 16 * d
@@ -511,12 +511,20 @@ def initial_time_step(case: Case, *, cfl_only: bool = False) -> float:
     return dt
 
 
+def state_width(case: Case) -> int:
+    """Columns of the case's material state (:meth:`TableLayout.state_width_of`)."""
+    from .materials import TableLayout, resolve_material
+
+    materials = [resolve_material(name, case.materials[name]) for name in case.materials]
+    return TableLayout.registered().state_width_of([m.model for m in materials],
+                                                   [m.damage for m in materials])
+
+
 def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None = None,
              ghosts: int = 0) -> Estimate:
     """Memory and run time of the case with ``counts`` particles per body; the pair
     evaluations per particle measured at t = 0 (:func:`particle_checks`) if given, else those
     of a full lattice."""
-    from .materials import TableLayout
     from .models import VISCOSITY
     from .physics.options import PassOptions
 
@@ -544,7 +552,7 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
         hourglass=case.stabilisation.hourglass > 0.0,
         force_correction=PassOptions.of_case(case).gradient_correction
         == "velocity_gradient_and_forces",
-        strength_width=TableLayout.registered().state_width,
+        strength_width=state_width(case),
         compatible=case.time.energy_update == "compatible",
         switched=VISCOSITY[case.viscosity.scheme].switch is not None,
         snapshots=len(case.output.snapshot_times),

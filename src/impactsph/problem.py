@@ -203,7 +203,9 @@ def build_problem(case: Case) -> Problem:
         position=np.ascontiguousarray(cat["x"]), velocity=np.ascontiguousarray(cat["v"]),
         density=cat["rho"], specific_energy=np.zeros(n), deviatoric_stress=cat["S"],
         mass=cat["m"], smoothing_length=cat["h"], body=cat["body"], material=cat["mat"],
-        clamped=cat["clamped"], material_state=np.zeros((n, layout.state_width)),
+        clamped=cat["clamped"],
+        material_state=np.zeros((n, layout.state_width_of([m.model for m in materials],
+                                                          [m.damage for m in materials]))),
         added_mass=cat["added"],
     )
     initialise_material_state(state, materials, layout)

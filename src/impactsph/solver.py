@@ -223,8 +223,7 @@ class Solver:
         if self.walls is not None:
             # without a switch the passes read the common columns of the material state
             # only, so its rows can be the carried array's (below)
-            width = (PASS_CARRIED if self.switched
-                     else max(PASS_CARRIED, state.material_state.shape[1]))
+            width = PASS_CARRIED if self.switched else state.material_state.shape[1]
             ext = {"x": np.zeros((n_ext, self.dim)), "v": np.zeros((n_ext, self.dim)),
                    "rho": np.zeros(n_ext), "e": np.zeros(n_ext), "S": np.zeros((n_ext, 3, 3)),
                    "carried": np.zeros((n_ext, width)), "m": np.zeros(n_ext),

@@ -32,8 +32,9 @@ class ParticleState:
     initial_position: np.ndarray = field(default=None)  #: (n, dim) m, position at t = 0
     #: (n, k) the material state: the equivalent plastic strain, its rate, the temperature
     #: and the damage (:mod:`impactsph.models.columns`), then the strength and damage models'
-    #: own state (:class:`impactsph.materials.TableLayout`); default zeros, the registered
-    #: layout's width
+    #: own state (:class:`impactsph.materials.TableLayout`); a built problem's has the columns
+    #: its models use (``TableLayout.state_width_of``); default zeros, the registered layout's
+    #: width (every model's columns)
     material_state: np.ndarray = field(default=None)
     #: (n, dim) m/s^2, the hourglass control's acceleration (docs/stabilisation.md); (n, 0)
     #: when the control is off

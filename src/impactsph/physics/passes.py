@@ -96,7 +96,7 @@ COMPATIBLE_ENERGY = False
 #: LLVM's vectoriser (``ViscosityScheme.switch_vectorises``): its pass gets SWITCH_FASTMATH
 SWITCH_VECTORISED = False
 JIT = nb.njit
-EOS_PARAMS = STRENGTH_PARAMS = DAMAGE_PARAMS = STATE_WIDTH = 6
+EOS_PARAMS = STRENGTH_PARAMS = DAMAGE_PARAMS = 6
 STRENGTH_STATE = DAMAGE_STATE = 4
 eos_pressure = strength_return = damage_update = pair_viscosity = viscosity_correction = None
 viscosity_switch = None
@@ -1131,7 +1131,7 @@ def thickness_trial(i, z, dt, rho, e, S, state0, state, row, t00, t01, t02, t11,
     S[i, 0, 1] = S[i, 1, 0] = t01
     S[i, 0, 2] = S[i, 2, 0] = t02
     S[i, 1, 2] = S[i, 2, 1] = t12
-    for c in range(STATE_WIDTH):
+    for c in range(state.shape[1]):  # the case's width (TableLayout.state_width_of)
         state[i, c] = state0[i, c]
     st = state[i]
     tau = state0[i, THICKNESS_RATIO] * math.exp(dt * z)
@@ -1256,7 +1256,7 @@ def advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, 
     for a in range(3):
         for b in range(3):
             S[i, a, b] = S0[i, a, b] + dt * dS[i, a, b]
-    for c in range(STATE_WIDTH):
+    for c in range(state.shape[1]):  # the case's width (TableLayout.state_width_of)
         state[i, c] = state0[i, c]
     for a in range(hg.shape[1]):  # the hourglass acceleration (no columns when it is off)
         hg[i, a] = hg0[i, a] + dt * dhg[i, a]
