@@ -39,6 +39,10 @@ def _preload_tbb() -> None:
 
 _preload_tbb()
 
+from .jitcache import lock_cache_writes as _lock_cache_writes  # noqa: E402
+
+_lock_cache_writes()  # numba's cache safe between processes (impactsph.jitcache)
+
 from ._version import __version__  # noqa: E402
 from .config import Case, CaseError  # noqa: E402
 from .loading import load_case  # noqa: E402
