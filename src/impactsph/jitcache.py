@@ -60,12 +60,18 @@ def lock_cache_writes() -> bool:
         return False
 
     def save(self, key, data):
+        index = getattr(self, "_index_path", None)
+        if index is None:  # another numba's layout: its own way
+            return original(self, key, data)
         try:
-            handle = open(self._index_path + ".lock", "a")  # noqa: SIM115 (closed below)
+            handle = open(f"{index}.lock", "a")  # noqa: SIM115 (closed below)
         except OSError:  # a cache folder that cannot be written: numba's own way
             return original(self, key, data)
         with handle:
-            fcntl.flock(handle, fcntl.LOCK_EX)  # released when the file closes
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX)  # released when the file closes
+            except OSError:  # a file system without locks
+                return original(self, key, data)
             overloads = self._load_index()
             name = overloads.get(key)
             if name is None:
