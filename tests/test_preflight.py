@@ -333,6 +333,30 @@ def test_pair_rate_is_kept_for_later_estimates(tmp_path, monkeypatch):
     assert pf.pair_rate("cpu", 3)[0] == rate
 
 
+def test_a_kernel_that_follows_the_stretch_keeps_its_own_rate(tmp_path, monkeypatch):
+    """A run whose kernel follows the stretch costs more a pair: its rate is kept apart, and
+    a case of the other kind that has none of its own borrows it with STRETCH_COST."""
+    monkeypatch.setattr(pf, "_pair_rate_path", lambda: tmp_path / "rates.json")
+    summary = {"pair_evaluations": 4e8, "wall_seconds": 10.0, "n_steps": 1000,
+               "device": "cpu", "dimension": 2, "n_particles": 5000}
+    fixed = 4e8 / (10.0 - 1000 * pf.STEP_SECONDS)
+    pf.record_pair_rate(summary, "fixed")
+    assert pf.pair_rate("cpu", 2)[0] == pytest.approx(fixed)
+    rate, source = pf.pair_rate("cpu", 2, stretch=True)
+    assert rate == pytest.approx(fixed / pf.STRETCH_COST)
+    assert f"with a fixed kernel, its rate over {pf.STRETCH_COST}" in source
+    pf.record_pair_rate({**summary, "wall_seconds": 12.0}, "stretched", stretch=True)
+    stretched = 4e8 / (12.0 - 1000 * pf.STEP_SECONDS)
+    rate, source = pf.pair_rate("cpu", 2, stretch=True)
+    assert rate == pytest.approx(stretched) and "'stretched'" in source
+    assert "its rate" not in source
+    assert pf.pair_rate("cpu", 2)[0] == pytest.approx(fixed)
+    # the case decides: a plastic case's "auto" resolves to a kernel that follows the stretch
+    plastic = load_case("taylor", ["kernel.max_stretch=\"auto\""])
+    assert pf._stretches(plastic) and not pf._stretches(load_case("taylor"))
+    assert pf.estimate(plastic, [1407]).pair_rate == pytest.approx(stretched)
+
+
 def test_memory_formula_covers_the_traced_arrays():
     """The formula's arrays (less the process base) are at least what numpy allocates for
     a run with snapshots (tracemalloc; numba's own allocations are not traced), the kernels

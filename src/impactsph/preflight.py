@@ -94,6 +94,12 @@ STEP_SECONDS = 1e-4
 #: time is mostly fixed costs).
 MIN_PAIRS_TO_RECORD = 1e6
 PAIR_RATE_FILE = "pair_rates.json"
+#: A run whose kernel follows the stretch (``kernel.max_stretch`` > 1, the default for a
+#: plastic case) against the same run with a fixed kernel: its wall time per pair evaluation
+#: (the stretch's estimate at each list build, the larger rows of the stretched particles;
+#: 1.11-1.15 on the x2 plane-strain Taylor bar, benchmarks/README.md).  Applied to a rate
+#: that a run of the other kind measured, where none of the case's kind has.
+STRETCH_COST = 1.13
 #: Names of the cases whose run in this process compiles the kernels (:func:`before_run`):
 #: part of their steps' wall time is compilation, so :func:`after_run` keeps no pair rate.
 _COMPILING: set[str] = set()
@@ -408,10 +414,11 @@ def available_memory() -> int | None:
     return available
 
 
-def _pair_rate_key(device: str, dim: int) -> str:
+def _pair_rate_key(device: str, dim: int, stretch: bool = False) -> str:
     import numba
 
-    return f"{device}-{dim}d-{numba.config.NUMBA_NUM_THREADS}threads"
+    return (f"{device}-{dim}d-{numba.config.NUMBA_NUM_THREADS}threads"
+            + ("-stretch" if stretch else ""))
 
 
 def _pair_rate_path() -> Path:
@@ -420,27 +427,39 @@ def _pair_rate_path() -> Path:
     return cache_directory() / PAIR_RATE_FILE
 
 
-def pair_rate(device: str, dim: int) -> tuple[float, str]:
+def pair_rate(device: str, dim: int, stretch: bool = False) -> tuple[float, str]:
     """Pair evaluations per second for runs of dimension ``dim`` on ``device`` with this many
-    numba threads: the rate the last run of that kind measured on this machine (stored by
-    :func:`record_pair_rate`), else :data:`DEFAULT_PAIR_RATE`; and where it comes from."""
+    numba threads, with a kernel that follows the stretch or not (``stretch``): the rate the
+    last run of that kind measured on this machine (stored by :func:`record_pair_rate`),
+    else that of a run with the other kernel times or over :data:`STRETCH_COST`, else
+    :data:`DEFAULT_PAIR_RATE`; and where it comes from."""
     try:
-        stored = json.loads(_pair_rate_path().read_text())[_pair_rate_key(device, dim)]
-        rate = float(stored["rate"])
-        if rate > 0 and math.isfinite(rate):
-            return rate, (f"(measured on this machine by a run of {stored['case']!r}, "
-                          f"{stored['date']})")
-    except (OSError, ValueError, KeyError, TypeError):
-        pass
+        stored = json.loads(_pair_rate_path().read_text())
+    except (OSError, ValueError):
+        stored = {}
+    for kind, factor in ((stretch, 1.0), (not stretch,
+                                           1.0 / STRETCH_COST if stretch else STRETCH_COST)):
+        try:
+            entry = stored[_pair_rate_key(device, dim, kind)]
+            rate = float(entry["rate"]) * factor
+            if rate > 0 and math.isfinite(rate):
+                other = "" if kind == stretch else (
+                    f" with {'a fixed kernel' if stretch else 'a kernel that follows the stretch'}"
+                    f", its rate {'over' if stretch else 'times'} {STRETCH_COST}")
+                return rate, (f"(measured on this machine by a run of {entry['case']!r}, "
+                              f"{entry['date']}{other})")
+        except (KeyError, ValueError, TypeError):
+            pass
     return DEFAULT_PAIR_RATE, "(a conservative default: no run on this machine has measured one)"
 
 
-def record_pair_rate(summary: dict[str, Any], name: str) -> None:
+def record_pair_rate(summary: dict[str, Any], name: str, stretch: bool = False) -> None:
     """Keep the pair rate a finished run measured (its summary's ``pair_evaluations`` over
     its ``wall_seconds`` less :data:`STEP_SECONDS` a step) for later estimates, if it
     evaluated at least :data:`MIN_PAIRS_TO_RECORD` pairs and kept its thread count (a run
     whose thread governor gave up cores to other processes, ``thread_changes``, measured a
-    loaded machine, not this one: :mod:`impactsph.threads`).  Never fails a run."""
+    loaded machine, not this one: :mod:`impactsph.threads`); kept apart for runs whose
+    kernel follows the stretch (``stretch``).  Never fails a run."""
     pairs = summary.get("pair_evaluations") or 0
     wall = summary.get("wall_seconds") or 0.0
     if pairs < MIN_PAIRS_TO_RECORD or not wall > 0 or summary.get("thread_changes"):
@@ -458,7 +477,7 @@ def record_pair_rate(summary: dict[str, Any], name: str) -> None:
         except (OSError, ValueError):
             data = {}
         data[_pair_rate_key(str(summary.get("device", "cpu")),
-                            int(summary.get("dimension", 0)))] = {
+                            int(summary.get("dimension", 0)), stretch)] = {
             "rate": float(rate), "case": name, "n_particles": summary.get("n_particles"),
             "date": datetime.date.today().isoformat()}
         atomic.write_text(path, json.dumps(data, indent=1, sort_keys=True))
@@ -561,7 +580,7 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
     runs = 2 if case.output.figures and ref is not None and ref != case.viscosity else 1
     # the reference run's arrays are allocated while the run's are still held
     memory = BASE_MEMORY + runs * (memory - BASE_MEMORY)
-    rate, source = pair_rate(case.compute.device, dim)
+    rate, source = pair_rate(case.compute.device, dim, stretch=_stretches(case))
     # the integrator's rate evaluations per step (and the compatible energy update's work
     # pass), and the fixed cost of a step
     passes = len(INTEGRATORS[case.time.integrator].WEIGHTS) + (
@@ -978,6 +997,12 @@ def keeps_kinetic_energy(case: Case) -> bool:
     return not (dissipative and held)
 
 
+def _stretches(case: Case) -> bool:
+    """Whether the case's kernel follows the stretch (``kernel.max_stretch`` > 1, resolved)."""
+    stretch = case.kernel.max_stretch
+    return isinstance(stretch, int | float) and stretch > 1.0
+
+
 def after_run(case: Case, summary: dict[str, Any], restarted: bool = False,
               echo: Callable[[str], None] = _stderr) -> list[str]:
     """Warnings about a finished run, one line each to ``echo`` (stderr) and returned, and
@@ -987,7 +1012,7 @@ def after_run(case: Case, summary: dict[str, Any], restarted: bool = False,
     :data:`KINETIC_ENERGY_REMAINING` of the initial kinetic energy remains at the end time in
     a problem that is expected to dissipate it (:func:`keeps_kinetic_energy`)."""
     if case.name not in _COMPILING and not restarted:
-        record_pair_rate(summary, case.name)
+        record_pair_rate(summary, case.name, stretch=_stretches(case))
     lines = []
     ratio = summary.get("kinetic_energy_ratio_final")
     reached = summary.get("t_end", case.time.end) >= case.time.end * (1 - 1e-9)
