@@ -145,6 +145,8 @@ def test_the_material_state_is_sized_to_the_models_in_use(tmp_path):
     assert whole.state.material_state.shape[1] == CARRIED
     assert Simulation(load_case("taylor")).state.material_state.shape[1] == CARRIED
     damaged.state.material_state = np.ascontiguousarray(damaged.state.material_state[:, :CARRIED])
-    with pytest.raises(ValueError, match=r"material_state has shape \(\d+, 5\); the materials' "
-                                         r"models need \(\d+, k\) with 8 <= k <= 8"):
+    full = layout.state_width
+    with pytest.raises(ValueError, match=rf"material_state has shape \(\d+, {CARRIED}\); the "
+                                         rf"materials' models need \(\d+, k\) with {full} <= "
+                                         rf"k <= {full}"):
         damaged.run()

@@ -196,13 +196,12 @@ class MidpointIntegrator:
         """The integrated fields at the start of the step, in buffers reused every step."""
         if self._start is None or self._start.position.shape != state.position.shape:
             # the kernels index the columns of the materials' models without bounds checks
-            width = TableLayout.registered().state_width_of_table(self.table)
+            layout = TableLayout.registered()
+            width, widest = layout.state_width_of_table(self.table), layout.state_width
             shape = state.material_state.shape
-            if shape[0] != state.n or not width <= shape[1] <= TableLayout.registered(
-                    ).state_width:
+            if shape[0] != state.n or not width <= shape[1] <= widest:
                 raise ValueError(f"material_state has shape {shape}; the materials' models "
-                                 f"need ({state.n}, k) with {width} <= k <= "
-                                 f"{TableLayout.registered().state_width}")
+                                 f"need ({state.n}, k) with {width} <= k <= {widest}")
         return self._keep(state, "_start")
 
     def _keep(self, state: ParticleState, name: str) -> SimpleNamespace:

@@ -437,8 +437,9 @@ def pair_rate(device: str, dim: int, stretch: bool = False) -> tuple[float, str]
         stored = json.loads(_pair_rate_path().read_text())
     except (OSError, ValueError):
         stored = {}
-    for kind, factor in ((stretch, 1.0), (not stretch,
-                                           1.0 / STRETCH_COST if stretch else STRETCH_COST)):
+    # the other kind's rate, as this kind's: a stretching run's is STRETCH_COST times slower
+    borrowed = 1.0 / STRETCH_COST if stretch else STRETCH_COST
+    for kind, factor in ((stretch, 1.0), (not stretch, borrowed)):
         try:
             entry = stored[_pair_rate_key(device, dim, kind)]
             rate = float(entry["rate"]) * factor
@@ -999,8 +1000,7 @@ def keeps_kinetic_energy(case: Case) -> bool:
 
 def _stretches(case: Case) -> bool:
     """Whether the case's kernel follows the stretch (``kernel.max_stretch`` > 1, resolved)."""
-    stretch = case.kernel.max_stretch
-    return isinstance(stretch, int | float) and stretch > 1.0
+    return case.kernel.max_stretch > 1.0
 
 
 def after_run(case: Case, summary: dict[str, Any], restarted: bool = False,

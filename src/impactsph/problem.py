@@ -204,8 +204,7 @@ def build_problem(case: Case) -> Problem:
         density=cat["rho"], specific_energy=np.zeros(n), deviatoric_stress=cat["S"],
         mass=cat["m"], smoothing_length=cat["h"], body=cat["body"], material=cat["mat"],
         clamped=cat["clamped"],
-        material_state=np.zeros((n, layout.state_width_of([m.model for m in materials],
-                                                          [m.damage for m in materials]))),
+        material_state=np.zeros((n, layout.state_width_of_table(table))),
         added_mass=cat["added"],
     )
     initialise_material_state(state, materials, layout)
