@@ -775,8 +775,8 @@ def _kernel_argument_types(dim: int) -> dict:
     types["normal_stress"] = nb.boolean
     for names, t in (("n_rows n_active visc_kind", nb.int64),
                      ("m rho e h drho de_visc de_corr de", f1),
-                     ("x v P contact_force dv_corr dv hg dhg", f2),
-                     ("S dS L_sorted", f3)):
+                     ("x v P contact_force dv_corr dv hg dhg dS", f2),
+                     ("S L_sorted", f3)):
         types.update(dict.fromkeys(names.split(), t))
     return types
 
@@ -839,8 +839,8 @@ def _step_kernel_types(name: str, dim: int) -> tuple:
                      ("dt courant scale radius weight share reach layer", nb.float64),
                      ("corrected store first count_events walls", nb.boolean),
                      ("x0 v0 x v dv xs v_rate hg0 hg dhg part st0 st dv_corr table points "
-                      "normals scratch contact_force carried force layer_force x0", f2),
-                     ("S0 S dS", f3),
+                      "normals scratch contact_force carried force layer_force x0 S0 dS", f2),
+                     ("S", f3),
                      ("rho0 e0 pw0 drho de rho e pw h m de_visc de_corr lo hi origin largest "
                       "books", f1),
                      ("pair_count bad ncell key counts ends fill a sums rows offsets src wall",

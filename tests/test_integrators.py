@@ -35,7 +35,7 @@ def test_a_step_is_the_method_on_an_oscillator(name):
     state.velocity[:] = 1e5 * rng.normal(size=state.velocity.shape)  # amplitudes of 1 cm
     u0 = 0.0 + 1j * state.velocity[:, 0] / omega
     dv = np.zeros((n, 1))
-    zeros = (np.zeros(n), np.zeros(n), np.zeros((n, 3, 3)), np.zeros((n, 0)))
+    zeros = (np.zeros(n), np.zeros(n), np.zeros((n, 6)), np.zeros((n, 0)))
 
     def rates(s, time=None):
         dv[:] = -omega**2 * (s.position - x0)

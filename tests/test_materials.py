@@ -13,7 +13,7 @@ from impactsph.models.eos.mie_gruneisen import (
 )
 from impactsph.models.eos.mie_gruneisen import mie_gruneisen_pressure
 from impactsph.models.strength.von_mises import radial_return, von_mises
-from impactsph.physics.stress_rate import jaumann_stress_rate
+from impactsph.physics.stress_rate import jaumann_stress_rate, symmetric_full
 
 # Taylor bar iron (Table 3; density 7850 kg/m^3, docs/modelling.md)
 RHO0, C, S, GAMMA = 7850.0, 3600.0, 1.8, 1.8
@@ -83,8 +83,9 @@ def test_jaumann_pure_strain_rate_factor_two():
     restored)."""
     mu, rate = 80e9, 1e3
     L = np.array([[rate, 0.0], [0.0, 0.0]])
-    dS = np.zeros((3, 3))
-    jaumann_stress_rate(L, np.zeros((3, 3)), mu, dS)
+    components = np.zeros(6)  # the rate's six components (xx, xy, xz, yy, yz, zz)
+    jaumann_stress_rate(L, np.zeros((3, 3)), mu, components)
+    dS = symmetric_full(components)
     assert dS[0, 0] == pytest.approx(2 * mu * 2 / 3 * rate)
     assert dS[1, 1] == pytest.approx(-2 * mu * rate / 3)
     assert dS[2, 2] == pytest.approx(-2 * mu * rate / 3)
@@ -96,8 +97,9 @@ def test_jaumann_spin_rotates_stress():
     w = 2.0
     L = np.array([[0.0, -w], [w, 0.0]])  # v = w (-y, x): counter-clockwise
     S = np.diag([1.0, -1.0, 0.0])
-    dS = np.zeros((3, 3))
-    jaumann_stress_rate(L, S, 1e9, dS)
+    components = np.zeros(6)
+    jaumann_stress_rate(L, S, 1e9, components)
+    dS = symmetric_full(components)
     Omega = np.array([[0, -w, 0], [w, 0, 0], [0, 0, 0]])
     np.testing.assert_allclose(dS, Omega @ S - S @ Omega, atol=1e-12)
     assert np.sum(dS * S) == pytest.approx(0.0)  # d(S:S)/dt = 0: invariants kept

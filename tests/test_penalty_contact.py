@@ -255,7 +255,7 @@ def test_hourglass_dashpot_is_silent_for_linear_fields():
     tl.deformation_pass(n, x, v, V0, rho * V0, np.full(n, rho), np.zeros(n),
                         np.zeros((n, 3, 3)), np.zeros(n), material, table, ref.offsets,
                         ref.neighbours, ref.grad, ref.K, F, Fdot, Q, np.zeros(n),
-                        np.zeros((n, 3, 3)), np.zeros(n))
+                        np.zeros((n, 6)), np.zeros(n))
     out = {}
     for alpha, tau in ((0.0, 0.0), (10.0, 1e-6)):
         dv, de = np.zeros((n, 2)), np.zeros(n)

@@ -33,7 +33,7 @@ from impactsph.physics.continuity import continuity_pair, velocity_gradient_pair
 from impactsph.physics.energy import stress_work_pair, viscous_heating_pair
 from impactsph.physics.momentum import stress_acceleration_pair, viscous_acceleration_pair
 from impactsph.physics.rates import pressures
-from impactsph.physics.stress_rate import jaumann_stress_rate
+from impactsph.physics.stress_rate import symmetric_full
 from impactsph.simulation import Simulation
 
 DX = 1e-3
@@ -122,7 +122,13 @@ def reference_rates(sim: Simulation):
             for a in range(dim):
                 u[i, a] += viscous_acceleration_pair(m[j], pi_ij, g[a])
             de[i] += viscous_heating_pair(m[j], pi_ij, vg)
-        jaumann_stress_rate(L, s.deviatoric_stress[i], table[s.material[i], SHEAR], dS[i])
+        # eq 14 in matrix form, 3x3 (the passes write its six components)
+        L3 = np.zeros((3, 3))
+        L3[:dim, :dim] = L
+        strain_rate, spin = 0.5 * (L3 + L3.T), 0.5 * (L3 - L3.T)
+        S_i = s.deviatoric_stress[i]
+        dS[i] = (2.0 * table[s.material[i], SHEAR] * (strain_rate - np.trace(L3) / 3.0 * np.eye(3))
+                 + spin @ S_i - S_i @ spin)
     dv += u
     dv_corr, de_corr = np.zeros((n, dim)), np.zeros(n)
     if visc.scheme == "ac":
@@ -152,6 +158,7 @@ def reference_rates(sim: Simulation):
 def test_pair_loop_equals_term_by_term_reference(dim, scheme):
     sim = two_blocks(dim, scheme)
     got = [np.array(a[: sim.state.n]) for a in sim.solver.rates(sim.state)[:4]]
+    got[3] = symmetric_full(got[3])  # the rate's six components, as a 3x3 tensor
     want = reference_rates(sim)
     assert sim.solver.buffers.contact_force.shape[0] > 0  # two bodies: contact is on
     for name, g, w in zip(("dv", "drho", "de", "dS"), got, want, strict=True):

@@ -187,7 +187,7 @@ class GpuRates:
         buf = self._buffer
         packed = buf("packed", (n_rows, record_width), np.float64)
         shapes = {"drho": (n_rows,), "de": (n_rows,), "de_visc": (n_rows,),
-                  "de_corr": (n_rows,), "pair_count": (n_rows,), "dS": (n_rows, 3, 3),
+                  "de_corr": (n_rows,), "pair_count": (n_rows,), "dS": (n_rows, 6),
                   "factor": (n_rows,), "memory": (n_rows,)}
         count_type = getattr(b.pair_count, "dtype", np.int64)
         out = {name: buf("out_" + name, shapes.get(name, (n_rows, dim)),

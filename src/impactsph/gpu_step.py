@@ -55,6 +55,7 @@ from .gpu import cuda, gpu_kernels, simulator_enabled
 from .kernels import SUPPORT_RADIUS
 from .materials import WAVE_MODULUS
 from .physics.rates import compiled_passes
+from .physics.stress_rate import UPPER
 
 if TYPE_CHECKING:
     from .boundaries import Walls
@@ -148,6 +149,15 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
         if i < n:
             advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, st0, hg0, v_rate, dv, drho, de,
                              dS, dhg, clamped, material, table, h, x, v, rho, e, S, pw, st, hg)
+
+    @cuda.jit
+    def keep_stress_kernel(n, S, S0):
+        """The step's start copy of the deviator: its six components (the advance's ``S0``)."""
+        i = cuda.grid(1)
+        if i < n:
+            for a in range(3):
+                for b in range(a, 3):
+                    S0[i, UPPER[a][b]] = S[i, a, b]
 
     @cuda.jit
     def survey_kernel(n, x, v, rho, e, S, m, h, material, table, points, normals, part, bad):
@@ -565,7 +575,8 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
             for a in range(DIM):
                 out[k, a] = v[rows[k], a]
 
-    return dict(advance=advance_kernel, survey=survey_kernel, survey_finish=survey_finish,
+    return dict(advance=advance_kernel, keep_stress=keep_stress_kernel, survey=survey_kernel,
+                survey_finish=survey_finish,
                 totals=totals_kernel, totals_finish=totals_finish, layer=layer_kernel,
                 enforce=enforce_kernel,
                 enforce_sums=enforce_sums, enforce_finish=enforce_finish, body=body_kernel,
@@ -668,8 +679,9 @@ class ResidentStep:
         empty = cuda.device_array
         self.now = {f: empty(getattr(state, f).shape, getattr(state, f).dtype, stream=s)
                     for f in INTEGRATED}
-        self.start = {f: empty(getattr(state, f).shape, getattr(state, f).dtype, stream=s)
-                      for f in INTEGRATED}
+        # the deviator's start copy: its six components (the advance's S0)
+        self.start = {f: empty((n, 6) if f == "deviatoric_stress" else getattr(state, f).shape,
+                               getattr(state, f).dtype, stream=s) for f in INTEGRATED}
         self.const = {f: empty(getattr(state, f).shape, getattr(state, f).dtype, stream=s)
                       for f in CONSTANT}
         self.table = cuda.to_device(np.ascontiguousarray(table), stream=s)
@@ -678,7 +690,7 @@ class ResidentStep:
         self.out = {"drho": empty(n, np.float64, stream=s), "dv": empty((n, dim), np.float64),
                     "de": empty(n, np.float64), "de_visc": empty(n, np.float64),
                     "contact_force": empty((contact_rows, dim), np.float64),
-                    "pair_count": empty(n, np.int64), "dS": empty((n, 3, 3), np.float64),
+                    "pair_count": empty(n, np.int64), "dS": empty((n, 6), np.float64),
                     "dv_corr": empty((corr_rows, dim), np.float64),
                     "de_corr": empty(corr_rows, np.float64),
                     "dhg": empty((n, 0), np.float64), "gradients": empty((0, dim, dim),
@@ -1063,7 +1075,9 @@ class ResidentStep:
         at t + dt/2 (the step's books: the weights (0, 1)), the whole step.  ``state``'s time
         and step move; its arrays are left as they were (:meth:`download`)."""
         for f in INTEGRATED:
-            if self.now[f].size:
+            if f == "deviatoric_stress":
+                self._launch("keep_stress", self.n, self.n, self.now[f], self.start[f])
+            elif self.now[f].size:
                 self.start[f].copy_to_device(self.now[f], stream=self.stream)
         self._evaluate(dt, 0.0, True)
         self._stage(0.5 * dt, self.start["velocity"], 0.0, False)

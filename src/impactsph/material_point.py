@@ -59,7 +59,7 @@ from .models.columns import (
 )
 from .physics.options import PassOptions
 from .physics.rates import compiled_passes
-from .physics.stress_rate import jaumann_stress_rate
+from .physics.stress_rate import jaumann_stress_rate, symmetric_upper
 
 Mode = Literal["uniaxial_strain", "uniaxial_stress", "shear"]
 
@@ -136,7 +136,9 @@ def material_point(material: Any, *, strain_rate: float, strain: float | None = 
     x0, v0, x, v = one((3,)), one((3,)), one((3,)), one((3,))
     rho0, e0, pw0 = np.full(1, model.density), np.zeros(1), np.zeros(1)
     rho, e, pw = rho0.copy(), e0.copy(), pw0.copy()
-    S0, S, dS = one((3, 3)), one((3, 3)), one((3, 3))
+    # the deviator at the step's start and now (3x3); the advance's start copy and rate: six
+    # components (stress_rate.UPPER)
+    S0, S, S0_six, dS = one((3, 3)), one((3, 3)), one((6,)), one((6,))
     state0 = np.zeros((1, layout.state_width))
     state0[0, TEMPERATURE] = model.temperature
     state0[0, THICKNESS_RATIO] = 1.0
@@ -191,7 +193,8 @@ def material_point(material: Any, *, strain_rate: float, strain: float | None = 
         drho[0] = -rho0[0] * np.trace(D)  # in plane stress: the mass per area over t0
         de[0] = tau * float(np.sum(sigma[:dim, :dim] * D)) / rho0[0]
         jaumann_stress_rate(L, S0[0], model.shear_modulus, dS[0])
-        k.advance(1, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v0, dv, drho, de, dS, dhg,
+        S0_six[:] = symmetric_upper(S0)
+        k.advance(1, dt, x0, v0, rho0, e0, S0_six, pw0, state0, hg0, v0, dv, drho, de, dS, dhg,
                   clamped, mat, table, h, x, v, rho, e, S, pw, state, hg)
         p_new = pressure_of(rho / state[0, THICKNESS_RATIO], e, state[0, DAMAGE_COLUMN])
         return (1.0 - state[0, DAMAGE_COLUMN]) * S[0] - p_new * np.eye(3)

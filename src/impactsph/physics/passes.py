@@ -73,7 +73,7 @@ from impactsph.physics.energy import viscous_heating_pair
 from impactsph.physics.momentum import viscous_acceleration_pair
 from impactsph.physics.reconstruction import reconstructed_approach
 from impactsph.physics.records import record_columns, symmetric_index
-from impactsph.physics.stress_rate import jaumann_stress_rate_nd
+from impactsph.physics.stress_rate import UPPER, jaumann_stress_rate_nd
 
 # >>> binding: replaced by impactsph.codegen in each generated copy
 DIM = 3
@@ -722,9 +722,9 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
                    table, drho, dv, de, de_visc, contact_force, pair_count, dS, L, L_sorted,
                    listed, filter_skin):
     """Pass 2 for the active particle ``i`` at sorted position ``p``: the sums over its
-    neighbours (eqs 22, 27, 28) and its stress rate
-    (eq 14, into ``dS[i]``, with ``L`` as scratch for the velocity gradient); its viscous
-    acceleration is also stored in its packed record, for a correction pass.
+    neighbours (eqs 22, 27, 28) and its stress rate (eq 14, its six components into
+    ``dS[i]``, with ``L`` as scratch for the velocity gradient); its viscous acceleration
+    is also stored in its packed record, for a correction pass.
     ``contact_force`` is written only if it has a row per particle (several bodies or walls),
     ``L_sorted[p]`` (the velocity gradient, for the hourglass control) only if it has rows.
     The first loop runs over :func:`support_range`'s neighbours (``listed``, ``filter_skin``).
@@ -1104,9 +1104,9 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
         g = 2.0 * shear * vi0 / Pi_[RADIUS]
         if not GRADIENT_CORRECTION:
             g *= -mr
-        dS[i, 0, 0] -= g / 3.0
-        dS[i, 1, 1] -= g / 3.0
-        dS[i, 2, 2] += 2.0 * g / 3.0
+        dS[i, UPPER[0][0]] -= g / 3.0
+        dS[i, UPPER[1][1]] -= g / 3.0
+        dS[i, UPPER[2][2]] += 2.0 * g / 3.0
 
 
 #: plane stress: the out-of-plane stress ``sigma_zz`` is zeroed to ``PLANE_STRESS_TOLERANCE``
@@ -1247,15 +1247,17 @@ def advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, 
     start of the step, then the strength model's return map and the specific plastic work
     ``w`` it dissipates, the temperature raised by ``beta w / c_p`` (the Taylor-Quinney
     factor over the specific heat), and the damage model's update.  ``v_rate`` may be ``v``
-    itself: the position is advanced before the velocity."""
+    itself: the position is advanced before the velocity.  The deviator's start ``S0`` and
+    rate ``dS`` are symmetric tensors' six components (:data:`UPPER`), so ``S`` comes out
+    exactly symmetric."""
     for a in range(DIM):
         x[i, a] = x0[i, a] + dt * v_rate[i, a]
         v[i, a] = 0.0 if clamped[i] else v0[i, a] + dt * dv[i, a]
     rho[i] = rho0[i] + dt * drho[i]
     e[i] = e0[i] + dt * de[i]
-    for a in range(3):
+    for a in range(3):  # S0 and dS: six components each (a symmetric tensor's upper triangle)
         for b in range(3):
-            S[i, a, b] = S0[i, a, b] + dt * dS[i, a, b]
+            S[i, a, b] = S0[i, UPPER[a][b]] + dt * dS[i, UPPER[a][b]]
     for c in range(state.shape[1]):  # the case's width (TableLayout.state_width_of)
         state[i, c] = state0[i, c]
     for a in range(hg.shape[1]):  # the hourglass acceleration (no columns when it is off)

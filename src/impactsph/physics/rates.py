@@ -113,7 +113,7 @@ class RateBuffers:
         self.dv = np.zeros((n, dim))
         self.de = np.zeros(n)
         self.de_visc = np.zeros(n)
-        self.dS = np.zeros((n, 3, 3))
+        self.dS = np.zeros((n, 6))  # the deviator's rate: six components (stress_rate.UPPER)
         self.contact_force = np.zeros((n if contact else 0, dim))
         self.pair_count = np.zeros(n, dtype=np.int32)
         self.dv_corr = np.zeros((n if corrected else 0, dim))

@@ -336,8 +336,9 @@ def compiled_passes(dim: int) -> SimpleNamespace:
 def deformation_pass(n_active, x, v, V0, m, rho, pressure, S, damage, material, table,
                      offsets, neighbours, grad, K, F, Fdot, Q, drho, dS, de) -> None:
     """(TL-2) to (TL-6) for every active particle: ``F``, ``Fdot``, ``Q_i = P_i K_i^T`` (the
-    stress that (TL-7) applies to ``grad0 W_ij``), ``drho``, ``dS`` and the stress power's
-    ``de``; ``pressure`` from the equations of state (undamaged)."""
+    stress that (TL-7) applies to ``grad0 W_ij``), ``drho``, ``dS`` (the deviator's rate as its
+    six components, ``(n, 6)``: :func:`impactsph.physics.stress_rate.jaumann_stress_rate`) and
+    the stress power's ``de``; ``pressure`` from the equations of state (undamaged)."""
     compiled_passes(x.shape[1]).deformation_pass(
         n_active, x, v, V0, m, rho, pressure, S, damage, material, table, offsets, neighbours,
         grad, K, F, Fdot, Q, drho, dS, de)
