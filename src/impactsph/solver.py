@@ -338,8 +338,10 @@ class Solver:
                 e["body"], e["carried"])
 
     def rates(self, state: ParticleState, time: float | None = None):
-        """Rates at ``state`` (Table 1's subroutine RATES): ``(dv, drho, de, dS, dhg)``, the
-        last with no rows unless the hourglass control is on; rows beyond ``state.n`` are
+        """Rates at ``state`` (Table 1's subroutine RATES): ``(dv, drho, de, dS, dhg)``, ``dS``
+        the deviator's rate as its six components ``(xx, xy, xz, yy, yz, zz)``
+        (:func:`impactsph.physics.stress_rate.symmetric_full` gives the 3x3 tensors), ``dhg``
+        with no rows unless the hourglass control is on; rows beyond ``state.n`` are
         ghosts.  ``time``: the time of the evaluated state (the integrator's stages; a
         viscosity switch sets the factors for that time, None: set them without time passing).
         """
