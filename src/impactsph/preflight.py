@@ -362,10 +362,12 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     times :data:`MEMORY_SAFETY`, plus :data:`BASE_MEMORY` for the process itself."""
     d = dim
     state = state_bytes(d, strength_width, hourglass)
-    integrator = 16 * d + 96 + 8 * strength_width + (8 * d if hourglass else 0)
+    # x, v, rho, e, the deviator's six components, plastic work, material state
+    integrator = 16 * d + 72 + 8 * strength_width + (8 * d if hourglass else 0)
     snapshot = state + 8
     per_particle = state + integrator + snapshots * snapshot
-    buffers = 100 + 8 * d + (8 * d if contact else 0) + (8 * d + 8 if corrected else 0) \
+    # drho, de, de_visc, the deviator's rate (six components), pair count; dv
+    buffers = 76 + 8 * d + (8 * d if contact else 0) + (8 * d + 8 if corrected else 0) \
         + (8 * d + 8 * d * d if hourglass else 0)
     records = 8 * record_columns(d, correction_matrix=force_correction and d > 1,
                                  work_velocity=compatible)["width"]
@@ -380,7 +382,7 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
             carried = 8 * strength_width
     neighbour_list = 12 + 4 * d + 32 + 8 * d  # offsets, order, reference; build temporaries
     if compatible:  # the work pass's rate buffers, the pair energy rates, the velocities
-        buffers += (100 + 8 * d) + 8 + 16 * d
+        buffers += (76 + 8 * d) + 8 + 16 * d
     per_row = buffers + records + ghost_arrays + carried + neighbour_list + 4 * neighbours
     total = n * per_particle + (n + ghosts) * per_row + history_values * HISTORY_VALUE_BYTES
     return BASE_MEMORY + MEMORY_SAFETY * total
