@@ -489,7 +489,7 @@ def _perturb(state, rng) -> None:
     from impactsph.models.columns import THICKNESS_RATIO
 
     state.material_state[:, THICKNESS_RATIO] = rng.uniform(0.8, 1.2, n)
-    state.viscosity_factor[:] = rng.uniform(0.0, 1.0, n)  # read by a switch's passes only
+    state.viscosity_factor = rng.uniform(0.0, 1.0, n)  # read by a switch's passes only
     if state.hourglass_acceleration.shape[1]:  # the hourglass control's state
         state.hourglass_acceleration[:] = rng.normal(0.0, 1e3, state.hourglass_acceleration.shape)
 

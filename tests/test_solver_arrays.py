@@ -61,3 +61,33 @@ def test_passes_compiled_for_the_other_answer_to_a_switch_are_refused(scheme):
     sim.solver.backend = CpuRates(sim.state.dim, PassOptions(viscosity_factor=not switched))
     with pytest.raises(ValueError, match=f"viscosity_factor={switched}"):
         sim.solver.rates(sim.state)
+
+
+def test_without_a_switch_the_factor_and_memory_are_one_number(tmp_path):
+    """A run without a viscosity switch holds the factor (1) and the memory (0), which no pass
+    reads, as read-only views of one number (16 B a particle less); its checkpoint keeps them
+    and continues; a run with a switch that continues from such a state gets arrays it can
+    write."""
+    from impactsph.checkpoint import load_checkpoint, write_checkpoint
+
+    sim = Simulation(load_case("bars", ["output.figures=false", "time.end=4e-6"]))
+    s = sim.state
+    for name, value in (("viscosity_factor", 1.0), ("viscosity_memory", 0.0)):
+        field = getattr(s, name)
+        assert field.shape == (s.n,) and field.strides == (0,) and not field.flags.writeable
+        assert np.all(field == value)
+    with pytest.raises(ValueError, match="read-only"):
+        s.viscosity_factor[0] = 2.0
+    sim.run(t_end=2e-6)
+    again = load_checkpoint(write_checkpoint(sim, tmp_path / "c.h5"), sim.case)
+    assert again.state.viscosity_factor.strides == (0,)
+    again.run()
+    sim.run()
+    np.testing.assert_array_equal(again.state.position, sim.state.position)
+    switched = Simulation(load_case("bars", ['viscosity.scheme="balsara"',
+                                             "output.figures=false", "time.end=4e-6"]),
+                          state=sim.state)
+    assert switched.state.viscosity_factor.flags.writeable
+    assert switched.state.viscosity_memory.flags.writeable
+    switched.run(t_end=5e-6)
+    assert np.all(np.isfinite(switched.state.viscosity_factor))

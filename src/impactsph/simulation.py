@@ -133,9 +133,18 @@ class Simulation:
                                  wall_layer=case.contact.wall_layer,
                                  max_stretch=case.kernel.max_stretch,
                                  h_reference=self.h_reference)
-        if state is None:  # a fresh start: the viscosity switch's initial factors
-            scheme = VISCOSITY[case.viscosity.scheme]
-            if scheme.switch is not None:
+        scheme = VISCOSITY[case.viscosity.scheme]
+        if scheme.switch is None:
+            # no switch: the factor is 1 and the memory 0 for good, and no pass reads them;
+            # read-only views of one number (16 B a particle less; a write raises)
+            n = self.state.n
+            self.state.viscosity_factor = np.broadcast_to(np.float64(1.0), (n,))
+            self.state.viscosity_memory = np.broadcast_to(np.float64(0.0), (n,))
+        else:
+            for name in ("viscosity_factor", "viscosity_memory"):
+                if not getattr(self.state, name).flags.writeable:  # from a run without one
+                    setattr(self.state, name, np.array(getattr(self.state, name)))
+            if state is None:  # a fresh start: the viscosity switch's initial factors
                 self.state.viscosity_factor[:] = scheme.initial_factor(case.viscosity)
         if case.stabilisation.hourglass > 0.0 and self.state.hourglass_acceleration.shape[1] \
                 != self.state.dim:

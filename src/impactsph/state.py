@@ -41,6 +41,8 @@ class ParticleState:
     hourglass_acceleration: np.ndarray = field(default=None)
     #: (n,) the factor on each particle's artificial viscosity that a viscosity switch sets
     #: (docs/dissipation.md): ``Pi_ij`` is multiplied by ``(f_i + f_j) / 2``; 1 without a switch
+    #: (a :class:`~impactsph.simulation.Simulation` without one holds it, and the memory, as a
+    #: read-only view of the one number: no pass reads them)
     viscosity_factor: np.ndarray = field(default=None)
     #: (n,) what a viscosity switch keeps of a particle from one evaluation to the next (e.g.
     #: Cullen & Dehnen's: the velocity divergence, 1/s); 0 without a switch that keeps one

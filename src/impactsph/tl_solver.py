@@ -250,7 +250,8 @@ class TotalLagrangianSolver:
         ``state.initial_position``, set up already)."""
 
     def rates(self, state: ParticleState, time: float | None = None):
-        """Rates at ``state``: ``(dv, drho, de, dS, dhg)``, ``dhg`` with no rows."""
+        """Rates at ``state``: ``(dv, drho, de, dS, dhg)``, ``dS`` the deviator's rate as its six
+        components ``(n, 6)`` (as :meth:`impactsph.solver.Solver.rates`), ``dhg`` with no rows."""
         b, ref, n = self.buffers, self.ref, self.n_active
         self._pressures(state.density, state.specific_energy, state.material, self.table,
                         self._pressure)
