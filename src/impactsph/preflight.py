@@ -339,7 +339,8 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     """Peak bytes of a run of ``n`` particles (``ghosts`` more in the sums) with ``neighbours``
     stored neighbour-list entries per particle:
 
-    - per particle: the state (:func:`state_bytes`), the integrator's copy of its integrated
+    - per particle: the state (:func:`state_bytes`; 16 bytes less without a switch, whose
+      factor and memory are then views of one number), the integrator's copy of its integrated
       fields, and ``snapshots`` copies of the state (plus the pressure) kept for
       ``snapshots.npz``;
     - per particle and ghost: the rate buffers (``RateBuffers``), the packed particle records
@@ -365,7 +366,8 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     # x, v, rho, e, the deviator's six components, plastic work, material state
     integrator = 16 * d + 72 + 8 * strength_width + (8 * d if hourglass else 0)
     snapshot = state + 8
-    per_particle = state + integrator + snapshots * snapshot
+    # without a switch the state's viscosity factor and memory are views of one number
+    per_particle = state - (0 if switched else 16) + integrator + snapshots * snapshot
     # drho, de, de_visc, the deviator's rate (six components), pair count; dv
     buffers = 76 + 8 * d + (8 * d if contact else 0) + (8 * d + 8 if corrected else 0) \
         + (8 * d + 8 * d * d if hourglass else 0)
