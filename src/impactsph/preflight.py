@@ -373,7 +373,7 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
         + (8 * d + 8 * d * d if hourglass else 0)
     records = 8 * record_columns(d, correction_matrix=force_correction and d > 1,
                                  work_velocity=compatible)["width"]
-    ghost_arrays = (16 * d + 104) if walls else 0  # x, v, rho, e, S, m, h, material, body
+    ghost_arrays = (16 * d + 112) if walls else 0  # x, v, rho, e, S, m, h, material, body
     # the passes' copy of the common material state and a switch's factor and memory: the
     # extended rows' with walls, the particles' with a switch (else they read the state's own)
     carried = 8 * PASS_CARRIED if walls or switched else 0
