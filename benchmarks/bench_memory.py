@@ -3,7 +3,7 @@ after a few steps, each array's memory counted once (views are counted with thei
 in bytes per particle, largest first (issue 16's target: 1 kB per particle in 3D).
 
     .venv/bin/python benchmarks/bench_memory.py [--dim 3] [--n 1e5] [--scheme av]
-        [--steps 2] [--json PATH]
+        [--steps 2] [--wall] [--h-over-dx 1.3] [--json PATH]
 
 The case is ``bench_ac_cost.py``'s lattice (dx = 1 mm, h = 1.2 dx, elastic steel, random
 velocities of about 1 m/s, the paper's scheme: no stabilisation), ``--scheme`` its viscosity.
@@ -72,6 +72,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--wall", action="store_true",
                         help="a free-slip wall under the lattice (its ghosts: the extended "
                         "arrays, whose first rows the state's fields then are)")
+    parser.add_argument("--h-over-dx", type=float, default=None,
+                        help="the kernel's width in spacings (default: the lattice's 1.2, the "
+                        "width the recorded numbers were taken at; the cases' default is 1.3)")
     parser.add_argument("--json", type=Path, default=None, help="also write the table here")
     args = parser.parse_args(argv)
 
@@ -85,6 +88,8 @@ def main(argv: list[str] | None = None) -> None:
     from impactsph.simulation import Simulation
 
     case = lattice_case(args.dim, int(args.n), args.scheme)
+    if args.h_over_dx is not None:
+        case["kernel"]["h_over_dx"] = args.h_over_dx
     if args.wall:
         normal = [0.0] * args.dim
         normal[-1] = 1.0
@@ -98,7 +103,9 @@ def main(argv: list[str] | None = None) -> None:
     n = sim.state.n
     rows = sorted(arrays_of(sim).values(), reverse=True)
     total = sum(size for size, _ in rows)
-    print(f"impactsph {__version__}: {args.dim}D lattice, {n} particles, {args.scheme}, "
+    h_over_dx = case["kernel"]["h_over_dx"]
+    print(f"impactsph {__version__}: {args.dim}D lattice, {n} particles, h = {h_over_dx} dx, "
+          f"{args.scheme}, "
           f"{'a wall under it, ' if args.wall else ''}"
           f"after {args.steps} steps: {total / n:.0f} B per particle in "
           f"{len(rows)} arrays")
@@ -111,7 +118,8 @@ def main(argv: list[str] | None = None) -> None:
     if args.json is not None:
         args.json.write_text(json.dumps({
             "version": __version__, "machine": platform.machine(), "cpu": host_cpu_name(),
-            "dim": args.dim, "particles": n, "scheme": args.scheme, "wall": args.wall,
+            "dim": args.dim, "particles": n, "h_over_dx": h_over_dx, "scheme": args.scheme,
+            "wall": args.wall,
             "bytes_per_particle": total / n,
             "arrays": [{"path": p, "bytes_per_particle": s / n} for s, p in rows]}, indent=1))
 
