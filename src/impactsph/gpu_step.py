@@ -54,8 +54,8 @@ from . import boundaries, integrate
 from .gpu import cuda, gpu_kernels, simulator_enabled
 from .kernels import SUPPORT_RADIUS
 from .materials import WAVE_MODULUS
+from .physics import stress_rate
 from .physics.rates import compiled_passes
-from .physics.stress_rate import UPPER
 
 if TYPE_CHECKING:
     from .boundaries import Walls
@@ -136,6 +136,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
     layer_push_particle = (boundaries.layer_push_particle.py_func if simulated
                            else boundaries.layer_push_particle)
     bad_field = integrate.bad_field.py_func if simulated else integrate.bad_field
+    store_upper = stress_rate.store_upper.py_func if simulated else stress_rate.store_upper
     DIM = dim  # noqa: N806 - a compile-time constant of the kernels
     TPB = tpb  # noqa: N806
     STENCIL = 3**dim  # noqa: N806
@@ -155,9 +156,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
         """The step's start copy of the deviator: its six components (the advance's ``S0``)."""
         i = cuda.grid(1)
         if i < n:
-            for a in range(3):
-                for b in range(a, 3):
-                    S0[i, UPPER[a][b]] = S[i, a, b]
+            store_upper(S, S0, i)
 
     @cuda.jit
     def survey_kernel(n, x, v, rho, e, S, m, h, material, table, points, normals, part, bad):

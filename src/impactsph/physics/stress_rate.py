@@ -48,6 +48,16 @@ def symmetric_full(components: np.ndarray) -> np.ndarray:
 
 
 @nb.njit(inline="always", cache=True)
+def store_upper(S, out, i: int) -> None:
+    """``out[i]``: the six components of ``S[i]`` (3x3; its upper triangle, :data:`UPPER`):
+    the integrator's start copy of the deviator, on the CPU (``integrate.keep_upper``) and on
+    the device (``gpu_step``'s ``keep_stress``)."""
+    for a in range(3):
+        for b in range(a, 3):
+            out[i, UPPER[a][b]] = S[i, a, b]
+
+
+@nb.njit(inline="always", cache=True)
 def jaumann_stress_rate_nd(L, S, shear_modulus: float, dS, dim: int) -> None:
     """Write ``dS/dt`` for velocity gradient ``L`` (``dim x dim``) and deviator ``S``
     (3x3) into ``dS``: its six components ``(xx, xy, xz, yy, yz, zz)`` (:data:`UPPER`).  A
