@@ -280,8 +280,9 @@ def mirror_ghost_results(src, wall, normals, kinds, n_real, position, P, u_colum
     """After the pair pass: give each symmetry-plane ghost of a particle the mirror of that
     particle's per-particle results that later passes read, as the mirrored half of the model
     would have them: its viscous acceleration ``u`` in the packed records (the acceleration
-    correction reads it) and its velocity gradient ``L_g = R L R`` (the hourglass control
-    reads it; ``gradients`` has no rows when that is off).  ``position[row]`` is the row's
+    correction reads it; records without those columns have none to mirror) and its velocity
+    gradient ``L_g = R L R`` (the hourglass control reads it; ``gradients`` has no rows when
+    that is off).  ``position[row]`` is the row's
     place in the packed records.  A corner image (the ghost of a symmetry ghost, near two
     planes) mirrors its source ghost's results, mirrored before it (the ghosts are in order):
     the composition of the two reflections, as the whole model has it."""
@@ -292,11 +293,12 @@ def mirror_ghost_results(src, wall, normals, kinds, n_real, position, P, u_colum
             continue
         pg = position[n_real + k]
         pi = position[i]
-        un = 0.0
-        for a in range(dim):
-            un += P[pi, u_column + a] * normals[w, a]
-        for a in range(dim):
-            P[pg, u_column + a] = P[pi, u_column + a] - 2.0 * un * normals[w, a]
+        if P.shape[1] > u_column:  # the records carry u (a correction or switch reads it)
+            un = 0.0
+            for a in range(dim):
+                un += P[pi, u_column + a] * normals[w, a]
+            for a in range(dim):
+                P[pg, u_column + a] = P[pi, u_column + a] - 2.0 * un * normals[w, a]
         if gradients.shape[0] > 0:
             reflect(gradients[pi], normals[w], dim, gradients[pg])
 

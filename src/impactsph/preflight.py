@@ -344,9 +344,10 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
       fields, and ``snapshots`` copies of the state (plus the pressure) kept for
       ``snapshots.npz``;
     - per particle and ghost: the rate buffers (``RateBuffers``), the packed particle records
-      (16 to 32 doubles), the extended arrays of the wall ghosts (with ``walls``), the neighbour
-      list's offsets, order and reference positions, and the builder's temporaries (cell keys,
-      Morton codes, sort order, sorted positions);
+      (unpadded: 10 to 22 doubles without the optional columns, the viscous acceleration's
+      only with a correction or a switch), the extended arrays of the wall ghosts (with
+      ``walls``), the neighbour list's offsets, order and reference positions, and the
+      builder's temporaries (cell keys, Morton codes, sort order, sorted positions);
     - per stored neighbour pair: 4 bytes (int32 index);
     - ``history_values`` numbers of the history and the probes (:data:`HISTORY_VALUE_BYTES`
       each, :func:`history_values`);
@@ -371,8 +372,10 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     # drho, de, de_visc, the deviator's rate (six components), pair count; dv
     buffers = 76 + 8 * d + (8 * d if contact else 0) + (8 * d + 8 if corrected else 0) \
         + (8 * d + 8 * d * d if hourglass else 0)
-    records = 8 * record_columns(d, correction_matrix=force_correction and d > 1,
-                                 work_velocity=compatible)["width"]
+    # the CPU's rows, unpadded; the viscous acceleration's columns where a pass reads them
+    layout = record_columns(d, correction_matrix=force_correction and d > 1,
+                            work_velocity=compatible, viscosity_factor=switched)
+    records = 8 * layout["columns" if corrected or switched else "u"]
     ghost_arrays = (16 * d + 112) if walls else 0  # x, v, rho, e, S, m, h, material, body
     # the passes' copy of the common material state and a switch's factor and memory: the
     # extended rows' with walls, the particles' with a switch (else they read the state's own)

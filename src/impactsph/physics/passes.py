@@ -151,7 +151,10 @@ THICK = PLANE_STRESS or AXISYMMETRIC
 AXIS_FLOOR = 0.1
 X, V, H, M, VOL, RHO, C, PC, BODY, A0, U = (_COLUMNS[k] for k in (
     "x", "v", "h", "m", "volume", "rho", "c", "pc", "body", "A", "u"))
+#: the device's row length (padded to whole cache lines); the CPU's rows are unpadded:
+#: RECORD_COLUMNS, or U where no pass reads the viscous acceleration (its columns are last)
 RECORD_WIDTH = _COLUMNS["width"]
+RECORD_COLUMNS = _COLUMNS["columns"]
 #: first column of the correction matrix C (FORCE_CORRECTION only; row by row)
 CM0 = _COLUMNS.get("C", 0)
 #: first column of the velocity gradient L (VELOCITY_RECONSTRUCTION only; row by row)
@@ -1080,7 +1083,8 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
         if ARTIFICIAL_STRESS > 0.0:
             s += xs[a]
         dv[i, a] = s + wv[a]
-        P[p, U + a] = wr[a]
+        if P.shape[1] > U:  # the rows carry u (a correction or a switch reads it)
+            P[p, U + a] = wr[a]
         if track_contact:
             contact_force[i, a] = m_i * (kc[a] + fv[a])
     if GRADIENT_CORRECTION:
@@ -1432,8 +1436,9 @@ def pair_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, norm
         for p in range(start, stop):
             i = order[p]
             if i >= n_active:
-                for a in range(DIM):
-                    P[p, U + a] = 0.0
+                if P.shape[1] > U:
+                    for a in range(DIM):
+                        P[p, U + a] = 0.0
                 continue
             particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_stress, S,
                            material, table, drho, dv, de, de_visc, contact_force, pair_count,

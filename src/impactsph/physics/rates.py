@@ -152,6 +152,15 @@ class CpuRates:
                                                         options=options).switch_pass
         return self._switch_passes[kind]
 
+    def record_columns(self, viscosity: ViscositySettings) -> int:
+        """The packed records' row length for ``viscosity``: every column of the passes'
+        layout (:func:`impactsph.physics.records.record_columns`, unpadded), less the viscous
+        acceleration's (the last) where no pass reads them, that is for a scheme with neither
+        a correction nor a switch (8 ``dim`` bytes a particle and ghost)."""
+        k = self.passes
+        needed = viscosity.correction is not None or viscosity.switch is not None
+        return k.RECORD_COLUMNS if needed else k.U
+
     def evaluate(self, n_active: int, arrays: tuple, table: np.ndarray, neighbours,
                  viscosity: ViscositySettings, b: RateBuffers, hourglass: float = 0.0,
                  hourglass_acceleration: np.ndarray | None = None,
@@ -179,8 +188,9 @@ class CpuRates:
         viscosity.check_compiled(k.VELOCITY_RECONSTRUCTION, k.VISCOSITY_FACTOR)
         nl = neighbours
         n = x.shape[0]
-        if self._packed is None or self._packed.shape[0] != n:
-            self._packed = np.empty((n, k.RECORD_WIDTH))
+        columns = self.record_columns(viscosity)
+        if self._packed is None or self._packed.shape != (n, columns):
+            self._packed = np.empty((n, columns))
         k.particle_pass(nl.order, x, v, m, rho, e, S, carried, h, body, material, table,
                         self._packed)
         if self._chunk is None or self._chunk[0] != n:  # get_num_threads takes a lock

@@ -12,8 +12,7 @@ def record_columns(dim: int, correction_matrix: bool = False,
                    work_velocity: bool = False) -> dict[str, int]:
     """Columns of the packed record: position ``x``, velocity ``v``, ``h``, ``m``,
     ``volume = m/rho``, ``rho``, ``c``, ``pc = P/rho^2``, ``body``, the symmetric
-    ``A = sigma/rho^2`` (its upper triangle, row by row: :func:`symmetric_index`) and the
-    viscous acceleration ``u`` that the pair pass writes for a correction pass; with
+    ``A = sigma/rho^2`` (its upper triangle, row by row: :func:`symmetric_index`); with
     ``correction_matrix`` the kernel gradient correction's ``C`` (``dim x dim``, row by row),
     with ``artificial_stress`` the symmetric artificial stress ``R`` (m^5/(kg s^2), as ``A``;
     its upper triangle like ``A``'s), with ``viscosity_factor`` the particle's factor ``f`` on
@@ -21,14 +20,23 @@ def record_columns(dim: int, correction_matrix: bool = False,
     density ``hoop`` and the radius ``radius``, with ``velocity_gradient`` the velocity
     gradient ``Lv`` (``dim x dim``, row by row; a reconstructing viscosity), with
     ``work_velocity`` the velocity ``w`` that the energy terms read (the compatible energy
-    update: the velocity itself, or the step's mean velocity in its work pass).  ``"width"`` is
-    the row length, padded to whole cache lines (2, 2 and 3 lines of 64 bytes in 1D, 2D, 3D
-    without the optional columns)."""
+    update: the velocity itself, or the step's mean velocity in its work pass); last, the
+    viscous acceleration ``u`` that the pair pass writes for a correction or a switch pass.
+
+    ``"columns"`` is the CPU's row length: every column, unpadded.  A run whose viscosity
+    scheme has neither a correction nor a switch (nothing reads ``u``) takes rows of
+    ``"u"`` columns instead, without it (:meth:`impactsph.physics.rates.CpuRates.evaluate`;
+    the passes write ``u`` only where the rows have it).  Unpadded rows were as fast as rows
+    padded to whole cache lines, or faster: 3D, 1e5 particles, the pair pass 47-48 ms with
+    19 or 20 columns against 49 ms with 24, in one process (benchmarks/README.md, "The
+    records unpadded").  ``"width"`` is the device's row length, padded to whole cache lines
+    (2, 2 and 3 lines of 64 bytes in 1D, 2D, 3D without the optional columns; not measured
+    unpadded on a GPU)."""
     n_sym = dim * (dim + 1) // 2
     cols = {"x": 0, "v": dim, "h": 2 * dim, "m": 2 * dim + 1, "volume": 2 * dim + 2,
             "rho": 2 * dim + 3, "c": 2 * dim + 4, "pc": 2 * dim + 5, "body": 2 * dim + 6,
-            "A": 2 * dim + 7, "u": 2 * dim + 7 + n_sym}
-    end = cols["u"] + dim
+            "A": 2 * dim + 7}
+    end = cols["A"] + n_sym
     if correction_matrix:
         cols["C"] = end
         end += dim * dim
@@ -48,6 +56,9 @@ def record_columns(dim: int, correction_matrix: bool = False,
     if work_velocity:
         cols["w"] = end
         end += dim
+    cols["u"] = end
+    end += dim
+    cols["columns"] = end
     cols["width"] = (end + 7) // 8 * 8
     return cols
 
