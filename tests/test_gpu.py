@@ -542,6 +542,9 @@ def _relative_errors(cpu, gpu) -> dict[str, float]:
     errors = {}
     for name, ref in cpu.items():
         got = np.asarray(gpu[name])
+        # a shape that differs is named, with both shapes (once, 2026-12-03, the CPU run's
+        # material state here had 8 columns, the worker's 5; not reproduced since)
+        assert got.shape == ref.shape, f"{name}: the CPU's {ref.shape}, the device's {got.shape}"
         scale = float(np.abs(ref).max()) if ref.size else 0.0
         diff = float(np.abs(got.astype(float) - ref).max()) if ref.size else 0.0
         errors[name] = diff / scale if scale > 0 else diff
