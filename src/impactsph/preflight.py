@@ -373,6 +373,7 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     buffers = 76 + 8 * d + (8 * d if contact else 0) + (8 * d + 8 if corrected else 0) \
         + (8 * d + 8 * d * d if hourglass else 0)
     # the CPU's rows, unpadded; the viscous acceleration's columns where a pass reads them
+    # (a correction or a switch: CpuRates.record_columns)
     layout = record_columns(d, correction_matrix=force_correction and d > 1,
                             work_velocity=compatible, viscosity_factor=switched)
     records = 8 * layout["columns" if corrected or switched else "u"]

@@ -25,7 +25,7 @@ def record_columns(dim: int, correction_matrix: bool = False,
 
     ``"columns"`` is the CPU's row length: every column, unpadded.  A run whose viscosity
     scheme has neither a correction nor a switch (nothing reads ``u``) takes rows of
-    ``"u"`` columns instead, without it (:meth:`impactsph.physics.rates.CpuRates.evaluate`;
+    ``"u"`` columns instead, without it (:meth:`impactsph.physics.rates.CpuRates.record_columns`;
     the passes write ``u`` only where the rows have it).  Unpadded rows were as fast as rows
     padded to whole cache lines, or faster: 3D, 1e5 particles, the pair pass 47-48 ms with
     19 or 20 columns against 49 ms with 24, in one process (benchmarks/README.md, "The
