@@ -152,14 +152,17 @@ def _stencil_order_reference(x: np.ndarray, radius: float) -> tuple[np.ndarray, 
 @pytest.mark.parametrize("dim", [1, 2, 3])
 def test_list_order_is_the_stencil_order(dim):
     """Each particle's neighbours in the order the pair sums take them (their order sets the
-    sums' last bits): random points, and a lattice with points on the cell borders."""
+    sums' last bits): random points, and a lattice with points on the cell borders, near the
+    origin and far from it (where the stencil's cells that the builder skips as out of reach
+    are decided in round-off: none that holds a neighbour may be skipped)."""
     rng = np.random.default_rng(20 + dim)
     dx = 0.25
     side = {1: 30, 2: 9, 3: 5}[dim]
     axis = np.arange(side) * dx
     lattice = np.stack(np.meshgrid(*[axis] * dim, indexing="ij"), -1).reshape(-1, dim)
-    for x, radius in ((rng.random((150, dim)), 0.21), (lattice[rng.permutation(len(lattice))],
-                                                         0.5)):
+    shuffled = lattice[rng.permutation(len(lattice))]
+    for x, radius in ((rng.random((150, dim)), 0.21), (shuffled, 0.5), (shuffled, 0.75),
+                      (shuffled + 1e4 / 3.0, 0.5), (rng.random((150, dim)) - 1e3, 0.21)):
         nl = NeighbourList.build(x, radius)
         order, rows = _stencil_order_reference(x, radius)
         np.testing.assert_array_equal(nl.order, order)

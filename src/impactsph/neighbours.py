@@ -135,6 +135,18 @@ def _build_functions(dim: int):
         lo0 = lo[0]
         lo1 = lo[1] if dim > 1 else 0.0
         lo2 = lo[2] if dim > 2 else 0.0
+        # 3D: a stencil cell whose box lies at or beyond the radius from the particle holds
+        # no neighbour of it and is skipped (its edge is the radius, so only the edge and
+        # corner cells can be: on average 6.4 of the 27 cells' volume; the 3D build 6-10%
+        # faster, the 2D one, where 0.9 of 9 can be, 1-4% slower with it, so it is not done
+        # there).  Each gap is taken ``slack`` short, more than the round-off of the boxes'
+        # faces and of the binning, so that no cell holding a neighbour is skipped: the list
+        # is the same to the bit
+        prune = dim > 2
+        reach = 0.0
+        for a in range(dim):
+            reach = max(reach, abs(lo[a]) + (ncell[a] + 1) * radius)
+        slack = 64.0 * 2.220446049250313e-16 * reach
         # two sweeps of the same loop: count the neighbours, then (offsets known) store them;
         # written out here, not in a helper, so that dim is a compile-time constant and the
         # small loops unroll.  The stencil's cells are visited with axis 0 fastest (the
@@ -160,17 +172,34 @@ def _build_functions(dim: int):
                 found_inner = 0
                 pos = offsets[p]
                 pos_inner = inner_offsets[p] if inner else 0
+                # the particle's distances to its cell's lower and upper faces on each axis
+                # (less the slack; 0 where negative): the gaps to the stencil's cells
+                below0 = max(xp0 - (lo0 + c0 * radius) - slack, 0.0)
+                above0 = max(lo0 + (c0 + 1) * radius - xp0 - slack, 0.0)
+                below1 = max(xp1 - (lo1 + c1 * radius) - slack, 0.0) if dim > 1 else 0.0
+                above1 = max(lo1 + (c1 + 1) * radius - xp1 - slack, 0.0) if dim > 1 else 0.0
+                below2 = max(xp2 - (lo2 + c2 * radius) - slack, 0.0) if dim > 2 else 0.0
+                above2 = max(lo2 + (c2 + 1) * radius - xp2 - slack, 0.0) if dim > 2 else 0.0
                 for e2 in range(-1 if dim > 2 else 0, 2 if dim > 2 else 1):
                     k2 = c2 + e2
                     if k2 < 0 or k2 >= n2:
                         continue
+                    gap2 = below2 if e2 < 0 else (above2 if e2 > 0 else 0.0)
+                    gap2 = gap2 * gap2
                     for e1 in range(-1 if dim > 1 else 0, 2 if dim > 1 else 1):
                         k1 = c1 + e1
                         if k1 < 0 or k1 >= n1:
                             continue
+                        gap1 = below1 if e1 < 0 else (above1 if e1 > 0 else 0.0)
+                        gap12 = gap2 + gap1 * gap1
+                        if prune and gap12 >= r2max:
+                            continue
                         for e0 in range(-1, 2):
                             k0 = c0 + e0
                             if k0 < 0 or k0 >= n0:
+                                continue
+                            gap0 = below0 if e0 < 0 else (above0 if e0 > 0 else 0.0)
+                            if prune and gap12 + gap0 * gap0 >= r2max:
                                 continue
                             if dim == 1:
                                 kc = k0
