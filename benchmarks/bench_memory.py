@@ -3,7 +3,7 @@ after a few steps, each array's memory counted once (views are counted with thei
 in bytes per particle, largest first (issue 16's target: 1 kB per particle in 3D).
 
     .venv/bin/python benchmarks/bench_memory.py [--dim 3] [--n 1e5] [--scheme av]
-        [--steps 2] [--wall] [--h-over-dx 1.3] [--json PATH]
+        [--steps 2] [--wall] [--h-over-dx 1.3] [--skin 0.05] [--json PATH]
 
 The case is ``bench_ac_cost.py``'s lattice (dx = 1 mm, h = 1.2 dx, elastic steel, random
 velocities of about 1 m/s, the paper's scheme: no stabilisation), ``--scheme`` its viscosity.
@@ -75,6 +75,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--h-over-dx", type=float, default=None,
                         help="the kernel's width in spacings (default: the lattice's 1.2, the "
                         "width the recorded numbers were taken at; the cases' default is 1.3)")
+    parser.add_argument("--skin", type=float, default=None,
+                        help="the neighbour list's skin, time.neighbour_skin (default: the "
+                        "case's 0.1 of the support); a thinner skin stores fewer pairs and "
+                        "rebuilds the list more often")
     parser.add_argument("--json", type=Path, default=None, help="also write the table here")
     args = parser.parse_args(argv)
 
@@ -90,6 +94,8 @@ def main(argv: list[str] | None = None) -> None:
     case = lattice_case(args.dim, int(args.n), args.scheme)
     if args.h_over_dx is not None:
         case["kernel"]["h_over_dx"] = args.h_over_dx
+    if args.skin is not None:
+        case["time"]["neighbour_skin"] = args.skin
     if args.wall:
         normal = [0.0] * args.dim
         normal[-1] = 1.0
@@ -104,8 +110,9 @@ def main(argv: list[str] | None = None) -> None:
     rows = sorted(arrays_of(sim).values(), reverse=True)
     total = sum(size for size, _ in rows)
     h_over_dx = case["kernel"]["h_over_dx"]
+    skin = sim.solver.skin_fraction
     print(f"impactsph {__version__}: {args.dim}D lattice, {n} particles, h = {h_over_dx} dx, "
-          f"{args.scheme}, "
+          f"skin {skin} of the support, {args.scheme}, "
           f"{'a wall under it, ' if args.wall else ''}"
           f"after {args.steps} steps: {total / n:.0f} B per particle in "
           f"{len(rows)} arrays")
@@ -118,7 +125,8 @@ def main(argv: list[str] | None = None) -> None:
     if args.json is not None:
         args.json.write_text(json.dumps({
             "version": __version__, "machine": platform.machine(), "cpu": host_cpu_name(),
-            "dim": args.dim, "particles": n, "h_over_dx": h_over_dx, "scheme": args.scheme,
+            "dim": args.dim, "particles": n, "h_over_dx": h_over_dx, "skin": skin,
+            "scheme": args.scheme,
             "wall": args.wall,
             "bytes_per_particle": total / n,
             "arrays": [{"path": p, "bytes_per_particle": s / n} for s, p in rows]}, indent=1))
