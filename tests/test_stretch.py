@@ -279,3 +279,13 @@ def test_a_radius_per_pair_changes_nothing_but_the_lists_length(monkeypatch):
         a, b = getattr(short.state, name), getattr(long.state, name)
         assert np.abs(a - b).max() <= 1e-11 * np.abs(b).max(), name
     assert short.solver.neighbours.n_pairs < 0.9 * long.solver.neighbours.n_pairs
+
+
+def test_positions_of_four_columns_are_refused_by_name():
+    """The stretch is compiled for 1, 2 and 3 dimensions; other widths get a one-line error
+    before any kernel is compiled."""
+    x = np.zeros((3, 4))
+    no = np.zeros(0, dtype=np.int32)
+    with pytest.raises(ValueError, match="x has 4 columns"):
+        principal_stretches(no, np.zeros(1, dtype=np.int32), no, x, x, np.zeros(3, np.int64),
+                            np.ones(3), 3)

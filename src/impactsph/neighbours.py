@@ -42,6 +42,8 @@ from .kernels import SUPPORT_RADIUS
 #: relative round-off allowed when comparing ``support + skin`` with the list's radius (the
 #: sum recomputed from an unchanged support may differ from the stored radius in its last bit)
 RADIUS_TOLERANCE = 1e-12
+#: double precision's machine epsilon (the builder's slack on the stencil cells' gaps)
+EPSILON = float(np.finfo(np.float64).eps)
 
 
 @nb.njit(cache=True)
@@ -146,7 +148,7 @@ def _build_functions(dim: int):
         reach = 0.0
         for a in range(dim):
             reach = max(reach, abs(lo[a]) + (ncell[a] + 1) * radius)
-        slack = 64.0 * 2.220446049250313e-16 * reach
+        slack = 64.0 * EPSILON * reach
         # two sweeps of the same loop: count the neighbours, then (offsets known) store them;
         # written out here, not in a helper, so that dim is a compile-time constant and the
         # small loops unroll.  The stencil's cells are visited with axis 0 fastest (the
@@ -172,14 +174,14 @@ def _build_functions(dim: int):
                 found_inner = 0
                 pos = offsets[p]
                 pos_inner = inner_offsets[p] if inner else 0
-                # the particle's distances to its cell's lower and upper faces on each axis
-                # (less the slack; 0 where negative): the gaps to the stencil's cells
-                below0 = max(xp0 - (lo0 + c0 * radius) - slack, 0.0)
-                above0 = max(lo0 + (c0 + 1) * radius - xp0 - slack, 0.0)
-                below1 = max(xp1 - (lo1 + c1 * radius) - slack, 0.0) if dim > 1 else 0.0
-                above1 = max(lo1 + (c1 + 1) * radius - xp1 - slack, 0.0) if dim > 1 else 0.0
-                below2 = max(xp2 - (lo2 + c2 * radius) - slack, 0.0) if dim > 2 else 0.0
-                above2 = max(lo2 + (c2 + 1) * radius - xp2 - slack, 0.0) if dim > 2 else 0.0
+                # 3D: the particle's distances to its cell's lower and upper faces on each
+                # axis (less the slack; 0 where negative): the gaps to the stencil's cells
+                below0 = max(xp0 - (lo0 + c0 * radius) - slack, 0.0) if prune else 0.0
+                above0 = max(lo0 + (c0 + 1) * radius - xp0 - slack, 0.0) if prune else 0.0
+                below1 = max(xp1 - (lo1 + c1 * radius) - slack, 0.0) if prune else 0.0
+                above1 = max(lo1 + (c1 + 1) * radius - xp1 - slack, 0.0) if prune else 0.0
+                below2 = max(xp2 - (lo2 + c2 * radius) - slack, 0.0) if prune else 0.0
+                above2 = max(lo2 + (c2 + 1) * radius - xp2 - slack, 0.0) if prune else 0.0
                 for e2 in range(-1 if dim > 2 else 0, 2 if dim > 2 else 1):
                     k2 = c2 + e2
                     if k2 < 0 or k2 >= n2:
