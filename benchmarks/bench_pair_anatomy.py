@@ -33,6 +33,12 @@ they are measurements of cost, nothing else.
   "neighbours padded in blocks of the vector width"). 1D and 2D only: in 3D the pass's skin
   filter drops the dummies before the loop.
 - ``empty``: the neighbour loop removed: the per-particle part of the pass.
+- ``empty_unfiltered``: ``empty`` without the 3D skin filter: the per-particle part alone.
+- ``unsplit``: 3D, each row's entries all tested against the support before the loop, as
+  before the list's rows were split (``NeighbourList.splits``: the entries within the
+  support at the build first, taken untested).
+- ``filter_no_division``: the 3D skin filter (:func:`support_range`) tests ``r^2 < (h_i +
+  h_j)^2`` (widened by 1e-12) in place of ``q^2 < 4``, which needs ``1 / h_ij``.
 
 ``--jitter`` moves every particle by up to that fraction of the spacing in each direction,
 so that the rows' lengths vary as in a run (the lattice's interior rows are all alike).
@@ -81,9 +87,11 @@ def _read_from(text: str, array: str, columns: str, position: str) -> str:
         return body.replace("neighbour_separation(xi0, xi1, xi2, hi, P, j)",
                             f"neighbour_separation_t(xi0, xi1, xi2, hi, {array}, jj)")
     text = _edit_loop(text, edit)
-    text = text.replace("listed, filter_skin):\n    \"\"\"Pass 2 for the active",
-                        f"listed, filter_skin, {array}):\n    \"\"\"Pass 2 for the active", 1)
-    call_end = "listed, SKIN_FILTER)\n\n\n@JIT(parallel=True, cache=True)\ndef correction_pass"
+    head = "listed, starts, filter_skin):\n    \"\"\"Pass 2 for the active"
+    call_end = ("listed, starts, SKIN_FILTER)\n\n\n@JIT(parallel=True, cache=True)\n"
+                "def correction_pass")
+    assert head in text and call_end in text, "the template's particle_rates changed"
+    text = text.replace(head, head.replace("filter_skin)", f"filter_skin, {array})"), 1)
     text = text.replace(call_end, call_end.replace("SKIN_FILTER)", f"SKIN_FILTER, {array})", 1),
                         1)
     head = text.index("def neighbour_separation(")
@@ -96,7 +104,8 @@ def _read_from(text: str, array: str, columns: str, position: str) -> str:
 
 def _contiguous(text: str) -> str:
     text = _read_from(text, "PT", r"[^\]]+", "p + k - first")
-    pass_head = "              chunk_size):\n    \"\"\"Pass 2 over the active particles"
+    pass_head = "chunk_size):\n    \"\"\"Pass 2 over the active particles"
+    assert pass_head in text, "the template's pair_pass changed"
     return text.replace(pass_head, pass_head.replace("chunk_size)", "chunk_size, PT)"), 1)
 
 
@@ -117,16 +126,40 @@ def _scratch(text: str) -> str:
     return text.replace(scratch, scratch + rows, 1)
 
 
+FILTER = """                q2 = neighbour_separation(xi0, xi1, xi2, hi, P, j)[6]
+                listed[count] = j
+                count += 1 if q2 < 4.0 else 0"""
+
+
+def _filter_no_division(text: str) -> str:
+    """The 3D skin filter's support test without its division: ``r^2 < (h_i + h_j)^2``
+    (``q < 2`` with ``h_ij = (h_i + h_j) / 2``), a margin of 1e-12 wide so that it keeps
+    every pair the loop's own test keeps (the loop masks the rest)."""
+    test = """                r2 = neighbour_separation(xi0, xi1, xi2, hi, P, j)[3]
+                reach = hi + P[j, H]
+                listed[count] = j
+                count += 1 if r2 < reach * reach * (1.0 + 1e-12) else 0"""
+    assert FILTER in text
+    return text.replace(FILTER, test, 1)
+
+
 def _empty(text: str) -> str:
     return _edit_loop(text, lambda b: b.replace("range(first, last)",
                                                 "range(first, first)", 1))
 
 
-#: (``self`` and ``padded`` edit the list they are handed, ``no_division`` the viscosity
-#: injected: not the text)
+def _empty_unfiltered(text: str) -> str:
+    """``empty`` without the 3D skin filter too: the per-particle part alone."""
+    assert FILTER in text
+    return _empty(text.replace("        if filter_skin:", "        if False:", 1))
+
+
+#: (``self``, ``padded`` and ``unsplit`` edit the list they are handed, ``no_division`` the
+#: viscosity injected: not the text)
 VARIANTS = {"base": lambda t: t, "self": lambda t: t, "contiguous": _contiguous,
             "scratch": _scratch, "no_division": lambda t: t, "padded": lambda t: t,
-            "empty": _empty}
+            "empty": _empty, "filter_no_division": _filter_no_division,
+            "empty_unfiltered": _empty_unfiltered, "unsplit": lambda t: t}
 #: the block that ``padded`` pads each row to
 PAD_BLOCK = 8
 
@@ -237,7 +270,7 @@ def main(argv: list[str] | None = None) -> None:
         offsets = call[3]
         if int(np.diff(offsets).max()) > 256:  # the scratch's rows; PT's padding
             sys.exit("bench_pair_anatomy: a neighbour row is longer than 256")
-        if "no_division" in args.variants and int(call[5]) != 0:
+        if "no_division" in args.variants and int(call[6]) != 0:
             sys.exit("bench_pair_anatomy: no_division replaces viscosity 0, not this case's")
         own = np.repeat(np.arange(offsets.shape[0] - 1, dtype=call[4].dtype), np.diff(offsets))
         variants = [v for v in args.variants if v != "padded" or dim < 3]
@@ -245,12 +278,15 @@ def main(argv: list[str] | None = None) -> None:
         if "padded" in variants:
             columns = {c: int(getattr(passes, c)) for c in ("X", "H", "RHO", "BODY")}
             padded = list(_padded(record, offsets, call[4], columns, dim))
+            padded.append(padded[1][:-1])  # (its starts: 1D and 2D do not read them)
 
         def arguments(name, _call=call, _own=own, _transposed=transposed, _padded_=padded):
             if name == "self":
                 return _call[:4] + [_own] + _call[5:]
             if name == "padded":
-                return _call[:2] + _padded_ + _call[5:]
+                return _call[:2] + _padded_ + _call[6:]
+            if name == "unsplit":  # every row tested from its start
+                return _call[:5] + [_call[3][:-1]] + _call[6:]
             return _call + [_transposed] if name == "contiguous" else _call
 
         text = Path(passes.__file__).read_text()

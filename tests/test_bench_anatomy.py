@@ -28,14 +28,14 @@ def test_the_variants_edit_the_neighbour_loop(dim, benchmark_script):
             assert "P[j, " not in loop and "PT[V, jj]" in loop and "PT[M, jj]" in loop
             assert "neighbour_separation_t(xi0, xi1, xi2, hi, PT, jj)" in loop
             # the copy reaches particle_rates through the pass's signature and its call
-            assert "filter_skin, PT)" in edited and "listed, SKIN_FILTER, PT)" in edited
+            assert "filter_skin, PT)" in edited and "listed, starts, SKIN_FILTER, PT)" in edited
             assert "chunk_size, PT)" in edited
         else:  # the columns up to A from the scratch; the optional ones still from P
             assert "Q[V, jj]" in loop and "Q[A00, jj]" in loop
             assert "P[j, X]" not in loop and "P[j, M]" not in loop
             assert "neighbour_separation_t(xi0, xi1, xi2, hi, Q, jj)" in loop
             assert "Q = np.empty(" in edited and "filter_skin, Q)" in edited
-            assert "listed, SKIN_FILTER, Q)" in edited
+            assert "listed, starts, SKIN_FILTER, Q)" in edited
         # the separation helper: the template's, reading the copy
         helper = edited[edited.index("def neighbour_separation_t("):]
         assert "PT[X, j]" in helper and "PT[H, j]" in helper and "P[j, " not in helper

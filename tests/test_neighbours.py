@@ -149,25 +149,61 @@ def _stencil_order_reference(x: np.ndarray, radius: float) -> tuple[np.ndarray, 
     return order, rows
 
 
+def _split_row(row: list[int], xs: np.ndarray, p: int, front_limit, dim: int) -> list[int]:
+    """A row as the builder is specified to split it in 3D: the entries ``q`` with ``|x_p -
+    x_q|^2 < front_limit(q)`` first, in the row's order, then the rest in the reverse order
+    (1D and 2D rows are not split)."""
+    if dim < 3:
+        return row
+    r2 = [float(np.sum((xs[p] - xs[q]) ** 2)) for q in row]
+    return ([q for q, d in zip(row, r2, strict=True) if d < front_limit(q)]
+            + [q for q, d in zip(row, r2, strict=True) if not d < front_limit(q)][::-1])
+
+
+def _check_splits(nl: NeighbourList, dim: int) -> None:
+    """3D: ``splits`` marks each row's front part; 1D and 2D lists have none."""
+    if dim < 3:
+        assert nl.splits is None
+        np.testing.assert_array_equal(nl.filter_starts, nl.offsets[:-1])
+        return
+    assert nl.splits.shape == (nl.offsets.shape[0] - 1,)
+    assert np.all(nl.offsets[:-1] <= nl.splits) and np.all(nl.splits <= nl.offsets[1:])
+    assert nl.filter_starts is nl.splits
+
+
 @pytest.mark.parametrize("dim", [1, 2, 3])
 def test_list_order_is_the_stencil_order(dim):
     """Each particle's neighbours in the order the pair sums take them (their order sets the
     sums' last bits): random points, and a lattice with points on the cell borders, near the
     origin and far from it (where the stencil's cells that the builder skips as out of reach
-    are decided in round-off: none that holds a neighbour may be skipped)."""
+    are decided in round-off: none that holds a neighbour may be skipped).  With a skin, a 3D
+    row holds the pairs within the support first, in the stencil's order, then the skin's in
+    the reverse order, and ``splits`` says where the second part starts."""
     rng = np.random.default_rng(20 + dim)
     dx = 0.25
     side = {1: 30, 2: 9, 3: 5}[dim]
     axis = np.arange(side) * dx
     lattice = np.stack(np.meshgrid(*[axis] * dim, indexing="ij"), -1).reshape(-1, dim)
     shuffled = lattice[rng.permutation(len(lattice))]
-    for x, radius in ((rng.random((150, dim)), 0.21), (shuffled, 0.5), (shuffled, 0.75),
-                      (shuffled + 1e4 / 3.0, 0.5), (rng.random((150, dim)) - 1e3, 0.21)):
-        nl = NeighbourList.build(x, radius)
-        order, rows = _stencil_order_reference(x, radius)
+    jittered = shuffled + rng.uniform(-0.05, 0.05, shuffled.shape)
+    for x, support, skin in ((rng.random((150, dim)), 0.21, 0.0), (shuffled, 0.5, 0.0),
+                             (shuffled, 0.75, 0.0), (shuffled + 1e4 / 3.0, 0.5, 0.0),
+                             (rng.random((150, dim)) - 1e3, 0.21, 0.0),
+                             (jittered, 0.5, 0.1), (rng.random((150, dim)), 0.19, 0.02)):
+        nl = NeighbourList.build(x, support, skin)
+        order, rows = _stencil_order_reference(x, nl.radius)
         np.testing.assert_array_equal(nl.order, order)
+        _check_splits(nl, dim)
+        xs = x[order]
+        front = (nl.radius - skin) ** 2
         for p, row in enumerate(rows):
-            assert nl.indices[nl.offsets[p]:nl.offsets[p + 1]].tolist() == row, p
+            expected = _split_row(row, xs, p, lambda q, f=front: f, dim)
+            assert nl.indices[nl.offsets[p]:nl.offsets[p + 1]].tolist() == expected, p
+            if dim == 3:
+                front_part = nl.indices[nl.offsets[p]:nl.splits[p]]
+                assert np.all(np.sum((xs[front_part] - xs[p]) ** 2, axis=1) < front), p
+                if skin == 0.0:  # without a skin every pair is within the support
+                    assert nl.splits[p] == nl.offsets[p + 1]
 
 
 @pytest.mark.parametrize("dim", [1, 2, 3])
@@ -188,10 +224,22 @@ def test_a_radius_per_pair_keeps_each_pairs_own_support(dim):
     assert pairs_of(nl) == expected
     assert nl.n_pairs < whole.n_pairs  # the rows are shorter
     np.testing.assert_array_equal(nl.order, whole.order)
-    for p in range(0, x.shape[0], 7):  # each row: the whole row's pairs it keeps, in order
-        row = whole.indices[whole.offsets[p]:whole.offsets[p + 1]]
-        kept = row[np.isin(row, nl.indices[nl.offsets[p]:nl.offsets[p + 1]])]
-        np.testing.assert_array_equal(nl.indices[nl.offsets[p]:nl.offsets[p + 1]], kept)
+    _check_splits(nl, dim)
+    # each row: the stencil-ordered pairs it keeps, in 3D those within their own support
+    # ``2 h_ij`` (or the inner list's radius) first (the builder's arithmetic, written out)
+    _, rows = _stencil_order_reference(x, nl.radius)
+    xs, hs = x[nl.order], h[nl.order]
+    inner2 = min(nl.inner_radius, nl.radius) ** 2
+
+    def limits(p, q):
+        reach = 0.5 * 2.0 * (hs[p] + hs[q]) + skin
+        kept = min(nl.radius ** 2, max(reach * reach, inner2))
+        return kept, min(kept, max((reach - skin) ** 2, inner2))
+
+    for p in range(0, x.shape[0], 7):
+        row = [q for q in rows[p] if np.sum((xs[p] - xs[q]) ** 2) < limits(p, q)[0]]
+        expected = _split_row(row, xs, p, lambda q, p=p: limits(p, q)[1], dim)
+        assert nl.indices[nl.offsets[p]:nl.offsets[p + 1]].tolist() == expected, p
     np.testing.assert_array_equal(nl.inner_indices, whole.inner_indices)
     with pytest.raises(ValueError, match="h has 3 rows"):
         NeighbourList.build(x, support, skin, h=h[:3])

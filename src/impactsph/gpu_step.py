@@ -11,7 +11,8 @@ and the rates stay on the device, and a step is a sequence of kernel launches:
   a counting sort by cell (particles in ascending number within a cell, so the order does not
   depend on the threads' scheduling), then the same two sweeps as the CPU builder (count,
   prefix sum, store).  The stencil and the particles within a cell come in the CPU builder's
-  order, so each particle's neighbours are listed in the same order on both;
+  order, and a 3D row is split at the support as the CPU's is, so each particle's neighbours
+  are listed in the same order on both;
 - the rate passes of :func:`impactsph.physics.passes.cuda_kernels` on the device records;
 - the integrator's stages with :func:`~impactsph.physics.passes.advance_particle` (the
   strength model's return map, damage and the plastic work included), the CPU stage's body;
@@ -501,10 +502,13 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 xs[p, a] = x[order[p], a]
 
     @cuda.jit
-    def neighbour_kernel(n, xs, lo, radius, ncell, counts, ends, offsets, indices, store):
+    def neighbour_kernel(n, xs, lo, radius, front, ncell, counts, ends, offsets, indices,
+                         store):
         """The CPU builder's sweep for sorted position ``p``: its neighbours within
         ``radius`` in the 3^dim cells around its own, counted (``store`` False: into
-        ``offsets[p + 1]``) or stored from ``offsets[p]``."""
+        ``offsets[p + 1]``) or stored from ``offsets[p]``; in 3D those at or beyond ``front``
+        (the support) from the row's end back, as the CPU builder splits its rows (the device's
+        kernels read whole rows: the order only keeps the two lists the same)."""
         p = cuda.grid(1)
         if p >= n:
             return
@@ -512,8 +516,11 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
         for a in range(DIM):
             own[a] = min(max(int((xs[p, a] - lo[a]) / radius), 0), ncell[a] - 1)
         r2max = radius * radius
+        r2front = front * front
         found = 0
+        found_back = 0
         pos = offsets[p] if store else 0
+        back = offsets[p + 1] - 1 if store else 0
         for s in range(STENCIL):
             t = s
             kc = 0
@@ -534,6 +541,10 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                     d = xs[p, a] - xs[q, a]
                     r2 += d * d
                 if r2 < r2max:
+                    if store and DIM > 2 and r2 >= r2front:
+                        indices[back - found_back] = q
+                        found_back += 1
+                        continue
                     if store:
                         indices[pos + found] = q
                     found += 1
@@ -989,12 +1000,13 @@ class ResidentStep:
         self._launch("gather", n, n, order, x, xs)
         offsets = self._buffer("offsets", n + 1, np.int64)
         self._launch("zero", n + 1, offsets)
-        self._launch("neighbours", n, n, xs, lo, radius, d_ncell, counts, ends, offsets,
+        front = radius - self.skin  # the support (3D rows split there, as the CPU's)
+        self._launch("neighbours", n, n, xs, lo, radius, front, d_ncell, counts, ends, offsets,
                      offsets, False)
         self._scan(offsets[1:], n)
         total = int(self._fetch(offsets[n:])[0])
         indices = self._buffer("indices", total, np.int32)
-        self._launch("neighbours", n, n, xs, lo, radius, d_ncell, counts, ends, offsets,
+        self._launch("neighbours", n, n, xs, lo, radius, front, d_ncell, counts, ends, offsets,
                      indices, True)
         self.order, self.offsets, self.indices = order, offsets, indices
         self.origin.copy_to_device(lo_h, stream=s)

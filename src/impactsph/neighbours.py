@@ -19,6 +19,13 @@ different widths, ``bodies.N.h_over_dx``; the solver builds it so then) the rows
 carry every pair out to the largest h's reach, which the pair loops would visit and skip.
 The skin's argument is the same: ``h`` is fixed between two builds.
 
+In 3D a row with a skin is held in two parts (``NeighbourList.splits``): the pairs within
+their support at the build first, in the stencil's order, then the rest (the skin's), in the
+reverse of it.  The 3D passes take the front part as it is and test only the rest against
+the support before their vectorised loops (``passes.support_range``): a pair that leaves the
+support before the next build is masked by the loop, and one that enters it is found by the
+test.
+
 A list may also carry an *inner list*: the same neighbours, in the same order, of those
 closer than a smaller radius ``reach * 2 h_max + skin`` (the same skin), built in the same
 sweeps.  A pass whose kernel reaches only part of the support (the acceleration
@@ -131,6 +138,18 @@ def _build_functions(dim: int):
         indices = np.empty(0, dtype=np.int32)
         inner_offsets = np.zeros(n + 1 if inner else 0, dtype=np.int64)
         inner_indices = np.empty(0, dtype=np.int32)
+        # 3D with a skin: each row in two parts, the pairs within their support at the build
+        # (or within the inner list's radius) first, in the stencil's order, then the rest of
+        # the row, the skin's, stored from the row's end back (so the count sweep needs no
+        # count of its own for it: the build took no longer); ``splits[p]`` is where the back
+        # part starts.  The 3D passes gather a row's entries within the support before their
+        # vectorised loop (``passes.support_range``); they take the front part as it is, and
+        # test only the back part (issue 16, benchmarks/README.md).  Without a skin the
+        # radius is the support and every row is all front
+        split = dim > 2
+        support_now = radius - skin
+        r2front = max(min(support_now * support_now, r2max), r2inner)
+        splits = np.zeros(n if split else 0, dtype=np.int64)
         n0 = ncell[0]
         n1 = ncell[1] if dim > 1 else 1
         n2 = ncell[2] if dim > 2 else 1
@@ -172,7 +191,9 @@ def _build_functions(dim: int):
                 c2 = min(max(int((xp2 - lo2) / radius), 0), n2 - 1) if dim > 2 else 0
                 found = 0
                 found_inner = 0
+                found_back = 0
                 pos = offsets[p]
+                back = offsets[p + 1] - 1  # the row's last entry
                 pos_inner = inner_offsets[p] if inner else 0
                 # 3D: the particle's distances to its cell's lower and upper faces on each
                 # axis (less the slack; 0 where negative): the gaps to the stencil's cells
@@ -231,12 +252,21 @@ def _build_functions(dim: int):
                                     continue
                                 r2 = distance2(xp0, xp1, xp2, xs, q, dim)
                                 lim = r2max
+                                front_lim = r2front
                                 if per_pair:
                                     rp = 0.5 * support_per_h * (hp + hs[q]) + skin
                                     lim = min(r2max, max(rp * rp, r2inner))
+                                    rs = rp - skin
+                                    front_lim = min(lim, max(rs * rs, r2inner))
                                 if r2 < lim:
-                                    indices[pos + found] = q
-                                    found += 1
+                                    # the row's back part, filled from the row's end, or
+                                    # its front (a select, not a branch: the two are not
+                                    # predictable)
+                                    to_back = split and r2 >= front_lim
+                                    at = back - found_back if to_back else pos + found
+                                    indices[at] = q
+                                    found_back += 1 if to_back else 0
+                                    found += 0 if to_back else 1
                                     if inner and r2 < r2inner:
                                         inner_indices[pos_inner + found_inner] = q
                                         found_inner += 1
@@ -244,7 +274,9 @@ def _build_functions(dim: int):
                     offsets[p + 1] = found
                     if inner:
                         inner_offsets[p + 1] = found_inner
-        return order, offsets, indices, inner_offsets, inner_indices
+                elif split:
+                    splits[p] = pos + found
+        return order, offsets, indices, inner_offsets, inner_indices, splits
 
     @njit_variant(f"{dim}d")
     def max_displacement(x, x_ref, origin):
@@ -289,6 +321,10 @@ class NeighbourList:
     inner_radius: float = 0.0
     inner_offsets: np.ndarray | None = None
     inner_indices: np.ndarray | None = None
+    #: 3D: where each row's back part starts (module docstring): ``indices[offsets[p]:
+    #: splits[p]]`` were within their support at the build, the rest of the row was not.
+    #: None: no split known (1D and 2D, or a list handed in without one)
+    splits: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.order is None:
@@ -321,19 +357,28 @@ class NeighbourList:
         per_pair = np.zeros(0) if h is None else np.ascontiguousarray(h, dtype=np.float64)
         if per_pair.shape[0] not in (0, x.shape[0]):
             raise ValueError(f"h has {per_pair.shape[0]} rows for {x.shape[0]} positions")
-        order, offsets, indices, inner_offsets, inner_indices = build(
+        order, offsets, indices, inner_offsets, inner_indices, splits = build(
             np.ascontiguousarray(x), radius, inner_radius, per_pair, float(SUPPORT_RADIUS),
             float(skin))
         if offsets[-1] < np.iinfo(np.int32).max:  # 4 bytes per particle less
             offsets = offsets.astype(np.int32)
             inner_offsets = inner_offsets.astype(np.int32)
+            splits = splits.astype(np.int32)
         origin = x.min(axis=0) if x.shape[0] else np.zeros(dim)
         inner = inner_radius > 0.0
         return cls(offsets, indices, radius, float(skin), (x - origin).astype(np.float32),
                    order=order.astype(np.int32), reference_origin=origin,
                    inner_reach=float(inner_reach) if inner else 1.0, inner_radius=inner_radius,
                    inner_offsets=inner_offsets if inner else None,
-                   inner_indices=inner_indices if inner else None)
+                   inner_indices=inner_indices if inner else None,
+                   splits=splits if dim > 2 else None)
+
+    @property
+    def filter_starts(self) -> np.ndarray:
+        """Where the 3D passes start testing each row's entries against the support
+        (``passes.support_range``): :attr:`splits`, or, without them, each row's start (the
+        whole row tested)."""
+        return self.offsets[:-1] if self.splits is None else self.splits
 
     def within(self, reach: float) -> tuple[np.ndarray, np.ndarray]:
         """``(offsets, indices)`` of a list that holds every pair within ``reach`` times the
@@ -370,6 +415,7 @@ class NeighbourList:
             self.reference_origin = new.reference_origin
             self.inner_reach, self.inner_radius = new.inner_reach, new.inner_radius
             self.inner_offsets, self.inner_indices = new.inner_offsets, new.inner_indices
+            self.splits = new.splits
             self.builds += 1
 
     def particle_pairs(self) -> tuple[np.ndarray, np.ndarray]:

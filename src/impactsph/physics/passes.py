@@ -523,26 +523,40 @@ def neighbour_separation(xi0, xi1, xi2, hi, P, j):
 
 
 @JIT(inline="always", cache=True)
-def support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, filter_skin):
+def support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, starts, filter_skin):
     """The neighbours of sorted position ``p`` for a vectorised pair loop, as the range
     ``(first, last)`` of ``listed`` to run over: ``for k in range(first, last): j =
     listed[k]``.
 
     With ``filter_skin`` (the CPU passes in 3D, :data:`SKIN_FILTER`; ``listed`` is then a
-    scratch, :func:`chunk_listed`) only the neighbours within the kernel support (``q < 2``,
-    the loops' own test, by :func:`neighbour_separation`), gathered into ``listed`` in the
-    list's order; otherwise (1D and 2D, and the GPU's kernels, which have no such scratch;
+    scratch, :func:`chunk_listed`) the row's front part, ``indices[offsets[p]:starts[p]]``
+    (``NeighbourList.filter_starts``: the pairs within their support when the list was
+    built), copied as it is, then those of the rest of the row within the kernel support now
+    (``q < 2``, the loops' own test, by :func:`neighbour_separation`), in the list's order;
+    otherwise (1D and 2D, and the GPU's kernels, which have no such scratch;
     ``listed`` is then ``indices``) the list's whole row.  The list also holds the pairs of
     its Verlet skin, a quarter of a 3D row at a skin of 0.1 of the support, which a
-    vectorised loop would evaluate in full and mask; this loop is a few operations a pair
-    against some 60 in the pair loop (issue 16, benchmarks/README.md).  It is branch-free:
-    each entry is written, and the count moves past it only if it is inside.  The pairs left
-    out contribute nothing to any sum (their kernel gradient is zero), so only the grouping
-    of the sums' partial sums changes (round-off)."""
+    vectorised loop would evaluate in full and mask; the test is a few operations a pair
+    against some 60 in the pair loop, and the front part needs none (a third of the pass's
+    time before the rows were split; issue 16, benchmarks/README.md).  A front pair that has
+    left the support since the build is masked by the loop, as every pair is, and a skin
+    pair that has entered it is found by the test, so the pairs summed are the same whatever
+    the split.  The test is branch-free: each entry is written, and the count moves past it
+    only if it is inside.  The pairs left out contribute nothing to any sum (their kernel
+    gradient is zero), so only the grouping of the sums' partial sums changes
+    (round-off)."""
     if SKIN_FILTER:  # a constant: in 1D and 2D numba prunes the branch
         if filter_skin:
-            count = 0
-            for k in range(offsets[p], offsets[p + 1]):
+            start = offsets[p]
+            end = offsets[p + 1]
+            # (held inside the row: any split gives the same pairs, the loop masks the front
+            # part's pairs that have left the support, so a list whose splits are not its own
+            # costs time, never memory or correctness)
+            split = min(max(starts[p], start), end)
+            count = split - start
+            for k in range(count):  # the front part, within the support at the build
+                listed[k] = indices[start + k]
+            for k in range(split, end):
                 j = indices[k]
                 q2 = neighbour_separation(xi0, xi1, xi2, hi, P, j)[6]
                 listed[count] = j
@@ -566,7 +580,7 @@ def chunk_listed(offsets, indices, start, stop):
 
 
 @JIT(inline="always", cache=True)
-def moment_correction(p, P, offsets, indices, listed, filter_skin):
+def moment_correction(p, P, offsets, indices, listed, starts, filter_skin):
     """The correction matrix of the particle at sorted position ``p`` into its record:
     ``C = B^-T`` with the moment matrix ``B = -sum_j V_j r_ij (x) grad W_ij`` over the
     neighbours of the same body (see :func:`correct_velocity_gradient`), so that ``C grad
@@ -581,7 +595,8 @@ def moment_correction(p, P, offsets, indices, listed, filter_skin):
     B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
     # one loop without branches, vectorised as particle_rates' first loop (the support and
     # the body as a mask on the weight; moment_pass's flags)
-    first, last = support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, filter_skin)
+    first, last = support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, starts,
+                                filter_skin)
     for k in range(first, last):
         j = listed[k]
         d0, d1, d2, r2, _, inv_h, q2 = neighbour_separation(xi0, xi1, xi2, hi, P, j)
@@ -608,7 +623,7 @@ def moment_correction(p, P, offsets, indices, listed, filter_skin):
 
 
 @JIT(inline="always", cache=True)
-def velocity_gradient_record(p, P, offsets, indices, listed, filter_skin):
+def velocity_gradient_record(p, P, offsets, indices, listed, starts, filter_skin):
     """The symmetric part ``(L + L^T) / 2`` of the velocity gradient of the row at sorted
     position ``p`` into its record (VELOCITY_RECONSTRUCTION only; the slopes ``r . L r`` of
     :mod:`impactsph.physics.reconstruction` see only that part), with the kernel gradient
@@ -632,7 +647,8 @@ def velocity_gradient_record(p, P, offsets, indices, listed, filter_skin):
     hi = Pi_[H]
     B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
     L00 = L01 = L02 = L10 = L11 = L12 = L20 = L21 = L22 = 0.0
-    first, last = support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, filter_skin)
+    first, last = support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, starts,
+                                filter_skin)
     for k in range(first, last):
         j = listed[k]
         d0, d1, d2, r2, _, inv_h, q2 = neighbour_separation(xi0, xi1, xi2, hi, P, j)
@@ -723,7 +739,7 @@ def stress_rate(L, S_i, shear, dS_i):
 @JIT(inline="always", cache=True)
 def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_stress, S, material,
                    table, drho, dv, de, de_visc, contact_force, pair_count, dS, L, L_sorted,
-                   listed, filter_skin):
+                   listed, starts, filter_skin):
     """Pass 2 for the active particle ``i`` at sorted position ``p``: the sums over its
     neighbours (eqs 22, 27, 28) and its stress rate (eq 14, its six components into
     ``dS[i]``, with ``L`` as scratch for the velocity gradient); its viscous acceleration
@@ -861,7 +877,8 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     # division); the neighbour's columns read as ``P[j, col]`` (a row view ``P[j]`` stops the
     # vectoriser); and reassociation on the sums, which then run as one partial sum per
     # vector lane (results move at round-off: tests/test_pinned_results.py).
-    first, last = support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, filter_skin)
+    first, last = support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, starts,
+                                filter_skin)
     for k in range(first, last):
         j = listed[k]  # P[j, col], not a row view: the view stops the vectoriser
         d0, d1, d2, r2, h_ij, inv_h, q2 = neighbour_separation(xi0, xi1, xi2, hi, P, j)
@@ -1304,7 +1321,7 @@ def unexplained_velocity(a, p, q, P, L_sorted, d0, d1, d2):
 
 @JIT(inline="always", cache=True)
 def hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zeta, hg, dv, de,
-                       dhg, listed, filter_skin):
+                       dhg, listed, starts, filter_skin):
     """Hourglass control of the active particle ``i`` at sorted position ``p``
     (docs/stabilisation.md).  The relative velocity of each neighbour ``j`` of the same body
     that the velocity gradients do not explain, ``e_ij = v_ij - (L_i + L_j) r_ij / 2`` (zero
@@ -1338,7 +1355,8 @@ def hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zet
     b0 = b1 = b2 = 0.0  # the Laplacian of tau e
     # one loop without branches, vectorised as particle_rates' first loop (the support and
     # the body as a mask on the pair's coefficient; hourglass_pass's flags)
-    first, last = support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, filter_skin)
+    first, last = support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, starts,
+                                filter_skin)
     for k in range(first, last):
         q = listed[k]
         d0, d1, d2, r2, h_ij, inv_h, q2 = neighbour_separation(xi0, xi1, xi2, hi, P, q)
@@ -1389,7 +1407,7 @@ def particle_pass(order, x, v, m, rho, e, S, carried, h, body, material, table, 
 
 
 @JIT(parallel=True, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
-def moment_pass(order, P, offsets, indices, chunk_size):
+def moment_pass(order, P, offsets, indices, starts, chunk_size):
     """The correction matrices of every row (FORCE_CORRECTION only), after the records.
     Compiled as :func:`pair_pass`, so that the neighbour loop of :func:`moment_correction`
     vectorises (one thread at 1e5 particles: 2D 23.2 -> 12.3 ms, 3D 100 -> 48 ms;
@@ -1401,11 +1419,11 @@ def moment_pass(order, P, offsets, indices, chunk_size):
         stop = min((chunk + 1) * chunk_size, n)
         listed = chunk_listed(offsets, indices, start, stop)
         for p in range(start, stop):
-            moment_correction(p, P, offsets, indices, listed, SKIN_FILTER)
+            moment_correction(p, P, offsets, indices, listed, starts, SKIN_FILTER)
 
 
 @JIT(parallel=True, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
-def gradient_pass(order, P, offsets, indices, chunk_size):
+def gradient_pass(order, P, offsets, indices, starts, chunk_size):
     """The velocity gradients of every row into the records (VELOCITY_RECONSTRUCTION only),
     after the records and before the pair pass; compiled as :func:`moment_pass`."""
     n = order.shape[0]
@@ -1415,13 +1433,13 @@ def gradient_pass(order, P, offsets, indices, chunk_size):
         stop = min((chunk + 1) * chunk_size, n)
         listed = chunk_listed(offsets, indices, start, stop)
         for p in range(start, stop):
-            velocity_gradient_record(p, P, offsets, indices, listed, SKIN_FILTER)
+            velocity_gradient_record(p, P, offsets, indices, listed, starts, SKIN_FILTER)
 
 
 @JIT(parallel=True, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
-def pair_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, normal_stress, S,
-              material, table, drho, dv, de, de_visc, contact_force, pair_count, dS, L_sorted,
-              chunk_size):
+def pair_pass(n_active, order, P, offsets, indices, starts, visc_kind, visc_params,
+              normal_stress, S, material, table, drho, dv, de, de_visc, contact_force,
+              pair_count, dS, L_sorted, chunk_size):
     """Pass 2 over the active particles, in parallel chunks of sorted positions; ghosts
     (``order[p] >= n_active``) only take part as neighbours.  Compiled with PAIR_FASTMATH and
     without zero-division checks (branches), so that LLVM vectorises the neighbour loop of
@@ -1442,7 +1460,7 @@ def pair_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, norm
                 continue
             particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_stress, S,
                            material, table, drho, dv, de, de_visc, contact_force, pair_count,
-                           dS, L, L_sorted, listed, SKIN_FILTER)
+                           dS, L, L_sorted, listed, starts, SKIN_FILTER)
 
 
 @JIT(parallel=True, cache=True)
@@ -1492,8 +1510,8 @@ def friction_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, 
 
 
 @JIT(parallel=True, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
-def hourglass_pass(n_active, order, P, L_sorted, offsets, indices, material, table, zeta, hg,
-                   dv, de, dhg, chunk_size):
+def hourglass_pass(n_active, order, P, L_sorted, offsets, indices, starts, material, table,
+                   zeta, hg, dv, de, dhg, chunk_size):
     """The hourglass control over the active particles (after the pair pass, whose velocity
     gradients it reads).  Compiled as :func:`pair_pass`, so that the neighbour loop of
     :func:`hourglass_particle` vectorises (one thread at 1e5 particles: 2D 40.6 -> 20.9 ms,
@@ -1511,7 +1529,7 @@ def hourglass_pass(n_active, order, P, L_sorted, offsets, indices, material, tab
             i = order[p]
             if i < n_active:
                 hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zeta,
-                                   hg, dv, de, dhg, listed, SKIN_FILTER)
+                                   hg, dv, de, dhg, listed, starts, SKIN_FILTER)
 
 
 @JIT(parallel=True, cache=True)
@@ -1567,7 +1585,7 @@ def cuda_kernels():
         L = cuda.local.array((DIM, DIM), nb.float64)
         particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_stress, S,
                        material, table, drho, dv, de, de_visc, contact_force, pair_count, dS, L,
-                       L_sorted, indices, False)
+                       L_sorted, indices, offsets, False)
 
     @cuda.jit
     def correction_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind,
@@ -1591,13 +1609,13 @@ def cuda_kernels():
     def moment_kernel(n_rows, P, offsets, indices):
         p = cuda.grid(1)
         if p < n_rows:
-            moment_correction(p, P, offsets, indices, indices, False)
+            moment_correction(p, P, offsets, indices, indices, offsets, False)
 
     @cuda.jit
     def gradient_kernel(n_rows, P, offsets, indices):
         p = cuda.grid(1)
         if p < n_rows:
-            velocity_gradient_record(p, P, offsets, indices, indices, False)
+            velocity_gradient_record(p, P, offsets, indices, indices, offsets, False)
 
     @cuda.jit
     def hourglass_kernel(n_rows, n_active, order, P, L_sorted, offsets, indices, material,
@@ -1605,7 +1623,7 @@ def cuda_kernels():
         p = cuda.grid(1)
         if p < n_rows and order[p] < n_active:
             hourglass_particle(p, order[p], P, L_sorted, offsets, indices, material, table,
-                               zeta, hg, dv, de, dhg, indices, False)
+                               zeta, hg, dv, de, dhg, indices, offsets, False)
 
     @cuda.jit
     def friction_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind, visc_params,

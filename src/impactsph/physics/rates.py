@@ -204,17 +204,18 @@ class CpuRates:
         if self._gradients is None or self._gradients.shape[0] != rows:
             self._gradients = np.empty((rows, self.dim, self.dim))
         if k.FORCE_CORRECTION:
-            k.moment_pass(nl.order, self._packed, nl.offsets, nl.indices, chunk)
+            k.moment_pass(nl.order, self._packed, nl.offsets, nl.indices, nl.filter_starts, chunk)
             if after_moments is not None:
                 after_moments(self._packed, k.CM0)
         if k.VELOCITY_RECONSTRUCTION:
-            k.gradient_pass(nl.order, self._packed, nl.offsets, nl.indices, chunk)
+            k.gradient_pass(nl.order, self._packed, nl.offsets, nl.indices, nl.filter_starts,
+                            chunk)
             if after_moments is not None:  # a matrix as C: a mirror ghost gets R L R
                 after_moments(self._packed, k.LV0)
-        k.pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, viscosity.kind,
-                    viscosity.pair, self.options.normal_stress, S, material, table, b.drho,
-                    b.dv, b.de, b.de_visc,
-                    b.contact_force, b.pair_count, b.dS, self._gradients, chunk)
+        k.pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, nl.filter_starts,
+                    viscosity.kind, viscosity.pair, self.options.normal_stress, S, material,
+                    table, b.drho, b.dv, b.de, b.de_visc, b.contact_force, b.pair_count, b.dS,
+                    self._gradients, chunk)
         if b.de_pairs.shape[0]:
             np.copyto(b.de_pairs[:n_active], b.de[:n_active])
         if after_pairs is not None:
@@ -238,8 +239,8 @@ class CpuRates:
                 viscosity.switch, float(switch_elapsed), b.factor, b.memory, chunk)
         if hourglass > 0.0:
             k.hourglass_pass(n_active, nl.order, self._packed, self._gradients, nl.offsets,
-                             nl.indices, material, table, hourglass, hourglass_acceleration,
-                             b.dv, b.de, b.dhg, chunk)
+                             nl.indices, nl.filter_starts, material, table, hourglass,
+                             hourglass_acceleration, b.dv, b.de, b.dhg, chunk)
 
 
     def work_energy(self, n_active: int, work_velocity: np.ndarray, neighbours,
@@ -257,8 +258,8 @@ class CpuRates:
                              "PassOptions(compatible_energy=True)")
         nl = neighbours
         self._packed[:, k.W:k.W + self.dim] = work_velocity[nl.order]
-        k.pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, viscosity.kind,
-                    viscosity.pair, self.options.normal_stress, S, material, table,
+        k.pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, nl.filter_starts,
+                    viscosity.kind, viscosity.pair, self.options.normal_stress, S, material, table,
                     scratch.drho, scratch.dv, scratch.de, scratch.de_visc,
                     scratch.contact_force[:0], scratch.pair_count, scratch.dS,
                     np.empty((0, self.dim, self.dim)), self._chunk[1])
