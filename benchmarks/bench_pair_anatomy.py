@@ -30,14 +30,14 @@ they are measurements of cost, nothing else.
 - ``padded``: the same code handed a list whose rows are padded to a multiple of 8 entries
   with a dummy record far away (no mass, no volume, another body: every sum gets exact
   zeros from it), so that no row leaves a remainder to the loop's scalar epilogue (issue 16's
-  "neighbours padded in blocks of the vector width"). 1D and 2D only: in 3D the pass's skin
+  "neighbours padded in blocks of the vector width"). 1D only: in 2D and 3D the pass's skin
   filter drops the dummies before the loop.
 - ``empty``: the neighbour loop removed: the per-particle part of the pass.
-- ``empty_unfiltered``: ``empty`` without the 3D skin filter: the per-particle part alone.
-- ``unsplit``: 3D, each row's entries all tested against the support before the loop, as
+- ``empty_unfiltered``: ``empty`` without the skin filter: the per-particle part alone.
+- ``unsplit``: 2D and 3D, each row's entries all tested against the support before the loop, as
   before the list's rows were split (``NeighbourList.splits``: the entries within the
   support at the build first, taken untested).
-- ``filter_no_division``: the 3D skin filter (:func:`support_range`) tests ``r^2 < (h_i +
+- ``filter_no_division``: the skin filter (:func:`support_range`) tests ``r^2 < (h_i +
   h_j)^2`` (widened by 1e-12) in place of ``q^2 < 4``, which needs ``1 / h_ij``.
 
 ``--jitter`` moves every particle by up to that fraction of the spacing in each direction,
@@ -132,7 +132,7 @@ FILTER = """                q2 = neighbour_separation(xi0, xi1, xi2, hi, P, j)[6
 
 
 def _filter_no_division(text: str) -> str:
-    """The 3D skin filter's support test without its division: ``r^2 < (h_i + h_j)^2``
+    """The skin filter's support test without its division: ``r^2 < (h_i + h_j)^2``
     (``q < 2`` with ``h_ij = (h_i + h_j) / 2``), a margin of 1e-12 wide so that it keeps
     every pair the loop's own test keeps (the loop masks the rest)."""
     test = """                r2 = neighbour_separation(xi0, xi1, xi2, hi, P, j)[3]
@@ -149,7 +149,7 @@ def _empty(text: str) -> str:
 
 
 def _empty_unfiltered(text: str) -> str:
-    """``empty`` without the 3D skin filter too: the per-particle part alone."""
+    """``empty`` without the skin filter too: the per-particle part alone."""
     assert FILTER in text
     return _empty(text.replace("        if filter_skin:", "        if False:", 1))
 
@@ -273,12 +273,12 @@ def main(argv: list[str] | None = None) -> None:
         if "no_division" in args.variants and int(call[6]) != 0:
             sys.exit("bench_pair_anatomy: no_division replaces viscosity 0, not this case's")
         own = np.repeat(np.arange(offsets.shape[0] - 1, dtype=call[4].dtype), np.diff(offsets))
-        variants = [v for v in args.variants if v != "padded" or dim < 3]
+        variants = [v for v in args.variants if v != "padded" or dim < 2]
         padded = []
         if "padded" in variants:
             columns = {c: int(getattr(passes, c)) for c in ("X", "H", "RHO", "BODY")}
             padded = list(_padded(record, offsets, call[4], columns, dim))
-            padded.append(padded[1][:-1])  # (its starts: 1D and 2D do not read them)
+            padded.append(padded[1][:-1])  # (its starts: 1D does not read them)
 
         def arguments(name, _call=call, _own=own, _transposed=transposed, _padded_=padded):
             if name == "self":

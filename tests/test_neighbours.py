@@ -150,10 +150,10 @@ def _stencil_order_reference(x: np.ndarray, radius: float) -> tuple[np.ndarray, 
 
 
 def _split_row(row: list[int], xs: np.ndarray, p: int, front_limit, dim: int) -> list[int]:
-    """A row as the builder is specified to split it in 3D: the entries ``q`` with ``|x_p -
-    x_q|^2 < front_limit(q)`` first, in the row's order, then the rest in the reverse order
-    (1D and 2D rows are not split)."""
-    if dim < 3:
+    """A row as the builder is specified to split it in 2D and 3D: the entries ``q`` with
+    ``|x_p - x_q|^2 < front_limit(q)`` first, in the row's order, then the rest in the reverse
+    order (1D rows are not split)."""
+    if dim < 2:
         return row
     r2 = [float(np.sum((xs[p] - xs[q]) ** 2)) for q in row]
     return ([q for q, d in zip(row, r2, strict=True) if d < front_limit(q)]
@@ -161,8 +161,8 @@ def _split_row(row: list[int], xs: np.ndarray, p: int, front_limit, dim: int) ->
 
 
 def _check_splits(nl: NeighbourList, dim: int) -> None:
-    """3D: ``splits`` marks each row's front part; 1D and 2D lists have none."""
-    if dim < 3:
+    """2D and 3D: ``splits`` marks each row's front part; 1D lists have none."""
+    if dim < 2:
         assert nl.splits is None
         np.testing.assert_array_equal(nl.filter_starts, nl.offsets[:-1])
         return
@@ -176,8 +176,8 @@ def test_list_order_is_the_stencil_order(dim):
     """Each particle's neighbours in the order the pair sums take them (their order sets the
     sums' last bits): random points, and a lattice with points on the cell borders, near the
     origin and far from it (where the stencil's cells that the builder skips as out of reach
-    are decided in round-off: none that holds a neighbour may be skipped).  With a skin, a 3D
-    row holds the pairs within the support first, in the stencil's order, then the skin's in
+    are decided in round-off: none that holds a neighbour may be skipped).  With a skin, a 2D
+    or 3D row holds the pairs within the support first, in the stencil's order, then the skin's in
     the reverse order, and ``splits`` says where the second part starts."""
     rng = np.random.default_rng(20 + dim)
     dx = 0.25
@@ -199,7 +199,7 @@ def test_list_order_is_the_stencil_order(dim):
         for p, row in enumerate(rows):
             expected = _split_row(row, xs, p, lambda q, f=front: f, dim)
             assert nl.indices[nl.offsets[p]:nl.offsets[p + 1]].tolist() == expected, p
-            if dim == 3:
+            if dim > 1:
                 front_part = nl.indices[nl.offsets[p]:nl.splits[p]]
                 assert np.all(np.sum((xs[front_part] - xs[p]) ** 2, axis=1) < front), p
                 if skin == 0.0:  # without a skin every pair is within the support
@@ -225,7 +225,7 @@ def test_a_radius_per_pair_keeps_each_pairs_own_support(dim):
     assert nl.n_pairs < whole.n_pairs  # the rows are shorter
     np.testing.assert_array_equal(nl.order, whole.order)
     _check_splits(nl, dim)
-    # each row: the stencil-ordered pairs it keeps, in 3D those within their own support
+    # each row: the stencil-ordered pairs it keeps, in 2D and 3D those within their own support
     # ``2 h_ij`` (or the inner list's radius) first (the builder's arithmetic, written out)
     _, rows = _stencil_order_reference(x, nl.radius)
     xs, hs = x[nl.order], h[nl.order]

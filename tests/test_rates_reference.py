@@ -167,14 +167,15 @@ def test_pair_loop_equals_term_by_term_reference(dim, scheme):
         np.testing.assert_allclose(g, w, rtol=0, atol=1e-11 * scale, err_msg=name)
 
 
+@pytest.mark.parametrize("dim", [2, 3])
 @pytest.mark.parametrize("scheme", ["av", "ac"])
-def test_a_list_split_before_the_particles_moved_gives_the_same_rates(scheme):
-    """A 3D list's rows hold the pairs within their support at the build first, which the
+def test_a_list_split_before_the_particles_moved_gives_the_same_rates(dim, scheme):
+    """A 2D or 3D list's rows hold the pairs within their support at the build first, which the
     passes take untested, and test only the rest (``NeighbourList.splits``).  Once the
     particles have moved, within half the skin (the list is not rebuilt), some pairs of the
     front part have left the support and some of the back part have entered it: the rates
     still equal the reference's at the new positions."""
-    sim = two_blocks(3, scheme)
+    sim = two_blocks(dim, scheme)
     sim.solver.rates(sim.state)  # the list at these positions
     nl = sim.solver.neighbours
     builds = nl.builds

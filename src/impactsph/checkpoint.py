@@ -97,7 +97,7 @@ def write_checkpoint(sim: Simulation, path: Path | str) -> Path:
             g.create_dataset("inner_offsets", data=nl.inner_offsets)
             g.create_dataset("inner_indices", data=nl.inner_indices)
             g.attrs["inner_reach"], g.attrs["inner_radius"] = nl.inner_reach, nl.inner_radius
-        if nl.splits is not None:  # 3D: where each row's skin part starts (neighbours.py)
+        if nl.splits is not None:  # 2D and 3D: where each row's skin part starts (neighbours.py)
             g.create_dataset("splits", data=nl.splits)
         g.create_dataset("ghost_src", data=sim.solver._ghost_src)
         g.create_dataset("ghost_wall", data=sim.solver._ghost_wall)
@@ -283,7 +283,7 @@ def load_checkpoint(path: Path | str, case: Any = None, *, verify: bool = True
                            order=g["order"][()] if "order" in g else None,
                            reference_origin=(g["reference_origin"][()]
                                              if "reference_origin" in g else None),
-                           # (a 3D checkpoint written before the rows were split: the passes
+                           # (a 2D or 3D checkpoint written before the rows were split: the passes
                            # test whole rows, the same pairs at round-off)
                            splits=g["splits"][()] if "splits" in g else None, **inner)
         sim.solver.restore(state, nl, g["ghost_src"][()], g["ghost_wall"][()])

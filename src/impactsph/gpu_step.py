@@ -11,7 +11,7 @@ and the rates stay on the device, and a step is a sequence of kernel launches:
   a counting sort by cell (particles in ascending number within a cell, so the order does not
   depend on the threads' scheduling), then the same two sweeps as the CPU builder (count,
   prefix sum, store).  The stencil and the particles within a cell come in the CPU builder's
-  order, and a 3D row is split at the support as the CPU's is, so each particle's neighbours
+  order, and a 2D or 3D row is split at the support as the CPU's is, so each particle's neighbours
   are listed in the same order on both;
 - the rate passes of :func:`impactsph.physics.passes.cuda_kernels` on the device records;
 - the integrator's stages with :func:`~impactsph.physics.passes.advance_particle` (the
@@ -506,9 +506,9 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                          store):
         """The CPU builder's sweep for sorted position ``p``: its neighbours within
         ``radius`` in the 3^dim cells around its own, counted (``store`` False: into
-        ``offsets[p + 1]``) or stored from ``offsets[p]``; in 3D those at or beyond ``front``
-        (the support) from the row's end back, as the CPU builder splits its rows (the device's
-        kernels read whole rows: the order only keeps the two lists the same)."""
+        ``offsets[p + 1]``) or stored from ``offsets[p]``; in 2D and 3D those at or beyond
+        ``front`` (the support) from the row's end back, as the CPU builder splits its rows
+        (the device's kernels read whole rows: the order only keeps the two lists the same)."""
         p = cuda.grid(1)
         if p >= n:
             return
@@ -541,7 +541,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                     d = xs[p, a] - xs[q, a]
                     r2 += d * d
                 if r2 < r2max:
-                    if store and DIM > 2 and r2 >= r2front:
+                    if store and DIM > 1 and r2 >= r2front:
                         indices[back - found_back] = q
                         found_back += 1
                         continue

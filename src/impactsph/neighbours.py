@@ -19,12 +19,12 @@ different widths, ``bodies.N.h_over_dx``; the solver builds it so then) the rows
 carry every pair out to the largest h's reach, which the pair loops would visit and skip.
 The skin's argument is the same: ``h`` is fixed between two builds.
 
-In 3D a row with a skin is held in two parts (``NeighbourList.splits``): the pairs within
-their support at the build first, in the stencil's order, then the rest (the skin's), in the
-reverse of it.  The 3D passes take the front part as it is and test only the rest against
-the support before their vectorised loops (``passes.support_range``): a pair that leaves the
-support before the next build is masked by the loop, and one that enters it is found by the
-test.
+In 2D and 3D a row with a skin is held in two parts (``NeighbourList.splits``): the pairs
+within their support at the build first, in the stencil's order, then the rest (the skin's),
+in the reverse of it.  The 2D and 3D passes take the front part as it is and test only the
+rest against the support before their vectorised loops (``passes.support_range``): a pair
+that leaves the support before the next build is masked by the loop, and one that enters it
+is found by the test.  (1D rows, four to six entries, are not split.)
 
 A list may also carry an *inner list*: the same neighbours, in the same order, of those
 closer than a smaller radius ``reach * 2 h_max + skin`` (the same skin), built in the same
@@ -138,15 +138,16 @@ def _build_functions(dim: int):
         indices = np.empty(0, dtype=np.int32)
         inner_offsets = np.zeros(n + 1 if inner else 0, dtype=np.int64)
         inner_indices = np.empty(0, dtype=np.int32)
-        # 3D with a skin: each row in two parts, the pairs within their support at the build
-        # (or within the inner list's radius) first, in the stencil's order, then the rest of
-        # the row, the skin's, stored from the row's end back (so the count sweep needs no
-        # count of its own for it: the build took no longer); ``splits[p]`` is where the back
-        # part starts.  The 3D passes gather a row's entries within the support before their
+        # 2D and 3D with a skin: each row in two parts, the pairs within their support at the
+        # build (or within the inner list's radius) first, in the stencil's order, then the
+        # rest of the row, the skin's, stored from the row's end back (so the count sweep
+        # needs no count of its own for it: the build is 5-8% slower than unsplit, 15-20%
+        # with a count of its own and a branch); ``splits[p]`` is where the back part starts.
+        # The 2D and 3D passes gather a row's entries within the support before their
         # vectorised loop (``passes.support_range``); they take the front part as it is, and
         # test only the back part (issue 16, benchmarks/README.md).  Without a skin the
         # radius is the support and every row is all front
-        split = dim > 2
+        split = dim > 1
         support_now = radius - skin
         r2front = max(min(support_now * support_now, r2max), r2inner)
         splits = np.zeros(n if split else 0, dtype=np.int64)
@@ -321,9 +322,9 @@ class NeighbourList:
     inner_radius: float = 0.0
     inner_offsets: np.ndarray | None = None
     inner_indices: np.ndarray | None = None
-    #: 3D: where each row's back part starts (module docstring): ``indices[offsets[p]:
+    #: 2D and 3D: where each row's back part starts (module docstring): ``indices[offsets[p]:
     #: splits[p]]`` were within their support at the build, the rest of the row was not.
-    #: None: no split known (1D and 2D, or a list handed in without one)
+    #: None: no split known (1D, or a list handed in without one)
     splits: np.ndarray | None = None
 
     def __post_init__(self) -> None:
@@ -371,11 +372,11 @@ class NeighbourList:
                    inner_reach=float(inner_reach) if inner else 1.0, inner_radius=inner_radius,
                    inner_offsets=inner_offsets if inner else None,
                    inner_indices=inner_indices if inner else None,
-                   splits=splits if dim > 2 else None)
+                   splits=splits if dim > 1 else None)
 
     @property
     def filter_starts(self) -> np.ndarray:
-        """Where the 3D passes start testing each row's entries against the support
+        """Where the 2D and 3D passes start testing each row's entries against the support
         (``passes.support_range``): :attr:`splits`, or, without them, each row's start (the
         whole row tested)."""
         return self.offsets[:-1] if self.splits is None else self.splits

@@ -346,8 +346,8 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     - per particle and ghost: the rate buffers (``RateBuffers``), the packed particle records
       (unpadded: 10 to 22 doubles without the optional columns, the viscous acceleration's
       only with a correction or a switch), the extended arrays of the wall ghosts (with
-      ``walls``), the neighbour list's offsets, order and reference positions (and in 3D
-      its rows' splits), and the builder's temporaries (cell keys, Morton codes, sort order,
+      ``walls``), the neighbour list's offsets, order and reference positions (and in 2D and
+      3D its rows' splits), and the builder's temporaries (cell keys, Morton codes, sort order,
       sorted positions);
     - per stored neighbour pair: 4 bytes (int32 index);
     - ``history_values`` numbers of the history and the probes (:data:`HISTORY_VALUE_BYTES`
@@ -387,8 +387,8 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
         if not switched:
             per_particle -= 8 * strength_width
             carried = 8 * strength_width
-    # offsets, order, reference, the 3D rows' splits; the build's temporaries
-    neighbour_list = 12 + 4 * d + (4 if d > 2 else 0) + 32 + 8 * d
+    # offsets, order, reference, the 2D and 3D rows' splits; the build's temporaries
+    neighbour_list = 12 + 4 * d + (4 if d > 1 else 0) + 32 + 8 * d
     if compatible:  # the work pass's rate buffers, the pair energy rates, the velocities
         buffers += (76 + 8 * d) + 8 + 16 * d
     per_row = buffers + records + ghost_arrays + carried + neighbour_list + 4 * neighbours

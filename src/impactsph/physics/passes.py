@@ -125,14 +125,15 @@ PAIR_FASTMATH = {"reassoc", "arcp", "nsz"}
 SWITCH_FASTMATH = PAIR_FASTMATH if SWITCH_VECTORISED else False
 SWITCH_ERROR_MODEL = "numpy" if SWITCH_VECTORISED else "python"
 #: the CPU's vectorised neighbour loops (pair, moment, velocity gradient, hourglass) run over
-#: the neighbours within the support only, gathered first (:func:`support_range`), in 3D: a
-#: quarter of a 3D list row is its Verlet skin, which the masked loops would evaluate in full
-#: (with the gathering the pair pass takes 0.77-0.84 of its time, the moment and hourglass
-#: passes 0.67-0.76, at 1e5 particles).  Not in 1D and 2D: the 2D lattice's rows have no
-#: skin entries at h = 1.2 dx, and there the gathering cost the pair pass 3-5% and the
-#: lighter moment and hourglass loops 20-40% (benchmarks/README.md, "The skin's pairs left
-#: out of the 3D loops").
-SKIN_FILTER = DIM == 3
+#: the neighbours within the support only, gathered first (:func:`support_range`), in 2D and
+#: 3D: a quarter of a 3D list row is its Verlet skin, a sixth of a 2D row at the cases' h =
+#: 1.3 dx, which the masked loops would evaluate in full (in 3D, with the gathering, the pair
+#: pass took 0.77-0.84 of its time, the moment and hourglass passes 0.67-0.76, at 1e5
+#: particles).  Since the rows are split at the support (``NeighbourList.splits``) only their
+#: skin's entries are tested, which made it pay in 2D too: the 2D lattice's pair pass took
+#: 0.91 of its time, the cantilever's step 0.90 (benchmarks/README.md, "The rows split at the
+#: support").  Not in 1D (rows of four to six entries).
+SKIN_FILTER = DIM > 1
 
 _COLUMNS = record_columns(DIM, correction_matrix=FORCE_CORRECTION,
                           artificial_stress=ARTIFICIAL_STRESS > 0.0,
@@ -528,12 +529,12 @@ def support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, starts, fil
     ``(first, last)`` of ``listed`` to run over: ``for k in range(first, last): j =
     listed[k]``.
 
-    With ``filter_skin`` (the CPU passes in 3D, :data:`SKIN_FILTER`; ``listed`` is then a
+    With ``filter_skin`` (the CPU passes in 2D and 3D, :data:`SKIN_FILTER`; ``listed`` is then a
     scratch, :func:`chunk_listed`) the row's front part, ``indices[offsets[p]:starts[p]]``
     (``NeighbourList.filter_starts``: the pairs within their support when the list was
     built), copied as it is, then those of the rest of the row within the kernel support now
     (``q < 2``, the loops' own test, by :func:`neighbour_separation`), in the list's order;
-    otherwise (1D and 2D, and the GPU's kernels, which have no such scratch;
+    otherwise (1D, and the GPU's kernels, which have no such scratch;
     ``listed`` is then ``indices``) the list's whole row.  The list also holds the pairs of
     its Verlet skin, a quarter of a 3D row at a skin of 0.1 of the support, which a
     vectorised loop would evaluate in full and mask; the test is a few operations a pair
@@ -545,7 +546,7 @@ def support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, starts, fil
     only if it is inside.  The pairs left out contribute nothing to any sum (their kernel
     gradient is zero), so only the grouping of the sums' partial sums changes
     (round-off)."""
-    if SKIN_FILTER:  # a constant: in 1D and 2D numba prunes the branch
+    if SKIN_FILTER:  # a constant: in 1D numba prunes the branch
         if filter_skin:
             start = offsets[p]
             end = offsets[p + 1]
@@ -569,9 +570,9 @@ def support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, starts, fil
 def chunk_listed(offsets, indices, start, stop):
     """What the vectorised loops of the sorted positions ``start`` to ``stop - 1`` (one
     chunk of a parallel pass) read their neighbours from, :func:`support_range`'s
-    ``listed``: in 3D (:data:`SKIN_FILTER`) a scratch as long as the chunk's longest list row,
-    in 1D and 2D the list itself."""
-    if SKIN_FILTER:  # a constant: in 1D and 2D numba prunes the branch
+    ``listed``: in 2D and 3D (:data:`SKIN_FILTER`) a scratch as long as the chunk's longest
+    list row, in 1D the list itself."""
+    if SKIN_FILTER:  # a constant: in 1D numba prunes the branch
         longest = 0
         for p in range(start, stop):
             longest = max(longest, offsets[p + 1] - offsets[p])
