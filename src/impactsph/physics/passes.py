@@ -538,8 +538,9 @@ def support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, starts, fil
     ``listed`` is then ``indices``) the list's whole row.  The list also holds the pairs of
     its Verlet skin, a quarter of a 3D row at a skin of 0.1 of the support, which a
     vectorised loop would evaluate in full and mask; the test is a few operations a pair
-    against some 60 in the pair loop, and the front part needs none (a third of the pass's
-    time before the rows were split; issue 16, benchmarks/README.md).  A front pair that has
+    against some 60 in the pair loop, and the front part needs none (the test of every entry
+    was a quarter of the 3D pass's time before the rows were split; issue 16,
+    benchmarks/README.md).  A front pair that has
     left the support since the build is masked by the loop, as every pair is, and a skin
     pair that has entered it is found by the test, so the pairs summed are the same whatever
     the split.  The test is branch-free: each entry is written, and the count moves past it
