@@ -532,7 +532,7 @@ def _rate_calls(name: str, overrides: list[str], seed: int) -> list[dict]:
     nl = third["neighbours"]
     nl.offsets, nl.indices = _thinned(nl.offsets, nl.indices)
     nl.inner_offsets = nl.inner_indices = None  # (the inner list was the old list's)
-    nl.splits = None  # (and so were the rows' splits, 3D)
+    nl.splits = None  # (and so were the rows' splits, 2D and 3D)
     nl.inner_reach = 1.0
     third["m"] = second["m"] * (1.0 + 0.1 * rng.random(second["m"].shape))
     for call in (first, second, third):

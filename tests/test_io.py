@@ -19,6 +19,7 @@ from impactsph.checkpoint import load_checkpoint, write_checkpoint
 from impactsph.cli import app
 from impactsph.errors import CaseError
 from impactsph.loading import load_case
+from impactsph.neighbours import NeighbourList
 from impactsph.runner import run_case
 from impactsph.simulation import Simulation
 
@@ -303,3 +304,32 @@ def test_checkpoint_keeps_the_inner_list_and_loads_without_one(tmp_path):
     sim.run()
     for name, arr in final_arrays(sim).items():
         np.testing.assert_array_equal(again.state.arrays()[name], arr, err_msg=name)
+
+
+def test_checkpoint_without_the_rows_splits_loads_and_a_wrong_split_is_refused(tmp_path):
+    """A checkpoint written before the rows were split (no ``splits``) continues with every
+    row tested against the support: the same pairs, so the run ends where the uninterrupted
+    one does, to round-off; splits of another list's length are refused by name."""
+    case = load_case("taylor", ["time.end=2e-6"])
+    sim = Simulation(case)
+    sim.run(t_end=1e-6)
+    path = write_checkpoint(sim, tmp_path / "checkpoint.h5")
+    with h5py.File(path, "a") as f:
+        del f.attrs["sha256"]
+        assert f["neighbours"]["splits"].shape == (sim.solver.neighbours.offsets.shape[0] - 1,)
+        del f["neighbours"]["splits"]
+    again = load_checkpoint(path, case)
+    assert again.solver.neighbours.splits is None
+    again.run()
+    sim.run()
+    for name, arr in final_arrays(sim).items():
+        got = again.state.arrays()[name]
+        if arr.size == 0 or arr.dtype.kind != "f":
+            np.testing.assert_array_equal(got, arr, err_msg=name)
+            continue
+        np.testing.assert_allclose(got, arr, rtol=0, atol=1e-11 * max(np.abs(arr).max(), 1e-300),
+                                   err_msg=name)
+    nl = sim.solver.neighbours
+    with pytest.raises(ValueError, match=r"splits has shape \(3,\)"):
+        NeighbourList(nl.offsets, nl.indices, nl.radius, nl.skin, nl.reference_positions,
+                      order=nl.order, splits=nl.splits[:3])

@@ -866,6 +866,9 @@ class ResidentStep:
             # the same sums): the host's, of an older build, goes
             nl.inner_reach, nl.inner_radius = 1.0, 0.0
             nl.inner_offsets = nl.inner_indices = None
+            # nor the rows' splits (its rows are split as the CPU's, but it keeps no marks):
+            # the host's, of an older build, go, and the CPU passes test whole rows
+            nl.splits = None
             src, wall = ((self._fetch(self.ghost_src), self._fetch(self.ghost_wall))
                          if self.n_ghosts else (np.zeros(0, np.int64), np.zeros(0, np.int64)))
             s.synchronize()
@@ -1000,7 +1003,7 @@ class ResidentStep:
         self._launch("gather", n, n, order, x, xs)
         offsets = self._buffer("offsets", n + 1, np.int64)
         self._launch("zero", n + 1, offsets)
-        front = radius - self.skin  # the support (3D rows split there, as the CPU's)
+        front = radius - self.skin  # the support (2D and 3D rows split there, as the CPU's)
         self._launch("neighbours", n, n, xs, lo, radius, front, d_ncell, counts, ends, offsets,
                      offsets, False)
         self._scan(offsets[1:], n)

@@ -323,8 +323,8 @@ class NeighbourList:
     inner_offsets: np.ndarray | None = None
     inner_indices: np.ndarray | None = None
     #: 2D and 3D: where each row's back part starts (module docstring): ``indices[offsets[p]:
-    #: splits[p]]`` were within their support at the build, the rest of the row was not.
-    #: None: no split known (1D, or a list handed in without one)
+    #: splits[p]]`` were within their support (or the inner list's radius) at the build, the
+    #: rest of the row was not.  None: no split known (1D, or a list handed in without one)
     splits: np.ndarray | None = None
 
     def __post_init__(self) -> None:
@@ -338,6 +338,10 @@ class NeighbourList:
             raise ValueError(f"an inner list needs its offsets, its indices, inner_reach in "
                              f"(0, 1) and inner_radius above the skin; got inner_reach = "
                              f"{self.inner_reach!r}, inner_radius = {self.inner_radius!r}")
+        rows = self.offsets.shape[0] - 1
+        if self.splits is not None and self.splits.shape != (rows,):
+            raise ValueError(f"splits has shape {self.splits.shape}: one entry per row of the "
+                             f"list, ({rows},), or None")
 
     @classmethod
     def build(cls, x: np.ndarray, support: float, skin: float = 0.0,

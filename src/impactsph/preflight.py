@@ -387,8 +387,9 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
         if not switched:
             per_particle -= 8 * strength_width
             carried = 8 * strength_width
-    # offsets, order, reference, the 2D and 3D rows' splits; the build's temporaries
-    neighbour_list = 12 + 4 * d + (4 if d > 1 else 0) + 32 + 8 * d
+    # offsets, order, reference, the 2D and 3D rows' splits (built as 8 B, kept as 4); the
+    # build's temporaries
+    neighbour_list = 12 + 4 * d + (8 if d > 1 else 0) + 32 + 8 * d
     if compatible:  # the work pass's rate buffers, the pair energy rates, the velocities
         buffers += (76 + 8 * d) + 8 + 16 * d
     per_row = buffers + records + ghost_arrays + carried + neighbour_list + 4 * neighbours
