@@ -39,6 +39,14 @@ def test_the_variants_edit_the_neighbour_loop(dim, benchmark_script):
         # the separation helper: the template's, reading the copy
         helper = edited[edited.index("def neighbour_separation_t("):]
         assert "PT[X, j]" in helper and "PT[H, j]" in helper and "P[j, " not in helper
+    # the skin filter's variants edit support_range (their edit asserts it found the test)
+    edited = anatomy.VARIANTS["filter_no_division"](text)
+    compile(edited, "filter_no_division", "exec")
+    assert anatomy.FILTER not in edited and "r2 < reach * reach" in edited
+    edited = anatomy.VARIANTS["empty_unfiltered"](text)
+    compile(edited, "empty_unfiltered", "exec")
+    support = edited[edited.index("def support_range("):edited.index("def chunk_listed(")]
+    assert "        if False:" in support and "if filter_skin:" not in support
 
 
 def test_padded_rows_keep_their_entries_and_end_in_the_dummy(benchmark_script):

@@ -83,6 +83,15 @@ def final_arrays(sim):
     return {k: v.copy() for k, v in sim.state.arrays().items()}
 
 
+def _halfway_checkpoint(tmp_path):
+    """The shortened Taylor bar run to half its 2 us and checkpointed there: ``(case, sim,
+    path)``, the simulation ready to run on to the end."""
+    case = load_case("taylor", ["time.end=2e-6"])
+    sim = Simulation(case)
+    sim.run(t_end=1e-6)
+    return case, sim, write_checkpoint(sim, tmp_path / "checkpoint.h5")
+
+
 @pytest.mark.parametrize("case_name,overrides", [
     ("bars", ["time.end=12e-6"]),
     # total-Lagrangian bodies in contact: the contact list is rebuilt after a restart
@@ -227,10 +236,7 @@ def test_checkpoint_before_the_thickness_ratio_loads(tmp_path):
     from impactsph.materials import TableLayout
     from impactsph.models.columns import THICKNESS_RATIO
 
-    case = load_case("taylor", ["time.end=2e-6"])
-    sim = Simulation(case)
-    sim.run(t_end=1e-6)
-    path = write_checkpoint(sim, tmp_path / "checkpoint.h5")
+    case, sim, path = _halfway_checkpoint(tmp_path)
     with h5py.File(path, "a") as f:
         del f.attrs["sha256"]
         ms = f["state"]["material_state"][()]
@@ -260,11 +266,8 @@ def test_checkpoint_of_the_registered_width_loads(tmp_path):
     came from, which now carries fewer columns."""
     from impactsph.materials import TableLayout
 
-    case = load_case("taylor", ["time.end=2e-6"])
-    sim = Simulation(case)
+    case, sim, path = _halfway_checkpoint(tmp_path)
     assert sim.state.material_state.shape[1] < TableLayout.registered().state_width
-    sim.run(t_end=1e-6)
-    path = write_checkpoint(sim, tmp_path / "checkpoint.h5")
     with h5py.File(path, "a") as f:
         del f.attrs["sha256"]
         ms = f["state"]["material_state"][()]
@@ -284,10 +287,7 @@ def test_checkpoint_keeps_the_inner_list_and_loads_without_one(tmp_path):
     """The neighbour list's inner list (AC's correction pass reads it) is written and read
     back; a checkpoint of a version that wrote none continues on the whole list, to the same
     bits."""
-    case = load_case("taylor", ["time.end=2e-6"])
-    sim = Simulation(case)
-    sim.run(t_end=1e-6)
-    path = write_checkpoint(sim, tmp_path / "checkpoint.h5")
+    case, sim, path = _halfway_checkpoint(tmp_path)
     kept = load_checkpoint(path, case).solver.neighbours
     nl = sim.solver.neighbours
     assert kept.inner_reach == nl.inner_reach == 0.5
@@ -310,10 +310,7 @@ def test_checkpoint_without_the_rows_splits_loads_and_a_wrong_split_is_refused(t
     """A checkpoint written before the rows were split (no ``splits``) continues with every
     row tested against the support: the same pairs, so the run ends where the uninterrupted
     one does, to round-off; splits of another list's length are refused by name."""
-    case = load_case("taylor", ["time.end=2e-6"])
-    sim = Simulation(case)
-    sim.run(t_end=1e-6)
-    path = write_checkpoint(sim, tmp_path / "checkpoint.h5")
+    case, sim, path = _halfway_checkpoint(tmp_path)
     with h5py.File(path, "a") as f:
         del f.attrs["sha256"]
         assert f["neighbours"]["splits"].shape == (sim.solver.neighbours.offsets.shape[0] - 1,)
