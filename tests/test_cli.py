@@ -136,6 +136,33 @@ def test_nan_is_reported_with_step_time_and_particle(tmp_path):
     assert len(rows) == 1 + 51  # header, t = 0 and steps 1-50: all kept
 
 
+def test_a_callback_that_only_reads_the_clock_costs_no_second_survey(monkeypatch):
+    """A run surveys its state once a step.  A callback that reads only ``sim.time``,
+    ``sim.step`` or the record (the command line's progress bar, the history stream) adds no
+    survey; one that reads ``sim.state`` may have changed it, so the state is surveyed again
+    before the next step (``test_nan_is_reported_with_step_time_and_particle`` checks that
+    such a change is caught at its own step)."""
+    from impactsph.simulation import Simulation
+
+    surveys = []
+    original = Simulation._survey
+    monkeypatch.setattr(Simulation, "_survey",
+                        lambda sim: surveys.append(sim.step) or original(sim))
+    case = load_case("bars", ["time.end=2e-6"])
+    counts = {}
+    for name, callback in (("none", None),
+                           ("clock", lambda sim: (sim.time, sim.step, sim.record.history[-1])),
+                           ("state", lambda sim: sim.state.velocity)):
+        sim = Simulation(case)
+        surveys.clear()
+        sim.run(callback=callback)
+        counts[name] = (len(surveys), sim.step)
+    steps = counts["none"][1]
+    assert steps > 10 and counts["clock"][1] == counts["state"][1] == steps
+    assert counts["none"][0] == counts["clock"][0] == steps + 1  # the run's start, each step
+    assert counts["state"][0] == 2 * steps + 1
+
+
 @pytest.mark.parametrize(("scheme", "surge", "fail", "every", "noted"), [
     ("ac", 100, 160, 1, True),      # a surge over the last 60 steps
     ("ac", None, 160, 1, False),    # none: the correction's own work

@@ -479,8 +479,12 @@ class Simulation:
     def run(self, t_end: float | None = None,
             callback: Callable[[Simulation], None] | None = None) -> RunRecord:
         """Advance to ``t_end`` (default: the case's end time).  ``callback(sim)`` is called
-        after every step.  Raises :class:`SimulationError` if the run goes unstable; the
-        record keeps everything up to the last good step."""
+        after every step; a callback that changes the state reaches it through ``sim.state``
+        (reading ``sim.state`` marks it as possibly changed: the next step's CFL step,
+        energies and checks are then surveyed again; one that reads only ``sim.time``,
+        ``sim.step`` or ``sim.record`` costs no second survey).  Raises
+        :class:`SimulationError` if the run goes unstable; the record keeps everything up to
+        the last good step."""
         t_end = self.case.time.end if t_end is None else t_end
         max_steps = self.case.time.max_steps
         every = self.case.output.history_every
@@ -524,9 +528,10 @@ class Simulation:
                 if callback is not None:
                     self._handed_out = False
                     callback(self)
-                    if resident is not None and self._handed_out:
-                        self._upload()  # the callback read the state: it may have changed it
-                    survey = self._survey()  # the callback may have changed the state
+                    if self._handed_out:  # the callback read the state: it may have changed it
+                        if resident is not None:
+                            self._upload()
+                        survey = self._survey()
             self._check(survey, dt0)
         except SimulationError as exc:
             note = self.correction_note()
