@@ -95,9 +95,9 @@ def instrument(sim: Simulation, timers: Timers) -> list[tuple[str, str]]:
                 timers.wrap(passes, name, name)
             parts.append((name, "step"))
     steps: list[tuple[Any, str, str]] = [
-        (integrator, "_advance", "advance (update, return map)"),
+        (integrator, "_stage_pass", "stage (update, return map, walls, survey)"),
         (integrator, "_keep", "start copies"),
-        (integrator, "_constrain", "walls' constraint"),
+        (integrator, "_constrain", "walls' constraint (SSP-RK3's combinations)"),
         (solver, "_build", "neighbour list rebuild"),
         (NeighbourList, "stale", "neighbour list check"),
         (solver, "_fill", "ghosts' fill (copies, fill_ghosts)"),

@@ -18,7 +18,8 @@ def test_the_parts_of_a_short_run_add_up_and_the_package_is_restored(benchmark_s
     assert result["steps"] > 10 and result["particles"] == 202
     # the midpoint step: two rate evaluations, each with its particle and pair passes, and
     # two stages of the update
-    for name in ("pair_pass", "particle_pass", "advance (update, return map)", "rate totals"):
+    for name in ("pair_pass", "particle_pass", "stage (update, return map, walls, survey)",
+                 "rate totals"):
         assert parts[name]["calls_per_step"] == 2.0, (name, parts[name])
         assert parts[name]["parent"] == "step"
     # a survey after each step and one before the first

@@ -13,7 +13,6 @@ after each stage and clamped particles held at zero velocity; one stage of one p
 
 from __future__ import annotations
 
-import math
 from functools import cache
 from types import SimpleNamespace
 
@@ -21,49 +20,23 @@ import numba as nb
 import numpy as np
 
 from .jitcache import njit_variant
-from .materials import SHEAR, WAVE_MODULUS, TableLayout
+from .materials import TableLayout
 from .physics.options import PassOptions
 from .physics.rates import compiled_passes
 from .physics.stress_rate import store_upper, symmetric_full
+from .physics.survey import (  # noqa: F401 - bad_field, HOURGLASS_SPEED: their old home
+    HOURGLASS_SPEED,
+    SURVEY_CHUNK,
+    SURVEY_START,
+    SURVEY_WIDTH,
+    bad_field,
+    fold_survey,
+    folded_survey,
+    store_survey,
+    survey_chunks,
+    survey_particle,
+)
 from .state import ParticleState
-
-#: Particles per work item of the survey's partial sums.
-CHUNK = 1024
-#: The hourglass control (docs/stabilisation.md) stiffens and damps the grid-scale modes, so
-#: with it the CFL step uses ``c + HOURGLASS_SPEED zeta c_shear`` for ``c``.  Measured on the
-#: elastic Taylor bar (plane strain, zeta = 2, the gradient correction of the forces, AC): the
-#: energy error stays at 1e-4 up to Courant 0.25 and grows to 10% at 0.3, and the beam is
-#: stable at 0.3 with zeta = 1; 0.25 puts zeta = 2 at an effective Courant number of 0.23.
-HOURGLASS_SPEED = 0.25
-
-
-@nb.njit(inline="always", cache=True)
-def bad_field(i, x, v, rho, e, S):
-    """The first bad field of particle ``i`` (0 position, 1 velocity, 2 density, 3 specific
-    energy, 4 deviatoric stress: non-finite; 5 density: not positive), or -1 (the CPU's
-    survey and the GPU's, :mod:`impactsph.gpu_step`, call this)."""
-    pos_ok = True
-    vel_ok = True
-    for a in range(x.shape[1]):
-        pos_ok = pos_ok and math.isfinite(x[i, a])
-        vel_ok = vel_ok and math.isfinite(v[i, a])
-    stress_ok = True
-    for a in range(3):
-        for b in range(3):
-            stress_ok = stress_ok and math.isfinite(S[i, a, b])
-    if not pos_ok:
-        return 0
-    if not vel_ok:
-        return 1
-    if not math.isfinite(rho[i]):
-        return 2
-    if not math.isfinite(e[i]):
-        return 3
-    if not stress_ok:
-        return 4
-    if not rho[i] > 0.0:
-        return 5
-    return -1
 
 
 def _inertia(state: ParticleState) -> np.ndarray:
@@ -79,57 +52,24 @@ def _survey_kernel(dim: int):
         """One pass over the state: the CFL step (eq 26, with the hourglass control's
         signal speed added where ``hourglass`` (zeta) > 0: :data:`HOURGLASS_SPEED`), kinetic
         energy and momentum (of the mass ``m`` plus the added mass ``added``), internal
-        energy (of ``m``), and the first bad value.  Returns ``(dt, sums, bad)``: ``sums = (KE, IE,
-        p_x, p_y, p_z)``; ``bad = field * n + i`` for the first particle ``i`` of the first
-        field (0 position, 1 velocity, 2 density, 3 specific energy, 4 deviatoric stress:
-        non-finite; 5 density: not positive) that is bad, or -1.  Partial sums per chunk of
-        particles, added in a fixed order: the result does not depend on the threads."""
-        n_chunks = max(1, (n_active + CHUNK - 1) // CHUNK)
-        part = np.zeros((n_chunks, 6))
-        bad_of = np.full(n_chunks, -1, dtype=np.int64)
+        energy (of ``m``), and the first bad value (``rho``: the material density).  Returns
+        ``(dt, sums, bad)``: ``sums = (KE, IE, p_x, p_y, p_z)``; ``bad = field * n + i`` for
+        the first particle ``i`` of the first field (0 position, 1 velocity, 2 density, 3
+        specific energy, 4 deviatoric stress: non-finite; 5 density: not positive) that is
+        bad, or -1.  Partial sums per chunk of particles, added in a fixed order
+        (:mod:`impactsph.physics.survey`): the result does not depend on the threads, and
+        is the one the integrator's last stage gives (:meth:`MidpointIntegrator.step`)."""
+        n_chunks = survey_chunks(n_active)
+        part = np.empty((n_chunks + 1, SURVEY_WIDTH))
+        bad_of = np.empty(n_chunks + 1, dtype=np.int64)
         for chunk in nb.prange(n_chunks):
-            local_dt = np.inf
-            ke = ie = p0 = p1 = p2 = 0.0
-            first = -1
-            for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n_active)):
-                speed2 = 0.0
-                for a in range(dim):
-                    speed2 += v[i, a] * v[i, a]
-                field = bad_field(i, x, v, rho, e, S)
-                if field >= 0:
-                    code = field * n_active + i
-                    if first < 0 or code < first:
-                        first = code
-                c = math.sqrt(table[material[i], WAVE_MODULUS] / rho[i])
-                if hourglass > 0.0:
-                    c += HOURGLASS_SPEED * hourglass * math.sqrt(table[material[i], SHEAR]
-                                                                / rho[i])
-                local_dt = min(local_dt, h[i] / (c + math.sqrt(speed2)))
-                inertia = m[i] + added[i]
-                ke += 0.5 * inertia * speed2
-                ie += m[i] * e[i]
-                p0 += inertia * v[i, 0]
-                if dim > 1:
-                    p1 += inertia * v[i, 1]
-                if dim > 2:
-                    p2 += inertia * v[i, 2]
-            part[chunk, 0] = local_dt
-            part[chunk, 1] = ke
-            part[chunk, 2] = ie
-            part[chunk, 3] = p0
-            part[chunk, 4] = p1
-            part[chunk, 5] = p2
-            bad_of[chunk] = first
-        sums = np.zeros(5)
-        dt = np.inf
-        bad = -1
-        for chunk in range(n_chunks):
-            dt = min(dt, part[chunk, 0])
-            for k in range(5):
-                sums[k] += part[chunk, k + 1]
-            if bad_of[chunk] >= 0 and (bad < 0 or bad_of[chunk] < bad):
-                bad = bad_of[chunk]
-        return courant * dt, sums, bad
+            acc = SURVEY_START
+            for i in range(chunk * SURVEY_CHUNK, min((chunk + 1) * SURVEY_CHUNK, n_active)):
+                acc = survey_particle(i, n_active, x, v, rho[i], rho, e, S, m, added, h,
+                                      material, table, hourglass, acc)
+            store_survey(acc, part, bad_of, chunk)
+        fold_survey(part, bad_of, n_chunks)
+        return courant * part[n_chunks, 0], part[n_chunks, 1:].copy(), bad_of[n_chunks]
 
     return survey
 
@@ -167,9 +107,9 @@ class MidpointIntegrator:
     #: are the same mean of each evaluation's
     WEIGHTS: tuple[float, ...] = (0.0, 1.0)
 
-    def __init__(self, rates, table: np.ndarray, n_active: int, dim: int, constraint=None,
+    def __init__(self, rates, table: np.ndarray, n_active: int, dim: int, walls=None,
                  drivers=None, plane_stress: bool = False, axisymmetric: bool = False,
-                 observe=None, work=None):
+                 observe=None, work=None, hourglass: float = 0.0):
         self.rates = rates
         #: ``work(state, mean_velocity)``: the compatible energy update's correction to the
         #: last evaluation's specific-energy rates (:meth:`impactsph.solver.Solver.work_rates`),
@@ -181,8 +121,11 @@ class MidpointIntegrator:
         self.observe = observe
         #: the driven regions (:class:`impactsph.driven.Drivers`), or None
         self.drivers = drivers
-        # constraint(x, v, m) -> (count, impulse), applied after each stage
-        self.constraint = constraint
+        #: the walls and symmetry planes (:class:`impactsph.boundaries.Walls`), whose
+        #: constraint follows each stage in the stage's own pass, or None
+        self.walls = walls if walls is not None and len(walls) else None
+        self._planes = ((walls.points, walls.normals) if self.walls is not None
+                        else (np.zeros((0, dim)), np.zeros((0, dim))))
         self.constraint_events = 0
         self.constraint_impulse = np.zeros(dim)
         # impulse of the supports that hold clamped particles: minus what the forces on them
@@ -192,9 +135,23 @@ class MidpointIntegrator:
         self.n_active = n_active
         # the stage depends on no option of the pair passes but the 2D model: one module
         # serves every run of that kind
-        self._advance = compiled_passes(dim, options=PassOptions(
-            plane_stress=plane_stress, axisymmetric=axisymmetric)).advance
+        #: the options of the passes' module whose stage this integrator runs
+        self.stage_options = PassOptions(plane_stress=plane_stress, axisymmetric=axisymmetric)
+        self._stage_pass = compiled_passes(dim, options=self.stage_options).stage
         self.survey_kernel = _survey_kernel(dim)
+        #: the hourglass control's zeta, which the survey's signal speed includes
+        self.hourglass = float(hourglass)
+        # the stage's partial results per chunk: the walls' (moved, impulse) and the survey's
+        # (and after them the folded row)
+        chunks = survey_chunks(n_active) + 1
+        self._wall_parts = np.zeros((chunks, 1 + dim))
+        self._survey_parts = np.zeros((chunks, SURVEY_WIDTH))
+        self._bad_of = np.zeros(chunks, dtype=np.int64)
+        #: the survey of the state the last step left, made by its last stage (the midpoint
+        #: step without drivers or the compatible energy update, whose work follows the
+        #: stage): ``(dt, sums, bad)`` as :func:`_survey_kernel`'s, ``dt`` before the Courant
+        #: number; None if that step made none.  :meth:`take_survey` hands it out once.
+        self.last_survey: tuple[float, np.ndarray, int] | None = None
         self._any_clamped: bool | None = None
         self._inertia: np.ndarray | None = None
         self._start: SimpleNamespace | None = None
@@ -203,8 +160,15 @@ class MidpointIntegrator:
     INTEGRATED = ("position", "velocity", "density", "specific_energy", "deviatoric_stress",
                   "plastic_work", "material_state", "hourglass_acceleration")
 
-    def _save_start(self, state: ParticleState) -> SimpleNamespace:
-        """The integrated fields at the start of the step, in buffers reused every step."""
+    def take_survey(self) -> tuple[float, np.ndarray, int] | None:
+        """The survey the last step's last stage made (:attr:`last_survey`), once: None
+        after it has been taken, or if the step made none."""
+        survey, self.last_survey = self.last_survey, None
+        return survey
+
+    def _save_start(self, state: ParticleState, copy: bool = True) -> SimpleNamespace:
+        """The integrated fields at the start of the step, in buffers reused every step
+        (``copy`` False: the buffers only, which the step's first stage fills, ``keep``)."""
         if self._start is None or self._start.position.shape != state.position.shape:
             # the kernels index the columns of the materials' models without bounds checks
             layout = TableLayout.registered()
@@ -213,19 +177,21 @@ class MidpointIntegrator:
             if shape[0] != state.n or not width <= shape[1] <= widest:
                 raise ValueError(f"material_state has shape {shape}; the materials' models "
                                  f"need ({state.n}, k) with {width} <= k <= {widest}")
-        return self._keep(state, "_start")
+        return self._keep(state, "_start", copy)
 
-    def _keep(self, state: ParticleState, name: str) -> SimpleNamespace:
+    def _keep(self, state: ParticleState, name: str, copy: bool = True) -> SimpleNamespace:
         """A copy of the integrated fields of ``state`` in the buffers ``name`` (reused while
-        the shapes stay); the deviator as its six components (the stage's ``S0``:
-        :func:`impactsph.physics.stress_rate.jaumann_stress_rate`), which is what it holds:
-        the stages write it symmetric."""
+        the shapes stay; ``copy`` False: the buffers alone); the deviator as its six
+        components (the stage's ``S0``: :func:`impactsph.physics.stress_rate.
+        jaumann_stress_rate`), which is what it holds: the stages write it symmetric."""
         buf = getattr(self, name, None)
         if buf is None or buf.position.shape != state.position.shape:
             buf = SimpleNamespace(**{f: np.empty_like(getattr(state, f))
                                      for f in self.INTEGRATED if f != "deviatoric_stress"})
             buf.deviatoric_stress = np.empty((state.n, 6))
             setattr(self, name, buf)
+        if not copy:
+            return buf
         for f in self.INTEGRATED:
             if f != "deviatoric_stress":
                 np.copyto(getattr(buf, f), getattr(state, f))
@@ -233,33 +199,49 @@ class MidpointIntegrator:
         return buf
 
     def _stage(self, state: ParticleState, dt: float, start: SimpleNamespace, v_rate, rates,
-               share: float, last: bool) -> int:
+               share: float, last: bool, keep: bool = False, survey: bool = False) -> int:
         """One forward-Euler stage ``y = start + dt ydot`` (positions with ``v_rate``), then
-        the walls' constraint (:meth:`_constrain`, its impulse with the share ``share``; its
-        events counted if this is the step's ``last`` stage)."""
+        the walls' constraint (its impulse with the share ``share`` in the run's books; its
+        events counted if this is the step's ``last`` stage), in one pass
+        (:func:`impactsph.physics.passes.stage`): with ``keep``, the state is first copied
+        into ``start``, particle by particle; with ``survey``, the result is surveyed
+        (:attr:`last_survey`).  Returns the constraint's events."""
         dv, drho, de, dS, dhg = rates
         if dS.ndim != 2 or dS.shape[1] != 6:  # the kernel's error would not say which array
             raise ValueError(f"the rates' dS has shape {dS.shape}; the integrator needs "
                              f"(n, 6): the deviator's rate as its six components (xx, xy, xz, "
                              f"yy, yz, zz), impactsph.physics.stress_rate.jaumann_stress_rate")
-        self._advance(self.n_active, dt, start.position, start.velocity, start.density,
-                      start.specific_energy, start.deviatoric_stress, start.plastic_work,
-                      start.material_state, start.hourglass_acceleration, v_rate, dv, drho, de,
-                      dS, dhg, state.clamped, state.material, self.table,
-                      state.smoothing_length, state.position,
-                      state.velocity, state.density, state.specific_energy,
-                      state.deviatoric_stress, state.plastic_work, state.material_state,
-                      state.hourglass_acceleration)
-        return self._constrain(state, share, last)
+        points, normals = self._planes
+        walls = self._wall_parts
+        self._stage_pass(self.n_active, dt, keep, start.position, start.velocity,
+                         start.density, start.specific_energy, start.deviatoric_stress,
+                         start.plastic_work, start.material_state,
+                         start.hourglass_acceleration, v_rate, dv, drho, de, dS, dhg,
+                         state.clamped, state.material, self.table, state.smoothing_length,
+                         state.position, state.velocity, state.density, state.specific_energy,
+                         state.deviatoric_stress, state.plastic_work, state.material_state,
+                         state.hourglass_acceleration, points, normals, self._inertia, walls,
+                         survey, state.mass, state.added_mass, self.hourglass,
+                         self._survey_parts, self._bad_of)
+        if survey:
+            self.last_survey = folded_survey(self._survey_parts, self._bad_of)
+        if self.walls is None:
+            return 0
+        count = int(walls[-1, 0])  # the chunks' counts and impulses, added in chunk order
+        if share != 0.0:
+            self.constraint_impulse += share * walls[-1, 1:]
+        if last:
+            self.constraint_events += count
+        return count
 
     def _constrain(self, state: ParticleState, share: float, count_events: bool) -> int:
         """The walls' constraint on ``state``: ``share`` times its impulse goes to the run's
         books (``share``: the weight of this state in the step's result; the midpoint
         predictor's state is discarded, 0), and its events if ``count_events`` (those of each
         integrator's last stage, so that the counts compare).  Returns the events."""
-        if self.constraint is None:
+        if self.walls is None:
             return 0
-        count, impulse = self.constraint(state.position, state.velocity, self._inertia)
+        count, impulse = self.walls.enforce(state.position, state.velocity, self._inertia)
         if share != 0.0:
             self.constraint_impulse += share * impulse
         if count_events:
@@ -294,17 +276,22 @@ class MidpointIntegrator:
         if self._any_clamped is None:
             self._any_clamped = bool(state.clamped.any())
             self._inertia = _inertia(state)  # mass + added mass: impulses = inertia dv
-        start = self._save_start(state)
+        self.last_survey = None
+        # the start's copy is made by the predictor's stage (the first rate evaluation
+        # changes none of the integrated fields)
+        start = self._save_start(state, copy=False)
         drivers = self.drivers
         # the predictor's state is discarded: its constraint's impulse has no share
         self._stage(state, 0.5 * dt, start, start.velocity, self._rates(state, 0, state.time),
-                    0.0, False)
+                    0.0, False, keep=True)
         if drivers is not None:
             drivers.apply(state.velocity, state.time + 0.5 * dt)
         rates = self._rates(state, 1, state.time + 0.5 * dt)
         # x(t + dt) = x(t) + dt v(t + dt/2): the kernel reads each particle's midpoint
-        # velocity before it overwrites it, so the velocity array itself is the position rate
-        self._stage(state, dt, start, state.velocity, rates, 1.0, True)
+        # velocity before it overwrites it, so the velocity array itself is the position rate.
+        # The stage surveys its result unless something follows it that changes the state
+        self._stage(state, dt, start, state.velocity, rates, 1.0, True,
+                    survey=drivers is None and self.work is None)
         if drivers is not None:
             drivers.apply(state.velocity, state.time + dt)
             drivers.account(self._inertia, rates[0][: state.n], state.time, dt,

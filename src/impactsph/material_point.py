@@ -60,6 +60,7 @@ from .models.columns import (
 from .physics.options import PassOptions
 from .physics.rates import compiled_passes
 from .physics.stress_rate import jaumann_stress_rate, symmetric_upper
+from .physics.survey import SURVEY_WIDTH
 
 Mode = Literal["uniaxial_strain", "uniaxial_stress", "shear"]
 
@@ -182,6 +183,11 @@ def material_point(material: Any, *, strain_rate: float, strain: float | None = 
         out["tau"][step] = tau
         own[step] = state0[0, layout.strength_state:]
 
+    # the integrator's stage without walls or a survey (its arrays for those, unused)
+    no_walls = (np.zeros((0, 3)), np.zeros((0, 3)), np.ones(1), np.zeros((2, 4)))
+    no_survey = (np.ones(1), np.zeros(1), 0.0, np.zeros((2, SURVEY_WIDTH)),
+                 np.zeros(2, dtype=np.int64))
+
     def stage(L):
         """One forward-Euler step from the start arrays with velocity gradient L."""
         L = np.ascontiguousarray(L[:dim, :dim])
@@ -194,8 +200,9 @@ def material_point(material: Any, *, strain_rate: float, strain: float | None = 
         de[0] = tau * float(np.sum(sigma[:dim, :dim] * D)) / rho0[0]
         jaumann_stress_rate(L, S0[0], model.shear_modulus, dS[0])
         S0_six[:] = symmetric_upper(S0)
-        k.advance(1, dt, x0, v0, rho0, e0, S0_six, pw0, state0, hg0, v0, dv, drho, de, dS, dhg,
-                  clamped, mat, table, h, x, v, rho, e, S, pw, state, hg)
+        k.stage(1, dt, False, x0, v0, rho0, e0, S0_six, pw0, state0, hg0, v0, dv, drho, de, dS,
+                dhg, clamped, mat, table, h, x, v, rho, e, S, pw, state, hg, *no_walls, False,
+                *no_survey)
         p_new = pressure_of(rho / state[0, THICKNESS_RATIO], e, state[0, DAMAGE_COLUMN])
         return (1.0 - state[0, DAMAGE_COLUMN]) * S[0] - p_new * np.eye(3)
 

@@ -975,7 +975,7 @@ def before_run(case: Case, quiet: bool = False,
 
 def kernels_cached(case: Case) -> bool | None:
     """Whether numba's disk cache holds the generated passes the case's run uses (its pair
-    pass, and the integrator's advance pass): False means the run compiles them first.  None
+    pass, and the integrator's stage pass): False means the run compiles them first.  None
     where it cannot tell."""
     from .physics.options import PassOptions
     from .physics.rates import compiled_passes
@@ -983,7 +983,7 @@ def kernels_cached(case: Case) -> bool | None:
     try:
         dispatchers = (compiled_passes(case.dimension,
                                        options=PassOptions.of_case(case)).pair_pass,
-                       compiled_passes(case.dimension).advance)
+                       compiled_passes(case.dimension).stage)
         return all(Path(d._cache._cache_file._index_path).is_file() for d in dispatchers)
     except (AttributeError, OSError, TypeError):
         return None

@@ -151,11 +151,12 @@ class Simulation:
             self.state.hourglass_acceleration = np.zeros((self.state.n, self.state.dim))
         self.integrator = INTEGRATORS[case.time.integrator](
             self.solver.rates, self.problem.table, self.state.n, self.state.dim,
-            constraint=self.walls.enforce if len(self.walls) else None,
+            walls=self.walls,
             drivers=Drivers.of(case, self.state),
             plane_stress=case.two_dimensional == "plane_stress",
             axisymmetric=case.two_dimensional == "axisymmetric", observe=self._observe,
-            work=self._work if case.time.energy_update == "compatible" else None)
+            work=self._work if case.time.energy_update == "compatible" else None,
+            hourglass=float(case.stabilisation.hourglass))
         #: the step's mean powers (AV heating, AC work, AC heating; W) and wall force (N),
         #: the integrator's weights over its rate evaluations (:meth:`_observe`)
         self._step_books = (0.0, 0.0, 0.0, np.zeros(self.state.dim))
@@ -297,10 +298,16 @@ class Simulation:
         if self._resident is not None:
             dt, sums, bad = self._resident.survey(self.case.time.courant)
             return Survey(dt, float(sums[0]), float(sums[1]), sums[2: 2 + s.dim].copy(), bad)
-        dt, sums, bad = self.integrator.survey_kernel(
-            s.n, s.position, s.velocity, s.material_density, s.specific_energy,
-            s.deviatoric_stress, s.mass, s.added_mass, s.smoothing_length, s.material,
-            self.problem.table, self.case.time.courant, float(self.case.stabilisation.hourglass))
+        made = self.integrator.take_survey()  # the last stage's, where it made one
+        if made is not None:
+            step, sums, bad = made
+            dt = self.case.time.courant * step
+        else:
+            dt, sums, bad = self.integrator.survey_kernel(
+                s.n, s.position, s.velocity, s.material_density, s.specific_energy,
+                s.deviatoric_stress, s.mass, s.added_mass, s.smoothing_length, s.material,
+                self.problem.table, self.case.time.courant,
+                float(self.case.stabilisation.hourglass))
         # a solver's own limit (the total-Lagrangian hourglass penalty's and walls')
         dt = min(float(dt), self.solver.step_limit(s))
         return Survey(dt, float(sums[0]), float(sums[1]), sums[2: 2 + s.dim].copy(),

@@ -4,7 +4,7 @@
 formulation").
 
 It returns the same ``(dv, drho, de, dS, dhg)`` as the updated-Lagrangian solver, so the
-midpoint integrator and its compiled ``advance`` stage (the EOS, the strength model's return
+midpoint integrator and its compiled ``stage`` pass (the EOS, the strength model's return
 map, the heating and the damage) are the same.  Bodies meet through a penalty contact
 (:mod:`impactsph.physics.penalty_contact`), as LAMMPS SMD's total-Lagrangian bodies do, and a
 rigid wall pushes a body as its mirror image would (:func:`~impactsph.physics.penalty_contact.

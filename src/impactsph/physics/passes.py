@@ -27,7 +27,7 @@ momentum (eq 27), energy (eq 28) and Jaumann stress-rate (eq 14) equations:
    return map.
 
 The CPU passes (:func:`particle_pass`, :func:`pair_pass`, :func:`correction_pass`,
-:func:`advance`) run these bodies over parallel chunks; :func:`cuda_kernels` runs the same
+:func:`stage`) run these bodies over parallel chunks; :func:`cuda_kernels` runs the same
 bodies, one CUDA thread per particle.
 """
 
@@ -38,6 +38,7 @@ import math
 import numba as nb
 import numpy as np
 
+from impactsph.boundaries import enforce_particle
 from impactsph.kernels import cubic_spline_gradient_factor, cubic_spline_shape
 from impactsph.materials import (
     BULK,
@@ -73,7 +74,15 @@ from impactsph.physics.energy import viscous_heating_pair
 from impactsph.physics.momentum import viscous_acceleration_pair
 from impactsph.physics.reconstruction import reconstructed_approach
 from impactsph.physics.records import record_columns, symmetric_index
-from impactsph.physics.stress_rate import UPPER, jaumann_stress_rate_nd
+from impactsph.physics.stress_rate import UPPER, jaumann_stress_rate_nd, store_upper
+from impactsph.physics.survey import (
+    SURVEY_CHUNK,
+    SURVEY_START,
+    fold_survey,
+    store_survey,
+    survey_chunks,
+    survey_particle,
+)
 
 # >>> binding: replaced by impactsph.codegen in each generated copy
 DIM = 3
@@ -1534,14 +1543,77 @@ def hourglass_pass(n_active, order, P, L_sorted, offsets, indices, starts, mater
                                    hg, dv, de, dhg, listed, starts, SKIN_FILTER)
 
 
+@JIT(inline="always", cache=True)
+def keep_particle(i, x, v, rho, e, S, plastic_work, state, hg, x0, v0, rho0, e0, S0, pw0,
+                  state0, hg0):
+    """Particle ``i``'s integrated fields into the step's start copy (the deviator as its six
+    components, :data:`UPPER`)."""
+    for a in range(x.shape[1]):
+        x0[i, a] = x[i, a]
+        v0[i, a] = v[i, a]
+    rho0[i] = rho[i]
+    e0[i] = e[i]
+    store_upper(S, S0, i)
+    pw0[i] = plastic_work[i]
+    for c in range(state.shape[1]):
+        state0[i, c] = state[i, c]
+    for a in range(hg.shape[1]):
+        hg0[i, a] = hg[i, a]
+
+
 @JIT(parallel=True, cache=True)
-def advance(n_active, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, drho, de, dS,
-            dhg, clamped, material, table, h, x, v, rho, e, S, plastic_work, state, hg):
-    """:func:`advance_particle` for every active particle."""
-    for i in nb.prange(n_active):
-        advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, drho, de,
-                         dS, dhg, clamped, material, table, h, x, v, rho, e, S, plastic_work,
-                         state, hg)
+def stage(n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, drho, de,
+          dS, dhg, clamped, material, table, h, x, v, rho, e, S, plastic_work, state, hg,
+          points, normals, inertia, walls, survey, m, added, hourglass, surveyed, bad_of):
+    """One integrator stage of every active particle, in one parallel region, chunk by
+    chunk of :data:`SURVEY_CHUNK` particles; for each particle in turn:
+
+    1. with ``keep``, its integrated fields (``x, v, ...``) into the step's start copy
+       (``x0, v0, ...``), before the stage reads that copy (the midpoint step's predictor);
+    2. :func:`advance_particle`;
+    3. the walls' constraint (:func:`impactsph.boundaries.enforce_particle`, planes
+       ``points``, ``normals``; none if they have no rows), its impulse (of the masses
+       ``inertia``) and the times it moved the particle into ``walls[chunk] = (moved,
+       impulse)``, the chunks' sums in chunk order into the last row;
+    4. with ``survey``, the particle into its chunk's survey
+       (:func:`impactsph.physics.survey.survey_particle`, its material density
+       ``rho / thickness ratio`` as :attr:`impactsph.state.ParticleState.material_density`;
+       masses ``m`` and ``added``, hourglass control's ``hourglass``): ``surveyed[chunk]``,
+       ``bad_of[chunk]``, folded into their last rows as the survey's own pass folds them
+       (:func:`impactsph.physics.survey.fold_survey`), to the same bits.
+
+    Each particle's steps read and write only its own rows, so one pass gives what the
+    stage, the walls' pass and the survey gave one after another."""
+    n_chunks = survey_chunks(n_active)
+    for chunk in nb.prange(n_chunks):
+        impulse = walls[chunk, 1:]
+        for a in range(impulse.shape[0]):
+            impulse[a] = 0.0
+        moved = 0
+        acc = SURVEY_START
+        for i in range(chunk * SURVEY_CHUNK, min((chunk + 1) * SURVEY_CHUNK, n_active)):
+            if keep:
+                keep_particle(i, x, v, rho, e, S, plastic_work, state, hg, x0, v0, rho0, e0,
+                              S0, pw0, state0, hg0)
+            advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, drho,
+                             de, dS, dhg, clamped, material, table, h, x, v, rho, e, S,
+                             plastic_work, state, hg)
+            if points.shape[0] > 0:
+                moved += enforce_particle(i, x, v, inertia, points, normals, impulse)
+            if survey:
+                acc = survey_particle(i, n_active, x, v, rho[i] / state[i, THICKNESS_RATIO],
+                                      rho, e, S, m, added, h, material, table, hourglass, acc)
+        walls[chunk, 0] = moved
+        if survey:
+            store_survey(acc, surveyed, bad_of, chunk)
+    # the chunks' results in chunk order, into the row after them
+    for k in range(walls.shape[1]):
+        walls[n_chunks, k] = 0.0
+    for chunk in range(n_chunks):
+        for k in range(walls.shape[1]):
+            walls[n_chunks, k] += walls[chunk, k]
+    if survey:
+        fold_survey(surveyed, bad_of, n_chunks)
 
 
 @JIT(parallel=True, cache=True)

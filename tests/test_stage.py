@@ -1,0 +1,141 @@
+"""The integrator's stage in one pass (:func:`impactsph.physics.passes.stage`): the start
+copy, the update and return map, the walls' constraint and the survey of the result, particle
+by particle, give what the start copy alone (``MidpointIntegrator._keep``), the update alone,
+the walls' pass (:meth:`impactsph.boundaries.Walls.enforce`) and the survey's own pass
+(:func:`impactsph.integrate._survey_kernel`) give one after another:
+the state to the bit, the survey to the bit, the walls' impulse to round-off (its chunks'
+sums are added in chunk order, the walls' pass added particle by particle)."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+import pytest
+
+from impactsph import Simulation, load_case
+from impactsph.integrate import _inertia
+from impactsph.models.columns import THICKNESS_RATIO
+from impactsph.physics.rates import compiled_passes
+
+FIELDS = ("position", "velocity", "density", "specific_energy", "deviatoric_stress",
+          "plastic_work", "material_state", "hourglass_acceleration")
+
+
+def _pushed_through_the_wall(overrides: list[str]) -> Simulation:
+    """The Taylor bar with the particles of its first two rows put behind the anvil's plane,
+    so that the walls' constraint has work to do."""
+    sim = Simulation(load_case("taylor", ["output.figures=false", *overrides]))
+    s, walls = sim.state, sim.walls
+    d = (s.position - walls.points[0]) @ walls.normals[0]
+    near = d < 2.5 * float(np.median(np.diff(np.unique(s.position[:, 1]))))
+    s.position[near] -= np.outer(d[near] + 1e-4, walls.normals[0])
+    assert near.sum() > 50
+    return sim
+
+
+@pytest.mark.parametrize("overrides", [
+    [],
+    ['two_dimensional="plane_stress"'],  # the material density is rho over the thickness
+    ["stabilisation.hourglass=1.0"],  # the hourglass control's signal speed
+], ids=["plane_strain", "plane_stress", "hourglass"])
+def test_the_stage_in_one_pass_is_the_stage_then_the_walls_then_the_survey(overrides):
+    sim = _pushed_through_the_wall(overrides)
+    s, it = sim.state, sim.integrator
+    if "plane_stress" in str(overrides):  # a plate thinned already: rho / 0.9 sets the CFL
+        s.material_state[:, THICKNESS_RATIO] = 0.9
+    rates = [np.array(r) for r in sim.solver.rates(s)]
+    dt = 0.3 * it.survey_kernel(s.n, s.position, s.velocity, s.material_density,
+                                s.specific_energy, s.deviatoric_stress, s.mass, s.added_mass,
+                                s.smoothing_length, s.material, it.table, 1.0,
+                                it.hourglass)[0]
+    it._inertia = _inertia(s)
+    # apart: the step's start copy (numpy's), the stage alone (no walls, no survey), the
+    # walls' pass, the survey's pass
+    apart = s.copy()
+    start = it._keep(apart, "_apart")
+    dim = apart.dim
+    compiled_passes(dim, options=it.stage_options).stage(
+        it.n_active, dt, False, start.position, start.velocity, start.density,
+        start.specific_energy, start.deviatoric_stress, start.plastic_work,
+        start.material_state, start.hourglass_acceleration, start.velocity, *rates,
+        apart.clamped, apart.material, it.table, apart.smoothing_length,
+        *(getattr(apart, f) for f in FIELDS), np.zeros((0, dim)), np.zeros((0, dim)),
+        it._inertia, np.zeros_like(it._wall_parts), False, apart.mass, apart.added_mass,
+        it.hourglass, np.zeros_like(it._survey_parts), np.zeros_like(it._bad_of))
+    moved, impulse = sim.walls.enforce(apart.position, apart.velocity, it._inertia)
+    expected = it.survey_kernel(apart.n, apart.position, apart.velocity,
+                                apart.material_density, apart.specific_energy,
+                                apart.deviatoric_stress, apart.mass, apart.added_mass,
+                                apart.smoothing_length, apart.material, it.table, 1.0,
+                                it.hourglass)
+    # in one pass, the start copy made by the stage itself
+    kept = {f: getattr(s, f).copy() for f in FIELDS}
+    together = it._save_start(s, copy=False)
+    count = it._stage(s, dt, together, together.velocity, rates, 1.0, True, keep=True,
+                      survey=True)
+    assert moved > 50 and count == moved == it.constraint_events
+    np.testing.assert_allclose(it.constraint_impulse, impulse, rtol=1e-13, atol=0.0)
+    for f in FIELDS:
+        np.testing.assert_array_equal(getattr(s, f), getattr(apart, f), err_msg=f)
+        if f != "deviatoric_stress":  # kept as its six components
+            np.testing.assert_array_equal(getattr(together, f), kept[f], err_msg=f)
+    np.testing.assert_array_equal(together.deviatoric_stress, start.deviatoric_stress)
+    survey = it.take_survey()
+    assert survey[0] == expected[0] and survey[2] == expected[2] == -1
+    np.testing.assert_array_equal(survey[1], expected[1])
+    assert it.take_survey() is None  # handed out once
+
+
+def test_the_stages_survey_finds_the_first_bad_value_and_needs_no_thread_count():
+    """A non-finite value is reported as the survey's own pass reports it (the first particle
+    of the first bad field), and the survey's bits do not depend on the number of threads."""
+    sim = Simulation(load_case("taylor", ["output.figures=false"]))
+    s, it = sim.state, sim.integrator
+    rates = [np.array(r) for r in sim.solver.rates(s)]
+    s.specific_energy[[900, 31]] = np.nan
+    s.velocity[1200, 1] = np.inf
+    it._inertia = _inertia(s)
+    results = []
+    threads = numba.get_num_threads()
+    try:
+        for n_threads in sorted({1, threads}):
+            numba.set_num_threads(n_threads)
+            state = s.copy()
+            start = it._save_start(state, copy=False)
+            it._stage(state, 1e-9, start, start.velocity, rates, 1.0, True, keep=True,
+                      survey=True)
+            results.append((state, it.take_survey()))
+    finally:
+        numba.set_num_threads(threads)
+    state, (step, sums, bad) = results[0]
+    # the infinite velocity moves its particle to infinity: the position (field 0) comes
+    # before the other fields and the NaN energies (field 3) of lower particles
+    assert bad == 0 * s.n + 1200
+    expected = it.survey_kernel(state.n, state.position, state.velocity,
+                                state.material_density, state.specific_energy,
+                                state.deviatoric_stress, state.mass, state.added_mass,
+                                state.smoothing_length, state.material, it.table, 1.0, 0.0)
+    assert (step, bad) == (expected[0], expected[2])
+    np.testing.assert_array_equal(sums, expected[1])
+    for other, (o_step, o_sums, o_bad) in results[1:]:
+        assert (o_step, o_bad) == (step, bad)
+        np.testing.assert_array_equal(o_sums, sums)
+        for f in FIELDS:
+            np.testing.assert_array_equal(getattr(other, f), getattr(state, f), err_msg=f)
+
+
+def test_a_run_surveyed_by_its_stages_is_a_run_surveyed_apart():
+    """A run whose steps are surveyed by their last stage, and the same run with a callback
+    that reads the state (so that every step is surveyed again by the survey's own pass,
+    whose CFL step the next step takes), end in the same state and history, to the bit."""
+    case = load_case("taylor", ["output.figures=false", "time.end=3e-6"])
+    runs = []
+    for callback in (None, lambda sim: sim.state):
+        sim = Simulation(case)
+        sim.run(callback=callback)
+        runs.append(sim)
+    a, b = runs
+    assert a.step == b.step > 50
+    for f in FIELDS:
+        np.testing.assert_array_equal(getattr(a.state, f), getattr(b.state, f), err_msg=f)
+    assert a.record.history == b.record.history
