@@ -47,7 +47,7 @@ def test_the_stage_in_one_pass_is_the_stage_then_the_walls_then_the_survey(overr
     dt = 0.3 * it.survey_kernel(s.n, s.position, s.velocity, s.material_density,
                                 s.specific_energy, s.deviatoric_stress, s.mass, s.added_mass,
                                 s.smoothing_length, s.material, it.table, 1.0,
-                                it.hourglass)[0]
+                                it.hourglass, *it.planes)[0]
     it._inertia = _inertia(s)
     # apart: the step's start copy (numpy's), the stage alone (no walls, no survey), the
     # walls' pass, the survey's pass
@@ -67,7 +67,7 @@ def test_the_stage_in_one_pass_is_the_stage_then_the_walls_then_the_survey(overr
                                 apart.material_density, apart.specific_energy,
                                 apart.deviatoric_stress, apart.mass, apart.added_mass,
                                 apart.smoothing_length, apart.material, it.table, 1.0,
-                                it.hourglass)
+                                it.hourglass, *it.planes)
     # in one pass, the start copy made by the stage itself
     kept = {f: getattr(s, f).copy() for f in FIELDS}
     together = it._save_start(s, copy=False)
@@ -81,6 +81,7 @@ def test_the_stage_in_one_pass_is_the_stage_then_the_walls_then_the_survey(overr
             np.testing.assert_array_equal(getattr(together, f), kept[f], err_msg=f)
     np.testing.assert_array_equal(together.deviatoric_stress, start.deviatoric_stress)
     survey = it.take_survey()
+    # -1: the constraint left no particle behind the wall, and nothing is bad
     assert survey[0] == expected[0] and survey[2] == expected[2] == -1
     np.testing.assert_array_equal(survey[1], expected[1])
     assert it.take_survey() is None  # handed out once
@@ -114,7 +115,8 @@ def test_the_stages_survey_finds_the_first_bad_value_and_needs_no_thread_count()
     expected = it.survey_kernel(state.n, state.position, state.velocity,
                                 state.material_density, state.specific_energy,
                                 state.deviatoric_stress, state.mass, state.added_mass,
-                                state.smoothing_length, state.material, it.table, 1.0, 0.0)
+                                state.smoothing_length, state.material, it.table, 1.0, 0.0,
+                                *it.planes)
     assert (step, bad) == (expected[0], expected[2])
     np.testing.assert_array_equal(sums, expected[1])
     for other, (o_step, o_sums, o_bad) in results[1:]:
@@ -139,3 +141,30 @@ def test_a_run_surveyed_by_its_stages_is_a_run_surveyed_apart():
     for f in FIELDS:
         np.testing.assert_array_equal(getattr(a.state, f), getattr(b.state, f), err_msg=f)
     assert a.record.history == b.record.history
+
+
+def test_a_particle_behind_a_wall_is_the_surveys_last_kind_of_bad_value():
+    """The survey reports a particle behind a wall (or symmetry plane) as bad, after every
+    bad field (``6 n + i``, as the GPU's survey does), and the run stops before its next
+    step saying so."""
+    from impactsph.errors import SimulationError
+
+    sim = Simulation(load_case("taylor", ["output.figures=false"]))
+    s, it = sim.state, sim.integrator
+    d = (s.position - sim.walls.points[0]) @ sim.walls.normals[0]
+    behind = [int(np.argsort(d)[5]), int(np.argsort(d)[2])]
+    s.position[behind] -= np.outer(d[behind] + 1e-5, sim.walls.normals[0])
+
+    def survey():
+        return it.survey_kernel(s.n, s.position, s.velocity, s.material_density,
+                                s.specific_energy, s.deviatoric_stress, s.mass, s.added_mass,
+                                s.smoothing_length, s.material, it.table, 1.0, 0.0,
+                                *it.planes)[2]
+
+    assert survey() == 6 * s.n + min(behind)
+    s.density[max(behind) + 1] = -1.0  # a bad field comes first, whichever the particle
+    assert survey() == 5 * s.n + max(behind) + 1
+    s.density[max(behind) + 1] = s.density[0]
+    with pytest.raises(SimulationError, match="particle crossed a wall") as info:
+        sim.run()
+    assert info.value.particle == min(behind) and info.value.step == 0

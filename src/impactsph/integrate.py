@@ -48,14 +48,16 @@ def _inertia(state: ParticleState) -> np.ndarray:
 @cache
 def _survey_kernel(dim: int):
     @njit_variant(f"{dim}d", parallel=True)
-    def survey(n_active, x, v, rho, e, S, m, added, h, material, table, courant, hourglass):
+    def survey(n_active, x, v, rho, e, S, m, added, h, material, table, courant, hourglass,
+               points, normals):
         """One pass over the state: the CFL step (eq 26, with the hourglass control's
         signal speed added where ``hourglass`` (zeta) > 0: :data:`HOURGLASS_SPEED`), kinetic
         energy and momentum (of the mass ``m`` plus the added mass ``added``), internal
         energy (of ``m``), and the first bad value (``rho``: the material density).  Returns
         ``(dt, sums, bad)``: ``sums = (KE, IE, p_x, p_y, p_z)``; ``bad = field * n + i`` for
         the first particle ``i`` of the first field (0 position, 1 velocity, 2 density, 3
-        specific energy, 4 deviatoric stress: non-finite; 5 density: not positive) that is
+        specific energy, 4 deviatoric stress: non-finite; 5 density: not positive; 6 behind
+        one of the planes ``points``, ``normals``: the walls and symmetry planes) that is
         bad, or -1.  Partial sums per chunk of particles, added in a fixed order
         (:mod:`impactsph.physics.survey`): the result does not depend on the threads, and
         is the one the integrator's last stage gives (:meth:`MidpointIntegrator.step`)."""
@@ -66,7 +68,7 @@ def _survey_kernel(dim: int):
             acc = SURVEY_START
             for i in range(chunk * SURVEY_CHUNK, min((chunk + 1) * SURVEY_CHUNK, n_active)):
                 acc = survey_particle(i, n_active, x, v, rho[i], rho, e, S, m, added, h,
-                                      material, table, hourglass, acc)
+                                      material, table, hourglass, points, normals, acc)
             store_survey(acc, part, bad_of, chunk)
         fold_survey(part, bad_of, n_chunks)
         return courant * part[n_chunks, 0], part[n_chunks, 1:].copy(), bad_of[n_chunks]
@@ -80,11 +82,12 @@ def stable_time_step(state: ParticleState, table: np.ndarray, courant: float,
     survey = _survey_kernel(state.dim)
     n = state.n if n_active is None else n_active
     # the material's density (plane stress and axisymmetry keep a mass per area in density)
+    no_planes = np.zeros((0, state.dim))
     dt, _, _ = survey(n, state.position, state.velocity, state.material_density,
                       state.specific_energy,
                       state.deviatoric_stress, state.mass, state.added_mass,
                       state.smoothing_length,
-                      state.material, table, courant, float(hourglass))
+                      state.material, table, courant, float(hourglass), no_planes, no_planes)
     return float(dt)
 
 
@@ -124,8 +127,9 @@ class MidpointIntegrator:
         #: the walls and symmetry planes (:class:`impactsph.boundaries.Walls`), whose
         #: constraint follows each stage in the stage's own pass, or None
         self.walls = walls if walls is not None and len(walls) else None
-        self._planes = ((walls.points, walls.normals) if self.walls is not None
-                        else (np.zeros((0, dim)), np.zeros((0, dim))))
+        #: the planes' points and normals, ``(n_planes, dim)`` each (no rows without walls)
+        self.planes = ((walls.points, walls.normals) if self.walls is not None
+                       else (np.zeros((0, dim)), np.zeros((0, dim))))
         self.constraint_events = 0
         self.constraint_impulse = np.zeros(dim)
         # impulse of the supports that hold clamped particles: minus what the forces on them
@@ -211,7 +215,7 @@ class MidpointIntegrator:
             raise ValueError(f"the rates' dS has shape {dS.shape}; the integrator needs "
                              f"(n, 6): the deviator's rate as its six components (xx, xy, xz, "
                              f"yy, yz, zz), impactsph.physics.stress_rate.jaumann_stress_rate")
-        points, normals = self._planes
+        points, normals = self.planes
         walls = self._wall_parts
         self._stage_pass(self.n_active, dt, keep, start.position, start.velocity,
                          start.density, start.specific_energy, start.deviatoric_stress,

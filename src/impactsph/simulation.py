@@ -303,11 +303,12 @@ class Simulation:
             step, sums, bad = made
             dt = self.case.time.courant * step
         else:
+            points, normals = self.integrator.planes
             dt, sums, bad = self.integrator.survey_kernel(
                 s.n, s.position, s.velocity, s.material_density, s.specific_energy,
                 s.deviatoric_stress, s.mass, s.added_mass, s.smoothing_length, s.material,
                 self.problem.table, self.case.time.courant,
-                float(self.case.stabilisation.hourglass))
+                float(self.case.stabilisation.hourglass), points, normals)
         # a solver's own limit (the total-Lagrangian hourglass penalty's and walls')
         dt = min(float(dt), self.solver.step_limit(s))
         return Survey(dt, float(sums[0]), float(sums[1]), sums[2: 2 + s.dim].copy(),
@@ -421,15 +422,10 @@ class Simulation:
         result of the previous step and of any callback."""
         s = self._state
         dt = survey.dt
-        if survey.bad >= 0:
+        if survey.bad >= 0:  # (a particle behind a wall too: the survey's last kind)
             field, i = divmod(survey.bad, s.n)
             raise SimulationError(f"{self.BAD_VALUES[field]} {self._where(i)}", s.step, s.time,
                                   i)
-        if len(self.walls) and self._resident is None:  # (on the device: in the survey)
-            i = self.walls.first_behind(s.position)
-            if i >= 0:
-                raise SimulationError(f"particle crossed a wall {self._where(i)}", s.step,
-                                      s.time, i)
         if dt < 1e-6 * dt0:
             raise SimulationError(f"time step collapsed to {dt:.3e} s (initial {dt0:.3e} s) at "
                                   f"step {s.step}, t = {s.time:.6e} s", s.step, s.time, None)

@@ -1578,7 +1578,8 @@ def stage(n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv
     4. with ``survey``, the particle into its chunk's survey
        (:func:`impactsph.physics.survey.survey_particle`, its material density
        ``rho / thickness ratio`` as :attr:`impactsph.state.ParticleState.material_density`;
-       masses ``m`` and ``added``, hourglass control's ``hourglass``): ``surveyed[chunk]``,
+       masses ``m`` and ``added``, hourglass control's ``hourglass``, a particle left behind
+       one of the planes after the constraint a bad value): ``surveyed[chunk]``,
        ``bad_of[chunk]``, folded into their last rows as the survey's own pass folds them
        (:func:`impactsph.physics.survey.fold_survey`), to the same bits.
 
@@ -1602,7 +1603,8 @@ def stage(n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv
                 moved += enforce_particle(i, x, v, inertia, points, normals, impulse)
             if survey:
                 acc = survey_particle(i, n_active, x, v, rho[i] / state[i, THICKNESS_RATIO],
-                                      rho, e, S, m, added, h, material, table, hourglass, acc)
+                                      rho, e, S, m, added, h, material, table, hourglass,
+                                      points, normals, acc)
         walls[chunk, 0] = moved
         if survey:
             store_survey(acc, surveyed, bad_of, chunk)

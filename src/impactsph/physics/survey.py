@@ -16,6 +16,7 @@ import math
 import numba as nb
 import numpy as np
 
+from impactsph.boundaries import plane_distance
 from impactsph.materials import SHEAR, WAVE_MODULUS
 
 #: Particles per work item of the survey's partial sums (and of the stage that surveys).
@@ -26,6 +27,9 @@ SURVEY_CHUNK = 256
 #: energy error stays at 1e-4 up to Courant 0.25 and grows to 10% at 0.3, and the beam is
 #: stable at 0.3 with zeta = 1; 0.25 puts zeta = 2 at an effective Courant number of 0.23.
 HOURGLASS_SPEED = 0.25
+#: the survey's code for a particle behind a wall or symmetry plane (after the bad fields of
+#: :func:`bad_field`, 0-5): ``BEHIND_WALL * n + i``
+BEHIND_WALL = 6
 #: the columns of a chunk's partial survey: the smallest ``h / (c + |v|)`` (s), kinetic and
 #: internal energy (J) and momentum (N s, three components)
 SURVEY_WIDTH = 6
@@ -66,11 +70,13 @@ SURVEY_START = (-1, np.inf, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 @nb.njit(inline="always", cache=True)
 def survey_particle(i, n, x, v, rho_i, rho, e, S, m, added, h, material, table, hourglass,
-                    acc):
+                    points, normals, acc):
     """Particle ``i`` (of ``n``) added to its chunk's survey ``acc = (first, step, KE, IE,
     p_x, p_y, p_z)`` (start: :data:`SURVEY_START`); returns the new ``acc``.  ``first``: the
     chunk's first bad code, ``field * n + i`` for the first particle of the first bad field
-    (:func:`bad_field`), or -1; ``step``: the smallest ``h / (c + |v|)`` (s).  ``rho_i``: the
+    (:func:`bad_field`; a particle with none that lies behind one of the planes ``points``,
+    ``normals``, the walls and symmetry planes, is bad in field :data:`BEHIND_WALL`), or -1;
+    ``step``: the smallest ``h / (c + |v|)`` (s).  ``rho_i``: the
     particle's material density (kg/m^3; ``rho`` itself carries a mass per area in plane
     stress and axisymmetry), from which its wave speed; ``m + added`` the inertia of the
     kinetic energy and momentum, ``m`` that of the internal energy.  With the hourglass
@@ -82,6 +88,10 @@ def survey_particle(i, n, x, v, rho_i, rho, e, S, m, added, h, material, table, 
     for a in range(dim):
         speed2 += v[i, a] * v[i, a]
     field = bad_field(i, x, v, rho, e, S)
+    if field < 0:
+        for w in range(points.shape[0]):
+            if plane_distance(x, i, points, normals, w) < 0.0:
+                field = BEHIND_WALL
     if field >= 0:
         code = field * n + i
         if first < 0 or code < first:
