@@ -88,10 +88,6 @@ class Walls:
         moved = _enforce(x, v, m, self.points, self.normals, impulse)
         return moved, impulse
 
-    def first_behind(self, x: np.ndarray) -> int:
-        """The first particle behind a wall (``d < 0``), or -1."""
-        return int(_first_behind(x, self.points, self.normals))
-
     @property
     def walls_only(self) -> np.ndarray:
         """Indices of the rigid walls (not the symmetry planes)."""
@@ -178,15 +174,6 @@ def plane_distance(x, i, points, normals, w):
     for a in range(x.shape[1]):
         d += (x[i, a] - points[w, a]) * normals[w, a]
     return d
-
-
-@nb.njit(cache=True)
-def _first_behind(x, points, normals):
-    for i in range(x.shape[0]):
-        for w in range(points.shape[0]):
-            if plane_distance(x, i, points, normals, w) < 0.0:
-                return i
-    return -1
 
 
 @nb.njit(cache=True)

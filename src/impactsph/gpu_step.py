@@ -51,11 +51,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from . import boundaries, integrate
+from . import boundaries
 from .gpu import cuda, gpu_kernels, simulator_enabled
 from .kernels import SUPPORT_RADIUS
 from .materials import WAVE_MODULUS
-from .physics import stress_rate
+from .physics import stress_rate, survey
 from .physics.rates import compiled_passes
 
 if TYPE_CHECKING:
@@ -136,7 +136,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                         else boundaries.enforce_particle)
     layer_push_particle = (boundaries.layer_push_particle.py_func if simulated
                            else boundaries.layer_push_particle)
-    bad_field = integrate.bad_field.py_func if simulated else integrate.bad_field
+    bad_field = survey.bad_field.py_func if simulated else survey.bad_field
     store_upper = stress_rate.store_upper.py_func if simulated else stress_rate.store_upper
     DIM = dim  # noqa: N806 - a compile-time constant of the kernels
     TPB = tpb  # noqa: N806

@@ -24,12 +24,10 @@ from .materials import TableLayout
 from .physics.options import PassOptions
 from .physics.rates import compiled_passes
 from .physics.stress_rate import store_upper, symmetric_full
-from .physics.survey import (  # noqa: F401 - bad_field, HOURGLASS_SPEED: their old home
-    HOURGLASS_SPEED,
+from .physics.survey import (
     SURVEY_CHUNK,
     SURVEY_START,
     SURVEY_WIDTH,
-    bad_field,
     fold_survey,
     folded_survey,
     store_survey,
@@ -51,7 +49,8 @@ def _survey_kernel(dim: int):
     def survey(n_active, x, v, rho, e, S, m, added, h, material, table, courant, hourglass,
                points, normals):
         """One pass over the state: the CFL step (eq 26, with the hourglass control's
-        signal speed added where ``hourglass`` (zeta) > 0: :data:`HOURGLASS_SPEED`), kinetic
+        signal speed added where ``hourglass`` (zeta) > 0:
+        :data:`impactsph.physics.survey.HOURGLASS_SPEED`), kinetic
         energy and momentum (of the mass ``m`` plus the added mass ``added``), internal
         energy (of ``m``), and the first bad value (``rho``: the material density).  Returns
         ``(dt, sums, bad)``: ``sums = (KE, IE, p_x, p_y, p_z)``; ``bad = field * n + i`` for

@@ -307,8 +307,8 @@ class Simulation:
             dt, sums, bad = self.integrator.survey_kernel(
                 s.n, s.position, s.velocity, s.material_density, s.specific_energy,
                 s.deviatoric_stress, s.mass, s.added_mass, s.smoothing_length, s.material,
-                self.problem.table, self.case.time.courant,
-                float(self.case.stabilisation.hourglass), points, normals)
+                self.problem.table, self.case.time.courant, self.integrator.hourglass,
+                points, normals)
         # a solver's own limit (the total-Lagrangian hourglass penalty's and walls')
         dt = min(float(dt), self.solver.step_limit(s))
         return Survey(dt, float(sums[0]), float(sums[1]), sums[2: 2 + s.dim].copy(),
