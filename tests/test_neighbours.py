@@ -243,3 +243,35 @@ def test_a_radius_per_pair_keeps_each_pairs_own_support(dim):
     np.testing.assert_array_equal(nl.inner_indices, whole.inner_indices)
     with pytest.raises(ValueError, match="h has 3 rows"):
         NeighbourList.build(x, support, skin, h=h[:3])
+
+
+def _morton_reference(cell: np.ndarray) -> int:
+    """A cell's Z-order code, bit by bit in Python: bit ``b`` of axis ``a`` at ``b dim + a``."""
+    dim = cell.shape[0]
+    return sum(((int(cell[a]) >> b) & 1) << (b * dim + a)
+               for b in range(63 // dim) for a in range(dim))
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_the_cell_sort_is_a_stable_sort_by_the_cells_z_order(dim):
+    """The builder's counting sort over the occupied cells gives the order of a stable sort of
+    the particles by their cells' Morton codes, and each cell's range of sorted positions:
+    checked on two clusters far apart (most cells empty), with particles sharing cells and
+    some on the box's far faces (clamped into the last cell)."""
+    from impactsph.neighbours import cell_sort
+
+    rng = np.random.default_rng(dim)
+    x = np.concatenate([rng.random((150, dim)) * 3.0, 40.0 + rng.random((150, dim)) * 2.0,
+                        np.full((3, dim), 42.0)])
+    x = x[rng.permutation(x.shape[0])]
+    lo, radius = x.min(axis=0), 0.7
+    ncell = np.maximum(1, ((x.max(axis=0) - lo) / radius).astype(np.int64) + 1)
+    cells = np.clip(((x - lo) / radius).astype(np.int64), 0, ncell - 1)
+    codes = np.array([_morton_reference(c) for c in cells])
+    order, cell_start, cell_end = cell_sort(x, lo, radius, ncell)
+    np.testing.assert_array_equal(order, np.argsort(codes, kind="stable"))
+    keys = np.ravel_multi_index(tuple(cells.T), tuple(ncell))
+    assert cell_start.shape == cell_end.shape == (int(np.prod(ncell)),)
+    for k in range(cell_start.shape[0]):
+        np.testing.assert_array_equal(np.sort(order[cell_start[k]:cell_end[k]]),
+                                      np.flatnonzero(keys == k))
