@@ -169,6 +169,57 @@ def _device_enforce() -> dict:
             "events": b[EVENTS], "impulse": b[EVENTS + 1: EVENTS + 3].tolist()}
 
 
+def _survey_input(spoil: bool):
+    """:func:`_enforce_input`'s particles (many behind its walls) as a Taylor bar's steel, for
+    the survey; ``spoil``: particle 30's energy NaN and particle 35's stress infinite too (a
+    bad density would be a domain error in the simulator's Python ``math.sqrt``)."""
+    from impactsph.loading import load_case
+    from impactsph.simulation import Simulation
+
+    x, v, m, walls = _enforce_input()
+    n = x.shape[0]
+    rng = np.random.default_rng(12)
+    table = Simulation(load_case("taylor", ["output.figures=false"])).problem.table
+    rho = rng.uniform(7000.0, 9000.0, n)
+    e = rng.uniform(0.0, 1e4, n)
+    S = rng.normal(0.0, 1e8, (n, 3, 3))
+    h = rng.uniform(1e-3, 2e-3, n)
+    if spoil:
+        e[30] = np.nan
+        S[35, 0, 1] = np.inf
+    return x, v, rho, e, S, m, h, np.zeros(n, np.int32), table, walls
+
+
+def _device_survey() -> dict:
+    """The survey by the device's kernels (``survey``, ``survey_finish``) of
+    :func:`_survey_input`, unspoilt and spoilt: ``(dt, sums, bad)`` of each."""
+    from numba import cuda
+
+    from impactsph.gpu import SIMULATOR_THREADS_PER_BLOCK, THREADS_PER_BLOCK, simulator_enabled
+    from impactsph.gpu_step import NO_BAD, step_kernels
+    from impactsph.physics.options import PassOptions
+
+    simulated = simulator_enabled()
+    tpb = SIMULATOR_THREADS_PER_BLOCK if simulated else THREADS_PER_BLOCK
+    k = step_kernels(2, simulated, -1, PassOptions(), tpb)
+    out = {}
+    for spoil in (False, True):
+        x, v, rho, e, S, m, h, material, table, walls = _survey_input(spoil)
+        n = x.shape[0]
+        blocks = (n + tpb - 1) // tpb
+        part = cuda.device_array((blocks, 6))
+        bad = cuda.to_device(np.array([NO_BAD], dtype=np.int64))
+        record = cuda.device_array(7)
+        k["survey"][blocks, tpb](n, *(cuda.to_device(a) for a in (x, v, rho, e, S, m, h,
+                                                                 material, table,
+                                                                 walls.points, walls.normals)),
+                                 part, bad)
+        k["survey_finish"][1, tpb](blocks, part, 0.3, bad, record)
+        r = record.copy_to_host()
+        out[str(spoil)] = [float(r[0]), r[1:6].tolist(), int(r[6])]
+    return out
+
+
 class _StopHereError(Exception):
     """Stops a run after a chosen step, as an interrupted run stops."""
 
@@ -376,6 +427,7 @@ def _worker(task: str, folder: Path) -> int:
                                        summary["neighbour_list_builds"]]}
             report["seconds"][name] = time.perf_counter() - t0
         report["enforce"] = _device_enforce()
+        report["survey"] = _device_survey()
         # a restart: 2 steps, a checkpoint, the rest from it, against the run above
         from impactsph.checkpoint import load_checkpoint, write_checkpoint
         from impactsph.loading import load_case

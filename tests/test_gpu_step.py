@@ -16,6 +16,7 @@ from test_gpu import (
     _resident_run,
     _run_worker,
     _skip_without_gpu,
+    _survey_input,
 )
 
 
@@ -114,3 +115,23 @@ def test_the_walls_constraint_on_the_device_is_the_cpus(resident_comparison):
     np.testing.assert_allclose(got["x"], x, rtol=0, atol=1e-15)
     np.testing.assert_allclose(got["v"], v, rtol=0, atol=1e-15)
     np.testing.assert_allclose(got["impulse"], impulse, rtol=1e-12)
+
+
+@pytest.mark.parametrize("spoil", [False, True])
+def test_the_survey_on_the_device_is_the_cpus(resident_comparison, spoil):
+    """The device's survey (each particle's part the CPU's ``survey_particle``) gives the CPU
+    survey's step, energies and momentum, and its first bad value: the first particle behind
+    a wall (its last kind), or with particle 30's energy NaN and 35's stress infinite, the
+    energy (its code ``3 n + 30`` is the smallest)."""
+    from impactsph.integrate import _survey_kernel
+
+    _, report, _, _ = resident_comparison
+    x, v, rho, e, S, m, h, material, table, walls = _survey_input(spoil)
+    n = x.shape[0]
+    dt, sums, bad = _survey_kernel(2)(n, x, v, rho, e, S, m, np.zeros(n), h, material, table,
+                                      0.3, 0.0, walls.points, walls.normals)
+    got_dt, got_sums, got_bad = report["survey"][str(spoil)]
+    behind = np.flatnonzero(walls.distances(x).min(axis=1) < 0.0)
+    assert bad == got_bad == (3 * n + 30 if spoil else 6 * n + behind[0])
+    np.testing.assert_allclose(got_dt, dt, rtol=1e-14)
+    np.testing.assert_allclose(got_sums, sums, rtol=1e-12, atol=1e-12 * np.nanmax(np.abs(sums)))

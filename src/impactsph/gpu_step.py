@@ -51,10 +51,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from . import boundaries
+from . import boundaries, codegen
 from .gpu import cuda, gpu_kernels, simulator_enabled
 from .kernels import SUPPORT_RADIUS
-from .materials import WAVE_MODULUS
 from .physics import stress_rate, survey
 from .physics.rates import compiled_passes
 
@@ -136,7 +135,11 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                         else boundaries.enforce_particle)
     layer_push_particle = (boundaries.layer_push_particle.py_func if simulated
                            else boundaries.layer_push_particle)
-    bad_field = survey.bad_field.py_func if simulated else survey.bad_field
+    # the CPU's survey of one particle (its Python source, and that of what it calls, under
+    # the simulator)
+    survey_particle = (codegen._python_all_the_way(survey.survey_particle) if simulated
+                       else survey.survey_particle)
+    SURVEY_START = survey.SURVEY_START  # noqa: N806 - a compile-time constant of the kernels
     store_upper = stress_rate.store_upper.py_func if simulated else stress_rate.store_upper
     DIM = dim  # noqa: N806 - a compile-time constant of the kernels
     TPB = tpb  # noqa: N806
@@ -162,7 +165,9 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
     @cuda.jit
     def survey_kernel(n, x, v, rho, e, S, m, h, material, table, points, normals, part, bad):
         """Per block: min h/(c + |v|), KE, IE, momentum; the first bad value (atomic min of
-        its code, which is exact), a particle behind a wall the last kind."""
+        its code, which is exact), a particle behind a wall the last kind: each particle's
+        part is the CPU's (:func:`impactsph.physics.survey.survey_particle`; the resident
+        step runs no added mass and no hourglass control)."""
         sh = cuda.shared.array((6, TPB), float64)
         i = cuda.grid(1)
         t = cuda.threadIdx.x
@@ -170,26 +175,17 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
             sh[k, t] = 0.0
         sh[0, t] = math.inf
         if i < n:
-            speed2 = 0.0
-            for a in range(DIM):
-                speed2 += v[i, a] * v[i, a]
-            field = bad_field(i, x, v, rho, e, S)  # the CPU survey's test
-            code = -1 if field < 0 else field * n + i
-            if field < 0:
-                for w in range(points.shape[0]):
-                    d = 0.0
-                    for a in range(DIM):
-                        d += (x[i, a] - points[w, a]) * normals[w, a]
-                    if d < 0.0:
-                        code = 6 * n + i
-            if code >= 0:
-                cuda.atomic.min(bad, 0, code)
-            c = math.sqrt(table[material[i], WAVE_MODULUS] / rho[i])
-            sh[0, t] = h[i] / (c + math.sqrt(speed2))
-            sh[1, t] = 0.5 * m[i] * speed2
-            sh[2, t] = m[i] * e[i]
-            for a in range(DIM):
-                sh[3 + a, t] = m[i] * v[i, a]
+            first, step, ke, ie, p0, p1, p2 = survey_particle(
+                i, n, x, v, rho[i], rho, e, S, m, m[i], h, material, table, 0.0, points,
+                normals, SURVEY_START)
+            if first >= 0:
+                cuda.atomic.min(bad, 0, first)
+            sh[0, t] = step
+            sh[1, t] = ke
+            sh[2, t] = ie
+            sh[3, t] = p0
+            sh[4, t] = p1
+            sh[5, t] = p2
         _block_reduce(sh, 6, 1, 0, t)
         if t == 0:
             for k in range(6):

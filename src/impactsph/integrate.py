@@ -66,8 +66,9 @@ def _survey_kernel(dim: int):
         for chunk in nb.prange(n_chunks):
             acc = SURVEY_START
             for i in range(chunk * SURVEY_CHUNK, min((chunk + 1) * SURVEY_CHUNK, n_active)):
-                acc = survey_particle(i, n_active, x, v, rho[i], rho, e, S, m, added, h,
-                                      material, table, hourglass, points, normals, acc)
+                acc = survey_particle(i, n_active, x, v, rho[i], rho, e, S, m,
+                                      m[i] + added[i], h, material, table, hourglass, points,
+                                      normals, acc)
             store_survey(acc, part, bad_of, chunk)
         fold_survey(part, bad_of, n_chunks)
         return courant * part[n_chunks, 0], part[n_chunks, 1:].copy(), bad_of[n_chunks]

@@ -1603,8 +1603,8 @@ def stage(n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv
                 moved += enforce_particle(i, x, v, inertia, points, normals, impulse)
             if survey:
                 acc = survey_particle(i, n_active, x, v, rho[i] / state[i, THICKNESS_RATIO],
-                                      rho, e, S, m, added, h, material, table, hourglass,
-                                      points, normals, acc)
+                                      rho, e, S, m, m[i] + added[i], h, material, table,
+                                      hourglass, points, normals, acc)
         walls[chunk, 0] = moved
         if survey:
             store_survey(acc, surveyed, bad_of, chunk)

@@ -69,7 +69,7 @@ SURVEY_START = (-1, np.inf, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 @nb.njit(inline="always", cache=True)
-def survey_particle(i, n, x, v, rho_i, rho, e, S, m, added, h, material, table, hourglass,
+def survey_particle(i, n, x, v, rho_i, rho, e, S, m, inertia_i, h, material, table, hourglass,
                     points, normals, acc):
     """Particle ``i`` (of ``n``) added to its chunk's survey ``acc = (first, step, KE, IE,
     p_x, p_y, p_z)`` (start: :data:`SURVEY_START`); returns the new ``acc``.  ``first``: the
@@ -78,8 +78,10 @@ def survey_particle(i, n, x, v, rho_i, rho, e, S, m, added, h, material, table, 
     ``normals``, the walls and symmetry planes, is bad in field :data:`BEHIND_WALL`), or -1;
     ``step``: the smallest ``h / (c + |v|)`` (s).  ``rho_i``: the
     particle's material density (kg/m^3; ``rho`` itself carries a mass per area in plane
-    stress and axisymmetry), from which its wave speed; ``m + added`` the inertia of the
-    kinetic energy and momentum, ``m`` that of the internal energy.  With the hourglass
+    stress and axisymmetry), from which its wave speed; ``inertia_i`` its mass and added mass,
+    the inertia of the kinetic energy and momentum (kg), ``m`` that of the internal energy.
+    The CPU's survey, its stage and the GPU's survey kernel (:mod:`impactsph.gpu_step`) call
+    this.  With the hourglass
     control (``hourglass`` = zeta > 0) the signal speed adds :data:`HOURGLASS_SPEED` zeta times
     the shear wave speed."""
     first, step, ke, ie, p0, p1, p2 = acc
@@ -100,7 +102,7 @@ def survey_particle(i, n, x, v, rho_i, rho, e, S, m, added, h, material, table, 
     if hourglass > 0.0:
         c += HOURGLASS_SPEED * hourglass * math.sqrt(table[material[i], SHEAR] / rho_i)
     step = min(step, h[i] / (c + math.sqrt(speed2)))
-    inertia = m[i] + added[i]
+    inertia = inertia_i
     ke += 0.5 * inertia * speed2
     ie += m[i] * e[i]
     p0 += inertia * v[i, 0]
