@@ -204,10 +204,13 @@ def _build_functions(dim: int):
         # no neighbour of it and is skipped (its edge is the radius, so only the edge and
         # corner cells can be: on average 6.4 of the 27 cells' volume; the 3D build 6-10%
         # faster, the 2D one, where 0.9 of 9 can be, 1-4% slower with it, so it is not done
-        # there).  Each gap is taken ``slack`` short, more than the round-off of the boxes'
-        # faces and of the binning, so that no cell holding a neighbour is skipped: the list
-        # is the same to the bit
-        prune = dim > 2
+        # there).  With a radius per pair the reach is the particle's own, which prunes more
+        # where most smoothing lengths are well below the largest (the stretch's lists: 3D
+        # 10-15% faster, 2D 5%, so there 2D prunes too).  Each gap is taken ``slack`` short,
+        # more than the round-off of the boxes' faces and of the binning, so that no cell
+        # holding a neighbour is skipped: the list is the same to the bit
+        prune = dim > 2 or (dim == 2 and per_pair)
+        h_largest = hs.max() if per_pair and n > 0 else 0.0
         reach = 0.0
         for a in range(dim):
             reach = max(reach, abs(lo[a]) + (ncell[a] + 1) * radius)
@@ -250,6 +253,12 @@ def _build_functions(dim: int):
                     pos_inner = inner_offsets[p] if inner else 0
                     # 3D: the particle's distances to its cell's lower and upper faces on each
                     # axis (less the slack; 0 where negative): the gaps to the stencil's cells
+                    # (with a radius per pair, the particle's own reach: no pair of it reaches
+                    # further than with the largest h, so a cell beyond that holds none)
+                    reach2 = r2max
+                    if per_pair:
+                        own = 0.5 * support_per_h * (hp + h_largest) + skin
+                        reach2 = min(r2max, max(own * own, r2inner))
                     below0 = max(xp0 - (lo0 + c0 * radius) - slack, 0.0) if prune else 0.0
                     above0 = max(lo0 + (c0 + 1) * radius - xp0 - slack, 0.0) if prune else 0.0
                     below1 = max(xp1 - (lo1 + c1 * radius) - slack, 0.0) if prune else 0.0
@@ -268,14 +277,14 @@ def _build_functions(dim: int):
                                 continue
                             gap1 = below1 if e1 < 0 else (above1 if e1 > 0 else 0.0)
                             gap12 = gap2 + gap1 * gap1
-                            if prune and gap12 >= r2max:
+                            if prune and gap12 >= reach2:
                                 continue
                             for e0 in range(-1, 2):
                                 k0 = c0 + e0
                                 if k0 < 0 or k0 >= n0:
                                     continue
                                 gap0 = below0 if e0 < 0 else (above0 if e0 > 0 else 0.0)
-                                if prune and gap12 + gap0 * gap0 >= r2max:
+                                if prune and gap12 + gap0 * gap0 >= reach2:
                                     continue
                                 if dim == 1:
                                     kc = k0
