@@ -347,8 +347,8 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
       (unpadded: 10 to 22 doubles without the optional columns, the viscous acceleration's
       only with a correction or a switch), the extended arrays of the wall ghosts (with
       ``walls``), the neighbour list's offsets, order and reference positions (and in 2D and
-      3D its rows' splits), and the builder's temporaries (cell keys, Morton codes, sort order,
-      sorted positions);
+      3D its rows' splits), and the builder's temporaries (cell keys, sort order, sorted
+      positions; the cells' counts and the occupied cells' Morton codes are a few bytes);
     - per stored neighbour pair: 4 bytes (int32 index);
     - ``history_values`` numbers of the history and the probes (:data:`HISTORY_VALUE_BYTES`
       each, :func:`history_values`);
@@ -388,8 +388,8 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
             per_particle -= 8 * strength_width
             carried = 8 * strength_width
     # offsets, order, reference, the 2D and 3D rows' splits (built as 8 B, kept as 4); the
-    # build's temporaries
-    neighbour_list = 12 + 4 * d + (8 if d > 1 else 0) + 32 + 8 * d
+    # build's temporaries (cell keys, sort order, sorted positions, the cells' counts)
+    neighbour_list = 12 + 4 * d + (8 if d > 1 else 0) + 24 + 8 * d
     if compatible:  # the work pass's rate buffers, the pair energy rates, the velocities
         buffers += (76 + 8 * d) + 8 + 16 * d
     per_row = buffers + records + ghost_arrays + carried + neighbour_list + 4 * neighbours
