@@ -71,23 +71,6 @@ def morton_code(c0, c1, c2, dim):
 
 
 @nb.njit(cache=True)
-def cell_keys(x, lo, cell, ncell):
-    """Row-major cell number and Morton (Z-order) code of each particle's cell."""
-    n, dim = x.shape
-    key = np.empty(n, dtype=np.int64)
-    morton = np.zeros(n, dtype=np.int64)
-    c = np.zeros(3, dtype=np.int64)
-    for i in range(n):
-        k = 0
-        for a in range(dim):
-            c[a] = min(max(int((x[i, a] - lo[a]) / cell), 0), ncell[a] - 1)
-            k = k * ncell[a] + c[a]
-        key[i] = k
-        morton[i] = morton_code(c[0], c[1], c[2], dim)
-    return key, morton
-
-
-@nb.njit(cache=True)
 def cell_sort(x, lo, cell, ncell):
     """The particles sorted by cell, the cells in Z order and the particles of a cell in
     their given order (the order a stable sort by the cells' Morton codes gives), by a
