@@ -2,9 +2,10 @@
 
 Particles are binned into cubic cells whose edge is at least the search radius, so every
 neighbour of a particle lies in its own cell or one of the ``3**dim - 1`` cells around it.
-The result is a compressed (CSR) list: the neighbours of particle ``i`` are
-``indices[offsets[i]:offsets[i + 1]]`` (``i`` itself excluded), every ``j`` with
-``|x_i - x_j| < radius``.
+They are numbered cell by cell, the cells in Z (Morton) order and a cell's particles in their
+given order, by a counting sort (:func:`cell_sort`).  The result is a compressed (CSR)
+list: the neighbours of particle ``i`` are ``indices[offsets[i]:offsets[i + 1]]`` (``i``
+itself excluded), every ``j`` with ``|x_i - x_j| < radius``.
 
 The list is built with a *skin*: the search radius is ``2 h_max + skin``, and the list stays
 valid until some particle has moved more than ``skin / 2`` from where it was when the list
