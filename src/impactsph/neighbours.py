@@ -116,6 +116,16 @@ def cell_sort(x, lo, cell, ncell):
 
 
 @nb.njit(inline="always", cache=True)
+def kept_within2(hp, hq, support_per_h, skin, r2max, r2inner):
+    """The squared distance within which a list with a radius per pair keeps the pair of
+    smoothing lengths ``hp``, ``hq``: its own ``support_per_h h_ij + skin``, no further than
+    the list's radius and no nearer than the inner list's (so that the inner list stays a part
+    of the whole)."""
+    reach = 0.5 * support_per_h * (hp + hq) + skin
+    return min(r2max, max(reach * reach, r2inner))
+
+
+@nb.njit(inline="always", cache=True)
 def distance2(xp0, xp1, xp2, xs, q, dim):
     """``|x_p - xs[q]|^2`` for the builder's sweeps (``dim`` a compile-time constant there:
     inlined, the branches fold away)."""
@@ -202,7 +212,8 @@ def _build_functions(dim: int):
         # two sweeps of the same loop: count the neighbours, then (offsets known) store them;
         # written out here, not in a helper, so that dim is a compile-time constant and the
         # small loops unroll.  The stencil's cells are visited with axis 0 fastest (the
-        # order of the list); the count is branch-free (LLVM vectorises it), the store not
+        # order of the list); the count is branch-free (LLVM vectorises it), the store only in
+        # its 3D gathering of a cell's candidates (below)
         prefilter = dim > 2
         largest_cell = 0
         if prefilter:
@@ -235,14 +246,15 @@ def _build_functions(dim: int):
                     pos = offsets[p]
                     back = offsets[p + 1] - 1  # the row's last entry
                     pos_inner = inner_offsets[p] if inner else 0
-                    # 3D: the particle's distances to its cell's lower and upper faces on each
-                    # axis (less the slack; 0 where negative): the gaps to the stencil's cells
-                    # (with a radius per pair, the particle's own reach: no pair of it reaches
-                    # further than with the largest h, so a cell beyond that holds none)
+                    # pruning (3D, and 2D with a radius per pair): the particle's distances to
+                    # its cell's lower and upper faces on each axis (less the slack; 0 where
+                    # negative), the gaps to the stencil's cells, against its reach (with a
+                    # radius per pair its own: none of its pairs is kept further than with the
+                    # largest h, so a cell beyond that holds none)
                     reach2 = r2max
                     if per_pair:
-                        own = 0.5 * support_per_h * (hp + h_largest) + skin
-                        reach2 = min(r2max, max(own * own, r2inner))
+                        reach2 = kept_within2(hp, h_largest, support_per_h, skin, r2max,
+                                              r2inner)
                     below0 = max(xp0 - (lo0 + c0 * radius) - slack, 0.0) if prune else 0.0
                     above0 = max(lo0 + (c0 + 1) * radius - xp0 - slack, 0.0) if prune else 0.0
                     below1 = max(xp1 - (lo1 + c1 * radius) - slack, 0.0) if prune else 0.0
@@ -286,8 +298,8 @@ def _build_functions(dim: int):
                                         other = q != p
                                         lim = r2max
                                         if per_pair:
-                                            rp = 0.5 * support_per_h * (hp + hs[q]) + skin
-                                            lim = min(r2max, max(rp * rp, r2inner))
+                                            lim = kept_within2(hp, hs[q], support_per_h, skin,
+                                                               r2max, r2inner)
                                         cnt += 1 if (r2 < lim) & other else 0
                                         cnt_inner += 1 if (r2 < r2inner) & other else 0
                                     found += cnt
@@ -306,8 +318,8 @@ def _build_functions(dim: int):
                                         r2 = distance2(xp0, xp1, xp2, xs, q, dim)
                                         lim = r2max
                                         if per_pair:
-                                            rp = 0.5 * support_per_h * (hp + hs[q]) + skin
-                                            lim = min(r2max, max(rp * rp, r2inner))
+                                            lim = kept_within2(hp, hs[q], support_per_h, skin,
+                                                               r2max, r2inner)
                                         candidates[kept] = q
                                         kept += 1 if (r2 < lim) & (q != p) else 0
                                     u0 = 0
@@ -320,9 +332,11 @@ def _build_functions(dim: int):
                                     lim = r2max
                                     front_lim = r2front
                                     if per_pair:
-                                        rp = 0.5 * support_per_h * (hp + hs[q]) + skin
-                                        lim = min(r2max, max(rp * rp, r2inner))
-                                        rs = rp - skin
+                                        lim = kept_within2(hp, hs[q], support_per_h, skin,
+                                                           r2max, r2inner)
+                                        # (the pair's support: its reach less the
+                                        # skin, as the reach was summed)
+                                        rs = (0.5 * support_per_h * (hp + hs[q]) + skin) - skin
                                         front_lim = min(lim, max(rs * rs, r2inner))
                                     if r2 < lim:
                                         # the row's back part, filled from the row's end, or

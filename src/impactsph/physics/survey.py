@@ -102,14 +102,13 @@ def survey_particle(i, n, x, v, rho_i, rho, e, S, m, inertia_i, h, material, tab
     if hourglass > 0.0:
         c += HOURGLASS_SPEED * hourglass * math.sqrt(table[material[i], SHEAR] / rho_i)
     step = min(step, h[i] / (c + math.sqrt(speed2)))
-    inertia = inertia_i
-    ke += 0.5 * inertia * speed2
+    ke += 0.5 * inertia_i * speed2
     ie += m[i] * e[i]
-    p0 += inertia * v[i, 0]
+    p0 += inertia_i * v[i, 0]
     if dim > 1:
-        p1 += inertia * v[i, 1]
+        p1 += inertia_i * v[i, 1]
     if dim > 2:
-        p2 += inertia * v[i, 2]
+        p2 += inertia_i * v[i, 2]
     return first, step, ke, ie, p0, p1, p2
 
 
