@@ -87,12 +87,18 @@ def instrument(sim: Simulation, timers: Timers) -> list[tuple[str, str]]:
     parts = list(PARTS)
     integrator, solver = sim.integrator, sim.solver
     passes = solver.backend.passes
+    # and the module of the neighbour loops where every h is the same (CpuRates.neighbour_loops):
+    # each pass is called from one of the two, timed under its name either way
+    modules = [passes]
+    if hasattr(solver.backend, "neighbour_loops"):
+        modules.append(solver.backend.neighbour_loops(True))
     for name in sorted(dir(passes)):  # every compiled pass this module has
         if name.endswith("_pass") and callable(getattr(passes, name)):
             if name == "switch_pass" and hasattr(solver.backend, name):
                 timers.wrap_returned(solver.backend, name, name)  # the switch's own module
             else:
-                timers.wrap(passes, name, name)
+                for module in modules:
+                    timers.wrap(module, name, name)
             parts.append((name, "step"))
     steps: list[tuple[Any, str, str]] = [
         (integrator, "_stage_pass", "stage (update, return map, walls, survey)"),

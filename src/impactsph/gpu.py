@@ -158,10 +158,13 @@ class GpuRates:
     def evaluate(self, n_active: int, arrays: tuple, table: np.ndarray, neighbours,
                  viscosity, b, hourglass: float = 0.0,
                  hourglass_acceleration: np.ndarray | None = None,
-                 after_pairs=None, n_bodies: int = 1, switch_elapsed: float = 0.0) -> None:
+                 after_pairs=None, n_bodies: int = 1, switch_elapsed: float = 0.0,
+                 uniform_h: bool = False) -> None:
         """As :meth:`impactsph.physics.rates.CpuRates.evaluate`: the rates of the first
         ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h, material, body, carried)`` into the
-        host buffers ``b``; rows the CPU backend leaves alone are left alone."""
+        host buffers ``b``; rows the CPU backend leaves alone are left alone.  ``uniform_h``
+        is ignored: the device's kernels are those of the run's own options, which read each
+        pair's h (the same results)."""
         if after_pairs is not None:
             raise NotImplementedError("symmetry planes run on the CPU only (--device cpu): the "
                                       "GPU passes do not mirror the pair results onto ghosts")

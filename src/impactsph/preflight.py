@@ -976,15 +976,24 @@ def before_run(case: Case, quiet: bool = False,
 def kernels_cached(case: Case) -> bool | None:
     """Whether numba's disk cache holds the generated passes the case's run uses (its pair
     pass, and the integrator's stage pass): False means the run compiles them first.  None
-    where it cannot tell."""
+    where it cannot tell.  Without the stretch the pair pass may come from either module:
+    the one of a single smoothing length (``PassOptions.uniform_h``, what most runs use) or
+    the case's own (bodies of different h); either one cached counts."""
+    from dataclasses import replace
+
     from .physics.options import PassOptions
     from .physics.rates import compiled_passes
 
+    def cached(dispatcher) -> bool:
+        return Path(dispatcher._cache._cache_file._index_path).is_file()
+
     try:
-        dispatchers = (compiled_passes(case.dimension,
-                                       options=PassOptions.of_case(case)).pair_pass,
-                       compiled_passes(case.dimension).stage)
-        return all(Path(d._cache._cache_file._index_path).is_file() for d in dispatchers)
+        options = PassOptions.of_case(case)
+        modules = [options] + ([replace(options, uniform_h=True)]
+                               if case.kernel.max_stretch <= 1.0 else [])
+        pairs = any(cached(compiled_passes(case.dimension, options=o).pair_pass)
+                    for o in modules)
+        return pairs and cached(compiled_passes(case.dimension).stage)
     except (AttributeError, OSError, TypeError):
         return None
 

@@ -56,7 +56,13 @@ class PassOptions:
       (dispatched on the kind at run time).  The CPU's switch pass comes from a module of its
       own with this set (:meth:`impactsph.physics.rates.CpuRates.switch_pass`): numba inlines
       every switch a dispatch names into the pass, and one switch compiles in a quarter of
-      the time of all five, with the same machine code for the one that runs.
+      the time of all five, with the same machine code for the one that runs;
+    - ``uniform_h``: every record's smoothing length is the same, so the vectorised
+      neighbour loops take a pair's ``h_ij = (h_i + h_j) / 2`` as ``h_i``, which it then is
+      to the bit, and its inverse is the particle's, not a division a pair (one gather and
+      one division a pair fewer).  Not from the case: the CPU's rates choose it at each
+      neighbour-list build, where the smoothing lengths are known
+      (:meth:`impactsph.physics.rates.CpuRates.evaluate`'s ``uniform_h``).
     """
 
     gradient_correction: str = "none"
@@ -72,6 +78,7 @@ class PassOptions:
     velocity_reconstruction: bool = False
     compatible_energy: bool = False
     switch_kind: int = -1
+    uniform_h: bool = False
 
     def __post_init__(self) -> None:
         if self.gradient_correction not in GRADIENT_CORRECTIONS:
@@ -141,6 +148,8 @@ class PassOptions:
             tag += "_vr"
         if self.compatible_energy:
             tag += "_ce"
+        if self.uniform_h:
+            tag += "_uh"
         return tag
 
     def compensation(self, dim: int) -> float:
@@ -174,6 +183,7 @@ class PassOptions:
             f"VELOCITY_RECONSTRUCTION = {bool(self.velocity_reconstruction)}",
             f"COMPATIBLE_ENERGY = {bool(self.compatible_energy)}",
             f"SWITCH_VECTORISED = {self.switch_vectorised}",
+            f"UNIFORM_H = {bool(self.uniform_h)}",
         ]
 
     @property

@@ -104,6 +104,9 @@ COMPATIBLE_ENERGY = False
 #: the module's one switch (``PassOptions.switch_kind``) has a neighbour loop written for
 #: LLVM's vectoriser (``ViscosityScheme.switch_vectorises``): its pass gets SWITCH_FASTMATH
 SWITCH_VECTORISED = False
+#: every record has the same smoothing length (``PassOptions.uniform_h``): the pairs' ``h_ij``
+#: is the particle's own (:func:`neighbour_separation`)
+UNIFORM_H = False
 JIT = nb.njit
 EOS_PARAMS = STRENGTH_PARAMS = DAMAGE_PARAMS = 6
 STRENGTH_STATE = DAMAGE_STATE = 4
@@ -517,7 +520,10 @@ def pair_separation(Pi_, Pj):
 def neighbour_separation(xi0, xi1, xi2, hi, P, j):
     """:func:`pair_separation` for the vectorised neighbour loops: particle ``i``'s position
     and smoothing length already read, the neighbour's record read as ``P[j, col]`` (a row
-    view ``P[j]`` stops the vectoriser)."""
+    view ``P[j]`` stops the vectoriser).  With ``UNIFORM_H`` (every record's h the same)
+    ``h_ij`` is ``h_i``, which ``(h_i + h_j) / 2`` then is to the bit: the neighbour's h is
+    not read and ``1 / h_ij``, the same for every neighbour, is left to LLVM to hoist out of
+    the loop (issue 16: one gather and one division a pair)."""
     d0 = xi0 - P[j, X]
     r2 = d0 * d0
     d1 = d2 = 0.0
@@ -527,7 +533,7 @@ def neighbour_separation(xi0, xi1, xi2, hi, P, j):
     if DIM > 2:
         d2 = xi2 - P[j, X + 2]
         r2 += d2 * d2
-    h_ij = 0.5 * (hi + P[j, H])
+    h_ij = hi if UNIFORM_H else 0.5 * (hi + P[j, H])
     inv_h = 1.0 / h_ij
     return d0, d1, d2, r2, h_ij, inv_h, r2 * inv_h * inv_h
 

@@ -141,6 +141,8 @@ class CpuRates:
         self._chunk: tuple[int, int] | None = None  # (rows, particles per work item)
         self._gradients: np.ndarray | None = None  # velocity gradients, for the hourglass pass
         self._switch_passes: dict[int, Any] = {}
+        self._uniform: ModuleType | None = None  # the passes with PassOptions.uniform_h
+        self._loops = self.passes  # the module of the last evaluation's neighbour loops
 
     def switch_pass(self, kind: int) -> Any:
         """The switch pass of the scheme of kind code ``kind``: from a passes module that
@@ -151,6 +153,20 @@ class CpuRates:
             self._switch_passes[kind] = compiled_passes(self.dim,
                                                         options=options).switch_pass
         return self._switch_passes[kind]
+
+    def neighbour_loops(self, uniform_h: bool) -> ModuleType:
+        """The passes module whose vectorised neighbour loops (the moment, velocity-gradient,
+        pair and hourglass passes) run an evaluation: where every row's smoothing length is
+        the same (``uniform_h``), the module compiled with ``PassOptions.uniform_h``, whose
+        loops read no neighbour's h and divide by no pair's (the same results to the bit:
+        ``(h + h) / 2`` is ``h``); else the run's own.  Each is compiled on its first use,
+        so a run compiles only the one it uses."""
+        if not uniform_h:
+            return self.passes
+        if self._uniform is None:
+            self._uniform = compiled_passes(self.dim,
+                                            options=replace(self.options, uniform_h=True))
+        return self._uniform
 
     def record_columns(self, viscosity: ViscositySettings) -> int:
         """The packed records' row length for ``viscosity``: every column of the passes'
@@ -165,7 +181,7 @@ class CpuRates:
                  viscosity: ViscositySettings, b: RateBuffers, hourglass: float = 0.0,
                  hourglass_acceleration: np.ndarray | None = None,
                  after_pairs=None, after_moments=None, n_bodies: int = 1,
-                 switch_elapsed: float = 0.0) -> None:
+                 switch_elapsed: float = 0.0, uniform_h: bool = False) -> None:
         """Rates of the first ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h,
         material, body, carried)`` (``carried``: the common material state, damage and thickness
         ratio among it; all rows, ghosts included, take part in the sums) into ``b``:
@@ -182,9 +198,13 @@ class CpuRates:
         likewise after the correction matrices and after the velocity gradients of a
         reconstructing viscosity (``c0`` their first record column).  With the
         options' ``contact_friction`` > 0, the friction between the ``n_bodies`` bodies (rows
-        of a body index at or above it are rigid walls' ghosts) is added after the pairs."""
+        of a body index at or above it are rigid walls' ghosts) is added after the pairs.
+        ``uniform_h``: every row's smoothing length is the same (the caller's promise; the
+        solver checks it at each evaluation), so the neighbour loops may take the particle's
+        own h for each pair's (:meth:`neighbour_loops`)."""
         x, v, rho, e, S, m, h, material, body, carried = arrays
         k = self.passes
+        loops = self._loops = self.neighbour_loops(uniform_h)
         viscosity.check_compiled(k.VELOCITY_RECONSTRUCTION, k.VISCOSITY_FACTOR)
         nl = neighbours
         n = x.shape[0]
@@ -204,18 +224,19 @@ class CpuRates:
         if self._gradients is None or self._gradients.shape[0] != rows:
             self._gradients = np.empty((rows, self.dim, self.dim))
         if k.FORCE_CORRECTION:
-            k.moment_pass(nl.order, self._packed, nl.offsets, nl.indices, nl.filter_starts, chunk)
+            loops.moment_pass(nl.order, self._packed, nl.offsets, nl.indices, nl.filter_starts,
+                              chunk)
             if after_moments is not None:
                 after_moments(self._packed, k.CM0)
         if k.VELOCITY_RECONSTRUCTION:
-            k.gradient_pass(nl.order, self._packed, nl.offsets, nl.indices, nl.filter_starts,
-                            chunk)
+            loops.gradient_pass(nl.order, self._packed, nl.offsets, nl.indices,
+                                nl.filter_starts, chunk)
             if after_moments is not None:  # a matrix as C: a mirror ghost gets R L R
                 after_moments(self._packed, k.LV0)
-        k.pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, nl.filter_starts,
-                    viscosity.kind, viscosity.pair, self.options.normal_stress, S, material,
-                    table, b.drho, b.dv, b.de, b.de_visc, b.contact_force, b.pair_count, b.dS,
-                    self._gradients, chunk)
+        loops.pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
+                        nl.filter_starts, viscosity.kind, viscosity.pair,
+                        self.options.normal_stress, S, material, table, b.drho, b.dv, b.de,
+                        b.de_visc, b.contact_force, b.pair_count, b.dS, self._gradients, chunk)
         if b.de_pairs.shape[0]:
             np.copyto(b.de_pairs[:n_active], b.de[:n_active])
         if after_pairs is not None:
@@ -238,9 +259,9 @@ class CpuRates:
                 n_active, nl.order, self._packed, near_offsets, near_indices, viscosity.kind,
                 viscosity.switch, float(switch_elapsed), b.factor, b.memory, chunk)
         if hourglass > 0.0:
-            k.hourglass_pass(n_active, nl.order, self._packed, self._gradients, nl.offsets,
-                             nl.indices, nl.filter_starts, material, table, hourglass,
-                             hourglass_acceleration, b.dv, b.de, b.dhg, chunk)
+            loops.hourglass_pass(n_active, nl.order, self._packed, self._gradients,
+                                 nl.offsets, nl.indices, nl.filter_starts, material, table,
+                                 hourglass, hourglass_acceleration, b.dv, b.de, b.dhg, chunk)
 
 
     def work_energy(self, n_active: int, work_velocity: np.ndarray, neighbours,
@@ -258,11 +279,13 @@ class CpuRates:
                              "PassOptions(compatible_energy=True)")
         nl = neighbours
         self._packed[:, k.W:k.W + self.dim] = work_velocity[nl.order]
-        k.pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices, nl.filter_starts,
-                    viscosity.kind, viscosity.pair, self.options.normal_stress, S, material, table,
-                    scratch.drho, scratch.dv, scratch.de, scratch.de_visc,
-                    scratch.contact_force[:0], scratch.pair_count, scratch.dS,
-                    np.empty((0, self.dim, self.dim)), self._chunk[1])
+        # (the evaluation's own module: its neighbour loops, the same sums)
+        self._loops.pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
+                              nl.filter_starts, viscosity.kind, viscosity.pair,
+                              self.options.normal_stress, S, material, table, scratch.drho,
+                              scratch.dv, scratch.de, scratch.de_visc, scratch.contact_force[:0],
+                              scratch.pair_count, scratch.dS, np.empty((0, self.dim, self.dim)),
+                              self._chunk[1])
         return scratch.de
 
 
