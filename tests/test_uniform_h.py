@@ -91,3 +91,25 @@ def test_the_stretch_keeps_the_runs_own_loops_from_the_start():
     assert float(np.ptp(sim.state.smoothing_length)) == 0.0  # still equal: no list rebuilt
     backend = sim.solver.backend
     assert backend._uniform is None and backend._loops is backend.passes
+
+
+def test_an_evaluation_without_the_answer_checks_the_h_itself():
+    """``CpuRates.evaluate`` called without ``uniform_h`` (as by a script of one's own) looks
+    at the rows' h: the uniform loops while they are the same, the run's own once one
+    differs."""
+    sim = _taylor(2, *STABILISED)
+    sim.run()
+    solver, backend = sim.solver, sim.solver.backend
+    arrays = solver._arrays(sim.state)
+
+    def evaluate():
+        backend._loops = None
+        backend.evaluate(solver.n_active, arrays, solver.table, solver.neighbours,
+                         solver.viscosity, solver.buffers, solver.hourglass,
+                         sim.state.hourglass_acceleration, n_bodies=solver.n_bodies)
+
+    evaluate()
+    assert backend._loops is backend._uniform
+    arrays[6][3] *= 1.1  # the rows' h
+    evaluate()
+    assert backend._loops is backend.passes

@@ -159,7 +159,7 @@ class GpuRates:
                  viscosity, b, hourglass: float = 0.0,
                  hourglass_acceleration: np.ndarray | None = None,
                  after_pairs=None, n_bodies: int = 1, switch_elapsed: float = 0.0,
-                 uniform_h: bool = False) -> None:
+                 uniform_h: bool | None = None) -> None:
         """As :meth:`impactsph.physics.rates.CpuRates.evaluate`: the rates of the first
         ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h, material, body, carried)`` into the
         host buffers ``b``; rows the CPU backend leaves alone are left alone.  ``uniform_h``

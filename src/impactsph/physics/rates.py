@@ -181,7 +181,7 @@ class CpuRates:
                  viscosity: ViscositySettings, b: RateBuffers, hourglass: float = 0.0,
                  hourglass_acceleration: np.ndarray | None = None,
                  after_pairs=None, after_moments=None, n_bodies: int = 1,
-                 switch_elapsed: float = 0.0, uniform_h: bool = False) -> None:
+                 switch_elapsed: float = 0.0, uniform_h: bool | None = None) -> None:
         """Rates of the first ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h,
         material, body, carried)`` (``carried``: the common material state, damage and thickness
         ratio among it; all rows, ghosts included, take part in the sums) into ``b``:
@@ -199,11 +199,14 @@ class CpuRates:
         reconstructing viscosity (``c0`` their first record column).  With the
         options' ``contact_friction`` > 0, the friction between the ``n_bodies`` bodies (rows
         of a body index at or above it are rigid walls' ghosts) is added after the pairs.
-        ``uniform_h``: every row's smoothing length is the same (the caller's promise; the
-        solver checks it at each evaluation), so the neighbour loops may take the particle's
-        own h for each pair's (:meth:`neighbour_loops`)."""
+        ``uniform_h``: whether every row's smoothing length is the same, so that the
+        neighbour loops may take the particle's own h for each pair's
+        (:meth:`neighbour_loops`): None to check it here, or the caller's answer (the solver
+        knows it already, and says False for a run whose h may come to differ)."""
         x, v, rho, e, S, m, h, material, body, carried = arrays
         k = self.passes
+        if uniform_h is None:
+            uniform_h = h.shape[0] > 0 and float(h.min()) == float(h.max())
         loops = self._loops = self.neighbour_loops(uniform_h)
         viscosity.check_compiled(k.VELOCITY_RECONSTRUCTION, k.VISCOSITY_FACTOR)
         nl = neighbours
