@@ -23,15 +23,20 @@ def test_the_viscous_acceleration_is_last(dim, options):
     assert cols["width"] % 8 == 0 and cols["columns"] <= cols["width"] < cols["columns"] + 8
 
 
-def _taylor(scheme: str, dim: int) -> Simulation:
+def small_taylor(dim: int, *overrides: str) -> Simulation:
+    """The paper's Taylor bar on its wall, small: 8 x 12 particles in 2D, a 6 x 6 x 8 block in
+    3D; ``overrides`` last."""
     extra = (["dimension=3", "bodies.0.geometry.count=[6, 6, 8]",
               "bodies.0.geometry.size=[0.0045, 0.0045, 0.006]",
               "bodies.0.geometry.origin=[-0.00225, -0.00225, 0.0]",
               "bodies.0.velocity=[0.0, 0.0, -200.0]", "boundaries.0.point=[0.0, 0.0, 0.0]",
               "boundaries.0.normal=[0.0, 0.0, 1.0]",
               "analysis=none"] if dim == 3 else ["bodies.0.geometry.count=[8, 12]"])
-    return Simulation(load_case("taylor", [*extra, f'viscosity.scheme="{scheme}"',
-                                           "time.max_steps=30", "output.figures=false"]))
+    return Simulation(load_case("taylor", [*extra, "output.figures=false", *overrides]))
+
+
+def _taylor(scheme: str, dim: int) -> Simulation:
+    return small_taylor(dim, f'viscosity.scheme="{scheme}"', "time.max_steps=30")
 
 
 @pytest.mark.parametrize("dim", [2, 3])

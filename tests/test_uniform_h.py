@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_records import small_taylor
 
-from impactsph import Simulation, load_case
+from impactsph import Simulation
 
 #: a small Taylor bar on its wall (ghosts), every neighbour loop on: the kernel gradient
 #: correction of the forces (moment pass), the hourglass control
@@ -18,14 +19,7 @@ STABILISED = ['stabilisation.gradient_correction="velocity_gradient_and_forces"'
 
 
 def _taylor(dim: int, *overrides: str) -> Simulation:
-    extra = (["dimension=3", "bodies.0.geometry.count=[6, 6, 8]",
-              "bodies.0.geometry.size=[0.0045, 0.0045, 0.006]",
-              "bodies.0.geometry.origin=[-0.00225, -0.00225, 0.0]",
-              "bodies.0.velocity=[0.0, 0.0, -200.0]", "boundaries.0.point=[0.0, 0.0, 0.0]",
-              "boundaries.0.normal=[0.0, 0.0, 1.0]",
-              "analysis=none"] if dim == 3 else ["bodies.0.geometry.count=[8, 12]"])
-    return Simulation(load_case("taylor", [*extra, "time.max_steps=20",
-                                           "output.figures=false", *overrides]))
+    return small_taylor(dim, "time.max_steps=20", *overrides)
 
 
 def _rates(sim: Simulation) -> list[np.ndarray]:
