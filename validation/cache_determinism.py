@@ -13,7 +13,9 @@ small Taylor bar with the corrected forces and the hourglass control (below) end
 bits cached than cold (velocity, stress, energy, ...), the pair pass's specific-energy rates
 differing from its second evaluation; the cause is not known.  Since 2da0b69 that case runs the
 neighbour loops of one smoothing length (``PassOptions.uniform_h``), which give the same bits
-in every process; the module of runs with several h was not cleared.
+in every process.  With ``--set kernel.max_stretch=1.5`` added (the module of runs whose h
+differ) it still differs, and so does the reconstructing viscosity alone (the specific energy);
+AC with the same stabilisation gives the same bits: the reconstructing pair term's energy sum.
 
     .venv/bin/python validation/cache_determinism.py taylor --set bodies.0.geometry.count=[8,12] \\
         --set 'viscosity.scheme="reconstruction"' \\
