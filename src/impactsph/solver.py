@@ -346,19 +346,17 @@ class Solver:
         viscosity switch sets the factors for that time, None: set them without time passing).
         """
         b = self.buffers
-        h = state.smoothing_length
-        h_largest = float(h.max())
-        support = SUPPORT_RADIUS * h_largest
+        support = SUPPORT_RADIUS * float(state.smoothing_length.max())
         if self.neighbours.stale(state.position, support):
             self._build(state)
             b = self.buffers
         extra = ({"after_pairs": self._mirror, "after_moments": self._mirror_moments}
                  if self._symmetric else {})
         extra["n_bodies"] = self.n_bodies  # rows of a larger body index are walls' ghosts
-        # every row's h the same (the ghosts' are their sources'): the neighbour loops read
-        # none of the neighbours' (CpuRates.neighbour_loops).  Not with the stretch, whose h
-        # start equal and part at a later build: one compiled module a run, not two
-        extra["uniform_h"] = self.max_stretch <= 1.0 and float(h.min()) == h_largest
+        # the backend sees whether the rows' h are all the same (CpuRates.neighbour_loops),
+        # except with the stretch, whose h start equal and part at a later build: one compiled
+        # module a run, not two
+        extra["uniform_h"] = None if self.max_stretch <= 1.0 else False
         if self.switched:
             extra["switch_elapsed"] = (0.0 if time is None
                                        else max(time - state.viscosity_factor_time, 0.0))

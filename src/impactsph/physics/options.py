@@ -61,7 +61,7 @@ class PassOptions:
       neighbour loops take a pair's ``h_ij = (h_i + h_j) / 2`` as ``h_i``, which it then is
       to the bit, and its inverse is the particle's, not a division a pair (one gather and
       one division a pair fewer).  Not from the case: the CPU's rates choose it at each
-      neighbour-list build, where the smoothing lengths are known
+      evaluation from the rows' smoothing lengths
       (:meth:`impactsph.physics.rates.CpuRates.evaluate`'s ``uniform_h``).
     """
 

@@ -201,8 +201,8 @@ class CpuRates:
         of a body index at or above it are rigid walls' ghosts) is added after the pairs.
         ``uniform_h``: whether every row's smoothing length is the same, so that the
         neighbour loops may take the particle's own h for each pair's
-        (:meth:`neighbour_loops`): None to check it here, or the caller's answer (the solver
-        knows it already, and says False for a run whose h may come to differ)."""
+        (:meth:`neighbour_loops`): None to see it here, from the rows' ``h`` the loops read
+        (the solver's choice, but for a run whose h may come to differ: False)."""
         x, v, rho, e, S, m, h, material, body, carried = arrays
         k = self.passes
         if uniform_h is None:
