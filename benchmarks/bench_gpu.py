@@ -2,20 +2,26 @@
 1e6 and 1e7 particles in 2D and 3D: one command for a machine with a GPU, within a time
 budget (issue 16).
 
-Each item (dimension, size, device) runs in a fresh process: the lattice of
-``bench_rates.make_case`` (steel-like, dx = 1 mm, h = 1.2 dx, the paper's scheme, small
-random velocities so that the viscosity works) with ``compute.device`` set, one warm step
-(compilation, the first neighbour build, the first transfers), then ``--steps`` timed steps
-of the integrator (two rate evaluations each, the time integration and the neighbour
-updates: what a run pays a step, outputs excepted). It prints a Markdown table and writes
-``--json``: ms per step, pair evaluations per second (those of the timed steps over their wall
-time), the device the passes ran on (a run asked to use a GPU that cannot falls back to the
-CPU and says so: the column shows where it ran), the growth of the peak host memory from just
-before the lattice is built and, on a GPU, the device memory in use, each per particle.
+Each (device, dimension) runs in a fresh process that takes the sizes in turn, smallest
+first, so that the CUDA kernels compile once a process (numba-cuda keeps no cache of them:
+about 30 s a dimension): the lattice of ``bench_rates.make_case`` (steel-like, dx = 1 mm,
+h = 1.2 dx, the paper's scheme, small random velocities so that the viscosity works) with
+``compute.device`` set, one warm step (the first neighbour build, the first transfers), then
+``--steps`` timed steps of the integrator (two rate evaluations each, the time integration
+and the neighbour updates: what a run pays a step, outputs excepted). It prints a Markdown
+table and writes ``--json``: ms per step, pair evaluations per second (those of the timed
+steps over their wall time), the device the passes ran on (a run asked to use a GPU that
+cannot falls back to the CPU and says so: the column shows where it ran), the seconds the
+first (tiny) case took to compile, and memory per particle: the growth of the host's peak
+resident set from just before the size's lattice is built (the sizes grow tenfold, so the
+peak is the size's own) and, on a GPU, the growth of the device memory in use from just
+before the lattice to after the timed steps (the CUDA context and the kernels excluded).
 
-The items run smallest first; one whose estimated time (the previous size's, scaled by the
-particle count) would pass the budget is skipped and listed as such, so the command ends
-within ``--budget`` seconds plus one item.
+Each process gets an equal share of the budget left when it starts. A size whose estimated
+time (the previous size's, scaled by the particle count) would pass the share left is
+skipped and listed as such; a process that passes its share by 20 s is stopped, and the
+sizes it finished are kept (the JSON is written after each process). So the command ends
+within ``--budget`` seconds plus 20 s.
 
     python benchmarks/bench_gpu.py                        # GPU and CPU, 2D and 3D, 1e5-1e7
     python benchmarks/bench_gpu.py --devices cpu --sizes 1e4 1e5 --budget 60
@@ -34,16 +40,23 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 
 
-def run_item(dim: int, n: int, device: str, steps: int) -> dict:
-    """One item, in this process (the child)."""
+def run_items(dim: int, sizes: list[int], device: str, steps: int, budget: float,
+              compare_cpu: bool = False) -> None:
+    """The items of one (device, dimension), in this process (the child): one JSON row a
+    size on stdout, as each ends."""
+    import gc
+
     import numpy as np
 
     sys.path.insert(0, str(HERE))
     from bench_rates import SEED, current_rss_mib, make_case, peak_rss_mib
 
+    from impactsph.gpu import simulator_enabled
     from impactsph.integrate import stable_time_step
     from impactsph.loading import validate_case
     from impactsph.simulation import Simulation
+
+    started = time.perf_counter()
 
     def case(size: int) -> dict:
         data = make_case(size, dim)
@@ -64,72 +77,172 @@ def run_item(dim: int, n: int, device: str, steps: int) -> dict:
                 sim._survey()
         return step
 
+    def gpu_used() -> int | None:
+        """Device memory in use (bytes) after the pending frees, on a real GPU."""
+        gc.collect()
+        if simulator_enabled():
+            return None
+        try:
+            from numba import cuda
+
+            if not cuda.is_available():
+                return None
+            context = cuda.current_context()
+            context.deallocations.clear()
+            free, total = context.get_memory_info()
+            return total - free
+        except Exception:  # noqa: BLE001 - no CUDA here: the CPU's row has no such column
+            return None
+
+    t0 = time.perf_counter()
     warm = Simulation(validate_case(case(2**dim)))  # the compiled code, the CUDA context
     stepper(warm)(1e-9)
+    compile_seconds = time.perf_counter() - t0
     del warm
-    baseline = current_rss_mib()
-    data = case(n)
-    t0 = time.perf_counter()
-    sim = Simulation(validate_case(data))
-    setup = time.perf_counter() - t0
-    state = sim.state
-    state.velocity[:] = np.random.default_rng(SEED).normal(0.0, 1.0, size=state.velocity.shape)
-    dt = stable_time_step(state, sim.problem.table, 0.3)
-    resident = sim._resident is not None
-    if resident:
-        sim._resident.upload(state)  # the random velocities
-    step = stepper(sim)
-    t0 = time.perf_counter()
-    step(dt)  # compilation, transfers, the first neighbour update
-    warm = time.perf_counter() - t0
-    if resident:
-        sim._fold()
-    pairs0 = sim.solver.pair_evaluations
-    t0 = time.perf_counter()
+    last: tuple[int, float] | None = None
+    kept = None  # (size, dt, the GPU run's final state) for the comparison with the CPU
+    for n in sorted(sizes):
+        left = budget - (time.perf_counter() - started)
+        estimate = last[1] * n / last[0] if last else 0.0
+        if left <= 0 or estimate > left:
+            print(json.dumps({"dimension": dim, "n_target": n, "device_asked": device,
+                              "error": f"skipped: about {estimate:.0f} s, {left:.0f} s of "
+                                       "the budget left"}), flush=True)
+            continue
+        item_start = time.perf_counter()
+        gpu_before = gpu_used() if device != "cpu" else None
+        baseline = current_rss_mib()
+        data = case(n)
+        t0 = time.perf_counter()
+        sim = Simulation(validate_case(data))
+        setup = time.perf_counter() - t0
+        state = sim.state
+        state.velocity[:] = np.random.default_rng(SEED).normal(0.0, 1.0,
+                                                               size=state.velocity.shape)
+        dt = stable_time_step(state, sim.problem.table, 0.3)
+        resident = sim._resident is not None
+        if resident:
+            sim._resident.upload(state)  # the random velocities
+        step = stepper(sim)
+        t0 = time.perf_counter()
+        step(dt)  # transfers, the first neighbour update
+        warm_step = time.perf_counter() - t0
+        if resident:
+            sim._fold()
+        pairs0 = sim.solver.pair_evaluations
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            step(dt)
+        wall = time.perf_counter() - t0
+        if resident:
+            sim._fold()
+        pairs = sim.solver.pair_evaluations - pairs0
+        ran_on = getattr(sim.solver.backend, "device", "cpu")
+        row = {"dimension": dim, "n_target": n, "n_particles": state.n,
+               "device_asked": device, "device": ran_on, "state_on_device": resident,
+               "steps": steps, "compile_seconds": compile_seconds, "setup_seconds": setup,
+               "warm_step_seconds": warm_step, "ms_per_step": 1e3 * wall / steps,
+               "pair_evaluations_per_second": pairs / wall,
+               "pairs_per_particle": pairs / (2 * steps * state.n),
+               "host_bytes_per_particle": (peak_rss_mib() - baseline) * 2**20 / state.n}
+        if ran_on == "gpu":
+            used = gpu_used() if gpu_before is not None else None
+            if used is not None:
+                row["gpu_bytes_per_particle"] = (used - gpu_before) / state.n
+            from numba import cuda
+
+            row["gpu_name"] = cuda.get_current_device().name
+            if isinstance(row["gpu_name"], bytes):
+                row["gpu_name"] = row["gpu_name"].decode()
+        last = (n, time.perf_counter() - item_start)
+        if compare_cpu and ran_on != "cpu" and n == min(sizes):  # compared after the sizes
+            kept = (n, dt, {k: np.array(a) for k, a in sim.state.arrays().items()})
+        del sim, state
+        print(json.dumps(row), flush=True)
+    if kept is not None and time.perf_counter() - started < budget:
+        n, dt, arrays = kept
+        print(json.dumps({"n_target": n, "relative_difference_to_cpu":
+                          difference_to_cpu(arrays, case(n), dt, steps + 1)}), flush=True)
+
+
+def difference_to_cpu(final: dict, data: dict, dt: float, steps: int) -> dict:
+    """The same lattice, the same random velocities and ``steps`` steps of ``dt`` on the
+    CPU: each field's largest difference to ``final`` (the GPU run's state arrays), over the
+    field's largest size (a check at the benchmark's scale, beside ``tests/test_gpu.py``'s
+    small cases). It runs after the timed sizes, so that the CPU's compilation does not eat
+    their budget."""
+    import numpy as np
+    from bench_rates import SEED
+
+    from impactsph.loading import validate_case
+    from impactsph.simulation import Simulation
+
+    data = {**data, "compute": {"device": "cpu"}}
+    ref = Simulation(validate_case(data))
+    ref.state.velocity[:] = np.random.default_rng(SEED).normal(0.0, 1.0,
+                                                               size=ref.state.velocity.shape)
     for _ in range(steps):
-        step(dt)
-    wall = time.perf_counter() - t0
-    if resident:
-        sim._fold()
-    pairs = sim.solver.pair_evaluations - pairs0
-    ran_on = getattr(sim.solver.backend, "device", "cpu")
-    row = {"dimension": dim, "n_target": n, "n_particles": state.n, "device_asked": device,
-           "device": ran_on, "state_on_device": resident, "steps": steps,
-           "setup_seconds": setup,
-           "warm_step_seconds": warm, "ms_per_step": 1e3 * wall / steps,
-           "pair_evaluations_per_second": pairs / wall,
-           "pairs_per_particle": pairs / (2 * steps * state.n),
-           "host_bytes_per_particle": (peak_rss_mib() - baseline) * 2**20 / state.n}
-    from impactsph.gpu import simulator_enabled
-
-    if ran_on == "gpu" and not simulator_enabled():  # (the simulator: for a smoke test)
-        from numba import cuda
-
-        free, total = cuda.current_context().get_memory_info()
-        row["gpu_bytes_per_particle"] = (total - free) / state.n
-        row["gpu_name"] = cuda.get_current_device().name.decode()
-    return row
+        ref.integrator.step(ref._state, dt)
+        ref._survey()
+    got, want = final, ref.state.arrays()
+    out = {}
+    for name, b in want.items():
+        a = got.get(name)
+        if a is None or np.shape(a) != np.shape(b) or not np.issubdtype(np.asarray(b).dtype,
+                                                                        np.floating):
+            continue
+        if not np.size(b):
+            continue
+        error = float(np.abs(np.asarray(a) - b).max())
+        scale = float(np.abs(b).max())
+        out[name] = error / scale if scale > 0 else error
+    return out
 
 
-def child(dim: int, n: int, device: str, steps: int, timeout: float) -> dict:
-    """Run one item in a fresh process; its row, or the reason it has none."""
+def _text(output: bytes | str | None) -> str:
+    return output.decode() if isinstance(output, bytes) else (output or "")
+
+
+def child(dim: int, sizes: list[int], device: str, steps: int, timeout: float,
+          compare_cpu: bool = False) -> list[dict]:
+    """Run one (device, dimension) in a fresh process; a row a size, or the reason it has
+    none."""
+    command = [sys.executable, __file__, "--child", str(dim), device, str(steps),
+               f"{timeout:.0f}", "compare" if compare_cpu else "-", *(str(n) for n in sizes)]
     try:
-        out = subprocess.run(
-            [sys.executable, __file__, "--child", str(dim), str(n), device, str(steps)],
-            capture_output=True, text=True, timeout=timeout, check=False)
-    except subprocess.TimeoutExpired:
-        return {"dimension": dim, "n_target": n, "device_asked": device,
-                "error": f"timed out after {timeout:.0f} s"}
-    if out.returncode != 0:
-        tail = (out.stderr.strip().splitlines() or ["no message"])[-1]
-        return {"dimension": dim, "n_target": n, "device_asked": device,
-                "error": f"exit {out.returncode}: {tail}"}
-    return json.loads(out.stdout.strip().splitlines()[-1])
+        out = subprocess.run(command, capture_output=True, text=True, timeout=timeout + 20,
+                             check=False)
+        stdout, stderr, why = out.stdout, out.stderr, out.returncode
+    except subprocess.TimeoutExpired as exc:
+        stdout, stderr, why = _text(exc.stdout), _text(exc.stderr), None
+    lines = [json.loads(line) for line in stdout.splitlines() if line.startswith("{")]
+    rows = [r for r in lines if "dimension" in r]
+    for extra in (r for r in lines if "dimension" not in r):  # the comparison, for its row
+        for r in rows:
+            if r["n_target"] == extra["n_target"]:
+                r.update(extra)
+    done = {r["n_target"] for r in rows}
+    for n in sizes:
+        if n not in done:
+            tail = (stderr.strip().splitlines() or ["no message"])[-1]
+            why_text = f"timed out after {timeout + 20:.0f} s" if why is None else \
+                f"exit {why}: {tail}"
+            rows.append({"dimension": dim, "n_target": n, "device_asked": device,
+                         "error": why_text})
+    if stderr.strip() and why:
+        sys.stderr.write(stderr[-4000:])
+    return sorted(rows, key=lambda r: r["n_target"])
+
+
+def write_json(args: argparse.Namespace, rows: list[dict], wall: float) -> None:
+    args.json.parent.mkdir(parents=True, exist_ok=True)
+    args.json.write_text(json.dumps({"budget_seconds": args.budget, "wall_seconds": wall,
+                                     "cpu_count": os.cpu_count(), "rows": rows}, indent=2))
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
+    ap.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     ap.add_argument("--devices", nargs="+", default=["gpu", "gpu-host", "cpu"],
                     choices=["gpu", "gpu-host", "cpu"],
                     help="gpu: the whole step on the GPU where the case allows (this one "
@@ -141,42 +254,45 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--budget", type=float, default=280.0,
                     help="seconds for the whole command (default 280, under 5 min)")
     ap.add_argument("--json", type=Path, default=Path("runs/bench_gpu.json"))
+    ap.add_argument("--compare-cpu", action="store_true",
+                    help="at the smallest size, run the same steps on the CPU and report each "
+                    "field's largest relative difference (the CPU's compilation and steps "
+                    "count against the budget)")
     args = ap.parse_args(argv)
     if args.child:
-        dim, n, device, steps = args.child
-        print(json.dumps(run_item(int(dim), int(float(n)), device, int(steps))))
+        dim, device, steps, budget, compare, *sizes = args.child
+        run_items(int(dim), [int(float(n)) for n in sizes], device, int(steps), float(budget),
+                  compare == "compare")
         return 0
     start = time.perf_counter()
     rows = []
-    for device in args.devices:
-        for dim in args.dims:
-            last: tuple[int, float] | None = None  # (particles, seconds) of the last item
-            for n in sorted(int(s) for s in args.sizes):
-                left = args.budget - (time.perf_counter() - start)
-                estimate = (last[1] * n / last[0]) if last else 0.0
-                if left <= 0 or estimate > left:
-                    rows.append({"dimension": dim, "n_target": n, "device_asked": device,
-                                 "error": f"skipped: about {estimate:.0f} s, {left:.0f} s "
-                                          "of the budget left"})
-                    continue
-                t0 = time.perf_counter()
-                row = child(dim, n, device, args.steps, timeout=max(left, 30.0))
-                last = (n, time.perf_counter() - t0)
-                rows.append(row)
-                print(json.dumps(row), file=sys.stderr, flush=True)
-    args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps({"budget_seconds": args.budget,
-                                     "wall_seconds": time.perf_counter() - start,
-                                     "cpu_count": os.cpu_count(), "rows": rows}, indent=2))
+    runs = [(device, dim) for device in args.devices for dim in args.dims]
+    for k, (device, dim) in enumerate(runs):
+        # each process gets an equal share of what is left of the budget
+        left = args.budget - (time.perf_counter() - start)
+        share = left / (len(runs) - k)
+        sizes = sorted(int(s) for s in args.sizes)
+        if share < 10:
+            rows.extend({"dimension": dim, "n_target": n, "device_asked": device,
+                         "error": f"skipped: {left:.0f} s of the budget left"}
+                        for n in sizes)
+            continue
+        for row in child(dim, sizes, device, args.steps, share, args.compare_cpu):
+            rows.append(row)
+            print(json.dumps(row), file=sys.stderr, flush=True)
+        write_json(args, rows, time.perf_counter() - start)  # what has run, kept as it goes
+    write_json(args, rows, time.perf_counter() - start)
     print("| device | dim | particles | ms / step | pairs / s | host B / particle | "
-          "GPU B / particle | note |")
-    print("|---|---|---|---|---|---|---|---|")
+          "GPU B / particle | compile s | to the CPU | note |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         if "error" in r:
-            print(f"| {r['device_asked']} | {r['dimension']} | {r['n_target']:.0e} | | | | | "
+            print(f"| {r['device_asked']} | {r['dimension']} | {r['n_target']:.0e} | | | | | | | "
                   f"{r['error']} |")
             continue
         gpu = r.get("gpu_bytes_per_particle")
+        difference = r.get("relative_difference_to_cpu")
+        to_cpu = f"{max(difference.values()):.1e}" if difference else ""
         ran = r["device"] + ("" if r["device"] == "cpu" else
                              " (state on the GPU)" if r.get("state_on_device") else
                              " (state on the host)")
@@ -185,7 +301,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"| {ran} | {r['dimension']} | {r['n_particles']:,} | "
               f"{r['ms_per_step']:.2f} | {r['pair_evaluations_per_second']:.3g} | "
               f"{r['host_bytes_per_particle']:.0f} | {'' if gpu is None else f'{gpu:.0f}'} | "
-              f"{note} |")
+              f"{r['compile_seconds']:.1f} | {to_cpu} | {note} |")
     return 0
 
 

@@ -894,7 +894,7 @@ def _step_kernel_types(name: str, dim: int) -> tuple:
     i64, i32 = nb.int64[::1], nb.int32[::1]
     types = {}
     for names, t in (("n n_blocks n_cells chunk n_ghosts n_real ghost_body0 b", nb.int64),
-                     ("dt courant scale radius weight share reach layer", nb.float64),
+                     ("dt courant scale radius front weight share reach layer", nb.float64),
                      ("corrected store first count_events walls", nb.boolean),
                      ("x0 v0 x v dv xs v_rate hg0 hg dhg part st0 st dv_corr table points "
                       "normals scratch contact_force carried force layer_force x0 S0 dS", f2),

@@ -1,0 +1,74 @@
+#!/usr/bin/env bash
+# One call on a lent machine with an NVIDIA GPU (issue 16): what it has, the GPU tests
+# against the CPU on the real device, and bench_gpu.py's table, within 8 minutes.
+#
+#   bash benchmarks/gpu_session.sh            # writes under $OUT (or runs/gpu_session)
+#
+# The machine's own python3 runs it (its numba and numba-cuda); packages it lacks travel as
+# wheels in .whl/ (pydantic, numexpr, meshio, and numpy 2.4: the image's numba-cuda 0.30.4 fails
+# to compile any kernel with its numpy 2.5, which has no np.row_stack; docs/gpu.md).
+# Each stage has its own time limit and writes its log under $OUT as it goes, so a stage that
+# fails or overruns leaves the others' results.
+set -u
+OUT=${OUT:-runs/gpu_session}
+mkdir -p "$OUT"
+export PYTHONUNBUFFERED=1
+stamp() { echo "== $(date -u +%T) $*" | tee -a "$OUT/session.log"; }
+
+stamp "machine"
+{
+  nvidia-smi --query-gpu=name,memory.total,memory.used,clocks.sm,driver_version --format=csv
+  python3 -c "import sys, numpy, numba; print(sys.version); print('numpy', numpy.__version__, 'numba', numba.__version__)"
+  python3 -m pip show numba-cuda 2>/dev/null | head -2
+  echo "cores $(nproc)"; lscpu | grep -E "Model name|^CPU\(s\)"
+} > "$OUT/machine.txt" 2>&1
+cat "$OUT/machine.txt"
+
+if [ -d .whl ]; then
+  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
+    --target /tmp/site .whl/*.whl > "$OUT/wheels.log" 2>&1 || stamp "wheels failed"
+fi
+export PYTHONPATH="$PWD/src:/tmp/site${PYTHONPATH:+:$PYTHONPATH}"
+if [ -z "${CUDA_HOME:-}" ] && [ -d /usr/local/cuda ]; then export CUDA_HOME=/usr/local/cuda; fi
+export NUMBA_CACHE_DIR=/tmp/numba-cache IMPACTSPH_CACHE_DIR=/tmp/impactsph-cache
+
+stamp "smoke: impactsph imports, numba-cuda sees the GPU"
+timeout 60 python3 -c "
+import impactsph
+from impactsph.gpu import unavailable_reason
+print('impactsph', impactsph.__version__, '| GPU:', unavailable_reason() or 'usable')
+import numpy as np
+from numba import cuda
+@cuda.jit
+def one(a):
+    a[cuda.grid(1)] = 1.0
+a = cuda.to_device(np.zeros(256))
+one[2, 128](a)
+print('a kernel compiled and ran:', a.copy_to_host().sum() == 256, '| numpy', np.__version__)
+" 2>&1 | tee "$OUT/smoke.log"
+
+# the GPU tests (mode gpu: the device against the CPU) beside the benchmark: two workers,
+# one a file; their kernels are small, their compilation is on the CPU
+stamp "tests on the GPU (in the background)"
+( timeout "${TESTS_LIMIT:-330}" python3 -m pytest -q -p no:cacheprovider -n 2 --dist loadfile \
+    tests/test_gpu.py tests/test_gpu_step.py -k "${TESTS_K:-not simulator and not compile_for_a_gpu}" \
+    --durations=15 > "$OUT/tests.log" 2>&1; echo "tests rc $?" >> "$OUT/tests.log" ) &
+tests=$!
+
+stamp "bench: the whole step on the GPU, 1e5-1e7 (at 1e5 the same steps on the CPU too)"
+GPU_BUDGET=${GPU_BUDGET:-240}
+timeout $((GPU_BUDGET + 40)) python3 benchmarks/bench_gpu.py --devices gpu --dims 3 2 \
+  --sizes 1e5 1e6 1e7 --steps 20 --compare-cpu --budget "$GPU_BUDGET" --json "$OUT/bench_gpu.json" \
+  2>&1 | tee "$OUT/bench_gpu.log"
+if [ "${HOST_STAGES:-1}" = 1 ]; then
+stamp "bench: the rates on the GPU, the state on the host; the CPU"
+timeout 75 python3 benchmarks/bench_gpu.py --devices gpu-host --dims 3 2 --sizes 1e5 1e6 \
+  --steps 10 --budget 40 --json "$OUT/bench_gpu_host.json" 2>&1 | tee "$OUT/bench_gpu_host.log"
+timeout 75 python3 benchmarks/bench_gpu.py --devices cpu --dims 3 2 --sizes 1e5 1e6 \
+  --steps 3 --budget 40 --json "$OUT/bench_cpu.json" 2>&1 | tee "$OUT/bench_cpu.log"
+fi
+
+stamp "waiting for the tests"
+wait "$tests"
+tail -30 "$OUT/tests.log"
+stamp "done"

@@ -1,0 +1,68 @@
+"""``benchmarks/bench_gpu.py``'s parts that run without a GPU: the comparison with the CPU that
+a GPU row carries, and how the parent keeps what a child process wrote before it failed."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
+
+def _run_on_the_cpu(n: int, steps: int):
+    from bench_rates import SEED, make_case
+
+    from impactsph.integrate import stable_time_step
+    from impactsph.loading import validate_case
+    from impactsph.simulation import Simulation
+
+    data = make_case(n, 2)
+    data["compute"] = {"device": "cpu"}
+    sim = Simulation(validate_case(data))
+    sim.state.velocity[:] = np.random.default_rng(SEED).normal(0.0, 1.0,
+                                                               size=sim.state.velocity.shape)
+    dt = stable_time_step(sim.state, sim.problem.table, 0.3)
+    for _ in range(steps):
+        sim.integrator.step(sim._state, dt)
+        sim._survey()
+    return make_case(n, 2), dt, {k: np.array(a) for k, a in sim.state.arrays().items()}
+
+
+def test_the_comparison_is_zero_for_the_same_steps_and_not_for_others(benchmark_script):
+    """The CPU's rerun of the same lattice and steps gives the same bits (so a GPU row's
+    difference is the GPU's), and one step fewer is seen (so the comparison can fail)."""
+    bench = benchmark_script("bench_gpu")
+    data, dt, final = _run_on_the_cpu(400, 3)
+    same = bench.difference_to_cpu(final, data, dt, 3)
+    assert set(same) >= {"position", "velocity", "density", "deviatoric_stress"}
+    assert max(same.values()) == 0.0
+    fewer = bench.difference_to_cpu(final, data, dt, 2)
+    assert fewer["velocity"] > 1e-3 and fewer["deviatoric_stress"] > 1e-3
+
+
+@pytest.mark.parametrize("timed_out", [False, True])
+def test_a_child_keeps_the_rows_it_wrote(benchmark_script, monkeypatch, timed_out):
+    """A child's rows are kept when it fails or is stopped after them; the sizes it did not
+    finish say why; the comparison line lands on its size's row."""
+    bench = benchmark_script("bench_gpu")
+    row = {"dimension": 3, "n_target": 100, "device_asked": "gpu", "ms_per_step": 1.0}
+    stdout = json.dumps(row) + "\n" + json.dumps(
+        {"n_target": 100, "relative_difference_to_cpu": {"velocity": 1e-13}}) + "\n"
+
+    def fake_run(command, **kwargs):
+        if timed_out:
+            raise subprocess.TimeoutExpired(command, kwargs["timeout"], output=stdout.encode(),
+                                            stderr=b"")
+        return subprocess.CompletedProcess(command, 1, stdout, "Traceback\nMemoryError: big\n")
+
+    monkeypatch.setattr(bench.subprocess, "run", fake_run)
+    rows = bench.child(3, [100, 1000], "gpu", 5, 30.0, compare_cpu=True)
+    assert [r["n_target"] for r in rows] == [100, 1000]
+    assert rows[0]["ms_per_step"] == 1.0
+    assert rows[0]["relative_difference_to_cpu"] == {"velocity": 1e-13}
+    assert rows[1]["error"] == ("timed out after 50 s" if timed_out else "exit 1: MemoryError: big")
