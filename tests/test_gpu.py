@@ -422,6 +422,8 @@ def _worker(task: str, folder: Path) -> int:
                             "probes": {k: [[t, v.tolist()] for t, v in rows]
                                        for k, rows in sim.record.probes.items()},
                             "lists": lists, "device": summary["device"],
+                            # the host path's device arrays still held (GpuRates.release)
+                            "host_path_arrays": sorted(sim.solver.backend._device),
                             "counts": [summary["pair_evaluations"],
                                        sim.solver.rate_evaluations,
                                        summary["neighbour_list_builds"]]}

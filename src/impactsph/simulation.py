@@ -224,6 +224,7 @@ class Simulation:
             return
         self._resident = ResidentStep(self.solver, self._state, self.problem.table)
         self._resident.set_books(self._books())
+        self.solver.backend.release()  # the host path's copies, from the first evaluation
         log.info("the whole step runs on the GPU: the state stays there between steps")
 
     def _sync(self) -> None:
