@@ -815,6 +815,39 @@ def test_unavailable_reason_names_the_missing_package():
     assert "numba-cuda is not installed" in unavailable_reason()
 
 
+def test_a_numpy_that_numba_cuda_cannot_compile_with_is_named(monkeypatch, caplog):
+    """numba-cuda 0.30.4 with numpy 2.5 loads its typing with an AttributeError (seen on an
+    H200, NVIDIA/numba-cuda#907): the GPU is then said to be unusable, with the fix, and the
+    run goes on on the CPU, instead of failing at its first kernel."""
+    import logging
+    from types import SimpleNamespace
+
+    from impactsph import gpu
+    from impactsph.devices import select_backend
+    from impactsph.physics.rates import CpuRates
+
+    real_find_spec, real_import = importlib.util.find_spec, importlib.import_module
+
+    def find_spec(name, *args):
+        return object() if name == "numba_cuda" else real_find_spec(name, *args)
+
+    def import_module(name, *args):
+        if name == "numba.cuda.np.npyimpl":
+            raise AttributeError("module 'numpy' has no attribute 'row_stack'")
+        return real_import(name, *args)
+
+    monkeypatch.setattr(gpu, "simulator_enabled", lambda: False)
+    monkeypatch.setattr(gpu, "cuda", SimpleNamespace(is_available=lambda: True))
+    monkeypatch.setattr(importlib.util, "find_spec", find_spec)
+    monkeypatch.setattr(importlib, "import_module", import_module)
+    reason = gpu.unavailable_reason()
+    assert "row_stack" in reason and "pip install 'numpy<2.5'" in reason, reason
+    with caplog.at_level(logging.WARNING, logger="impactsph.devices"):
+        backend = select_backend("gpu", 2)
+    assert isinstance(backend, CpuRates)
+    assert "numpy<2.5" in caplog.text and "running on the CPU" in caplog.text
+
+
 def _kernel_argument_types(dim: int) -> dict:
     """numba types of the kernels' arguments, by name, as the solver hands them over."""
     import numba as nb

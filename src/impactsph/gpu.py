@@ -75,6 +75,14 @@ def unavailable_reason() -> str | None:
             return "no CUDA GPU or driver was found"
     except Exception as exc:  # noqa: BLE001 - any driver error means no GPU
         return f"the CUDA driver failed ({exc})"
+    try:
+        # the kernels' typing, which numba-cuda loads at the first compilation: numba-cuda
+        # 0.30 registers np.row_stack there, which numpy 2.5 removed, and is in maintenance
+        # (NVIDIA/numba-cuda#907), so with numpy 2.5 no kernel compiles (seen on an H200)
+        importlib.import_module("numba.cuda.np.npyimpl")
+    except Exception as exc:  # noqa: BLE001 - any failure here means no kernel compiles
+        return (f"numba-cuda cannot compile kernels with numpy {np.__version__} "
+                f"({type(exc).__name__}: {exc}); pip install 'numpy<2.5'")
     return None
 
 
