@@ -204,19 +204,28 @@ def _text(output: bytes | str | None) -> str:
 
 
 def child(dim: int, sizes: list[int], device: str, steps: int, timeout: float,
-          compare_cpu: bool = False) -> list[dict]:
+          compare_cpu: bool = False, launch: tuple[int, int] | None = None) -> list[dict]:
     """Run one (device, dimension) in a fresh process; a row a size, or the reason it has
-    none."""
+    none. ``launch``: the GPU's ``(threads_per_block, max_registers)``
+    (:func:`impactsph.gpu.launch_settings`), set in the child's environment."""
+    from impactsph.gpu import REGISTERS_ENV, THREADS_ENV
+
     command = [sys.executable, __file__, "--child", str(dim), device, str(steps),
                f"{timeout:.0f}", "compare" if compare_cpu else "-", *(str(n) for n in sizes)]
+    env = dict(os.environ)
+    if launch is not None:
+        env[THREADS_ENV], env[REGISTERS_ENV] = str(launch[0]), str(launch[1])
     try:
         out = subprocess.run(command, capture_output=True, text=True, timeout=timeout + 20,
-                             check=False)
+                             check=False, env=env)
         stdout, stderr, why = out.stdout, out.stderr, out.returncode
     except subprocess.TimeoutExpired as exc:
         stdout, stderr, why = _text(exc.stdout), _text(exc.stderr), None
     lines = [json.loads(line) for line in stdout.splitlines() if line.startswith("{")]
     rows = [r for r in lines if "dimension" in r]
+    if launch is not None:
+        for r in rows:
+            r["threads_per_block"], r["max_registers"] = launch
     for extra in (r for r in lines if "dimension" not in r):  # the comparison, for its row
         for r in rows:
             if r["n_target"] == extra["n_target"]:
@@ -228,7 +237,8 @@ def child(dim: int, sizes: list[int], device: str, steps: int, timeout: float,
             why_text = f"timed out after {timeout + 20:.0f} s" if why is None else \
                 f"exit {why}: {tail}"
             rows.append({"dimension": dim, "n_target": n, "device_asked": device,
-                         "error": why_text})
+                         "error": why_text, **({"threads_per_block": launch[0],
+                                                "max_registers": launch[1]} if launch else {})})
     if stderr.strip() and why:
         sys.stderr.write(stderr[-4000:])
     return sorted(rows, key=lambda r: r["n_target"])
@@ -254,6 +264,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--budget", type=float, default=280.0,
                     help="seconds for the whole command (default 280, under 5 min)")
     ap.add_argument("--json", type=Path, default=Path("runs/bench_gpu.json"))
+    ap.add_argument("--threads-per-block", nargs="+", type=int, default=[128],
+                    help="the GPU's threads a block, each value a process of its own "
+                    "(default 128)")
+    ap.add_argument("--max-registers", nargs="+", type=int, default=[0],
+                    help="the pair kernel's register cap, 0 for the compiler's choice; each "
+                    "value a process of its own (benchmarks/gpu_registers.py gives the "
+                    "spills of each)")
     ap.add_argument("--compare-cpu", action="store_true",
                     help="at the smallest size, run the same steps on the CPU and report each "
                     "field's largest relative difference (the CPU's compilation and steps "
@@ -266,8 +283,11 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     start = time.perf_counter()
     rows = []
-    runs = [(device, dim) for device in args.devices for dim in args.dims]
-    for k, (device, dim) in enumerate(runs):
+    # the GPU's launch settings, each in a process of its own (the CPU's rows take none)
+    launches = [(t, r) for t in args.threads_per_block for r in args.max_registers]
+    runs = [(device, dim, None if device == "cpu" else launch) for device in args.devices
+            for dim in args.dims for launch in (launches if device != "cpu" else [None])]
+    for k, (device, dim, launch) in enumerate(runs):
         # each process gets an equal share of what is left of the budget
         left = args.budget - (time.perf_counter() - start)
         share = left / (len(runs) - k)
@@ -277,7 +297,7 @@ def main(argv: list[str] | None = None) -> int:
                          "error": f"skipped: {left:.0f} s of the budget left"}
                         for n in sizes)
             continue
-        for row in child(dim, sizes, device, args.steps, share, args.compare_cpu):
+        for row in child(dim, sizes, device, args.steps, share, args.compare_cpu, launch):
             rows.append(row)
             print(json.dumps(row), file=sys.stderr, flush=True)
         write_json(args, rows, time.perf_counter() - start)  # what has run, kept as it goes
@@ -298,6 +318,9 @@ def main(argv: list[str] | None = None) -> int:
                              " (state on the host)")
         note = "" if r["device"] == r["device_asked"].split("-")[0] else \
             f"asked {r['device_asked']}"
+        if r["device"] == "gpu" and "threads_per_block" in r:
+            note = (f"{r['threads_per_block']} threads a block, registers "
+                    f"{r['max_registers'] or 'free'}; {note}").rstrip("; ")
         print(f"| {ran} | {r['dimension']} | {r['n_particles']:,} | "
               f"{r['ms_per_step']:.2f} | {r['pair_evaluations_per_second']:.3g} | "
               f"{r['host_bytes_per_particle']:.0f} | {'' if gpu is None else f'{gpu:.0f}'} | "

@@ -26,12 +26,15 @@ RATE_KERNELS = {0: "particle_kernel", 1: "pair_kernel", 2: "correction_kernel"}
 STEP_KERNELS = ("advance", "survey", "neighbours", "totals", "displacement")
 
 
-def ptxas_report(ptxas: str, ptx: str) -> dict:
-    """Registers, stack frame and spill stores of the one kernel in ``ptx``."""
+def ptxas_report(ptxas: str, ptx: str, max_registers: int = 0) -> dict:
+    """Registers, stack frame and spill stores of the one kernel in ``ptx`` (with
+    ``max_registers``, ptxas's ``-maxrregcount``: what ``cuda.jit(max_registers=...)`` asks
+    the linker for)."""
     with tempfile.TemporaryDirectory() as folder:
         source = os.path.join(folder, "kernel.ptx")
         Path(source).write_text(ptx)
-        out = subprocess.run([ptxas, "-v", "-arch=sm_90", source, "-o",
+        cap = [f"-maxrregcount={max_registers}"] if max_registers else []
+        out = subprocess.run([ptxas, "-v", "-arch=sm_90", *cap, source, "-o",
                               os.path.join(folder, "kernel.o")],
                              capture_output=True, text=True, check=True)
     entry = out.stderr[out.stderr.rindex("Compiling entry function"):]
@@ -44,6 +47,9 @@ def ptxas_report(ptxas: str, ptx: str) -> dict:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dims", nargs="+", type=int, default=[2, 3], choices=[1, 2, 3])
+    ap.add_argument("--caps", nargs="*", type=int, default=[128, 96, 80, 64],
+                    help="also the pair kernel under these register caps (ptxas "
+                    "-maxrregcount): its spills")
     args = ap.parse_args(argv)
     import numba.cuda.dispatcher
     import nvidia.cuda_nvcc
@@ -77,6 +83,13 @@ def main(argv: list[str] | None = None) -> int:
             blocks = min(16, 65536 // (128 * r["registers"]))
             print(f"| {dim} | {name} | {r['registers']} | {blocks} | {r['stack']} | "
                   f"{r['spills']} |", flush=True)
+            if name != "pair_kernel":
+                continue
+            for cap in args.caps:
+                r = ptxas_report(ptxas, ptx, cap)
+                blocks = min(16, 65536 // (128 * r["registers"]))
+                print(f"| {dim} | {name}, at most {cap} | {r['registers']} | {blocks} | "
+                      f"{r['stack']} | {r['spills']} |", flush=True)
     return 0
 
 

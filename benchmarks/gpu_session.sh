@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
 # One call on a lent machine with an NVIDIA GPU (issue 16): what it has, the GPU tests
-# against the CPU on the real device, and bench_gpu.py's table, within 8 minutes.
+# against the CPU on the real device, and bench_gpu.py's tables: the whole step on the GPU
+# (1e5-1e7), the launch settings at 1M 3D particles (TUNE), each kernel's time with ncu
+# (KERNELS), the rates-only path and the CPU (HOST_STAGES); about 10 minutes with every stage:
+# set the toggles to 0 to fit a shorter call (a command there may run 10 minutes at most).
 #
 #   bash benchmarks/gpu_session.sh            # writes under $OUT (or runs/gpu_session)
 #
@@ -50,7 +53,7 @@ print('a kernel compiled and ran:', a.copy_to_host().sum() == 256, '| numpy', np
 # the GPU tests (mode gpu: the device against the CPU) beside the benchmark: two workers,
 # one a file; their kernels are small, their compilation is on the CPU
 stamp "tests on the GPU (in the background)"
-( timeout "${TESTS_LIMIT:-330}" python3 -m pytest -q -p no:cacheprovider -n 2 --dist loadfile \
+( timeout "${TESTS_LIMIT:-330}" python3 -m pytest -q -rA -p no:cacheprovider -n 2 --dist loadfile \
     tests/test_gpu.py tests/test_gpu_step.py -k "${TESTS_K:-not simulator and not compile_for_a_gpu}" \
     --durations=15 > "$OUT/tests.log" 2>&1; echo "tests rc $?" >> "$OUT/tests.log" ) &
 tests=$!
@@ -60,6 +63,23 @@ GPU_BUDGET=${GPU_BUDGET:-240}
 timeout $((GPU_BUDGET + 40)) python3 benchmarks/bench_gpu.py --devices gpu --dims 3 2 \
   --sizes 1e5 1e6 1e7 --steps 20 --compare-cpu --budget "$GPU_BUDGET" --json "$OUT/bench_gpu.json" \
   2>&1 | tee "$OUT/bench_gpu.log"
+if [ "${TUNE:-1}" = 1 ]; then
+# the launch settings at 1M 3D particles: threads a block and the pair kernel's register cap
+# (benchmarks/gpu_registers.py: 154 registers free, 128 spills 88 B), a process each
+stamp "tune: threads a block x register cap, 1e6 3D"
+timeout 170 python3 benchmarks/bench_gpu.py --devices gpu --dims 3 --sizes 1e6 --steps 20 \
+  --threads-per-block 128 256 --max-registers 0 128 --budget 150 \
+  --json "$OUT/bench_gpu_tune.json" 2>&1 | tee "$OUT/bench_gpu_tune.log"
+fi
+if [ "${KERNELS:-1}" = 1 ] && command -v ncu > /dev/null; then
+# each kernel's time in a step at 1M 3D particles (the rest of the step is launches and waits)
+stamp "kernels: ncu over three steps at 1e6 3D"
+timeout 150 ncu --clock-control none --target-processes all --launch-skip 150 \
+  --launch-count 45 --print-summary per-kernel python3 benchmarks/bench_gpu.py --devices gpu \
+  --dims 3 --sizes 1e6 --steps 12 --budget 120 --json "$OUT/bench_gpu_ncu.json" \
+  > "$OUT/ncu.log" 2>&1
+grep -E "^\s+[a-z_]+kernel|Duration|^  [a-z_]+\(" "$OUT/ncu.log" | head -80
+fi
 if [ "${HOST_STAGES:-1}" = 1 ]; then
 stamp "bench: the rates on the GPU, the state on the host; the CPU"
 timeout 75 python3 benchmarks/bench_gpu.py --devices gpu-host --dims 3 2 --sizes 1e5 1e6 \

@@ -48,20 +48,28 @@ def test_the_comparison_is_zero_for_the_same_steps_and_not_for_others(benchmark_
 @pytest.mark.parametrize("timed_out", [False, True])
 def test_a_child_keeps_the_rows_it_wrote(benchmark_script, monkeypatch, timed_out):
     """A child's rows are kept when it fails or is stopped after them; the sizes it did not
-    finish say why; the comparison line lands on its size's row."""
+    finish say why; the comparison line lands on its size's row; the GPU's launch settings
+    go to the child's environment and onto its rows."""
     bench = benchmark_script("bench_gpu")
     row = {"dimension": 3, "n_target": 100, "device_asked": "gpu", "ms_per_step": 1.0}
     stdout = json.dumps(row) + "\n" + json.dumps(
         {"n_target": 100, "relative_difference_to_cpu": {"velocity": 1e-13}}) + "\n"
 
+    seen = {}
+
     def fake_run(command, **kwargs):
+        seen.update(kwargs["env"])
         if timed_out:
             raise subprocess.TimeoutExpired(command, kwargs["timeout"], output=stdout.encode(),
                                             stderr=b"")
         return subprocess.CompletedProcess(command, 1, stdout, "Traceback\nMemoryError: big\n")
 
     monkeypatch.setattr(bench.subprocess, "run", fake_run)
-    rows = bench.child(3, [100, 1000], "gpu", 5, 30.0, compare_cpu=True)
+    rows = bench.child(3, [100, 1000], "gpu", 5, 30.0, compare_cpu=True, launch=(256, 128))
+    # the launch settings reach the child, and each row says which it ran with
+    assert (seen["IMPACTSPH_CUDA_THREADS_PER_BLOCK"], seen["IMPACTSPH_CUDA_MAX_REGISTERS"]) \
+        == ("256", "128")
+    assert all((r["threads_per_block"], r["max_registers"]) == (256, 128) for r in rows)
     assert [r["n_target"] for r in rows] == [100, 1000]
     assert rows[0]["ms_per_step"] == 1.0
     assert rows[0]["relative_difference_to_cpu"] == {"velocity": 1e-13}

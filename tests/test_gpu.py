@@ -815,6 +815,25 @@ def test_unavailable_reason_names_the_missing_package():
     assert "numba-cuda is not installed" in unavailable_reason()
 
 
+def test_launch_settings_come_from_the_environment_and_bad_ones_are_named():
+    """The tuning knobs for a GPU (threads a block, the pair kernel's register cap): the
+    defaults, values taken, and a bad value refused naming the variable, the value and what
+    is allowed."""
+    from impactsph.gpu import REGISTERS_ENV, THREADS_ENV, launch_settings
+
+    assert launch_settings({}) == (128, 0)
+    assert launch_settings({THREADS_ENV: "256", REGISTERS_ENV: "128"}) == (256, 128)
+    assert launch_settings({THREADS_ENV: " ", REGISTERS_ENV: "0"}) == (128, 0)
+    for name, value, allowed in ((THREADS_ENV, "96", "a power of two from 32 to 512"),
+                                 (THREADS_ENV, "1024", "a power of two from 32 to 512"),
+                                 (THREADS_ENV, "lots", "a power of two from 32 to 512"),
+                                 (REGISTERS_ENV, "16", "0 (the compiler's choice) or 32 to 255"),
+                                 (REGISTERS_ENV, "300", "0 (the compiler's choice) or 32 to 255")):
+        with pytest.raises(ValueError) as error:
+            launch_settings({name: value})
+        assert str(error.value) == f"{name} = {value!r}: allowed is {allowed}"
+
+
 def test_a_numpy_that_numba_cuda_cannot_compile_with_is_named(monkeypatch, caplog):
     """numba-cuda 0.30.4 with numpy 2.5 loads its typing with an AttributeError (seen on an
     H200, NVIDIA/numba-cuda#907): the GPU is then said to be unusable, with the fix, and the

@@ -26,6 +26,7 @@ so there the generated module is built with its bodies as plain Python (the same
 from __future__ import annotations
 
 import importlib.util
+import os
 from functools import cache
 
 import numpy as np
@@ -88,15 +89,45 @@ def unavailable_reason() -> str | None:
 
 @cache
 def gpu_kernels(dim: int, simulated: bool, version: int = 0,
-                options: PassOptions | str | None = None):
+                options: PassOptions | str | None = None, max_registers: int = 0):
     """The CUDA kernels for dimension ``dim`` and the registered models (``version``: the
     registries' version, so that a newly registered model gets new kernels):
     the eight kernels of :func:`impactsph.physics.passes.cuda_kernels`, whether the forces
     are corrected, whether the viscosity reconstructs the velocity and the record width.
-    ``simulated``: built for the CUDA simulator."""
+    ``simulated``: built for the CUDA simulator. ``max_registers``: the pair kernel's cap
+    (:func:`launch_settings`)."""
     passes = compiled_passes(dim, simulated, PassOptions.coerce(options))
-    return (*passes.cuda_kernels(), passes.FORCE_CORRECTION, passes.VELOCITY_RECONSTRUCTION,
-            passes.RECORD_WIDTH)
+    return (*passes.cuda_kernels(0 if simulated else max_registers), passes.FORCE_CORRECTION,
+            passes.VELOCITY_RECONSTRUCTION, passes.RECORD_WIDTH)
+
+
+#: the launch settings' environment variables (for tuning on a given GPU, benchmarks/bench_gpu.py)
+THREADS_ENV = "IMPACTSPH_CUDA_THREADS_PER_BLOCK"
+REGISTERS_ENV = "IMPACTSPH_CUDA_MAX_REGISTERS"
+
+
+def launch_settings(environ: dict | None = None) -> tuple[int, int]:
+    """``(threads_per_block, max_registers)`` from ``$IMPACTSPH_CUDA_THREADS_PER_BLOCK``
+    (a power of two from 32 to 512: the step's block sums need a power of two; default 128)
+    and ``$IMPACTSPH_CUDA_MAX_REGISTERS`` (the pair kernel's registers a thread, 32-255, or
+    0 for the compiler's choice, the default). A bad value is refused with the variable, the
+    value and what is allowed, before anything is compiled."""
+    environ = os.environ if environ is None else environ
+    values = []
+    for name, default, allowed, ok in (
+            (THREADS_ENV, THREADS_PER_BLOCK, "a power of two from 32 to 512",
+             lambda t: 32 <= t <= 512 and not t & (t - 1)),
+            (REGISTERS_ENV, 0, "0 (the compiler's choice) or 32 to 255",
+             lambda r: r == 0 or 32 <= r <= 255)):
+        text = environ.get(name, "").strip()
+        try:
+            value = int(text) if text else default
+        except ValueError:
+            value = None
+        if value is None or not ok(value):
+            raise ValueError(f"{name} = {text!r}: allowed is {allowed}")
+        values.append(value)
+    return values[0], values[1]
 
 
 #: The kernels' outputs for the active rows, copied into the ``RateBuffers`` of that name
@@ -121,12 +152,14 @@ class GpuRates:
                                f"{INSTALL_HINT})")
         self.dim = dim
         simulated = simulator_enabled()
+        threads, self.max_registers = launch_settings()
         self.threads_per_block = threads_per_block or (
-            SIMULATOR_THREADS_PER_BLOCK if simulated else THREADS_PER_BLOCK)
+            SIMULATOR_THREADS_PER_BLOCK if simulated else threads)
         from .models import registry
 
         self.options = PassOptions.coerce(options)
-        self._kernels = gpu_kernels(dim, simulated, registry.version(), self.options)
+        self._kernels = gpu_kernels(dim, simulated, registry.version(), self.options,
+                                    self.max_registers)
         self._stream = cuda.stream()
         self._device: dict[str, object] = {}  # name -> device array, reused while it fits
         self._uploaded: dict[str, np.ndarray] = {}  # name -> host array last uploaded

@@ -638,7 +638,8 @@ class ResidentStep:
         self.options = backend.options
         simulated = simulator_enabled()
         version = registry.version()
-        self.rate_kernels = gpu_kernels(self.dim, simulated, version, self.options)
+        self.rate_kernels = gpu_kernels(self.dim, simulated, version, self.options,
+                                        backend.max_registers)
         self.k = step_kernels(self.dim, simulated, version, self.options, self.tpb)
         self.record_width = self.rate_kernels[-1]
         self.viscosity = solver.viscosity

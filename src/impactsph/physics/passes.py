@@ -1635,14 +1635,19 @@ def pressures(rho, e, material, table, out):
 # -- the CUDA kernels ------------------------------------------------------------------------
 
 
-def cuda_kernels():
+def cuda_kernels(max_registers=0):
     """The same bodies as CUDA kernels, one thread per sorted position ``p``:
     ``(particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
     friction_kernel, switch_kernel, gradient_kernel)``.
     They launch and
-    state no physics; :class:`impactsph.gpu.GpuRates` moves the data."""
+    state no physics; :class:`impactsph.gpu.GpuRates` moves the data.
+    ``max_registers``: a cap on the pair kernel's registers a thread (0: the compiler's
+    choice; ignored by the simulator), for more threads a multiprocessor at the cost of spills
+    (``benchmarks/gpu_registers.py``)."""
     global cuda  # a module global, as numba's CUDA simulator expects to find it
     from numba import cuda
+
+    pair_jit = cuda.jit(max_registers=max_registers) if max_registers else cuda.jit
 
     @cuda.jit
     def particle_kernel(n_rows, order, x, v, m, rho, e, S, carried, h, body, material, table,
@@ -1652,7 +1657,7 @@ def cuda_kernels():
             particle_record(p, order[p], x, v, m, rho, e, S, carried, h, body, material, table,
                             P)
 
-    @cuda.jit
+    @pair_jit
     def pair_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind, visc_params,
                     normal_stress, S, material, table, drho, dv, de, de_visc, contact_force,
                     pair_count, dS, L_sorted):
