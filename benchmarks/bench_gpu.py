@@ -49,7 +49,7 @@ def run_items(dim: int, sizes: list[int], device: str, steps: int, budget: float
     import numpy as np
 
     sys.path.insert(0, str(HERE))
-    from bench_rates import SEED, current_rss_mib, make_case, peak_rss_mib
+    from bench_rates import current_rss_mib, make_case, peak_rss_mib
 
     from impactsph.gpu import simulator_enabled
     from impactsph.integrate import stable_time_step
@@ -117,8 +117,7 @@ def run_items(dim: int, sizes: list[int], device: str, steps: int, budget: float
         sim = Simulation(validate_case(data))
         setup = time.perf_counter() - t0
         state = sim.state
-        state.velocity[:] = np.random.default_rng(SEED).normal(0.0, 1.0,
-                                                               size=state.velocity.shape)
+        start_velocities(state)
         dt = stable_time_step(state, sim.problem.table, 0.3)
         resident = sim._resident is not None
         if resident:
@@ -165,6 +164,15 @@ def run_items(dim: int, sizes: list[int], device: str, steps: int, budget: float
                           difference_to_cpu(arrays, case(n), dt, steps + 1)}), flush=True)
 
 
+def start_velocities(state) -> None:
+    """The benchmark's start: random velocities of 1 m/s (so that the viscosity works), the
+    same in every run and in the comparison's CPU run."""
+    import numpy as np
+    from bench_rates import SEED
+
+    state.velocity[:] = np.random.default_rng(SEED).normal(0.0, 1.0, size=state.velocity.shape)
+
+
 def difference_to_cpu(final: dict, data: dict, dt: float, steps: int) -> dict:
     """The same lattice, the same random velocities and ``steps`` steps of ``dt`` on the
     CPU: each field's largest difference to ``final`` (the GPU run's state arrays), over the
@@ -172,15 +180,13 @@ def difference_to_cpu(final: dict, data: dict, dt: float, steps: int) -> dict:
     small cases). It runs after the timed sizes, so that the CPU's compilation does not eat
     their budget."""
     import numpy as np
-    from bench_rates import SEED
 
     from impactsph.loading import validate_case
     from impactsph.simulation import Simulation
 
     data = {**data, "compute": {"device": "cpu"}}
     ref = Simulation(validate_case(data))
-    ref.state.velocity[:] = np.random.default_rng(SEED).normal(0.0, 1.0,
-                                                               size=ref.state.velocity.shape)
+    start_velocities(ref.state)
     for _ in range(steps):
         ref.integrator.step(ref._state, dt)
         ref._survey()

@@ -14,8 +14,8 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 
-def _run_on_the_cpu(n: int, steps: int):
-    from bench_rates import SEED, make_case
+def _run_on_the_cpu(bench, n: int, steps: int):
+    from bench_rates import make_case
 
     from impactsph.integrate import stable_time_step
     from impactsph.loading import validate_case
@@ -24,8 +24,7 @@ def _run_on_the_cpu(n: int, steps: int):
     data = make_case(n, 2)
     data["compute"] = {"device": "cpu"}
     sim = Simulation(validate_case(data))
-    sim.state.velocity[:] = np.random.default_rng(SEED).normal(0.0, 1.0,
-                                                               size=sim.state.velocity.shape)
+    bench.start_velocities(sim.state)
     dt = stable_time_step(sim.state, sim.problem.table, 0.3)
     for _ in range(steps):
         sim.integrator.step(sim._state, dt)
@@ -37,7 +36,7 @@ def test_the_comparison_is_zero_for_the_same_steps_and_not_for_others(benchmark_
     """The CPU's rerun of the same lattice and steps gives the same bits (so a GPU row's
     difference is the GPU's), and one step fewer is seen (so the comparison can fail)."""
     bench = benchmark_script("bench_gpu")
-    data, dt, final = _run_on_the_cpu(400, 3)
+    data, dt, final = _run_on_the_cpu(bench, 400, 3)
     same = bench.difference_to_cpu(final, data, dt, 3)
     assert set(same) >= {"position", "velocity", "density", "deviatoric_stress"}
     assert max(same.values()) == 0.0
