@@ -887,9 +887,10 @@ def _kernel_argument_types(dim: int) -> dict:
     types["normal_stress"] = nb.boolean
     for names, t in (("n_rows n_active visc_kind", nb.int64),
                      ("m rho e h drho de_visc de_corr de", f1),
-                     ("x v P contact_force dv_corr dv hg dhg dS", f2),
+                     ("x v contact_force dv_corr dv hg dhg dS", f2),
                      ("S L_sorted", f3)):
         types.update(dict.fromkeys(names.split(), t))
+    types["P"] = nb.float64[::1, :]  # the records by column (impactsph.gpu.RECORD_ORDER)
     return types
 
 
@@ -947,7 +948,7 @@ def _step_kernel_types(name: str, dim: int) -> tuple:
     f1, f2, f3 = nb.float64[::1], nb.float64[:, ::1], nb.float64[:, :, ::1]
     i64, i32 = nb.int64[::1], nb.int32[::1]
     types = {}
-    for names, t in (("n n_blocks n_cells chunk n_ghosts n_real ghost_body0 b", nb.int64),
+    for names, t in (("n n_blocks n_cells chunk n_ghosts n_real ghost_body0 b slot", nb.int64),
                      ("dt courant scale radius front weight share reach layer", nb.float64),
                      ("corrected store first count_events walls", nb.boolean),
                      ("x0 v0 x v dv xs v_rate hg0 hg dhg part st0 st dv_corr table points "

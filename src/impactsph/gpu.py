@@ -8,7 +8,8 @@ This module launches and moves data; it states no physics.  The kernels are thos
 models by :mod:`impactsph.codegen`, one CUDA thread per sorted position ``p`` (particle
 ``order[p]``), gathering over its CSR neighbours like the CPU loop: no atomics, so each sum runs
 in the order of the neighbour list and the result does not depend on scheduling.  The packed
-particle records (:mod:`impactsph.physics.records`) are built on the device and read there.
+particle records (:mod:`impactsph.physics.records`) are built on the device and read there,
+stored by column (:data:`RECORD_ORDER`).
 
 The neighbour list, the ghosts and the time integration stay on the CPU.  Device arrays are
 kept between calls: the neighbour list is uploaded when the solver hands over a new one, the
@@ -93,12 +94,22 @@ def gpu_kernels(dim: int, simulated: bool, version: int = 0,
     """The CUDA kernels for dimension ``dim`` and the registered models (``version``: the
     registries' version, so that a newly registered model gets new kernels):
     the eight kernels of :func:`impactsph.physics.passes.cuda_kernels`, whether the forces
-    are corrected, whether the viscosity reconstructs the velocity and the record width.
+    are corrected, whether the viscosity reconstructs the velocity and the record's columns
+    (unpadded: the records are stored by column, :data:`RECORD_ORDER`).
     ``simulated``: built for the CUDA simulator. ``max_registers``: the pair kernel's cap
     (:func:`launch_settings`)."""
     passes = compiled_passes(dim, simulated, PassOptions.coerce(options))
     return (*passes.cuda_kernels(0 if simulated else max_registers), passes.FORCE_CORRECTION,
-            passes.VELOCITY_RECONSTRUCTION, passes.RECORD_WIDTH)
+            passes.VELOCITY_RECONSTRUCTION, passes.RECORD_COLUMNS)
+
+
+#: The packed records' layout on the device: Fortran order, each column (a field of every
+#: particle) contiguous.  The bodies index ``P[p, column]`` as on the CPU, whose records are
+#: rows; on the GPU a warp's 32 threads then read one field of 32 neighbours (in the list's
+#: cell order, mostly consecutive rows) from one or two 128-byte lines, where rows spread
+#: them over 32 lines.  3D, 1M particles, H200: the pair kernel 4.2 ms an evaluation with
+#: rows, at 86% of its L1 throughput (ncu), 18% occupancy (benchmarks/README.md).
+RECORD_ORDER = "F"
 
 
 #: the launch settings' environment variables (for tuning on a given GPU, benchmarks/bench_gpu.py)
@@ -166,11 +177,11 @@ class GpuRates:
         self.uploads = 0  # host-to-device copies so far (for tests and tuning)
 
     # -- device memory ---------------------------------------------------------------------
-    def _buffer(self, name: str, shape: tuple, dtype) -> object:
+    def _buffer(self, name: str, shape: tuple, dtype, order: str = "C") -> object:
         """The device array ``name``, (re)allocated when its shape or type changes."""
         d = self._device.get(name)
         if d is None or d.shape != tuple(shape) or d.dtype != np.dtype(dtype):
-            d = cuda.device_array(shape, dtype=dtype, stream=self._stream)
+            d = cuda.device_array(shape, dtype=dtype, order=order, stream=self._stream)
             self._device[name] = d
         return d
 
@@ -239,7 +250,7 @@ class GpuRates:
         dind = up("indices", neighbours.indices, True)
         # the packed records and the outputs, allocated once per size
         buf = self._buffer
-        packed = buf("packed", (n_rows, record_width), np.float64)
+        packed = buf("packed", (n_rows, record_width), np.float64, RECORD_ORDER)
         shapes = {"drho": (n_rows,), "de": (n_rows,), "de_visc": (n_rows,),
                   "de_corr": (n_rows,), "pair_count": (n_rows,), "dS": (n_rows, 6),
                   "factor": (n_rows,), "memory": (n_rows,)}

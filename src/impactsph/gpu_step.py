@@ -52,7 +52,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import boundaries, codegen
-from .gpu import cuda, gpu_kernels, simulator_enabled
+from .gpu import RECORD_ORDER, cuda, gpu_kernels, simulator_enabled
 from .kernels import SUPPORT_RADIUS
 from .physics import stress_rate, survey
 from .physics.rates import compiled_passes
@@ -156,11 +156,24 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                              dS, dhg, clamped, material, table, h, x, v, rho, e, S, pw, st, hg)
 
     @cuda.jit
-    def keep_stress_kernel(n, S, S0):
-        """The step's start copy of the deviator: its six components (the advance's ``S0``)."""
+    def start_kernel(n, x, v, rho, e, S, pw, st, hg, x0, v0, rho0, e0, S0, pw0, st0, hg0):
+        """The step's start copy of the integrated fields (the advance's ``x0, v0, ...``),
+        the deviator as its six components: one launch for what were seven copies and a
+        launch (each about 0.2 ms of the host's time at a step's start, when the device waits
+        for it: benchmarks/README.md)."""
         i = cuda.grid(1)
         if i < n:
+            for a in range(DIM):
+                x0[i, a] = x[i, a]
+                v0[i, a] = v[i, a]
+            rho0[i] = rho[i]
+            e0[i] = e[i]
             store_upper(S, S0, i)
+            pw0[i] = pw[i]
+            for a in range(st.shape[1]):
+                st0[i, a] = st[i, a]
+            for a in range(hg.shape[1]):
+                hg0[i, a] = hg[i, a]
 
     @cuda.jit
     def survey_kernel(n, x, v, rho, e, S, m, h, material, table, points, normals, part, bad):
@@ -414,12 +427,15 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                        m, h, material, body, ghost_body0)
 
     @cuda.jit
-    def displacement_kernel(n, x, reference, origin, largest):
-        """The largest squared displacement since the build: the block's, then one atomic
-        max per block (exact)."""
+    def displacement_kernel(n, x, reference, origin, largest, slot):
+        """The largest squared displacement since the build into ``largest[slot]`` (zero
+        before): the block's, then one atomic max per block (exact); the other slot is
+        zeroed for the next test (no copy from the host a test)."""
         sh = cuda.shared.array((1, TPB), float64)
         i = cuda.grid(1)
         t = cuda.threadIdx.x
+        if i == 0:
+            largest[1 - slot] = 0.0
         sh[0, t] = 0.0
         if i < n:
             s = 0.0
@@ -429,7 +445,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
             sh[0, t] = s
         _block_reduce(sh, 1, 0, 1, t)
         if t == 0:
-            cuda.atomic.max(largest, 0, sh[0, 0])
+            cuda.atomic.max(largest, slot, sh[0, 0])
 
     @cuda.jit
     def bounds_kernel(n, x, lo, hi):
@@ -581,7 +597,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
             for a in range(DIM):
                 out[k, a] = v[rows[k], a]
 
-    return dict(advance=advance_kernel, keep_stress=keep_stress_kernel, survey=survey_kernel,
+    return dict(advance=advance_kernel, start=start_kernel, survey=survey_kernel,
                 survey_finish=survey_finish,
                 totals=totals_kernel, totals_finish=totals_finish, layer=layer_kernel,
                 enforce=enforce_kernel,
@@ -707,7 +723,9 @@ class ResidentStep:
         self.bad = cuda.to_device(np.array([NO_BAD], dtype=np.int64), stream=s)
         self.totals_part = empty((self.blocks, TOTALS), np.float64)
         self.books = cuda.to_device(np.zeros(BOOKS_WIDTH), stream=s)
-        self.largest = cuda.to_device(np.zeros(1), stream=s)
+        #: the staleness tests' largest squared displacement, in two slots taken in turn
+        self.largest = cuda.to_device(np.zeros(2), stream=s)
+        self._slot = 0
         self.body_part = empty((self.blocks, 4 + dim), np.float64)
         self.body_out = empty((max(self.n_bodies, 1), 4 + dim), np.float64)
         self.origin = empty(dim, np.float64)
@@ -760,7 +778,7 @@ class ResidentStep:
         """The packed records and the reference positions for ``rows`` rows."""
         self.capacity = rows
         self.packed = cuda.device_array((rows, self.record_width), np.float64,
-                                        stream=self.stream)
+                                        order=RECORD_ORDER, stream=self.stream)
         reference = cuda.device_array((rows, self.dim), np.float32, stream=self.stream)
         if getattr(self, "reference", None) is not None:  # the particles' rows kept
             reference[: self.n].copy_to_device(self.reference[: self.n], stream=self.stream)
@@ -933,10 +951,11 @@ class ResidentStep:
     def _stale(self) -> bool:
         if self.skin <= 0.0:
             return True
-        self.largest.copy_to_device(np.zeros(1), stream=self.stream)
+        slot = self._slot
+        self._slot = 1 - slot
         self._launch("displacement", self.n, self.n, self.now["position"], self.reference,
-                     self.origin, self.largest)
-        largest = self._fetch(self.largest)[0]
+                     self.origin, self.largest, slot)
+        largest = self._fetch(self.largest[slot:slot + 1])[0]
         return bool(math.sqrt(largest) > 0.5 * self.skin)
 
     def _scan(self, a, n: int, depth: int = 0) -> None:
@@ -1085,11 +1104,9 @@ class ResidentStep:
         :meth:`impactsph.integrate.MidpointIntegrator.step`): rates at t, the half step, rates
         at t + dt/2 (the step's books: the weights (0, 1)), the whole step.  ``state``'s time
         and step move; its arrays are left as they were (:meth:`download`)."""
-        for f in INTEGRATED:
-            if f == "deviatoric_stress":
-                self._launch("keep_stress", self.n, self.n, self.now[f], self.start[f])
-            elif self.now[f].size:
-                self.start[f].copy_to_device(self.now[f], stream=self.stream)
+        now, st = self.now, self.start
+        self._launch("start", self.n, self.n, *(now[f] for f in INTEGRATED),
+                     *(st[f] for f in INTEGRATED))
         self._evaluate(dt, 0.0, True)
         self._stage(0.5 * dt, self.start["velocity"], 0.0, False)
         self._evaluate(dt, 1.0, False)

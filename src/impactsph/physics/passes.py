@@ -164,8 +164,10 @@ THICK = PLANE_STRESS or AXISYMMETRIC
 AXIS_FLOOR = 0.1
 X, V, H, M, VOL, RHO, C, PC, BODY, A0, U = (_COLUMNS[k] for k in (
     "x", "v", "h", "m", "volume", "rho", "c", "pc", "body", "A", "u"))
-#: the device's row length (padded to whole cache lines); the CPU's rows are unpadded:
-#: RECORD_COLUMNS, or U where no pass reads the viscous acceleration (its columns are last)
+#: the record's length padded to whole cache lines (rows of one particle each, a layout that
+#: no backend uses now: the CPU's rows are unpadded, RECORD_COLUMNS, or U where no pass reads
+#: the viscous acceleration (its columns are last); the GPU's records are columns,
+#: ``RECORD_COLUMNS`` of them: :data:`impactsph.gpu.RECORD_ORDER`)
 RECORD_WIDTH = _COLUMNS["width"]
 RECORD_COLUMNS = _COLUMNS["columns"]
 #: first column of the correction matrix C (FORCE_CORRECTION only; row by row)

@@ -1,0 +1,69 @@
+#!/usr/bin/env bash
+# One short call on a lent machine with an NVIDIA GPU (issue 16): where a step's time goes.
+# gpu_profile.py (each kernel's and copy's device time, the host's time to issue it) at 1M 3D
+# particles with the default launch settings and with others, at 1e5 3D and 1M 2D, then ncu's
+# view of the rate kernels at 1M 3D (occupancy, throughput, what the warps wait for), and
+# bench_gpu's comparison with the CPU at 1e5 (COMPARE); the GPU tests run beside it all
+# (TESTS).  About 5 minutes; each stage has its own limit and its log under $OUT.
+#
+#   bash benchmarks/gpu_profile.sh                 # PROFILES="3:1e6:128:0 ..." to choose
+set -u
+OUT=${OUT:-runs/gpu_profile}
+mkdir -p "$OUT"
+export PYTHONUNBUFFERED=1
+stamp() { echo "== $(date -u +%T) $*" | tee -a "$OUT/session.log"; }
+
+stamp "machine"
+{
+  nvidia-smi --query-gpu=name,memory.total,clocks.sm,clocks.max.sm,driver_version --format=csv
+  python3 -c "import numpy, numba; print('numpy', numpy.__version__, 'numba', numba.__version__)"
+  echo "cores $(nproc)"; lscpu | grep -E "Model name"
+} 2>&1 | tee "$OUT/machine.txt"
+if [ -d .whl ]; then
+  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
+    --target /tmp/site .whl/*.whl > "$OUT/wheels.log" 2>&1 || stamp "wheels failed"
+fi
+export PYTHONPATH="$PWD/src:/tmp/site${PYTHONPATH:+:$PYTHONPATH}"
+if [ -z "${CUDA_HOME:-}" ] && [ -d /usr/local/cuda ]; then export CUDA_HOME=/usr/local/cuda; fi
+export NUMBA_CACHE_DIR=/tmp/numba-cache IMPACTSPH_CACHE_DIR=/tmp/impactsph-cache
+
+if [ "${TESTS:-1}" = 1 ]; then  # the GPU tests (the device against the CPU), beside the rest
+  stamp "tests on the GPU (in the background)"
+  ( timeout "${TESTS_LIMIT:-300}" python3 -m pytest -q -rA -p no:cacheprovider -n 2 \
+      --dist loadfile tests/test_gpu.py tests/test_gpu_step.py \
+      -k "${TESTS_K:-not simulator and not compile_for_a_gpu}" > "$OUT/tests.log" 2>&1
+    echo "tests rc $?" >> "$OUT/tests.log" ) &
+fi
+
+# dim:size:threads a block:register cap (0: none)
+for p in ${PROFILES:-3:1e6:128:0 3:1e5:128:0 2:1e6:128:0 3:1e6:256:0 3:1e6:128:128 3:1e6:64:0}; do
+  IFS=: read -r dim size tpb regs <<< "$p"
+  stamp "profile ${dim}D $size, $tpb threads a block, register cap $regs"
+  IMPACTSPH_CUDA_THREADS_PER_BLOCK=$tpb IMPACTSPH_CUDA_MAX_REGISTERS=$regs \
+    timeout "${PROFILE_LIMIT:-75}" python3 benchmarks/gpu_profile.py --dim "$dim" --size "$size" \
+    --steps "${STEPS:-10}" --json "$OUT/profile.json" 2>&1 | grep -v Warning
+done
+
+if [ "${NCU:-1}" = 1 ] && command -v ncu > /dev/null; then
+  stamp "ncu: the rate kernels at 1e6 3D"
+  timeout "${NCU_LIMIT:-110}" ncu --clock-control none --target-processes all \
+    -k "regex:pair_kernel|particle_kernel|advance_kernel" --launch-count 4 \
+    --section SpeedOfLight --section Occupancy --section LaunchStats \
+    --section WarpStateStats --section MemoryWorkloadAnalysis \
+    python3 benchmarks/gpu_profile.py --dim 3 --size 1e6 --steps 1 > "$OUT/ncu.txt" 2>&1
+  echo "ncu rc $?"
+  grep -E "^  [a-z_]|Duration|Registers Per|Achieved Occupancy|Theoretical Occupancy|Compute \(SM\) Throughput|Memory Throughput|DRAM Throughput|L1/TEX Hit|L2 Hit|Warp Cycles Per Issued|Block Limit" \
+    "$OUT/ncu.txt" | head -90
+fi
+if [ "${COMPARE:-1}" = 1 ]; then  # the whole step on the device against the CPU, 1e5
+  stamp "bench_gpu: 1e5 on the device, the same steps on the CPU"
+  timeout "${COMPARE_LIMIT:-150}" python3 benchmarks/bench_gpu.py --devices gpu --dims 3 2 \
+    --sizes 1e5 --steps 20 --compare-cpu --budget $(( ${COMPARE_LIMIT:-150} - 25 )) \
+    --json "$OUT/bench_gpu.json" 2>&1 | grep -v Warning
+fi
+if [ "${TESTS:-1}" = 1 ]; then
+  stamp "waiting for the tests"
+  wait
+  grep -E "PASSED|FAILED|ERROR|passed|failed|rc " "$OUT/tests.log" | tail -40
+fi
+stamp "done"
