@@ -3,8 +3,8 @@
 # gpu_profile.py (each kernel's and copy's device time, the host's time to issue it) at 1M 3D
 # particles with the default launch settings and with others, at 1e5 3D and 1M 2D, then ncu's
 # view of the rate kernels at 1M 3D (occupancy, throughput, what the warps wait for), and
-# bench_gpu's comparison with the CPU at 1e5 (COMPARE); the GPU tests run beside it all
-# (TESTS).  About 5 minutes; each stage has its own limit and its log under $OUT.
+# bench_gpu's comparison with the CPU at 1e5 (COMPARE); the GPU tests (TESTS) start after
+# TESTS_AFTER profiles and run beside what follows.  About 5 minutes; each stage has its own limit and its log under $OUT.
 #
 #   bash benchmarks/gpu_profile.sh                 # PROFILES="3:1e6:128:0 ..." to choose
 set -u
@@ -27,16 +27,19 @@ export PYTHONPATH="$PWD/src:/tmp/site${PYTHONPATH:+:$PYTHONPATH}"
 if [ -z "${CUDA_HOME:-}" ] && [ -d /usr/local/cuda ]; then export CUDA_HOME=/usr/local/cuda; fi
 export NUMBA_CACHE_DIR=/tmp/numba-cache IMPACTSPH_CACHE_DIR=/tmp/impactsph-cache
 
-if [ "${TESTS:-1}" = 1 ]; then  # the GPU tests (the device against the CPU), beside the rest
-  stamp "tests on the GPU (in the background)"
+tests() {  # the GPU tests (the device against the CPU), in the background
+  stamp "tests on the GPU (in the background: the stages after this one run beside them)"
   ( timeout "${TESTS_LIMIT:-300}" python3 -m pytest -q -rA -p no:cacheprovider -n 2 \
-      --dist loadfile tests/test_gpu.py tests/test_gpu_step.py \
+      --dist loadfile ${TESTS_FILES:-tests/test_gpu.py tests/test_gpu_step.py} \
       -k "${TESTS_K:-not simulator and not compile_for_a_gpu}" > "$OUT/tests.log" 2>&1
     echo "tests rc $?" >> "$OUT/tests.log" ) &
-fi
+}
 
-# dim:size:threads a block:register cap (0: none)
+# dim:size:threads a block:register cap (0: none); the tests start after TESTS_AFTER of them
+count=0
 for p in ${PROFILES:-3:1e6:128:0 3:1e5:128:0 2:1e6:128:0 3:1e6:256:0 3:1e6:128:128 3:1e6:64:0}; do
+  if [ "${TESTS:-1}" = 1 ] && [ "$count" = "${TESTS_AFTER:-0}" ]; then tests; fi
+  count=$((count + 1))
   IFS=: read -r dim size tpb regs <<< "$p"
   stamp "profile ${dim}D $size, $tpb threads a block, register cap $regs"
   IMPACTSPH_CUDA_THREADS_PER_BLOCK=$tpb IMPACTSPH_CUDA_MAX_REGISTERS=$regs \
@@ -44,6 +47,7 @@ for p in ${PROFILES:-3:1e6:128:0 3:1e5:128:0 2:1e6:128:0 3:1e6:256:0 3:1e6:128:1
     --steps "${STEPS:-10}" --json "$OUT/profile.json" 2>&1 | grep -v Warning
 done
 
+if [ "${TESTS:-1}" = 1 ] && [ "$count" -le "${TESTS_AFTER:-0}" ]; then tests; fi
 if [ "${NCU:-1}" = 1 ] && command -v ncu > /dev/null; then
   stamp "ncu: the rate kernels at 1e6 3D"
   timeout "${NCU_LIMIT:-110}" ncu --clock-control none --target-processes all \
