@@ -103,6 +103,14 @@ def gpu_kernels(dim: int, simulated: bool, version: int = 0,
             passes.VELOCITY_RECONSTRUCTION, passes.RECORD_COLUMNS)
 
 
+def record_columns(columns: int, dim: int, viscosity) -> int:
+    """The device records' columns for ``viscosity``: all ``columns``, less the viscous
+    acceleration's (the last ``dim``) for a scheme with neither a correction nor a switch,
+    which no pass reads then (as :meth:`impactsph.physics.rates.CpuRates.record_columns`)."""
+    needed = viscosity.correction is not None or viscosity.switch is not None
+    return columns if needed else columns - dim
+
+
 #: The packed records' layout on the device: Fortran order, each column (a field of every
 #: particle) contiguous.  The bodies index ``P[p, column]`` as on the CPU, whose records are
 #: rows; on the GPU a warp's 32 threads then read one field of 32 neighbours (in the list's
@@ -250,7 +258,8 @@ class GpuRates:
         dind = up("indices", neighbours.indices, True)
         # the packed records and the outputs, allocated once per size
         buf = self._buffer
-        packed = buf("packed", (n_rows, record_width), np.float64, RECORD_ORDER)
+        packed = buf("packed", (n_rows, record_columns(record_width, dim, viscosity)),
+                     np.float64, RECORD_ORDER)
         shapes = {"drho": (n_rows,), "de": (n_rows,), "de_visc": (n_rows,),
                   "de_corr": (n_rows,), "pair_count": (n_rows,), "dS": (n_rows, 6),
                   "factor": (n_rows,), "memory": (n_rows,)}

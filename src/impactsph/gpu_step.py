@@ -52,7 +52,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import boundaries, codegen
-from .gpu import RECORD_ORDER, cuda, gpu_kernels, simulator_enabled
+from .gpu import RECORD_ORDER, cuda, gpu_kernels, record_columns, simulator_enabled
 from .kernels import SUPPORT_RADIUS
 from .physics import stress_rate, survey
 from .physics.rates import compiled_passes
@@ -660,7 +660,7 @@ class ResidentStep:
         self.rate_kernels = gpu_kernels(self.dim, simulated, version, self.options,
                                         backend.max_registers)
         self.k = step_kernels(self.dim, simulated, version, self.options, self.tpb)
-        self.record_width = self.rate_kernels[-1]
+        self.record_width = record_columns(self.rate_kernels[-1], self.dim, solver.viscosity)
         self.viscosity = solver.viscosity
         self.corrected = self.viscosity.correction is not None
         self.n_bodies = solver.n_bodies

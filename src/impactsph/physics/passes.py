@@ -1668,8 +1668,9 @@ def cuda_kernels(max_registers=0):
             return
         i = order[p]
         if i >= n_active:  # a ghost: only a neighbour
-            for a in range(DIM):
-                P[p, U + a] = 0.0
+            if P.shape[1] > U:  # the rows carry u (a correction or a switch reads it)
+                for a in range(DIM):
+                    P[p, U + a] = 0.0
             return
         L = cuda.local.array((DIM, DIM), nb.float64)
         particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_stress, S,

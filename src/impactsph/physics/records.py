@@ -23,15 +23,16 @@ def record_columns(dim: int, correction_matrix: bool = False,
     update: the velocity itself, or the step's mean velocity in its work pass); last, the
     viscous acceleration ``u`` that the pair pass writes for a correction or a switch pass.
 
-    ``"columns"`` is the CPU's row length: every column, unpadded.  A run whose viscosity
-    scheme has neither a correction nor a switch (nothing reads ``u``) takes rows of
-    ``"u"`` columns instead, without it (:meth:`impactsph.physics.rates.CpuRates.record_columns`;
-    the passes write ``u`` only where the rows have it).  Unpadded rows were as fast as rows
-    padded to whole cache lines, or faster: 3D, 1e5 particles, the pair pass 47-48 ms with
-    19 or 20 columns against 49 ms with 24, in one process (benchmarks/README.md, "The
-    records unpadded").  ``"width"`` is the device's row length, padded to whole cache lines
-    (2, 2 and 3 lines of 64 bytes in 1D, 2D, 3D without the optional columns; not measured
-    unpadded on a GPU)."""
+    ``"columns"`` is the record's length: every column, unpadded.  A run whose viscosity
+    scheme has neither a correction nor a switch (nothing reads ``u``) takes records of
+    ``"u"`` columns instead, without it (:meth:`impactsph.physics.rates.CpuRates.record_columns`,
+    :func:`impactsph.gpu.record_columns`; the passes write ``u`` only where the records have
+    it).  The CPU stores the records by row (unpadded rows were as fast as rows padded to
+    whole cache lines, or faster: 3D, 1e5 particles, the pair pass 47-48 ms with 19 or 20
+    columns against 49 ms with 24, in one process; benchmarks/README.md, "The records
+    unpadded"), the GPU by column (:data:`impactsph.gpu.RECORD_ORDER`).  ``"width"``: the
+    length padded to whole cache lines, which the GPU's rows had until they became
+    columns."""
     n_sym = dim * (dim + 1) // 2
     cols = {"x": 0, "v": dim, "h": 2 * dim, "m": 2 * dim + 1, "volume": 2 * dim + 2,
             "rho": 2 * dim + 3, "c": 2 * dim + 4, "pc": 2 * dim + 5, "body": 2 * dim + 6,

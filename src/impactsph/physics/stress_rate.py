@@ -51,7 +51,7 @@ def symmetric_full(components: np.ndarray) -> np.ndarray:
 def store_upper(S, out, i: int) -> None:
     """``out[i]``: the six components of ``S[i]`` (3x3; its upper triangle, :data:`UPPER`):
     the integrator's start copy of the deviator, on the CPU (``integrate.keep_upper``) and on
-    the device (``gpu_step``'s ``keep_stress``)."""
+    the device (``gpu_step``'s ``start_kernel``)."""
     for a in range(3):
         for b in range(a, 3):
             out[i, UPPER[a][b]] = S[i, a, b]
