@@ -4,7 +4,9 @@
 # particles with the default launch settings and with others, at 1e5 3D and 1M 2D, then ncu's
 # view of the rate kernels at 1M 3D (occupancy, throughput, what the warps wait for), and
 # bench_gpu's comparison with the CPU at 1e5 (COMPARE); the GPU tests (TESTS) start after
-# TESTS_AFTER profiles and run beside what follows.  About 5 minutes; each stage has its own limit and its log under $OUT.
+# TESTS_AFTER profiles and run beside what follows.  About 5 minutes; each stage has its own
+# limit and its log under $OUT.  The first profile also compiles the CPU's code (about 40 s
+# on the H200's host): its limit, PROFILE_LIMIT, is 100 s.
 #
 #   bash benchmarks/gpu_profile.sh                 # PROFILES="3:1e6:128:0 ..." to choose
 set -u
@@ -43,7 +45,7 @@ for p in ${PROFILES:-3:1e6:128:0 3:1e5:128:0 2:1e6:128:0 3:1e6:256:0 3:1e6:128:1
   IFS=: read -r dim size tpb regs <<< "$p"
   stamp "profile ${dim}D $size, $tpb threads a block, register cap $regs"
   IMPACTSPH_CUDA_THREADS_PER_BLOCK=$tpb IMPACTSPH_CUDA_MAX_REGISTERS=$regs \
-    timeout "${PROFILE_LIMIT:-75}" python3 benchmarks/gpu_profile.py --dim "$dim" --size "$size" \
+    timeout "${PROFILE_LIMIT:-100}" python3 benchmarks/gpu_profile.py --dim "$dim" --size "$size" \
     --steps "${STEPS:-10}" --json "$OUT/profile.json" 2>&1 | grep -v Warning
 done
 
