@@ -11,23 +11,7 @@
 #   bash benchmarks/gpu_profile.sh                 # PROFILES="3:1e6:128:0 ..." to choose
 set -u
 OUT=${OUT:-runs/gpu_profile}
-mkdir -p "$OUT"
-export PYTHONUNBUFFERED=1
-stamp() { echo "== $(date -u +%T) $*" | tee -a "$OUT/session.log"; }
-
-stamp "machine"
-{
-  nvidia-smi --query-gpu=name,memory.total,clocks.sm,clocks.max.sm,driver_version --format=csv
-  python3 -c "import numpy, numba; print('numpy', numpy.__version__, 'numba', numba.__version__)"
-  echo "cores $(nproc)"; lscpu | grep -E "Model name"
-} 2>&1 | tee "$OUT/machine.txt"
-if [ -d .whl ]; then
-  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
-    --target /tmp/site .whl/*.whl > "$OUT/wheels.log" 2>&1 || stamp "wheels failed"
-fi
-export PYTHONPATH="$PWD/src:/tmp/site${PYTHONPATH:+:$PYTHONPATH}"
-if [ -z "${CUDA_HOME:-}" ] && [ -d /usr/local/cuda ]; then export CUDA_HOME=/usr/local/cuda; fi
-export NUMBA_CACHE_DIR=/tmp/numba-cache IMPACTSPH_CACHE_DIR=/tmp/impactsph-cache
+source "$(dirname "$0")/gpu_env.sh"  # $OUT, stamp, the machine, the wheels, PYTHONPATH
 
 tests() {  # the GPU tests (the device against the CPU), in the background
   stamp "tests on the GPU (in the background: the stages after this one run beside them)"

@@ -14,26 +14,7 @@
 # fails or overruns leaves the others' results.
 set -u
 OUT=${OUT:-runs/gpu_session}
-mkdir -p "$OUT"
-export PYTHONUNBUFFERED=1
-stamp() { echo "== $(date -u +%T) $*" | tee -a "$OUT/session.log"; }
-
-stamp "machine"
-{
-  nvidia-smi --query-gpu=name,memory.total,memory.used,clocks.sm,driver_version --format=csv
-  python3 -c "import sys, numpy, numba; print(sys.version); print('numpy', numpy.__version__, 'numba', numba.__version__)"
-  python3 -m pip show numba-cuda 2>/dev/null | head -2
-  echo "cores $(nproc)"; lscpu | grep -E "Model name|^CPU\(s\)"
-} > "$OUT/machine.txt" 2>&1
-cat "$OUT/machine.txt"
-
-if [ -d .whl ]; then
-  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
-    --target /tmp/site .whl/*.whl > "$OUT/wheels.log" 2>&1 || stamp "wheels failed"
-fi
-export PYTHONPATH="$PWD/src:/tmp/site${PYTHONPATH:+:$PYTHONPATH}"
-if [ -z "${CUDA_HOME:-}" ] && [ -d /usr/local/cuda ]; then export CUDA_HOME=/usr/local/cuda; fi
-export NUMBA_CACHE_DIR=/tmp/numba-cache IMPACTSPH_CACHE_DIR=/tmp/impactsph-cache
+source "$(dirname "$0")/gpu_env.sh"  # $OUT, stamp, the machine, the wheels, PYTHONPATH
 
 stamp "smoke: impactsph imports, numba-cuda sees the GPU"
 timeout 60 python3 -c "
