@@ -834,6 +834,28 @@ def test_launch_settings_come_from_the_environment_and_bad_ones_are_named():
         assert str(error.value) == f"{name} = {value!r}: allowed is {allowed}"
 
 
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_the_device_records_are_columns_with_u_only_where_read(dim):
+    """The GPU's packed records are stored by column (a warp's neighbours' field in one or two
+    lines), unpadded, and carry the viscous acceleration's columns only for a scheme with a
+    correction or a switch: as many columns as the CPU's rows."""
+    from types import SimpleNamespace
+
+    from impactsph.gpu import RECORD_ORDER, record_columns
+    from impactsph.physics.rates import CpuRates
+
+    assert RECORD_ORDER == "F"
+    cpu = CpuRates(dim)
+    passes = cpu.passes
+    assert passes.RECORD_COLUMNS == passes.U + dim  # u last
+    for correction, switch in ((None, None), ((1.0,), None), (None, (1.0,))):
+        viscosity = SimpleNamespace(correction=correction, switch=switch)
+        columns = record_columns(passes.RECORD_COLUMNS, dim, viscosity)
+        assert columns == cpu.record_columns(viscosity)
+        assert columns == (passes.U if correction is None and switch is None
+                           else passes.RECORD_COLUMNS)
+
+
 def test_a_numpy_that_numba_cuda_cannot_compile_with_is_named(monkeypatch, caplog):
     """numba-cuda 0.30.4 with numpy 2.5 loads its typing with an AttributeError (seen on an
     H200, NVIDIA/numba-cuda#907): the GPU is then said to be unusable, with the fix, and the
