@@ -44,14 +44,12 @@ def run_items(dim: int, sizes: list[int], device: str, steps: int, budget: float
               compare_cpu: bool = False) -> None:
     """The items of one (device, dimension), in this process (the child): one JSON row a
     size on stdout, as each ends."""
-    import gc
 
     import numpy as np
 
     sys.path.insert(0, str(HERE))
     from bench_rates import current_rss_mib, make_case, peak_rss_mib
 
-    from impactsph.gpu import simulator_enabled
     from impactsph.integrate import stable_time_step
     from impactsph.loading import validate_case
     from impactsph.simulation import Simulation
@@ -76,23 +74,6 @@ def run_items(dim: int, sizes: list[int], device: str, steps: int, budget: float
                 sim.integrator.step(sim._state, dt)
                 sim._survey()
         return step
-
-    def gpu_used() -> int | None:
-        """Device memory in use (bytes) after the pending frees, on a real GPU."""
-        gc.collect()
-        if simulator_enabled():
-            return None
-        try:
-            from numba import cuda
-
-            if not cuda.is_available():
-                return None
-            context = cuda.current_context()
-            context.deallocations.clear()
-            free, total = context.get_memory_info()
-            return total - free
-        except Exception:  # noqa: BLE001 - no CUDA here: the CPU's row has no such column
-            return None
 
     t0 = time.perf_counter()
     warm = Simulation(validate_case(case(2**dim)))  # the compiled code, the CUDA context
@@ -162,6 +143,29 @@ def run_items(dim: int, sizes: list[int], device: str, steps: int, budget: float
         n, dt, arrays = kept
         print(json.dumps({"n_target": n, "relative_difference_to_cpu":
                           difference_to_cpu(arrays, case(n), dt, steps + 1)}), flush=True)
+
+
+def gpu_used() -> int | None:
+    """The device's memory in use (bytes) after the pending frees, on a real GPU (None
+    elsewhere; the whole device's: another process's arrays count too)."""
+    import gc
+
+    from impactsph.gpu import simulator_enabled
+
+    gc.collect()
+    if simulator_enabled():
+        return None
+    try:
+        from numba import cuda
+
+        if not cuda.is_available():
+            return None
+        context = cuda.current_context()
+        context.deallocations.clear()
+        free, total = context.get_memory_info()
+        return total - free
+    except Exception:  # noqa: BLE001 - no CUDA here: the CPU's row has no such column
+        return None
 
 
 def start_velocities(state) -> None:

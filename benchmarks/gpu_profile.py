@@ -40,7 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     import numpy as np
 
     sys.path.insert(0, str(HERE))
-    from bench_gpu import start_velocities
+    from bench_gpu import gpu_used, start_velocities
     from bench_rates import make_case
     from numba import cuda
 
@@ -52,21 +52,13 @@ def main(argv: list[str] | None = None) -> int:
     data = make_case(int(args.size), args.dim)
     data["compute"] = {"device": "gpu", "resident": True}
 
-    def gpu_free() -> int:
-        """Device memory free (bytes) after the pending frees (0 in the simulator)."""
-        if simulator_enabled():
-            return 0
-        context = cuda.current_context()
-        context.deallocations.clear()
-        return context.get_memory_info()[0]
-
     if simulator_enabled():  # the GPU backend in numba's CUDA simulator (a check of this script)
         from impactsph import simulation
         from impactsph.gpu import GpuRates
 
         simulation.select_backend = (lambda device, dim, *options, cpu_only=None:
                                      GpuRates(dim, *options))
-    free0 = gpu_free()
+    used0 = gpu_used() or 0
     t0 = time.perf_counter()
     sim = Simulation(validate_case(data))
     setup = time.perf_counter() - t0
@@ -95,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     sim._fold()
     pairs = (sim.solver.pair_evaluations - pairs0) / args.steps
 
-    free = gpu_free()
+    used = gpu_used() or 0
 
     # each operation between two events on the run's stream (in numba's CUDA simulator, which
     # has no timed events and runs each operation as it is issued: the host's time alone)
@@ -186,7 +178,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"\n{args.dim}D, {state.n:,} particles, threads a block {tpb}, register cap "
           f"{regs or 'none'}: {1e3 * wall:.2f} ms a step ({pairs / wall:.3g} pair evaluations/s,"
           f" {pairs / (2 * state.n):.1f} a particle an evaluation); with the events "
-          f"{1e3 * wall_events:.2f} ms; GPU memory {(free0 - free) / state.n:.0f} B a particle "
+          f"{1e3 * wall_events:.2f} ms; GPU memory {(used - used0) / state.n:.0f} B a particle "
           f"(the kernels' code included); setup {setup:.1f} s, warm step {warm:.2f} s")
     print("| operation | calls/step | device ms/step | host us/call |")
     print("| --- | --- | --- | --- |")
@@ -209,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
                "max_registers": regs, "ms_per_step": 1e3 * wall,
                "ms_per_step_with_events": 1e3 * wall_events,
                "pair_evaluations_per_second": pairs / wall,
-               "gpu_bytes_per_particle": (free0 - free) / state.n,
+               "gpu_bytes_per_particle": (used - used0) / state.n,
                "device_ms_per_step": device_total, "host_ms_per_step": 1e3 * host_total,
                "operations": rows, "numpy": np.__version__}
         existing = json.loads(args.json.read_text()) if args.json.exists() else []

@@ -728,6 +728,7 @@ class ResidentStep:
         self.books = cuda.to_device(np.zeros(BOOKS_WIDTH), stream=s)
         #: the staleness tests' largest squared displacement, in two slots taken in turn
         self.largest = cuda.to_device(np.zeros(2), stream=s)
+        self._largest_slots = (self.largest[0:1], self.largest[1:2])
         self._slot = 0
         self.body_part = empty((self.blocks, 4 + dim), np.float64)
         self.body_out = empty((max(self.n_bodies, 1), 4 + dim), np.float64)
@@ -968,7 +969,7 @@ class ResidentStep:
         self._slot = 1 - slot
         self._launch("displacement", self.n, self.n, self.now["position"], self.reference,
                      self.origin, self.largest, slot)
-        largest = self._fetch(self.largest[slot:slot + 1])[0]
+        largest = self._fetch(self._largest_slots[slot])[0]
         return bool(math.sqrt(largest) > 0.5 * self.skin)
 
     def _scan(self, a, n: int, depth: int = 0) -> None:
