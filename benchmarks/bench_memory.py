@@ -4,17 +4,24 @@ in bytes per particle, largest first (issue 16's target: 1 kB per particle in 3D
 
     .venv/bin/python benchmarks/bench_memory.py [--dim 3] [--n 1e5] [--scheme av]
         [--steps 2] [--wall] [--h-over-dx 1.3] [--skin 0.05] [--json PATH]
+        [--device gpu [--simulator]]
 
 The case is ``bench_ac_cost.py``'s lattice (dx = 1 mm, h = 1.2 dx, elastic steel, random
 velocities of about 1 m/s, the paper's scheme: no stabilisation), ``--scheme`` its viscosity.
 Unlike ``bench_rates.py``'s peak-RSS growth this counts only the run's own arrays (not numba's
 or numpy's workspace, nor memory the allocator keeps), and says which object holds each.
+With ``--device gpu`` the run's state lives on the GPU (``compute.resident``) and the device's
+arrays are counted instead (each allocation once; not the kernels' code, nor the memory
+numba-cuda keeps for deferred frees); ``--simulator`` runs it in numba's CUDA simulator, where
+a small lattice is all that fits in a minute: its list has fewer neighbours a particle than a
+large one's (the list's neighbours a particle are printed).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import sys
 import types
@@ -34,9 +41,25 @@ def _base(array: np.ndarray) -> np.ndarray:
     return array
 
 
-def arrays_of(root: object, name: str = "sim", depth: int = 14) -> dict[int, tuple[int, str]]:
+def _device_allocation(array: object) -> tuple[int, int] | None:
+    """``(key, bytes)`` of the device allocation a CUDA array (or a view of one) lives in:
+    a GPU's memory pointer's owner, or the simulator's numpy base; None for other objects."""
+    name = type(array).__name__
+    if name == "FakeCUDAArray":  # numba's CUDA simulator: a numpy array inside
+        base = _base(array._ary)
+        return id(base), base.nbytes
+    if name in ("DeviceNDArray", "DeviceRecord", "MappedNDArray"):
+        pointer = array.gpu_data
+        owner = getattr(pointer, "owner", None) or pointer
+        return id(owner), int(owner.size)
+    return None
+
+
+def arrays_of(root: object, name: str = "sim", depth: int = 14,
+              device: bool = False) -> dict[int, tuple[int, str]]:
     """``{id(base): (bytes, path)}`` for every array reachable from ``root`` through
-    attributes, dict values and list or tuple items (the first path that reaches it)."""
+    attributes, dict values and list or tuple items (the first path that reaches it): the
+    host's numpy arrays, or with ``device`` the CUDA arrays (a GPU's or the simulator's)."""
     found: dict[int, tuple[int, str]] = {}
     seen: set[int] = set()
     stack = [(root, name, 0)]
@@ -45,7 +68,14 @@ def arrays_of(root: object, name: str = "sim", depth: int = 14) -> dict[int, tup
         if id(obj) in seen or level > depth or isinstance(obj, SKIPPED):
             continue
         seen.add(id(obj))
+        allocation = _device_allocation(obj)
+        if allocation is not None:
+            if device:
+                found.setdefault(allocation[0], (allocation[1], path))
+            continue
         if isinstance(obj, np.ndarray):
+            if device:
+                continue
             base = _base(obj)
             found.setdefault(id(base), (base.nbytes, path))
             continue
@@ -79,8 +109,19 @@ def main(argv: list[str] | None = None) -> None:
                         help="the neighbour list's skin, time.neighbour_skin (default: the "
                         "case's 0.1 of the support); a thinner skin stores fewer pairs and "
                         "rebuilds the list more often")
+    parser.add_argument("--device", choices=("cpu", "gpu"), default="cpu",
+                        help="gpu: the run's state on the GPU (compute.resident), and the "
+                        "device's arrays counted, not the host's (on a GPU, or in numba's CUDA "
+                        "simulator with --simulator)")
+    parser.add_argument("--simulator", action="store_true",
+                        help="with --device gpu: numba's CUDA simulator instead of a GPU (slow: "
+                        "a few thousand particles)")
     parser.add_argument("--json", type=Path, default=None, help="also write the table here")
     args = parser.parse_args(argv)
+    if args.simulator:
+        if "numba" in sys.modules:
+            parser.error("--simulator: numba was imported before the simulator could be set")
+        os.environ["NUMBA_ENABLE_CUDASIM"] = "1"
 
     sys.path.insert(0, str(HERE))
     from bench_ac_cost import lattice_case
@@ -101,21 +142,42 @@ def main(argv: list[str] | None = None) -> None:
         normal[-1] = 1.0
         case["boundaries"] = [{"type": "wall", "point": [0.0] * args.dim, "normal": normal,
                                "slip": "free"}]
+    if args.device == "gpu":
+        case["compute"] = {"device": "gpu", "resident": True}
+    if args.simulator:  # the simulator in place of the GPU (the backend refuses it otherwise)
+        from impactsph import simulation
+        from impactsph.gpu import GpuRates
+
+        simulation.select_backend = (lambda device, dim, *options, cpu_only=None:
+                                     GpuRates(dim, *options))
     sim = Simulation(validate_case(case))
     sim.state.velocity[:] = np.random.default_rng(1).normal(size=sim.state.velocity.shape)
     dt = 0.1 * stable_time_step(sim.state, sim.problem.table, 0.3)
+    resident = sim._resident
+    if args.device == "gpu":
+        if resident is None:
+            sys.exit(f"--device gpu: the run's state is not on a GPU "
+                     f"({sim.solver.backend.__class__.__name__}); is one there, or "
+                     f"--simulator given?")
+        resident.upload(sim.state)
     for _ in range(args.steps):
-        sim.integrator.step(sim.state, dt)
+        if resident is not None:
+            resident.step(sim.state, dt)
+        else:
+            sim.integrator.step(sim.state, dt)
     n = sim.state.n
-    rows = sorted(arrays_of(sim).values(), reverse=True)
+    rows = sorted(arrays_of(sim, device=args.device == "gpu").values(), reverse=True)
     total = sum(size for size, _ in rows)
     h_over_dx = case["kernel"]["h_over_dx"]
     skin = sim.solver.skin_fraction
+    lists = resident if resident is not None else sim.solver.neighbours
+    pairs = lists.indices.shape[0]
     print(f"impactsph {__version__}: {args.dim}D lattice, {n} particles, h = {h_over_dx} dx, "
           f"skin {skin} of the support, {args.scheme}, "
           f"{'a wall under it, ' if args.wall else ''}"
           f"after {args.steps} steps: {total / n:.0f} B per particle in "
-          f"{len(rows)} arrays")
+          f"{len(rows)} {'device' if args.device == 'gpu' else 'host'} arrays; the "
+          f"list's {pairs / n:.1f} neighbours a particle")
     print(f"{'B/particle':>10}  array")
     for size, path in rows:
         if size >= 2 * n:  # the per-particle arrays (the rest: tables, small buffers)
@@ -127,7 +189,8 @@ def main(argv: list[str] | None = None) -> None:
             "version": __version__, "machine": platform.machine(), "cpu": host_cpu_name(),
             "dim": args.dim, "particles": n, "h_over_dx": h_over_dx, "skin": skin,
             "scheme": args.scheme,
-            "wall": args.wall,
+            "wall": args.wall, "device": args.device, "simulator": args.simulator,
+            "neighbours_per_particle": pairs / n,
             "bytes_per_particle": total / n,
             "arrays": [{"path": p, "bytes_per_particle": s / n} for s, p in rows]}, indent=1))
 
