@@ -4,7 +4,7 @@ in bytes per particle, largest first (issue 16's target: 1 kB per particle in 3D
 
     .venv/bin/python benchmarks/bench_memory.py [--dim 3] [--n 1e5] [--scheme av]
         [--steps 2] [--wall] [--h-over-dx 1.3] [--skin 0.05] [--json PATH]
-        [--device gpu [--simulator]]
+        [--device gpu [--simulator]] [--record-precision float32]
 
 The case is ``bench_ac_cost.py``'s lattice (dx = 1 mm, h = 1.2 dx, elastic steel, random
 velocities of about 1 m/s, the paper's scheme: no stabilisation), ``--scheme`` its viscosity.
@@ -116,6 +116,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--simulator", action="store_true",
                         help="with --device gpu: numba's CUDA simulator instead of a GPU (slow: "
                         "a few thousand particles)")
+    parser.add_argument("--record-precision", choices=("float64", "float32"), default=None,
+                        help="compute.record_precision (default: the case's float64)")
     parser.add_argument("--json", type=Path, default=None, help="also write the table here")
     args = parser.parse_args(argv)
     if args.simulator:
@@ -142,8 +144,11 @@ def main(argv: list[str] | None = None) -> None:
         normal[-1] = 1.0
         case["boundaries"] = [{"type": "wall", "point": [0.0] * args.dim, "normal": normal,
                                "slip": "free"}]
+    case["compute"] = {}
     if args.device == "gpu":
         case["compute"] = {"device": "gpu", "resident": True}
+    if args.record_precision is not None:
+        case["compute"]["record_precision"] = args.record_precision
     if args.simulator:  # the simulator in place of the GPU (the backend refuses it otherwise)
         from impactsph import simulation
         from impactsph.gpu import GpuRates
@@ -175,6 +180,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"impactsph {__version__}: {args.dim}D lattice, {n} particles, h = {h_over_dx} dx, "
           f"skin {skin} of the support, {args.scheme}, "
           f"{'a wall under it, ' if args.wall else ''}"
+          f"records in {case['compute'].get('record_precision', 'float64')}, "
           f"after {args.steps} steps: {total / n:.0f} B per particle in "
           f"{len(rows)} {'device' if args.device == 'gpu' else 'host'} arrays; the "
           f"list's {pairs / n:.1f} neighbours a particle")
@@ -190,6 +196,7 @@ def main(argv: list[str] | None = None) -> None:
             "dim": args.dim, "particles": n, "h_over_dx": h_over_dx, "skin": skin,
             "scheme": args.scheme,
             "wall": args.wall, "device": args.device, "simulator": args.simulator,
+            "record_precision": case["compute"].get("record_precision", "float64"),
             "neighbours_per_particle": pairs / n,
             "bytes_per_particle": total / n,
             "arrays": [{"path": p, "bytes_per_particle": s / n} for s, p in rows]}, indent=1))

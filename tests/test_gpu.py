@@ -115,6 +115,11 @@ RESIDENT = {
     # the support, neighbours.py, is in the lists compared)
     "block-3d": ("taylor", [*CASES["block-3d"][1][:-2], "time.neighbour_skin=0.02",
                             "kernel.h_over_dx=1.4", "output.history_every=1"], 3),
+    # records in float32 (compute.record_precision): the device's records by column, rounded
+    # as the CPU's rows are
+    "taylor-2d-float32": ("taylor", ["bodies.0.geometry.count=[4, 6]", "time.neighbour_skin=0.02",
+                                     'compute.record_precision="float32"',
+                                     "output.history_every=1"], 5),
     # the walls that hold: the penalty layer and the normal-stress traction
     "taylor-2d-layer": ("taylor", ["bodies.0.geometry.count=[4, 6]", "contact.wall_layer=0.25",
                                    'contact.traction="normal_stress"',

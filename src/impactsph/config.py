@@ -709,6 +709,13 @@ class Compute(_Model):
         True, description="with device = 'gpu': keep the state on the GPU between steps (the "
         "whole step runs there: docs/gpu.md) where the case allows it; the log says when it "
         "does not and why. false: copy the state up and the rates back at every evaluation")
+    record_precision: Literal["float64", "float32"] = Field(
+        "float64", description="the numbers of the neighbour records the pair loops read "
+        "(position, velocity, density, stress over density squared, ... of every particle, "
+        "in the list's order): 'float32' halves their memory and memory traffic (on a GPU, "
+        "the pair kernel's bound); the state, the time integration, the outputs and every "
+        "sum stay float64, so the records' rounding (about 6e-8 of each value, of the "
+        "position too) is the only change (docs/gpu.md, 'Records in float32')")
 
 
 class Case(_Model):

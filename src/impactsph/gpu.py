@@ -259,7 +259,7 @@ class GpuRates:
         # the packed records and the outputs, allocated once per size
         buf = self._buffer
         packed = buf("packed", (n_rows, record_columns(record_width, dim, viscosity)),
-                     np.float64, RECORD_ORDER)
+                     self.options.record_dtype, RECORD_ORDER)
         shapes = {"drho": (n_rows,), "de": (n_rows,), "de_visc": (n_rows,),
                   "de_corr": (n_rows,), "pair_count": (n_rows,), "dS": (n_rows, 6),
                   "factor": (n_rows,), "memory": (n_rows,)}

@@ -781,7 +781,7 @@ class ResidentStep:
     def _packed(self, rows: int) -> None:
         """The packed records and the reference positions for ``rows`` rows."""
         self.capacity = rows
-        self.packed = cuda.device_array((rows, self.record_width), np.float64,
+        self.packed = cuda.device_array((rows, self.record_width), self.options.record_dtype,
                                         order=RECORD_ORDER, stream=self.stream)
         reference = cuda.device_array((rows, self.dim), np.float32, stream=self.stream)
         if getattr(self, "reference", None) is not None:  # the particles' rows kept

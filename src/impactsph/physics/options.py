@@ -11,6 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any
 
+import numpy as np
+
 from ..models.registry import VISCOSITY
 
 #: ``gradient_correction`` modes and the file-name tag of their generated modules
@@ -18,6 +20,8 @@ GRADIENT_CORRECTIONS = {"none": "", "velocity_gradient": "_kgc",
                         "velocity_gradient_and_forces": "_kgcf"}
 #: ``contact_traction`` modes (a run-time switch of the pair pass: no module of their own)
 CONTACT_TRACTIONS = ("pressure", "normal_stress")
+#: ``record_precision``: the packed records' dtypes (a run-time choice: no module of their own)
+RECORD_PRECISIONS = ("float64", "float32")
 
 
 @dataclass(frozen=True)
@@ -62,7 +66,13 @@ class PassOptions:
       to the bit, and its inverse is the particle's, not a division a pair (one gather and
       one division a pair fewer).  Not from the case: the CPU's rates choose it at each
       evaluation from the rows' smoothing lengths
-      (:meth:`impactsph.physics.rates.CpuRates.evaluate`'s ``uniform_h``).
+      (:meth:`impactsph.physics.rates.CpuRates.evaluate`'s ``uniform_h``);
+    - ``record_precision``: the packed records' numbers (``compute.record_precision``):
+      ``"float64"``, or ``"float32"`` (half the records' memory and traffic; the state, the
+      outputs and the sums stay float64, and the passes widen what they read, so the
+      records' rounding is the only change: docs/gpu.md, "Records in float32").  A run-time
+      choice, not part of the generated module: numba compiles the passes for the array
+      type they are given.
     """
 
     gradient_correction: str = "none"
@@ -79,8 +89,12 @@ class PassOptions:
     compatible_energy: bool = False
     switch_kind: int = -1
     uniform_h: bool = False
+    record_precision: str = "float64"
 
     def __post_init__(self) -> None:
+        if self.record_precision not in RECORD_PRECISIONS:
+            raise ValueError(f"record_precision = {self.record_precision!r}: allowed are "
+                             f"{', '.join(map(repr, RECORD_PRECISIONS))}")
         if self.gradient_correction not in GRADIENT_CORRECTIONS:
             raise ValueError(f"gradient_correction = {self.gradient_correction!r}: allowed are "
                              f"{', '.join(map(repr, GRADIENT_CORRECTIONS))}")
@@ -119,18 +133,26 @@ class PassOptions:
                    contact_friction=float(case.contact.friction),
                    viscosity_factor=VISCOSITY[case.viscosity.scheme].switch is not None,
                    velocity_reconstruction=VISCOSITY[case.viscosity.scheme].reconstruction,
-                   compatible_energy=case.time.energy_update == "compatible")
+                   compatible_energy=case.time.energy_update == "compatible",
+                   record_precision=getattr(getattr(case, "compute", None), "record_precision",
+                                            "float64"))
 
     @property
     def normal_stress(self) -> bool:
         """The pair pass's run-time switch for the contact traction."""
         return self.contact_traction == "normal_stress"
 
+    @property
+    def record_dtype(self) -> np.dtype:
+        """The packed records' dtype (:attr:`record_precision`)."""
+        return np.dtype(self.record_precision)
+
     def compiled(self) -> PassOptions:
         """The options that decide the generated module: these, with the run-time ones
-        (the contact traction and friction) set to their defaults, so that runs differing only
-        in those share one compiled module."""
-        return replace(self, contact_traction="pressure", contact_friction=0.0)
+        (the contact traction and friction, the records' precision) set to their defaults,
+        so that runs differing only in those share one compiled module."""
+        return replace(self, contact_traction="pressure", contact_friction=0.0,
+                       record_precision="float64")
 
     @property
     def tag(self) -> str:

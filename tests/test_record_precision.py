@@ -1,0 +1,92 @@
+"""Records in float32 (``compute.record_precision = "float32"``): the packed records the pair
+loops read are rounded to float32 and nothing else changes (the state, the outputs and the
+sums stay float64); the bars' answer against 1D bar theory moves by a small fraction of its
+error at two resolutions, while the resolution moves it by a fifth; bad values are refused by
+name.  The device's records in float32 are compared with the CPU's in ``tests/test_gpu.py``
+(``taylor-2d-float32``); the Taylor bar's measures in ``validation/record_precision.py``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from impactsph.loading import load_case
+from impactsph.physics.options import PassOptions
+from impactsph.problems.registry import analyse
+from impactsph.simulation import Simulation
+
+
+def _bars(spacing: float, precision: str) -> Simulation:
+    sim = Simulation(load_case("bars", [
+        "output.figures=false", 'viscosity.scheme="av"', "viscosity.alpha1=0.3",
+        "viscosity.alpha2=0.3", f"bodies.0.geometry.spacing={spacing!r}",
+        f"bodies.1.geometry.spacing={spacing!r}",
+        f'compute.record_precision="{precision}"']))
+    sim.run()
+    return sim
+
+
+@pytest.fixture(scope="module")
+def bars():
+    """The paper's bars (AV (0.3, 0.3)) at the paper's spacing and at half of it, with float64
+    and float32 records: ``{(spacing, precision): (sim, measures)}``."""
+    runs = {}
+    for spacing in (2e-4, 1e-4):
+        for precision in ("float64", "float32"):
+            sim = _bars(spacing, precision)
+            runs[spacing, precision] = (sim, analyse("bars", sim))
+    return runs
+
+
+def test_float32_records_are_half_the_records_and_nothing_else(bars):
+    """The run's records are float32 with the float64 run's columns; the state stays float64;
+    the two runs differ (the records were rounded) but only at the records' rounding: the
+    final velocities agree to 1e-4 of the impact speed."""
+    sim64, _ = bars[2e-4, "float64"]
+    sim32, _ = bars[2e-4, "float32"]
+    packed64, packed32 = sim64.solver.backend._packed, sim32.solver.backend._packed
+    assert packed32.dtype == np.float32 and packed64.dtype == np.float64
+    assert packed32.shape == packed64.shape
+    assert packed32.nbytes * 2 == packed64.nbytes
+    for name, array in sim32.state.arrays().items():
+        if array.dtype.kind == "f":
+            assert array.dtype == np.float64, name
+    v64, v32 = sim64.state.velocity, sim32.state.velocity
+    assert not np.array_equal(v64, v32)
+    assert np.abs(v64 - v32).max() <= 1e-4 * 50.0
+
+
+@pytest.mark.parametrize("spacing", [2e-4, 1e-4])
+def test_float32_records_keep_the_bars_answer_at_two_resolutions(bars, spacing):
+    """Against 1D bar theory, the velocity profile's and the mid-bar velocity's L1 errors and
+    the contact time move by less than 1e-4 of themselves with float32 records (measured:
+    1e-5 and less), while halving the spacing cuts the errors by a fifth to a third; the two
+    bars stay mirror images and their momentum stays zero (the pair forces antisymmetric in
+    float32 too)."""
+    _, m64 = bars[spacing, "float64"]
+    sim32, m32 = bars[spacing, "float32"]
+    for key in ("velocity_profile_l1_error", "mid_velocity_l1_error", "contact_time_us"):
+        assert abs(m32[key] - m64[key]) <= 1e-4 * abs(m64[key]), (key, m64[key], m32[key])
+    for precision in ("float64", "float32"):
+        coarse, fine = bars[2e-4, precision][1], bars[1e-4, precision][1]
+        for key in ("velocity_profile_l1_error", "mid_velocity_l1_error"):
+            assert fine[key] < 0.85 * coarse[key], (precision, key, coarse[key], fine[key])
+    assert m32["final_velocity_left"] == pytest.approx(-m32["final_velocity_right"], rel=1e-12)
+    momentum = [row["momentum_x"] for row in sim32.record.history]
+    mass = float(sim32.state.mass.sum())
+    assert np.abs(momentum).max() <= 1e-12 * mass * 50.0
+
+
+def test_a_bad_record_precision_is_refused_by_name():
+    """A value other than float64 and float32 is refused before any work, naming the field
+    and what is allowed; the pass options refuse it too, and a run's record precision does
+    not make a compiled module of its own."""
+    with pytest.raises(Exception) as err:
+        load_case("bars", ['compute.record_precision="float16"'])
+    text = str(err.value)
+    assert "record_precision" in text and "float32" in text and "float16" in text
+    with pytest.raises(ValueError, match="record_precision = 'half'"):
+        PassOptions(record_precision="half")
+    options = PassOptions(record_precision="float32")
+    assert options.record_dtype == np.float32
+    assert options.compiled() == PassOptions().compiled()
