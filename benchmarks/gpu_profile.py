@@ -34,6 +34,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--dim", type=int, default=3, choices=(2, 3))
     parser.add_argument("--size", type=float, default=1e6)
     parser.add_argument("--steps", type=int, default=10)
+    parser.add_argument("--record-precision", choices=("float64", "float32"),
+                        default="float64", help="compute.record_precision (docs/gpu.md)")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args(argv)
 
@@ -50,7 +52,8 @@ def main(argv: list[str] | None = None) -> int:
     from impactsph.simulation import Simulation
 
     data = make_case(int(args.size), args.dim)
-    data["compute"] = {"device": "gpu", "resident": True}
+    data["compute"] = {"device": "gpu", "resident": True,
+                       "record_precision": args.record_precision}
 
     if simulator_enabled():  # the GPU backend in numba's CUDA simulator (a check of this script)
         from impactsph import simulation
@@ -175,9 +178,10 @@ def main(argv: list[str] | None = None) -> int:
         calls[name] += 1
     steps = args.steps
     tpb, regs = launch_settings()
-    print(f"\n{args.dim}D, {state.n:,} particles, threads a block {tpb}, register cap "
-          f"{regs or 'none'}: {1e3 * wall:.2f} ms a step ({pairs / wall:.3g} pair evaluations/s,"
-          f" {pairs / (2 * state.n):.1f} a particle an evaluation); with the events "
+    print(f"\n{args.dim}D, {state.n:,} particles, records in {args.record_precision}, threads "
+          f"a block {tpb}, register cap {regs or 'none'}: {1e3 * wall:.2f} ms a step "
+          f"({pairs / wall:.3g} pair evaluations/s, {pairs / (2 * state.n):.1f} a particle an "
+          f"evaluation); with the events "
           f"{1e3 * wall_events:.2f} ms; GPU memory {(used - used0) / state.n:.0f} B a particle "
           f"(the kernels' code included); setup {setup:.1f} s, warm step {warm:.2f} s")
     print("| operation | calls/step | device ms/step | host us/call |")
@@ -198,7 +202,8 @@ def main(argv: list[str] | None = None) -> int:
           f"operations took the host {1e3 * host_total:.2f} ms a step")
     if args.json:
         out = {"dimension": args.dim, "n_particles": state.n, "threads_per_block": tpb,
-               "max_registers": regs, "ms_per_step": 1e3 * wall,
+               "max_registers": regs, "record_precision": args.record_precision,
+               "ms_per_step": 1e3 * wall,
                "ms_per_step_with_events": 1e3 * wall_events,
                "pair_evaluations_per_second": pairs / wall,
                "gpu_bytes_per_particle": (used - used0) / state.n,

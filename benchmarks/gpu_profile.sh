@@ -9,6 +9,8 @@
 # on the H200's host): its limit, PROFILE_LIMIT, is 100 s.
 #
 #   bash benchmarks/gpu_profile.sh                 # PROFILES="3:1e6:128:0 ..." to choose
+#   PROFILES="3:1e6:128:0 3:1e6:128:0:float32" bash benchmarks/gpu_profile.sh  # the records'
+#                                                  # precision (compute.record_precision)
 set -u
 OUT=${OUT:-runs/gpu_profile}
 source "$(dirname "$0")/gpu_env.sh"  # $OUT, stamp, the machine, the wheels, PYTHONPATH
@@ -21,16 +23,19 @@ tests() {  # the GPU tests (the device against the CPU), in the background
     echo "tests rc $?" >> "$OUT/tests.log" ) &
 }
 
-# dim:size:threads a block:register cap (0: none); the tests start after TESTS_AFTER of them
+# dim:size:threads a block:register cap (0: none)[:record precision, float64 unless given];
+# the tests start after TESTS_AFTER of them
 count=0
-for p in ${PROFILES:-3:1e6:128:0 3:1e5:128:0 2:1e6:128:0 3:1e6:256:0 3:1e6:128:128 3:1e6:64:0}; do
+for p in ${PROFILES:-3:1e6:128:0 3:1e6:128:0:float32 2:1e6:128:0 2:1e6:128:0:float32 3:1e5:128:0}; do
   if [ "${TESTS:-1}" = 1 ] && [ "$count" = "${TESTS_AFTER:-0}" ]; then tests; fi
   count=$((count + 1))
-  IFS=: read -r dim size tpb regs <<< "$p"
-  stamp "profile ${dim}D $size, $tpb threads a block, register cap $regs"
+  IFS=: read -r dim size tpb regs precision <<< "$p"
+  precision=${precision:-float64}
+  stamp "profile ${dim}D $size, $tpb threads a block, register cap $regs, records in $precision"
   IMPACTSPH_CUDA_THREADS_PER_BLOCK=$tpb IMPACTSPH_CUDA_MAX_REGISTERS=$regs \
     timeout "${PROFILE_LIMIT:-100}" python3 benchmarks/gpu_profile.py --dim "$dim" --size "$size" \
-    --steps "${STEPS:-10}" --json "$OUT/profile.json" 2>&1 | grep -v Warning
+    --steps "${STEPS:-10}" --record-precision "$precision" --json "$OUT/profile.json" 2>&1 \
+    | grep -v Warning
 done
 
 if [ "${TESTS:-1}" = 1 ] && [ "$count" -le "${TESTS_AFTER:-0}" ]; then tests; fi

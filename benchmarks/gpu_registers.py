@@ -7,6 +7,7 @@ compile the kernels for sm_90 (``tests/test_gpu.py``). At 128 threads a block, a
 registers a thread keeps at most ``65536 // (128 R)`` blocks on a multiprocessor (of 16).
 
     python benchmarks/gpu_registers.py              # 2D and 3D, the paper's options
+    python benchmarks/gpu_registers.py --dims 3 --record-precision float32
 """
 
 from __future__ import annotations
@@ -50,6 +51,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--caps", nargs="*", type=int, default=[128, 96, 80, 64],
                     help="also the pair kernel under these register caps (ptxas "
                     "-maxrregcount): its spills")
+    ap.add_argument("--record-precision", choices=("float64", "float32"), default="float64",
+                    help="the rate kernels' records (compute.record_precision)")
     args = ap.parse_args(argv)
     import numba.cuda.dispatcher
     import nvidia.cuda_nvcc
@@ -70,6 +73,10 @@ def main(argv: list[str] | None = None) -> int:
     print("|---|---|---|---|---|---|")
     for dim in args.dims:
         types = test_gpu._kernel_argument_types(dim)
+        if args.record_precision == "float32":
+            from numba import types as nbt
+
+            types["P"] = nbt.float32[::1, :]
         kernels = gpu_kernels(dim, False, -1, PassOptions())
         items = [(name, kernels[i].py_func,
                   tuple(types[p] for p in inspect.signature(kernels[i].py_func).parameters))

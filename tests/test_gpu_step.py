@@ -19,6 +19,14 @@ from test_gpu import (
     _survey_input,
 )
 
+#: The device against the CPU with records in float32: the passes do the arithmetic between
+#: two record values in float32 (numba's typing: float32 with float32 is float32), whose
+#: epsilon is 1.2e-7, and the CPU's vectorised loops order those operations otherwise than a
+#: GPU thread does (and numba's CUDA simulator follows numpy's scalar rules, in which a Python
+#: float does not widen a float32).  Measured after the Taylor bar's 5 steps: 5e-8 of the
+#: largest velocity and energy, 2e-10 of the positions.
+FLOAT32_TOL = 1e-6
+
 
 @pytest.fixture(scope="module", params=MODES)
 def resident_comparison(request, tmp_path_factory):
@@ -36,9 +44,11 @@ def test_the_whole_step_on_the_device_matches_the_cpu(resident_comparison, name)
     """With the state kept on the device (neighbour list built there, the integrator's stages,
     the survey and the books on the device) the final state, every history column, the
     probes, the counts of pairs, evaluations and rebuilds and each particle's neighbours (in
-    their order) are the CPU run's, to 1e-10; the callback's change reached the device."""
+    their order) are the CPU run's, to 1e-10 (with records in float32, to 1e-6:
+    :data:`FLOAT32_TOL`); the callback's change reached the device."""
     mode, report, cpu, folder = resident_comparison
     sim, _, lists = cpu[name]
+    tol = FLOAT32_TOL if "float32" in name else TOL
     info = report[name]
     assert info["resident"] and info["device"] == "gpu"
     # the first evaluation's copies on the host path were let go (45% of the device memory
@@ -46,7 +56,7 @@ def test_the_whole_step_on_the_device_matches_the_cpu(resident_comparison, name)
     assert info["host_path_arrays"] == [], info["host_path_arrays"]
     with np.load(folder / f"{name}.npz") as z:
         errors = _relative_errors(sim.state.arrays(), {k: z[k] for k in z.files})
-    assert not {k: e for k, e in errors.items() if not e <= TOL}, (mode, name, errors)
+    assert not {k: e for k, e in errors.items() if not e <= tol}, (mode, name, errors)
     history = sim.record.history
     assert len(info["history"]) == len(history)
     for key in history[0]:
@@ -57,11 +67,11 @@ def test_the_whole_step_on_the_device_matches_the_cpu(resident_comparison, name)
         like = [k for k in history[0] if k[:-2] == key[:-2]] if key[-2:] in ("_x", "_y", "_z") \
             else [key]
         scale = max(float(np.abs([row[k] for row in history for k in like]).max()), 1e-300)
-        assert np.abs(got - ref).max() <= TOL * scale + 1e-18, (name, key, ref, got)
+        assert np.abs(got - ref).max() <= tol * scale + 1e-18, (name, key, ref, got)
     books = [sim.viscous_dissipation, sim.correction_work, sim.correction_heating,
              *sim.wall_impulse.tolist(), sim.integrator.constraint_events]
-    np.testing.assert_allclose(info["books"], books, rtol=TOL,
-                               atol=TOL * float(np.abs(books).max()))  # (a zero component)
+    np.testing.assert_allclose(info["books"], books, rtol=tol,
+                               atol=tol * float(np.abs(books).max()))  # (a zero component)
     if not (len(sim.walls) or sim.problem.body_names[1:]):  # no walls' push: none booked
         assert not any(info["books"][3:-1])
     # the state came down only for the callback's read (step 2) and at the end of the run:

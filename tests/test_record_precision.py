@@ -1,9 +1,10 @@
 """Records in float32 (``compute.record_precision = "float32"``): the packed records the pair
-loops read are rounded to float32 and nothing else changes (the state, the outputs and the
-sums stay float64); the bars' answer against 1D bar theory moves by a small fraction of its
-error at two resolutions, while the resolution moves it by a fifth; bad values are refused by
-name.  The device's records in float32 are compared with the CPU's in ``tests/test_gpu.py``
-(``taylor-2d-float32``); the Taylor bar's measures in ``validation/record_precision.py``."""
+loops read are float32 (the state, the outputs and the sums stay float64); the bars' answer
+against 1D bar theory moves by a small fraction of its error at two resolutions, while the
+resolution moves it by a fifth; bad values are refused by name.  The device's records in
+float32 are compared with the CPU's in ``tests/test_gpu_step.py`` (``taylor-2d-float32``,
+defined in ``tests/test_gpu.py``); the Taylor bar's measures in
+``validation/record_precision.py``."""
 
 from __future__ import annotations
 

@@ -714,8 +714,9 @@ class Compute(_Model):
         "(position, velocity, density, stress over density squared, ... of every particle, "
         "in the list's order): 'float32' halves their memory and memory traffic (on a GPU, "
         "the pair kernel's bound); the state, the time integration, the outputs and every "
-        "sum stay float64, so the records' rounding (about 6e-8 of each value, of the "
-        "position too) is the only change (docs/gpu.md, 'Records in float32')")
+        "sum stay float64; what changes is the records' rounding (about 6e-8 of each value, "
+        "of the position too) and the arithmetic between two record values, done in float32 "
+        "(docs/gpu.md, 'Records in float32')")
 
 
 class Case(_Model):

@@ -69,10 +69,10 @@ class PassOptions:
       (:meth:`impactsph.physics.rates.CpuRates.evaluate`'s ``uniform_h``);
     - ``record_precision``: the packed records' numbers (``compute.record_precision``):
       ``"float64"``, or ``"float32"`` (half the records' memory and traffic; the state, the
-      outputs and the sums stay float64, and the passes widen what they read, so the
-      records' rounding is the only change: docs/gpu.md, "Records in float32").  A run-time
-      choice, not part of the generated module: numba compiles the passes for the array
-      type they are given.
+      outputs and the sums stay float64; the records' rounding, and the arithmetic between
+      two record values, done in float32, are what change: docs/gpu.md, "Records in
+      float32").  A run-time choice, not part of the generated module: numba compiles the
+      passes for the array type they are given.
     """
 
     gradient_correction: str = "none"
