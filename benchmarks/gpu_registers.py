@@ -77,7 +77,8 @@ def main(argv: list[str] | None = None) -> int:
             from numba import types as nbt
 
             types["P"] = nbt.float32[::1, :]
-        kernels = gpu_kernels(dim, False, -1, PassOptions())
+        kernels = gpu_kernels(dim, False, -1,
+                              PassOptions(record_precision=args.record_precision))
         items = [(name, kernels[i].py_func,
                   tuple(types[p] for p in inspect.signature(kernels[i].py_func).parameters))
                  for i, name in RATE_KERNELS.items()]

@@ -24,7 +24,7 @@ from test_gpu import (
 #: epsilon is 1.2e-7, and the CPU's vectorised loops order those operations otherwise than a
 #: GPU thread does (and numba's CUDA simulator follows numpy's scalar rules, in which a Python
 #: float does not widen a float32).  Measured after the Taylor bar's 5 steps: 5e-8 of the
-#: largest velocity and energy, 2e-10 of the positions.
+#: largest velocity and energy, 2.5e-10 of the positions.
 FLOAT32_TOL = 1e-6
 
 

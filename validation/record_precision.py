@@ -9,10 +9,13 @@ records' precision moves each one and how far the resolution does.  Writes
 
 The claim it tests (docs/gpu.md, "Records in float32"): at each resolution the precision
 moves every measure much less than the resolution does, so a float32 run's answer is the
-float64 run's to within the discretisation's own uncertainty.  The bars run with the paper's
-AV (0.3, 0.3) and with AC; the Taylor bar with AC (its plastic flow amplifies any difference
-in the particles' paths, so its measures are where float32 shows first).  About 4 minutes on
-two cores (the Taylor bar at twice the resolution is most of it).
+float64 run's to within the discretisation's own uncertainty; beside it, how far a change in
+the 12th digit of the velocities moves each measure in float64 (round-off's own reach).  The
+bars run with the paper's AV (0.3, 0.3) and with AC; the Taylor bar with AC (its plastic flow
+amplifies any difference in the particles' paths, so its measures are where float32 shows
+first).  About 6 minutes on two cores (the Taylor bar at twice the resolution is most of
+it).  A run already in ``--out`` with the same configuration is reused
+(:func:`impactsph.sweep.run_many`): remove the folder to measure a change of the code.
 """
 
 from __future__ import annotations
@@ -38,7 +41,17 @@ SCHEMES = {
              "AC": ['viscosity.scheme="ac"']},
     "taylor": {"AC": ['viscosity.scheme="ac"']},
 }
-PRECISIONS = ("float64", "float32")
+#: the runs of each (scheme, resolution): float64 and float32 records, and float64 with every
+#: body's velocity 1e-12 larger (relative), which shows how far round-off alone moves a measure
+#: (the Taylor bar's plastic flow amplifies any difference: at the paper's resolution a
+#: change of the impact speed in its 12th digit moves its length by 1e-4 to 3e-4)
+PRECISIONS = ("float64", "float32", "float64, v + 1e-12")
+
+
+def nudged(base: dict) -> list[str]:
+    """Overrides that make every body's velocity larger by 1e-12 of itself."""
+    return [f"bodies.{k}.velocity={json.dumps([v * (1.0 + 1e-12) for v in body['velocity']])}"
+            for k, body in enumerate(base["bodies"])]
 
 
 def refined(base: dict, factor: int) -> list[str]:
@@ -68,16 +81,17 @@ def main(argv: list[str] | None = None) -> None:
         labels, overrides = [], []
         for scheme, ov in SCHEMES[case].items():
             for factor in args.factors:
-                for precision in PRECISIONS:
-                    labels.append((scheme, factor, precision))
+                for run in PRECISIONS:
+                    labels.append((scheme, factor, run))
                     overrides.append([*ov, *refined(base, factor), "output.figures=false",
-                                      f'compute.record_precision="{precision}"'])
+                                      f'compute.record_precision="{run.split(",")[0]}"',
+                                      *(nudged(base) if "1e-12" in run else [])])
         out = args.out / case
         rows = run_many(base, overrides, out, workers=args.workers)
-        for (scheme, factor, precision), row in zip(labels, rows, strict=True):
+        for (scheme, factor, run), row in zip(labels, rows, strict=True):
             summary = load_run(out / "runs" / row["run"]).get("summary", {})
             result.append({"case": case, "scheme": scheme, "resolution": factor,
-                           "precision": precision, "status": row.get("status"),
+                           "precision": run, "status": row.get("status"),
                            "n_particles": summary.get("n_particles"),
                            "steps": summary.get("steps"),
                            "wall_seconds": summary.get("wall_seconds"),
@@ -91,16 +105,19 @@ def main(argv: list[str] | None = None) -> None:
         for r in rows:
             print("| " + " | ".join(f"{r[c]:.6g}" if isinstance(r[c], float) else str(r[c])
                                     for c in cols) + " |")
-        print("\nrelative change of each measure: float64 -> float32 at each resolution; "
-              "float64 from one resolution to the next")
+        print("\nrelative change of each measure from float64 at each resolution: to float32 "
+              "records, and to float64 with the velocities 1e-12 larger (round-off's own "
+              "reach); and of float64 from one resolution to the next")
         for scheme in SCHEMES[case]:
             of = {(r["resolution"], r["precision"]): r for r in rows if r["scheme"] == scheme}
             for k in KEYS[case]:
                 parts = []
                 for factor in args.factors:
-                    a, b = of[(factor, "float64")].get(k), of[(factor, "float32")].get(k)
-                    if isinstance(a, float) and isinstance(b, float) and a:
-                        parts.append(f"x{factor} precision {(b - a) / abs(a):+.2e}")
+                    a = of[(factor, "float64")].get(k)
+                    for run, label in ((PRECISIONS[1], "float32"), (PRECISIONS[2], "nudged")):
+                        b = of[(factor, run)].get(k)
+                        if isinstance(a, float) and isinstance(b, float) and a:
+                            parts.append(f"x{factor} {label} {(b - a) / abs(a):+.2e}")
                 for f1, f2 in zip(args.factors, args.factors[1:], strict=False):
                     a, b = of[(f1, "float64")].get(k), of[(f2, "float64")].get(k)
                     if isinstance(a, float) and isinstance(b, float) and a:

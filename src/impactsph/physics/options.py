@@ -20,7 +20,8 @@ GRADIENT_CORRECTIONS = {"none": "", "velocity_gradient": "_kgc",
                         "velocity_gradient_and_forces": "_kgcf"}
 #: ``contact_traction`` modes (a run-time switch of the pair pass: no module of their own)
 CONTACT_TRACTIONS = ("pressure", "normal_stress")
-#: ``record_precision``: the packed records' dtypes (a run-time choice: no module of their own)
+#: ``record_precision``: the packed records' dtypes (float32: a module of its own, whose records
+#: split the positions)
 RECORD_PRECISIONS = ("float64", "float32")
 
 
@@ -69,10 +70,11 @@ class PassOptions:
       (:meth:`impactsph.physics.rates.CpuRates.evaluate`'s ``uniform_h``);
     - ``record_precision``: the packed records' numbers (``compute.record_precision``):
       ``"float64"``, or ``"float32"`` (half the records' memory and traffic; the state, the
-      outputs and the sums stay float64; the records' rounding, and the arithmetic between
-      two record values, done in float32, are what change: docs/gpu.md, "Records in
-      float32").  A run-time choice, not part of the generated module: numba compiles the
-      passes for the array type they are given.
+      outputs and the sums stay float64).  With float32 the records carry each position in
+      two parts, the position rounded and the rest (``SPLIT_POSITIONS``), and the passes add
+      them in float64, so a pair's separation is as exact as in float64 wherever the bodies
+      are; the other columns' rounding, and the arithmetic between two record values (done in
+      float32), are what change (docs/gpu.md, "Records in float32").
     """
 
     gradient_correction: str = "none"
@@ -149,10 +151,9 @@ class PassOptions:
 
     def compiled(self) -> PassOptions:
         """The options that decide the generated module: these, with the run-time ones
-        (the contact traction and friction, the records' precision) set to their defaults,
-        so that runs differing only in those share one compiled module."""
-        return replace(self, contact_traction="pressure", contact_friction=0.0,
-                       record_precision="float64")
+        (the contact traction and friction) set to their defaults, so that runs differing only
+        in those share one compiled module."""
+        return replace(self, contact_traction="pressure", contact_friction=0.0)
 
     @property
     def tag(self) -> str:
@@ -172,6 +173,8 @@ class PassOptions:
             tag += "_ce"
         if self.uniform_h:
             tag += "_uh"
+        if self.record_precision == "float32":
+            tag += "_f32"
         return tag
 
     def compensation(self, dim: int) -> float:
@@ -206,6 +209,7 @@ class PassOptions:
             f"COMPATIBLE_ENERGY = {bool(self.compatible_energy)}",
             f"SWITCH_VECTORISED = {self.switch_vectorised}",
             f"UNIFORM_H = {bool(self.uniform_h)}",
+            f"SPLIT_POSITIONS = {self.record_precision == 'float32'}",
         ]
 
     @property

@@ -107,6 +107,9 @@ SWITCH_VECTORISED = False
 #: every record has the same smoothing length (``PassOptions.uniform_h``): the pairs' ``h_ij``
 #: is the particle's own (:func:`neighbour_separation`)
 UNIFORM_H = False
+#: the records are float32 (``PassOptions.record_precision``) and carry each position in two
+#: parts, rounded (``X``) and the rest (``XL``), added in float64 (:func:`record_position`)
+SPLIT_POSITIONS = False
 JIT = nb.njit
 EOS_PARAMS = STRENGTH_PARAMS = DAMAGE_PARAMS = 6
 STRENGTH_STATE = DAMAGE_STATE = 4
@@ -151,7 +154,7 @@ _COLUMNS = record_columns(DIM, correction_matrix=FORCE_CORRECTION,
                           artificial_stress=ARTIFICIAL_STRESS > 0.0,
                           viscosity_factor=VISCOSITY_FACTOR, axisymmetric=AXISYMMETRIC,
                           velocity_gradient=VELOCITY_RECONSTRUCTION,
-                          work_velocity=COMPATIBLE_ENERGY)
+                          work_velocity=COMPATIBLE_ENERGY, split_positions=SPLIT_POSITIONS)
 #: the columns of the hoop stress over the density and of the radius (AXISYMMETRIC only)
 HOOP = _COLUMNS.get("hoop", 0)
 RADIUS = _COLUMNS.get("radius", 0)
@@ -164,6 +167,8 @@ THICK = PLANE_STRESS or AXISYMMETRIC
 AXIS_FLOOR = 0.1
 X, V, H, M, VOL, RHO, C, PC, BODY, A0, U = (_COLUMNS[k] for k in (
     "x", "v", "h", "m", "volume", "rho", "c", "pc", "body", "A", "u"))
+#: first column of the positions' low parts (SPLIT_POSITIONS only)
+XL = _COLUMNS.get("xl", 0)
 #: the record's length padded to whole cache lines (rows of one particle each, a layout that
 #: no backend uses now: the CPU's rows are unpadded, RECORD_COLUMNS, or U where no pass reads
 #: the viscous acceleration (its columns are last); the GPU's records are columns,
@@ -398,6 +403,8 @@ def particle_record(p, i, x, v, m, rho, e, S, carried, h, body, material, table,
         inv_rho2 = tau / (rho[i] * rho[i])
     for a in range(DIM):
         P[p, X + a] = x[i, a]
+        if SPLIT_POSITIONS:  # the rest of the position, after the record's rounding
+            P[p, XL + a] = x[i, a] - np.float64(P[p, X + a])
         P[p, V + a] = v[i, a]
         if COMPATIBLE_ENERGY:  # the work velocity: the velocity, but in the work pass
             P[p, W + a] = v[i, a]
@@ -505,13 +512,33 @@ def corrected(record, w0, w1, w2):
 
 
 @JIT(inline="always", cache=True)
+def record_position(R, a):
+    """Component ``a`` of the position a packed record ``R`` (a row) holds: ``R[X + a]``, or
+    with ``SPLIT_POSITIONS`` its two parts added in float64, ``R[X + a] + R[XL + a]``, which
+    is the position to about 48 bits (the pair separations of float32 records then lose
+    nothing to the bodies' distance from the origin)."""
+    if SPLIT_POSITIONS:
+        return np.float64(R[X + a]) + R[XL + a]
+    return R[X + a]
+
+
+@JIT(inline="always", cache=True)
+def neighbour_position(P, j, a):
+    """:func:`record_position` of row ``j`` of the records ``P``, read as ``P[j, col]`` (the
+    vectorised neighbour loops' reads: a row view stops the vectoriser)."""
+    if SPLIT_POSITIONS:
+        return np.float64(P[j, X + a]) + P[j, XL + a]
+    return P[j, X + a]
+
+
+@JIT(inline="always", cache=True)
 def pair_separation(Pi_, Pj):
     """``(d0, d1, d2, r2, h_ij, inv_h, q2)`` of a pair of packed records: ``r_ij = x_i - x_j``
     (its components beyond DIM zero), ``|r_ij|^2``, the mean smoothing length, its inverse
     and ``(r_ij / h_ij)^2`` (the pair is within the kernel's support while ``q2 < 4``)."""
-    d0 = Pi_[X] - Pj[X]
-    d1 = Pi_[X + 1] - Pj[X + 1] if DIM > 1 else 0.0
-    d2 = Pi_[X + 2] - Pj[X + 2] if DIM > 2 else 0.0
+    d0 = record_position(Pi_, 0) - record_position(Pj, 0)
+    d1 = record_position(Pi_, 1) - record_position(Pj, 1) if DIM > 1 else 0.0
+    d2 = record_position(Pi_, 2) - record_position(Pj, 2) if DIM > 2 else 0.0
     r2 = d0 * d0 + d1 * d1 + d2 * d2
     h_ij = 0.5 * (Pi_[H] + Pj[H])
     inv_h = 1.0 / h_ij
@@ -526,14 +553,14 @@ def neighbour_separation(xi0, xi1, xi2, hi, P, j):
     ``h_ij`` is ``h_i``, which ``(h_i + h_j) / 2`` then is to the bit: the neighbour's h is
     not read and ``1 / h_ij``, the same for every neighbour, is left to LLVM to hoist out of
     the loop (issue 16: one gather and one division a pair)."""
-    d0 = xi0 - P[j, X]
+    d0 = xi0 - neighbour_position(P, j, 0)
     r2 = d0 * d0
     d1 = d2 = 0.0
     if DIM > 1:
-        d1 = xi1 - P[j, X + 1]
+        d1 = xi1 - neighbour_position(P, j, 1)
         r2 += d1 * d1
     if DIM > 2:
-        d2 = xi2 - P[j, X + 2]
+        d2 = xi2 - neighbour_position(P, j, 2)
         r2 += d2 * d2
     h_ij = hi if UNIFORM_H else 0.5 * (hi + P[j, H])
     inv_h = 1.0 / h_ij
@@ -607,9 +634,9 @@ def moment_correction(p, P, offsets, indices, listed, starts, filter_skin):
     (:func:`moment_inverse`)."""
     Pi_ = P[p]
     bi = Pi_[BODY]
-    xi0 = Pi_[X]
-    xi1 = Pi_[X + 1] if DIM > 1 else 0.0
-    xi2 = Pi_[X + 2] if DIM > 2 else 0.0
+    xi0 = record_position(Pi_, 0)
+    xi1 = record_position(Pi_, 1) if DIM > 1 else 0.0
+    xi2 = record_position(Pi_, 2) if DIM > 2 else 0.0
     hi = Pi_[H]
     B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
     # one loop without branches, vectorised as particle_rates' first loop (the support and
@@ -657,9 +684,9 @@ def velocity_gradient_record(p, P, offsets, indices, listed, starts, filter_skin
     correction matrix does."""
     Pi_ = P[p]
     bi = Pi_[BODY]
-    xi0 = Pi_[X]
-    xi1 = Pi_[X + 1] if DIM > 1 else 0.0
-    xi2 = Pi_[X + 2] if DIM > 2 else 0.0
+    xi0 = record_position(Pi_, 0)
+    xi1 = record_position(Pi_, 1) if DIM > 1 else 0.0
+    xi2 = record_position(Pi_, 2) if DIM > 2 else 0.0
     vi0 = Pi_[V]
     vi1 = Pi_[V + 1] if DIM > 1 else 0.0
     vi2 = Pi_[V + 2] if DIM > 2 else 0.0
@@ -838,11 +865,11 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     set ``w = v``."""
     shear = table[material[i], SHEAR]
     Pi_ = P[p]
-    xi0 = Pi_[X]
+    xi0 = record_position(Pi_, 0)
     vi0 = Pi_[V]
-    xi1 = Pi_[X + 1] if DIM > 1 else 0.0
+    xi1 = record_position(Pi_, 1) if DIM > 1 else 0.0
     vi1 = Pi_[V + 1] if DIM > 1 else 0.0
-    xi2 = Pi_[X + 2] if DIM > 2 else 0.0
+    xi2 = record_position(Pi_, 2) if DIM > 2 else 0.0
     vi2 = Pi_[V + 2] if DIM > 2 else 0.0
     hi, ci, rhoi, bi = Pi_[H], Pi_[C], Pi_[RHO], Pi_[BODY]
     # the velocity the energy terms read: the work velocity with the compatible update
@@ -991,7 +1018,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
         # axisymmetry V_j (A_i = Q_i / rho_i)
         w_j = volume_j if AXISYMMETRIC else m_j
         if AXISYMMETRIC:
-            mr += volume_j * (xi0 - abs(P[j, X])) * s0
+            mr += volume_j * (xi0 - abs(neighbour_position(P, j, 0))) * s0
         G0 += w_j * s0
         a0 += m_j * P[j, A00] * t0
         L00 += velocity_gradient_pair(volume_j, u0, s0)
@@ -1365,9 +1392,9 @@ def hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zet
         for a in range(DIM):
             dhg[i, a] = 0.0
         return
-    xi0 = Pi_[X]
-    xi1 = Pi_[X + 1] if DIM > 1 else 0.0
-    xi2 = Pi_[X + 2] if DIM > 2 else 0.0
+    xi0 = record_position(Pi_, 0)
+    xi1 = record_position(Pi_, 1) if DIM > 1 else 0.0
+    xi2 = record_position(Pi_, 2) if DIM > 2 else 0.0
     hi, rhoi = Pi_[H], Pi_[RHO]
     half_over_shear = 0.5 / shear
     a0 = a1 = a2 = 0.0  # the Laplacian of e

@@ -9,7 +9,8 @@ from __future__ import annotations
 def record_columns(dim: int, correction_matrix: bool = False,
                    artificial_stress: bool = False, viscosity_factor: bool = False,
                    axisymmetric: bool = False, velocity_gradient: bool = False,
-                   work_velocity: bool = False) -> dict[str, int]:
+                   work_velocity: bool = False, split_positions: bool = False
+                   ) -> dict[str, int]:
     """Columns of the packed record: position ``x``, velocity ``v``, ``h``, ``m``,
     ``volume = m/rho``, ``rho``, ``c``, ``pc = P/rho^2``, ``body``, the symmetric
     ``A = sigma/rho^2`` (its upper triangle, row by row: :func:`symmetric_index`); with
@@ -20,8 +21,11 @@ def record_columns(dim: int, correction_matrix: bool = False,
     density ``hoop`` and the radius ``radius``, with ``velocity_gradient`` the velocity
     gradient ``Lv`` (``dim x dim``, row by row; a reconstructing viscosity), with
     ``work_velocity`` the velocity ``w`` that the energy terms read (the compatible energy
-    update: the velocity itself, or the step's mean velocity in its work pass); last, the
-    viscous acceleration ``u`` that the pair pass writes for a correction or a switch pass.
+    update: the velocity itself, or the step's mean velocity in its work pass), with
+    ``split_positions`` (records in float32) the position's low part ``xl``, ``x - x_rounded``
+    (the record's ``x`` is the position rounded, so that ``x + xl`` is the position to about
+    48 bits); last, the viscous acceleration ``u`` that the pair pass writes for a correction
+    or a switch pass.
 
     ``"columns"`` is the record's length: every column, unpadded.  A run whose viscosity
     scheme has neither a correction nor a switch (nothing reads ``u``) takes records of
@@ -56,6 +60,9 @@ def record_columns(dim: int, correction_matrix: bool = False,
         end += dim * dim
     if work_velocity:
         cols["w"] = end
+        end += dim
+    if split_positions:
+        cols["xl"] = end
         end += dim
     cols["u"] = end
     end += dim
