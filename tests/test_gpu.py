@@ -934,13 +934,14 @@ def _as_if_on_sm90(monkeypatch) -> None:
 
 @pytest.mark.skipif(importlib.util.find_spec("numba_cuda") is None,
                     reason="numba-cuda (the gpu extra) is not installed")
-@pytest.mark.parametrize("variant", ["plain", "artificial_stress", "reconstruction"])
+@pytest.mark.parametrize("variant", ["plain", "artificial_stress", "reconstruction", "float32"])
 @pytest.mark.parametrize("dim", [1, 2, 3])
 def test_kernels_compile_for_a_gpu(dim, variant, monkeypatch):
     """With numba-cuda, every kernel compiles to PTX for an H100 (sm_90), no GPU needed:
     the term functions called from the kernels are accepted as device functions (with the
-    artificial stress too: its principal-stress decompositions are scalars only; and the
-    reconstructing viscosity's gradient kernel and pair term)."""
+    artificial stress too: its principal-stress decompositions are scalars only; the
+    reconstructing viscosity's gradient kernel and pair term; and float32 records, their
+    positions in two parts widened with ``np.float64``)."""
     import inspect
 
     from numba import cuda
@@ -953,7 +954,12 @@ def test_kernels_compile_for_a_gpu(dim, variant, monkeypatch):
     _as_if_on_sm90(monkeypatch)
     types = _kernel_argument_types(dim)
     options = {"plain": PassOptions(), "artificial_stress": PassOptions(artificial_stress=0.3),
-               "reconstruction": PassOptions(velocity_reconstruction=True)}[variant]
+               "reconstruction": PassOptions(velocity_reconstruction=True),
+               "float32": PassOptions(record_precision="float32")}[variant]
+    if variant == "float32":
+        import numba as nb
+
+        types["P"] = nb.float32[::1, :]
     kernels = gpu_kernels(dim, False, -1, options)
     for kernel in (*kernels[:5], kernels[7]):  # the gradient kernel: the moment kernel's args
         names = inspect.signature(kernel.py_func).parameters

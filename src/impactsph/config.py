@@ -712,11 +712,12 @@ class Compute(_Model):
     record_precision: Literal["float64", "float32"] = Field(
         "float64", description="the numbers of the neighbour records the pair loops read "
         "(position, velocity, density, stress over density squared, ... of every particle, "
-        "in the list's order): 'float32' halves their memory and memory traffic (on a GPU, "
-        "the pair kernel's bound); the state, the time integration, the outputs and every "
-        "sum stay float64; what changes is the records' rounding (about 6e-8 of each value, "
-        "of the position too) and the arithmetic between two record values, done in float32 "
-        "(docs/gpu.md, 'Records in float32')")
+        "in the list's order): 'float32' nearly halves their memory and memory traffic (on a "
+        "GPU, the pair kernel's bound); the state, the time integration, the outputs and "
+        "every sum stay float64, and positions are kept in two float32 parts added in "
+        "float64 (separations as exact as float64's); the other columns' rounding (about "
+        "6e-8 of each value) and the arithmetic between two of them, done in float32, are "
+        "what change (docs/gpu.md, 'Records in float32')")
 
 
 class Case(_Model):
