@@ -3,9 +3,9 @@
 The paper's section 5.1 (parameters in its Table 2, figures 3-9); the set-up and the bars'
 represented length in ``docs/modelling.md`` ("The bars' geometry").
 
-The left bar occupies ``[-L, 0]`` and moves at ``+V``; the right bar mirrors it.  Elastic
-waves travel at ``c = sqrt(E/rho)``.  For a particle of the left bar at initial coordinate
-``X``::
+The left bar occupies ``[-L, 0]`` and moves at ``+V``; the right bar mirrors it (bars placed
+elsewhere are measured from where they meet, ``BarTheory.interface``).  Elastic waves travel
+at ``c = sqrt(E/rho)``.  For a particle of the left bar at initial coordinate ``X``::
 
     0      < t < L/c  :  v = +V ahead of the compression front X = -c t, 0 behind it
     L/c    < t < 2L/c :  v = 0 ahead of the unloading front X = -L + c (t - L/c), -V behind
@@ -43,6 +43,8 @@ class BarTheory:
     speed: float  #: m/s, impact speed V of each bar in the centre-of-mass frame
     wave_speed: float  #: m/s, sqrt(E/rho)
     frame_velocity: float = 0.0  #: m/s, velocity U of the centre of mass
+    #: m, where the bars meet: the left bar's right end at t = 0 (0 in the paper's case)
+    interface: float = 0.0
 
     @property
     def contact_time(self) -> float:
@@ -50,8 +52,10 @@ class BarTheory:
         return 2.0 * self.length / self.wave_speed
 
     def velocity(self, X: np.ndarray, t: float) -> np.ndarray:
-        """Velocity of left-bar material points at initial coordinates ``X`` (in [-L, 0])."""
-        return self.frame_velocity + self._relative_velocity(np.asarray(X, np.float64), t)
+        """Velocity of left-bar material points at initial coordinates ``X`` (in
+        ``[interface - L, interface]``)."""
+        return self.frame_velocity + self._relative_velocity(
+            np.asarray(X, np.float64) - self.interface, t)
 
     def _relative_velocity(self, X: np.ndarray, t: float) -> np.ndarray:
         L, c, V = self.length, self.wave_speed, self.speed
@@ -66,14 +70,16 @@ class BarTheory:
 
 def theory_for(case: Any) -> BarTheory:
     """Theory matching a bars case: the represented length of the left bar (its particle
-    count times the spacing), half the approach speed, the bar-wave speed and the velocity of
-    the centre of mass (the theory is Galilean invariant, so is the comparison)."""
+    count times the spacing), half the approach speed, the bar-wave speed, the velocity of
+    the centre of mass and where the bars meet, the left bar's right end (the theory is
+    Galilean invariant and invariant under translation, so is the comparison)."""
     left, right = case.bodies[0], case.bodies[1]
     mat = case.materials[left.material]
     return BarTheory(length=left.geometry.size[0],
                      speed=0.5 * (left.velocity[0] - right.velocity[0]),
                      wave_speed=math.sqrt(mat.youngs_modulus / mat.density),
-                     frame_velocity=0.5 * (left.velocity[0] + right.velocity[0]))
+                     frame_velocity=0.5 * (left.velocity[0] + right.velocity[0]),
+                     interface=left.geometry.origin[0] + left.geometry.size[0])
 
 
 def profile_metrics(X: np.ndarray, v: np.ndarray, theory: BarTheory, t: float
@@ -213,7 +219,7 @@ def bars_profile_figure(runs: list[dict[str, Any]], theory: BarTheory, path: Pat
     from ..plotting import plt, save_figure
 
     fig, ax = plt.subplots(figsize=(6, 4))
-    X = np.linspace(-theory.length, 0, 2001)
+    X = np.linspace(theory.interface - theory.length, theory.interface, 2001)
     ax.plot(X * 1e3, theory.velocity(X, PROFILE_TIME), "k:", lw=2, label="theory")
     for r in runs:
         order = np.argsort(r["X"])
