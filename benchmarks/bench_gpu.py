@@ -25,6 +25,7 @@ within ``--budget`` seconds plus 20 s.
 
     python benchmarks/bench_gpu.py                        # GPU and CPU, 2D and 3D, 1e5-1e7
     python benchmarks/bench_gpu.py --devices cpu --sizes 1e4 1e5 --budget 60
+    python benchmarks/bench_gpu.py --devices gpu --record-precision float32 --compare-cpu
 """
 
 from __future__ import annotations
@@ -38,6 +39,8 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+#: the children's ``compute.record_precision`` (``--record-precision``), through the environment
+PRECISION_ENV = "IMPACTSPH_BENCH_RECORD_PRECISION"
 
 
 def run_items(dim: int, sizes: list[int], device: str, steps: int, budget: float,
@@ -59,7 +62,8 @@ def run_items(dim: int, sizes: list[int], device: str, steps: int, budget: float
     def case(size: int) -> dict:
         data = make_case(size, dim)
         data["compute"] = {"device": "cpu" if device == "cpu" else "gpu",
-                           "resident": device != "gpu-host"}
+                           "resident": device != "gpu-host",
+                           "record_precision": os.environ.get(PRECISION_ENV, "float64")}
         return data
 
     def stepper(sim: Simulation):
@@ -120,6 +124,7 @@ def run_items(dim: int, sizes: list[int], device: str, steps: int, budget: float
         ran_on = getattr(sim.solver.backend, "device", "cpu")
         row = {"dimension": dim, "n_target": n, "n_particles": state.n,
                "device_asked": device, "device": ran_on, "state_on_device": resident,
+               "record_precision": data["compute"]["record_precision"],
                "steps": steps, "compile_seconds": compile_seconds, "setup_seconds": setup,
                "warm_step_seconds": warm_step, "ms_per_step": 1e3 * wall / steps,
                "pair_evaluations_per_second": pairs / wall,
@@ -188,7 +193,9 @@ def difference_to_cpu(final: dict, data: dict, dt: float, steps: int) -> dict:
     from impactsph.loading import validate_case
     from impactsph.simulation import Simulation
 
-    data = {**data, "compute": {"device": "cpu"}}
+    # the CPU with the GPU run's records (float32 records are compared with float32's)
+    precision = data.get("compute", {}).get("record_precision", "float64")
+    data = {**data, "compute": {"device": "cpu", "record_precision": precision}}
     ref = Simulation(validate_case(data))
     start_velocities(ref.state)
     for _ in range(steps):
@@ -214,15 +221,18 @@ def _text(output: bytes | str | None) -> str:
 
 
 def child(dim: int, sizes: list[int], device: str, steps: int, timeout: float,
-          compare_cpu: bool = False, launch: tuple[int, int] | None = None) -> list[dict]:
+          compare_cpu: bool = False, launch: tuple[int, int] | None = None,
+          precision: str = "float64") -> list[dict]:
     """Run one (device, dimension) in a fresh process; a row a size, or the reason it has
     none. ``launch``: the GPU's ``(threads_per_block, max_registers)``
-    (:func:`impactsph.gpu.launch_settings`), set in the child's environment."""
+    (:func:`impactsph.gpu.launch_settings`), set in the child's environment, as is the
+    records' ``precision`` (:data:`PRECISION_ENV`)."""
     from impactsph.gpu import REGISTERS_ENV, THREADS_ENV
 
     command = [sys.executable, __file__, "--child", str(dim), device, str(steps),
                f"{timeout:.0f}", "compare" if compare_cpu else "-", *(str(n) for n in sizes)]
     env = dict(os.environ)
+    env[PRECISION_ENV] = precision
     if launch is not None:
         env[THREADS_ENV], env[REGISTERS_ENV] = str(launch[0]), str(launch[1])
     try:
@@ -285,6 +295,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="at the smallest size, run the same steps on the CPU and report each "
                     "field's largest relative difference (the CPU's compilation and steps "
                     "count against the budget)")
+    ap.add_argument("--record-precision", choices=("float64", "float32"), default="float64",
+                    help="compute.record_precision of every run (docs/gpu.md, 'Records in "
+                    "float32'); --compare-cpu then compares with the CPU's run in the same")
     args = ap.parse_args(argv)
     if args.child:
         dim, device, steps, budget, compare, *sizes = args.child
@@ -307,7 +320,8 @@ def main(argv: list[str] | None = None) -> int:
                          "error": f"skipped: {left:.0f} s of the budget left"}
                         for n in sizes)
             continue
-        for row in child(dim, sizes, device, args.steps, share, args.compare_cpu, launch):
+        for row in child(dim, sizes, device, args.steps, share, args.compare_cpu, launch,
+                         args.record_precision):
             rows.append(row)
             print(json.dumps(row), file=sys.stderr, flush=True)
         write_json(args, rows, time.perf_counter() - start)  # what has run, kept as it goes
@@ -326,6 +340,8 @@ def main(argv: list[str] | None = None) -> int:
         ran = r["device"] + ("" if r["device"] == "cpu" else
                              " (state on the GPU)" if r.get("state_on_device") else
                              " (state on the host)")
+        if r.get("record_precision", "float64") != "float64":
+            ran += f", records in {r['record_precision']}"
         note = "" if r["device"] == r["device_asked"].split("-")[0] else \
             f"asked {r['device_asked']}"
         if r["device"] == "gpu" and "threads_per_block" in r:

@@ -48,7 +48,7 @@ def test_the_comparison_is_zero_for_the_same_steps_and_not_for_others(benchmark_
 def test_a_child_keeps_the_rows_it_wrote(benchmark_script, monkeypatch, timed_out):
     """A child's rows are kept when it fails or is stopped after them; the sizes it did not
     finish say why; the comparison line lands on its size's row; the GPU's launch settings
-    go to the child's environment and onto its rows."""
+    go to the child's environment and onto its rows, and so does the records' precision."""
     bench = benchmark_script("bench_gpu")
     row = {"dimension": 3, "n_target": 100, "device_asked": "gpu", "ms_per_step": 1.0}
     stdout = json.dumps(row) + "\n" + json.dumps(
@@ -64,10 +64,12 @@ def test_a_child_keeps_the_rows_it_wrote(benchmark_script, monkeypatch, timed_ou
         return subprocess.CompletedProcess(command, 1, stdout, "Traceback\nMemoryError: big\n")
 
     monkeypatch.setattr(bench.subprocess, "run", fake_run)
-    rows = bench.child(3, [100, 1000], "gpu", 5, 30.0, compare_cpu=True, launch=(256, 128))
+    rows = bench.child(3, [100, 1000], "gpu", 5, 30.0, compare_cpu=True, launch=(256, 128),
+                       precision="float32")
     # the launch settings reach the child, and each row says which it ran with
     assert (seen["IMPACTSPH_CUDA_THREADS_PER_BLOCK"], seen["IMPACTSPH_CUDA_MAX_REGISTERS"]) \
         == ("256", "128")
+    assert seen[bench.PRECISION_ENV] == "float32"
     assert all((r["threads_per_block"], r["max_registers"]) == (256, 128) for r in rows)
     assert [r["n_target"] for r in rows] == [100, 1000]
     assert rows[0]["ms_per_step"] == 1.0
