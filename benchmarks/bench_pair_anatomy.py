@@ -96,6 +96,11 @@ def _read_from(text: str, array: str, columns: str, position: str) -> str:
                         1)
     head = text.index("def neighbour_separation(")
     helper = text[head:text.index("\n\n\n", head)]
+    # the positions as float64 records hold them (the variants time float64 records: the
+    # split positions of float32 ones, record_position, are not read here)
+    helper = re.sub(r"neighbour_position\(P, j, (\d)\)",
+                    lambda m: f"P[j, X{' + ' + m.group(1) if m.group(1) != '0' else ''}]",
+                    helper)
     helper = re.sub(r"P\[j, ([^\]]+)\]", r"PT[\1, j]", helper)
     helper = helper.replace("def neighbour_separation(", "def neighbour_separation_t(")
     helper = helper.replace("hi, P, j):", "hi, PT, j):")
