@@ -953,8 +953,8 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
         else:
             z0, z1, z2 = u0, u1, u2
         vg = z0 * g0 + z1 * g1 + z2 * g2  # energy only (the viscous heating)
-        m_j = P[j, M]
-        volume_j = P[j, VOL]
+        m_j = np.float64(P[j, M])  # float32 records: its products with them in float64
+        volume_j = np.float64(P[j, VOL])
         cont += continuity_pair(1.0, volume_j, vs)
         if GRADIENT_CORRECTION:
             B00 -= volume_j * d0 * s0
