@@ -136,8 +136,7 @@ class PassOptions:
                    viscosity_factor=VISCOSITY[case.viscosity.scheme].switch is not None,
                    velocity_reconstruction=VISCOSITY[case.viscosity.scheme].reconstruction,
                    compatible_energy=case.time.energy_update == "compatible",
-                   record_precision=getattr(getattr(case, "compute", None), "record_precision",
-                                            "float64"))
+                   record_precision=case.compute.record_precision)
 
     @property
     def normal_stress(self) -> bool:
