@@ -302,15 +302,20 @@ def pressures(rho: np.ndarray, e: np.ndarray, material: np.ndarray, table: np.nd
 
 def _records_of(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray, h: np.ndarray,
                 body: np.ndarray, neighbours, u: np.ndarray, c: np.ndarray | None = None,
-                factor: np.ndarray | None = None, memory: np.ndarray | None = None
-                ) -> np.ndarray:
+                factor: np.ndarray | None = None, memory: np.ndarray | None = None,
+                record_precision: str = "float64") -> np.ndarray:
     """Packed records (:mod:`.records`) of given fields in the list's order, for running one
-    per-particle pass alone."""
+    per-particle pass alone; in float32 (``record_precision``) with the positions in two
+    parts, as the particle pass writes them."""
     n, dim = x.shape
-    lay = record_columns(dim, viscosity_factor=factor is not None)
+    split = PassOptions(record_precision=record_precision).record_dtype == np.float32
+    lay = record_columns(dim, viscosity_factor=factor is not None, split_positions=split)
     order = neighbours.order
-    packed = np.zeros((n, lay["width"]))
+    packed = np.zeros((n, lay["width"]), np.float32 if split else np.float64)
     packed[:, lay["x"]:lay["x"] + dim] = x[order]
+    if split:  # the rest of each position, after its rounding
+        packed[:, lay["xl"]:lay["xl"] + dim] = (
+            x[order] - packed[:, lay["x"]:lay["x"] + dim].astype(np.float64))
     packed[:, lay["v"]:lay["v"] + dim] = v[order]
     packed[:, lay["h"]] = h[order]
     packed[:, lay["m"]] = m[order]
@@ -328,16 +333,18 @@ def _records_of(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray, h:
 
 def correction_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray,
                     h: np.ndarray, body: np.ndarray, neighbours, u: np.ndarray,
-                    viscosity: Any) -> tuple[np.ndarray, np.ndarray]:
+                    viscosity: Any, record_precision: str = "float64"
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """The correction pass alone on given fields: ``(dv_corr, de_corr)`` for viscous
     accelerations ``u`` (all particles active), for the ``[viscosity]`` table ``viscosity``
-    of a correcting scheme.  For tests and analysis; the solver runs it inside
-    :meth:`CpuRates.evaluate`."""
+    of a correcting scheme, on records of ``record_precision`` (``compute.record_precision``).
+    For tests and analysis; the solver runs it inside :meth:`CpuRates.evaluate`."""
     n, dim = x.shape
-    packed = _records_of(x, v, m, rho, h, body, neighbours, u)
+    packed = _records_of(x, v, m, rho, h, body, neighbours, u,
+                         record_precision=record_precision)
     settings = ViscositySettings.of(viscosity)
     dv_corr, de_corr = np.zeros((n, dim)), np.zeros(n)
-    compiled_passes(dim).correction_pass(
+    compiled_passes(dim, options=PassOptions(record_precision=record_precision)).correction_pass(
         n, neighbours.order, packed, neighbours.offsets, neighbours.indices, settings.kind,
         settings.correction, dv_corr, de_corr, np.zeros((n, dim)), np.zeros(n), chunk_size(n))
     return dv_corr, de_corr
@@ -346,19 +353,22 @@ def correction_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray
 def switch_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray, h: np.ndarray,
                 body: np.ndarray, c: np.ndarray, neighbours, u: np.ndarray,
                 viscosity: Any, factor: np.ndarray | None = None, elapsed: float = 0.0,
-                memory: np.ndarray | None = None, with_memory: bool = False):
+                memory: np.ndarray | None = None, with_memory: bool = False,
+                record_precision: str = "float64"):
     """The viscosity switch alone on given fields (wave speeds ``c``, unscaled viscous
     accelerations ``u``, the factors in use ``factor`` (default 1) and the switch's memory
     ``memory`` (default 0), set ``elapsed`` seconds before; all particles active): each
     particle's next factor (and, ``with_memory``, its next memory), for the ``[viscosity]``
-    table ``viscosity`` of a scheme with a switch.  For tests and analysis."""
+    table ``viscosity`` of a scheme with a switch, on records of ``record_precision``
+    (``compute.record_precision``).  For tests and analysis."""
     n, dim = x.shape
     factor = np.ones(n) if factor is None else factor
-    packed = _records_of(x, v, m, rho, h, body, neighbours, u, c, factor, memory)
+    packed = _records_of(x, v, m, rho, h, body, neighbours, u, c, factor, memory,
+                         record_precision)
     settings = ViscositySettings.of(viscosity)
     out, new_memory = np.zeros(n), np.zeros(n)
-    compiled_passes(dim, options=PassOptions(viscosity_factor=True,
-                                             switch_kind=settings.kind)).switch_pass(
+    compiled_passes(dim, options=PassOptions(viscosity_factor=True, switch_kind=settings.kind,
+                                             record_precision=record_precision)).switch_pass(
         n, neighbours.order, packed, neighbours.offsets, neighbours.indices, settings.kind,
         settings.switch, float(elapsed), out, new_memory, chunk_size(n))
     return (out, new_memory) if with_memory else out

@@ -44,6 +44,7 @@ import numpy as np
 from pydantic import Field
 
 from ...kernels import cubic_spline
+from ...physics.records import record_coordinate
 from ..registry import VISCOSITY, Parameters, ViscosityScheme
 from ..types import NonNegativeFloat, PositiveFloat
 from .monaghan import monaghan_viscosity
@@ -175,13 +176,14 @@ def correction_sums(p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, h_ratio)
     h_i = Pi_[H]
     self_weight = correction_weight(Pi_[VOL], 0.0, h_ratio * h_i, dim)
     for k in range(offsets[p], offsets[p + 1]):
-        Pj = P[indices[k]]
+        j = indices[k]
+        Pj = P[j]
         # distance first: most neighbours lie beyond 2 h_c, and position and h share the
         # record's first cache line
         h_c = h_ratio * 0.5 * (h_i + Pj[H])
         r2 = 0.0
         for a in range(dim):
-            d = Pi_[X + a] - Pj[X + a]
+            d = record_coordinate(P, p, X, a, dim) - record_coordinate(P, j, X, a, dim)
             r2 += d * d
         if r2 >= 4.0 * h_c * h_c or Pj[BODY] != Pi_[BODY]:
             continue

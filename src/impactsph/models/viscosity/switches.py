@@ -66,6 +66,7 @@ import numba as nb
 from pydantic import Field
 
 from ...kernels import cubic_spline, cubic_spline_gradient_factor
+from ...physics.records import record_coordinate
 from ..registry import VISCOSITY, Parameters, ViscosityScheme
 from ..types import NonNegativeFloat, PositiveFloat
 from .correction import (
@@ -103,9 +104,9 @@ def neighbour_fields(p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, M, d
     h_i = P[p, H]
     body_i = P[p, BODY]
     c_i = P[p, C]
-    xi0 = P[p, X]
-    xi1 = P[p, X + 1] if dim > 1 else 0.0
-    xi2 = P[p, X + 2] if dim > 2 else 0.0
+    xi0 = record_coordinate(P, p, X, 0, dim)
+    xi1 = record_coordinate(P, p, X, 1, dim) if dim > 1 else 0.0
+    xi2 = record_coordinate(P, p, X, 2, dim) if dim > 2 else 0.0
     vi0 = P[p, V]
     vi1 = P[p, V + 1] if dim > 1 else 0.0
     vi2 = P[p, V + 2] if dim > 2 else 0.0
@@ -116,9 +117,9 @@ def neighbour_fields(p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, M, d
     v_sig = c_i
     for k in range(offsets[p], offsets[p + 1]):
         j = indices[k]  # P[j, col], not a row view: the view stops the vectoriser
-        d0 = xi0 - P[j, X]
-        d1 = xi1 - P[j, X + 1] if dim > 1 else 0.0
-        d2 = xi2 - P[j, X + 2] if dim > 2 else 0.0
+        d0 = xi0 - record_coordinate(P, j, X, 0, dim)
+        d1 = xi1 - record_coordinate(P, j, X, 1, dim) if dim > 1 else 0.0
+        d2 = xi2 - record_coordinate(P, j, X, 2, dim) if dim > 2 else 0.0
         r2 = d0 * d0 + d1 * d1 + d2 * d2
         h_ij = 0.5 * (h_i + P[j, H])
         inv_h = 1.0 / h_ij
@@ -272,12 +273,13 @@ def _variation_slope(p, P, offsets, indices, X, V, H, VOL, BODY, U, F, dim, f, s
     slope = 0.0
     h_i = Pi_[H]
     for k in range(offsets[p], offsets[p + 1]):
-        Pj = P[indices[k]]
+        j = indices[k]
+        Pj = P[j]
         if Pj[BODY] != Pi_[BODY]:
             continue
         r2 = 0.0
         for a in range(dim):
-            d = Pi_[X + a] - Pj[X + a]
+            d = record_coordinate(P, p, X, a, dim) - record_coordinate(P, j, X, a, dim)
             r2 += d * d
         h_ij = 0.5 * (h_i + Pj[H])
         if r2 >= 4.0 * h_ij * h_ij or r2 == 0.0:
