@@ -10,10 +10,12 @@ records' precision moves each one and how far the resolution does.  Writes
 The claim it tests (docs/gpu.md, "Records in float32"): at each resolution the precision
 moves every measure much less than the resolution does, so a float32 run's answer is the
 float64 run's to within the discretisation's own uncertainty; beside it, how far a change in
-the 12th digit of the velocities moves each measure in float64 (round-off's own reach).  The
+the 12th digit of the velocities moves each measure in float64 (round-off's own reach) and in
+float32 (the float32 run's own reach: where it is as large as float32's change from float64,
+that change is the run's sensitivity, not the records' error).  The
 bars run with the paper's AV (0.3, 0.3) and with AC; the Taylor bar with AC (its plastic flow
 amplifies any difference in the particles' paths, so its measures are where float32 shows
-first).  About 6 minutes on two cores (the Taylor bar at twice the resolution is most of
+first).  About 8 minutes on two cores (the Taylor bar at twice the resolution is most of
 it).  A run already in ``--out`` with the same configuration is reused
 (:func:`impactsph.sweep.run_many`): remove the folder to measure a change of the code.
 """
@@ -41,11 +43,13 @@ SCHEMES = {
              "AC": ['viscosity.scheme="ac"']},
     "taylor": {"AC": ['viscosity.scheme="ac"']},
 }
-#: the runs of each (scheme, resolution): float64 and float32 records, and float64 with every
+#: the runs of each (scheme, resolution): float64 and float32 records, and each with every
 #: body's velocity 1e-12 larger (relative), which shows how far round-off alone moves a measure
 #: (the Taylor bar's plastic flow amplifies any difference: at the paper's resolution a
-#: change of the impact speed in its 12th digit moves its length by 1e-4 to 3e-4)
-PRECISIONS = ("float64", "float32", "float64, v + 1e-12")
+#: change of the impact speed in its 12th digit moves its length by 1e-4 to 3e-4), in float64
+#: and in float32 (where a difference of float32's size may cross a threshold, a yield or a
+#: list's reach, that the nudge does not)
+PRECISIONS = ("float64", "float32", "float64, v + 1e-12", "float32, v + 1e-12")
 
 
 def nudged(base: dict) -> list[str]:
@@ -114,7 +118,8 @@ def main(argv: list[str] | None = None) -> None:
                 parts = []
                 for factor in args.factors:
                     a = of[(factor, "float64")].get(k)
-                    for run, label in ((PRECISIONS[1], "float32"), (PRECISIONS[2], "nudged")):
+                    for run, label in ((PRECISIONS[1], "float32"), (PRECISIONS[2], "nudged"),
+                                       (PRECISIONS[3], "float32 nudged")):
                         b = of[(factor, run)].get(k)
                         if isinstance(a, float) and isinstance(b, float) and a:
                             parts.append(f"x{factor} {label} {(b - a) / abs(a):+.2e}")
