@@ -39,9 +39,15 @@ def _preload_tbb() -> None:
 
 _preload_tbb()
 
+from .jitcache import inline_fresh_ir_in_place as _inline_fresh_ir_in_place  # noqa: E402
 from .jitcache import lock_cache_writes as _lock_cache_writes  # noqa: E402
 
 _lock_cache_writes()  # numba's cache safe between processes (impactsph.jitcache)
+_inline_fresh_ir_in_place()  # numba's inliner without its unread copies (impactsph.jitcache)
+if _os.environ.get("IMPACTSPH_COMPILE_LOG"):  # what each process compiles, for how long
+    from .jitcache import log_compiles as _log_compiles
+
+    _log_compiles(_os.environ["IMPACTSPH_COMPILE_LOG"])
 
 from ._version import __version__  # noqa: E402
 from .config import Case, CaseError  # noqa: E402

@@ -16,12 +16,23 @@ same race between its two entries (numba/numba#4807, open).  :func:`lock_cache_w
 ``import impactsph`` calls, closes it for every cached function of the process: a cache
 entry is written under an exclusive lock on its index (``fcntl.flock`` on ``<index>.lock``),
 the index read inside the lock, and the code file written before the index that names it.
+
+:func:`inline_fresh_ir_in_place` cuts the compile time of the passes, whose model calls are
+inlined by numba (``inline="always"``): numba builds a fresh IR of the callee for every call
+site, then deep-copies it twice before splicing it in, copies nobody reads (numba/numba#8989;
+numba-cuda's own copy of the inliner, NVIDIA/numba-cuda#688).  Skipping them changes no
+compiled instruction (the test compares the machine code).
 """
 
 from __future__ import annotations
 
+import contextvars
+import copy
+import inspect
 import itertools
+import os
 import re
+import types
 from collections.abc import Callable
 from typing import Any
 
@@ -87,3 +98,98 @@ def lock_cache_writes() -> bool:
     save.locked_by_impactsph = True
     IndexDataCacheFile.save = save
     return True
+
+
+#: set while :func:`inline_fresh_ir_in_place`'s ``inline_function`` splices a callee's fresh IR
+_FRESH_IR = contextvars.ContextVar("impactsph_fresh_inline_ir", default=False)
+
+
+def _deepcopy_unless_fresh(value: Any, memo: dict | None = None) -> Any:
+    """``copy.deepcopy``, except on the blocks of a fresh callee IR (returned as they are)."""
+    return value if _FRESH_IR.get() else copy.deepcopy(value, memo)
+
+
+def inline_fresh_ir_in_place(module: types.ModuleType | None = None) -> bool:
+    """Make numba's inliner splice a callee's fresh IR without copying it first.
+
+    ``InlineWorker.inline_function`` (the ``inline="always"`` of ``@njit`` functions) runs
+    the untyped passes on the callee for each call site, so the IR it hands to ``inline_ir``
+    is its own; ``inline_ir`` deep-copies it block by block all the same ("it gets mutated"),
+    and once more for an unmutated copy that both of numba's callers discard.  On the 2D
+    passes those copies were 40% of a pair pass's compile time (issue 16's closing note).
+    Here, while ``inline_function`` calls ``inline_ir``, that module's ``copy.deepcopy``
+    returns the blocks as they are; an IR numba keeps (an ``@overload``'s, inlined through
+    ``inline_ir`` directly) is copied as before.
+
+    ``module`` is numba's ``numba.core.inline_closurecall`` (the default) or numba-cuda's
+    copy of it.  Returns whether the change is in place: False, leaving numba's own way,
+    where the module no longer has the structure this relies on (one ``copy.deepcopy`` in
+    ``inline_ir``, ``inline_function`` calling ``run_untyped_passes`` then ``inline_ir``).
+    ``IMPACTSPH_NUMBA_INLINE_COPIES=1`` in the environment keeps numba's copies."""
+    if module is None:
+        try:
+            from numba.core import inline_closurecall as module
+        except ImportError:
+            return False
+    worker = getattr(module, "InlineWorker", None)
+    if worker is None:
+        return False
+    if getattr(worker.inline_function, "fresh_ir_in_place", False):
+        return True
+    if os.environ.get("IMPACTSPH_NUMBA_INLINE_COPIES", "") not in ("", "0"):
+        return False
+    try:
+        inline_ir = inspect.getsource(worker.inline_ir)
+        inline_function = inspect.getsource(worker.inline_function)
+    except (AttributeError, OSError, TypeError):
+        return False
+    if (getattr(module, "copy", None) is not copy or inline_ir.count("copy.deepcopy(") != 1
+            or "self.run_untyped_passes(function)" not in inline_function
+            or "self.inline_ir(" not in inline_function):
+        return False
+
+    def inline_function_in_place(self, caller_ir, block, i, function, arg_typs=None):
+        callee_ir = self.run_untyped_passes(function)  # a fresh IR: nobody else holds it
+        token = _FRESH_IR.set(True)
+        try:
+            return self.inline_ir(caller_ir, block, i, callee_ir,
+                                  function.__code__.co_freevars, arg_typs=arg_typs)
+        finally:
+            _FRESH_IR.reset(token)
+
+    inline_function_in_place.fresh_ir_in_place = True
+    inline_function_in_place.numba_original = worker.inline_function
+    inline_function_in_place.__doc__ = worker.inline_function.__doc__
+    module.copy = types.SimpleNamespace(**{**vars(copy), "deepcopy": _deepcopy_unless_fresh})
+    worker.inline_function = inline_function_in_place
+    return True
+
+
+def log_compiles(path: str | os.PathLike) -> None:
+    """Append a line to ``path`` for each function numba compiles in this process (not those
+    it loads from its cache): ``process id, seconds, nesting depth, qualified name``, tab
+    separated, written when the compilation ends.  A function compiled inside another's
+    compilation (a callee) has depth 1 or more, and its time is part of its caller's.
+
+    ``import impactsph`` calls it with ``$IMPACTSPH_COMPILE_LOG`` when that is set, so that
+    every process of a run (the test run's workers and the processes they start) writes to one
+    file: where a cold cache's time goes (docs/architecture.md, "Compile time")."""
+    import time
+
+    from numba.core import event
+
+    started: list[float] = []
+    pid = os.getpid()
+
+    class _Logger(event.Listener):
+        def on_start(self, ev: event.Event) -> None:
+            started.append(time.perf_counter())
+
+        def on_end(self, ev: event.Event) -> None:
+            seconds = time.perf_counter() - started.pop()
+            function = ev.data["dispatcher"].py_func
+            name = f"{function.__module__}.{function.__qualname__}"
+            with open(path, "a") as log:  # one short write: whole lines between processes
+                log.write(f"{pid}\t{seconds:.3f}\t{len(started)}\t{name}\n")
+
+    event.register("numba:compile", _Logger())
