@@ -173,8 +173,8 @@ def test_numba_inlines_a_fresh_callee_in_place_into_the_same_machine_code():
 
 def test_compile_log_names_each_compilation(tmp_path):
     """``IMPACTSPH_COMPILE_LOG``: each process appends a line per function numba compiles,
-    with its time and nesting depth; a second process that loads the function from the
-    cache writes nothing."""
+    with its time, nesting depth and the test that asked (none here); a second process that
+    loads the function from the cache writes nothing."""
     script = ("import impactsph, numba as nb\n"
               "@nb.njit(cache=True)\n"
               "def doubled(a):\n"
@@ -188,5 +188,5 @@ def test_compile_log_names_each_compilation(tmp_path):
                               capture_output=True, text=True, check=True, cwd=tmp_path)
         assert done.stdout.strip() == "3.0"
     lines = [line.split("\t") for line in log.read_text().splitlines()]
-    assert [(depth, name) for _, _, depth, name in lines] == [("0", "__main__.doubled")]
+    assert [(depth, name) for _, _, depth, name, _ in lines] == [("0", "__main__.doubled")]
     assert int(lines[0][0]) > 0 and float(lines[0][1]) > 0.0

@@ -167,8 +167,9 @@ def inline_fresh_ir_in_place(module: types.ModuleType | None = None) -> bool:
 
 def log_compiles(path: str | os.PathLike) -> None:
     """Append a line to ``path`` for each function numba compiles in this process (not those
-    it loads from its cache): ``process id, seconds, nesting depth, qualified name``, tab
-    separated, written when the compilation ends.  A function compiled inside another's
+    it loads from its cache): ``process id, seconds, nesting depth, qualified name`` and,
+    inside a test run, the test that asked for it (``$PYTEST_CURRENT_TEST``), tab separated,
+    written when the compilation ends.  A function compiled inside another's
     compilation (a callee) has depth 1 or more, and its time is part of its caller's.
 
     ``import impactsph`` calls it with ``$IMPACTSPH_COMPILE_LOG`` when that is set, so that
@@ -189,7 +190,8 @@ def log_compiles(path: str | os.PathLike) -> None:
             seconds = time.perf_counter() - started.pop()
             function = ev.data["dispatcher"].py_func
             name = f"{function.__module__}.{function.__qualname__}"
+            test = os.environ.get("PYTEST_CURRENT_TEST", "")
             with open(path, "a") as log:  # one short write: whole lines between processes
-                log.write(f"{pid}\t{seconds:.3f}\t{len(started)}\t{name}\n")
+                log.write(f"{pid}\t{seconds:.3f}\t{len(started)}\t{name}\t{test}\n")
 
     event.register("numba:compile", _Logger())
