@@ -115,8 +115,9 @@ def inline_fresh_ir_in_place(module: types.ModuleType | None = None) -> bool:
     ``InlineWorker.inline_function`` (the ``inline="always"`` of ``@njit`` functions) runs
     the untyped passes on the callee for each call site, so the IR it hands to ``inline_ir``
     is its own; ``inline_ir`` deep-copies it block by block all the same ("it gets mutated"),
-    and once more for an unmutated copy that both of numba's callers discard.  On the 2D
-    passes those copies were 40% of a pair pass's compile time (issue 16's closing note).
+    and once more for an unmutated copy that both of numba's callers discard.  Without them
+    the 2D pair pass and stage compile in 0.78-0.87 of the CPU time, to the same machine code
+    (``benchmarks/bench_compile.py``; docs/architecture.md, "Compile time").
     Here, while ``inline_function`` calls ``inline_ir``, that module's ``copy.deepcopy``
     returns the blocks as they are; an IR numba keeps (an ``@overload``'s, inlined through
     ``inline_ir`` directly) is copied as before.
