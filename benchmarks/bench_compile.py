@@ -5,28 +5,19 @@ process, and whether the two give the same machine code.
     .venv/bin/python benchmarks/bench_compile.py [--case taylor] [--set KEY=VALUE ...]
         [--passes pair_pass stage] [--rounds 3]
 
-The case's passes are compiled once (from the cache where it has them) to learn their
-signatures; then each named pass is compiled again ``--rounds`` times with each inliner, from
-its Python function, without the cache (CPU seconds, so that the other core's load counts
-less).  The machine code is compared with the names' compile counters and addresses taken
-out.  One pass's compilation includes the functions it calls that numba compiles apart.
+The case's passes are compiled once (from the cache where it has them, else with the
+in-place inliner) to learn their signatures; then each named pass is compiled again
+``--rounds`` times with each inliner, from its Python function, without the cache (CPU
+seconds, so that the other core's load counts less).  The machine code is compared with the
+names' compile counters and addresses taken out (``jitcache.normalised_machine_code``).  One
+pass's compilation includes the functions it calls that numba compiles apart.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
-import re
 import sys
 import time
-
-os.environ["IMPACTSPH_NUMBA_INLINE_COPIES"] = "1"  # numba's own inliner first (restored below)
-
-
-def _normalised(dispatcher, signature) -> str:
-    asm = dispatcher.inspect_asm(signature)
-    asm = re.sub(r"0x[0-9a-f]+", "0x", re.sub(r"B\d+v\d+", "Bv", asm))
-    return re.sub(r'(\.size\t".*"), \d+$', r"\1, n", asm, flags=re.M)
 
 
 def main() -> None:
@@ -44,13 +35,13 @@ def main() -> None:
     from impactsph.loading import load_case
     from impactsph.simulation import Simulation
 
-    numba_own = inline_closurecall.InlineWorker.inline_function
+    if not jitcache.inline_fresh_ir_in_place():
+        sys.exit("the in-place inliner does not apply to this numba "
+                 "(or IMPACTSPH_NUMBA_INLINE_COPIES is set)")
+    in_place = inline_closurecall.InlineWorker.inline_function
+    numba_own = in_place.numba_original
     sim = Simulation(load_case(args.case, ["time.max_steps=1", *args.set]))
     sim.run()
-    os.environ["IMPACTSPH_NUMBA_INLINE_COPIES"] = "0"
-    if not jitcache.inline_fresh_ir_in_place():
-        sys.exit("the in-place inliner does not apply to this numba")
-    in_place = inline_closurecall.InlineWorker.inline_function
     modules = [m for name, m in sys.modules.items() if name.startswith("impactsph_generated")]
     for pass_name in args.passes:
         used = [getattr(m, pass_name) for m in modules
@@ -72,7 +63,7 @@ def main() -> None:
                     t0 = time.process_time()
                     fresh.compile(signature)
                     seconds[name].append(time.process_time() - t0)
-                    code.setdefault(name, _normalised(fresh, signature))
+                    code.setdefault(name, jitcache.normalised_machine_code(fresh, signature))
         finally:
             inline_closurecall.InlineWorker.inline_function = in_place
         same = "the same" if code["numba"] == code["in place"] else "DIFFERENT"

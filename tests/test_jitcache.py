@@ -101,17 +101,6 @@ def test_concurrent_cache_writes_keep_each_entry_its_own_code(tmp_path):
                                                   "int64": "code of int64"}
 
 
-def _normalised_machine_code(dispatcher) -> str:
-    """A compiled function's assembly without what differs between two compilations of the
-    same code in one process: the names' compile counters, the addresses in names, and so
-    the lengths of the error messages that hold a name."""
-    import re
-
-    asm = dispatcher.inspect_asm(dispatcher.signatures[0])
-    asm = re.sub(r"0x[0-9a-f]+", "0x", re.sub(r"B\d+v\d+", "Bv", asm))
-    return re.sub(r'(\.size\t".*"), \d+$', r"\1, n", asm, flags=re.M)
-
-
 def test_numba_inlines_a_fresh_callee_in_place_into_the_same_machine_code():
     """numba's inliner splices each callee's fresh IR without its two unread deep copies
     (:func:`impactsph.jitcache.inline_fresh_ir_in_place`, which ``import impactsph`` applies):
@@ -123,7 +112,7 @@ def test_numba_inlines_a_fresh_callee_in_place_into_the_same_machine_code():
     import numpy as np
     from numba.core import inline_closurecall
 
-    from impactsph.jitcache import inline_fresh_ir_in_place
+    from impactsph.jitcache import inline_fresh_ir_in_place, normalised_machine_code
     from impactsph.kernels import cubic_spline_gradient_factor
     from impactsph.physics.records import record_coordinate
 
@@ -163,7 +152,7 @@ def test_numba_inlines_a_fresh_callee_in_place_into_the_same_machine_code():
             inline_closurecall.InlineWorker.inline_function = inline_function
             compiled = nb.njit(outer)
             values[name] = compiled(records, 0.3)
-            code[name] = _normalised_machine_code(compiled)
+            code[name] = normalised_machine_code(compiled)
     finally:
         inline_closurecall.InlineWorker.inline_function = in_place
     assert values["in place"] == values["numba"] != 0.0

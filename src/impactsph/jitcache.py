@@ -166,6 +166,18 @@ def inline_fresh_ir_in_place(module: types.ModuleType | None = None) -> bool:
     return True
 
 
+def normalised_machine_code(dispatcher: Any, signature: Any = None) -> str:
+    """A compiled function's assembly (its first signature's unless ``signature`` is given)
+    without what differs between two compilations of the same code in one process: the
+    names' compile counters (``B3v74``), the addresses in names, and so the lengths of the
+    error messages that hold a name.  Two compilations that give the same text run the same
+    instructions (:func:`inline_fresh_ir_in_place`'s test, ``benchmarks/bench_compile.py``)."""
+    asm = dispatcher.inspect_asm(signature if signature is not None
+                                 else dispatcher.signatures[0])
+    asm = re.sub(r"0x[0-9a-f]+", "0x", re.sub(r"B\d+v\d+", "Bv", asm))
+    return re.sub(r'(\.size\t".*"), \d+$', r"\1, n", asm, flags=re.M)
+
+
 def log_compiles(path: str | os.PathLike) -> None:
     """Append a line to ``path`` for each function numba compiles in this process (not those
     it loads from its cache): ``process id, seconds, nesting depth, qualified name`` and,
