@@ -47,7 +47,7 @@ from ...kernels import cubic_spline
 from ...physics.records import record_coordinate
 from ..registry import VISCOSITY, Parameters, ViscosityScheme
 from ..types import NonNegativeFloat, PositiveFloat
-from .monaghan import monaghan_viscosity
+from .monaghan import pair_viscosity as monaghan_pair_viscosity
 
 VOLUME_WEIGHTED, SHEPARD, NEIGHBOURS_ONLY = 0, 1, 2
 VARIANTS = {"volume_weighted": VOLUME_WEIGHTED, "shepard": SHEPARD,
@@ -156,12 +156,11 @@ def weight_sum(dim: int, h_over_dx: float = 1.2, h_ratio: float = 0.5) -> tuple[
     return float(w[r == 0].sum()), float(w[r > 0].sum())
 
 
-@nb.njit(inline="always", cache=True)
-def pair_viscosity(vr: float, r2: float, h_ij: float, c_ij: float, rho_ij: float,
-                   params) -> float:
-    """Eq 31: the viscosity that AC corrects is Monaghan's with (1, 1); ``params = (1, 1,
-    epsilon, unused)``."""
-    return monaghan_viscosity(vr, r2, h_ij, c_ij, rho_ij, params[0], params[1], params[2])
+#: Eq 31: the viscosity that AC corrects is Monaghan's with (1, 1): Monaghan's registered pair
+#: function itself, given ``params = (1, 1, epsilon, unused)``.  One compiled function for every
+#: scheme built on Monaghan's, which the pair pass then inlines once
+#: (:func:`impactsph.codegen._dispatch`).
+pair_viscosity = monaghan_pair_viscosity
 
 
 @nb.njit(inline="always", cache=True)

@@ -1,0 +1,79 @@
+"""The generated binding's model dispatches (:mod:`impactsph.codegen`): every kind code reaches
+its own model's function, and a function that several kinds share is named once, so that numba
+inlines it into a pass once."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+from typing import Any
+
+import pytest
+
+from impactsph.codegen import _dispatch, binding
+from impactsph.models import DAMAGE, EOS, STRENGTH, VISCOSITY
+from impactsph.physics.options import PassOptions
+
+#: dispatch name -> (registry, the model's attribute, what the dispatch returns without one)
+DISPATCHES = {
+    "eos_pressure": (EOS, "pressure", None),
+    "strength_return": (STRENGTH, "return_map", 0.0),
+    "damage_update": (DAMAGE, "update", None),
+    "pair_viscosity": (VISCOSITY, "pair_viscosity", None),
+    "viscosity_correction": (VISCOSITY, "correction", None),
+    "viscosity_switch": (VISCOSITY, "switch", 1.0),
+}
+
+
+def _executed(source: str, inject: dict[str, Any]) -> dict[str, Any]:
+    """The binding's source run as Python, with ``JIT`` doing nothing and every injected
+    function replaced by one that returns the injected object (so a call says which it
+    reached)."""
+    namespace: dict[str, Any] = {"nb": SimpleNamespace(njit=lambda *a, **k: lambda f: f)}
+    for name, function in inject.items():
+        namespace[name] = (lambda reached: lambda *args: reached)(function)
+    exec(source, namespace)  # noqa: S102 - the package's own generated text
+    return namespace
+
+
+@pytest.mark.parametrize("options", [PassOptions(), PassOptions(viscosity_factor=True)],
+                         ids=["plain", "switches"])
+def test_every_kind_reaches_its_own_models_function(options):
+    source, inject = binding(2, options)
+    namespace = _executed(source, inject)
+    for name, (registry, attribute, without) in DISPATCHES.items():
+        dispatch = namespace[name]
+        n_args = dispatch.__code__.co_argcount - 1
+        for kind, model in enumerate(registry):
+            function = getattr(model, attribute)
+            reached = dispatch(kind, *([0] * n_args))
+            if function is None:
+                assert reached == without, (name, model.name)
+            else:
+                assert reached is function, (name, model.name)
+
+
+def test_a_function_several_kinds_share_is_named_once():
+    """The registered viscosity schemes all use Monaghan's pair function: the pair pass's
+    dispatch calls it once, with no branch on the kind."""
+    source, inject = binding(2)
+    start = source.index("def pair_viscosity(")
+    dispatch = source[start:source.index("\n\n", start)]
+    distinct = {id(m.pair_viscosity) for m in VISCOSITY}
+    assert dispatch.count("return _viscosity_") == len(distinct)
+    assert len(distinct) < len(VISCOSITY)  # else this test checks nothing
+
+
+def test_kinds_are_grouped_by_their_function():
+    """Kinds of one function share a branch, kinds of the fallback's function take the
+    fallback, and every kind still reaches its own function."""
+    first, second, third = object(), object(), object()
+    bound = {0: first, 1: second, 2: first, 3: third, 4: second, 5: first}
+    inject = {f"_m_{k}": f for k, f in bound.items()}
+    source = _dispatch("model", "x", "_m_", [(k, None) for k in range(5)],
+                       "return _m_5(x)", inject, fallback_kind=5)
+    assert source.count("return _m_") == 3  # second, third, and the fallback (first)
+    assert "kind == 1 or kind == 4" in source
+    namespace = _executed("JIT = nb.njit\n" + source, inject)
+    for kind, function in bound.items():
+        assert namespace["model"](kind, 0.0) is function
+    assert namespace["model"](17, 0.0) is first  # an unknown kind: the fallback
