@@ -32,7 +32,7 @@ from functools import cache
 
 import numpy as np
 
-from .jitcache import inline_fresh_ir_in_place
+from .jitcache import copy_sets_of_names_shallowly, inline_fresh_ir_in_place
 from .physics.options import PassOptions
 from .physics.rates import compiled_passes
 
@@ -43,13 +43,15 @@ try:  # numba-cuda (the `gpu` extra) when installed, else numba's deprecated bui
 except Exception as exc:  # noqa: BLE001 - pragma: no cover - a numba without a CUDA target
     cuda = None
     _IMPORT_ERROR = f"{type(exc).__name__}: {exc}"
-else:  # numba-cuda's copy of numba's inliner, without its unread copies too (jitcache)
+else:  # numba-cuda's copies of numba's inliner and IR utilities, changed too (jitcache)
     try:
         from numba.cuda.core import inline_closurecall as _cuda_inliner
-    except ImportError:  # numba's built-in target: numba's own inliner, already changed
+        from numba.cuda.core import ir_utils as _cuda_ir_utils
+    except ImportError:  # numba's built-in target: numba's own modules, already changed
         pass
     else:
         inline_fresh_ir_in_place(_cuda_inliner)
+        copy_sets_of_names_shallowly(_cuda_ir_utils)
 
 #: Threads per block on a GPU, and under the simulator (which starts one Python thread per
 #: CUDA thread of the grid: smaller blocks start fewer idle ones).

@@ -21,7 +21,9 @@ the index read inside the lock, and the code file written before the index that 
 inlined by numba (``inline="always"``): numba builds a fresh IR of the callee for every call
 site, then deep-copies it twice before splicing it in, copies nobody reads (numba/numba#8989;
 numba-cuda's own copy of the inliner, NVIDIA/numba-cuda#688).  Skipping them changes no
-compiled instruction (the test compares the machine code).
+compiled instruction (the test compares the machine code).  :func:`copy_sets_of_names_shallowly`
+does the same for the maps of variable names that numba's copy propagation and alias analysis
+deep-copy at every round.
 """
 
 from __future__ import annotations
@@ -163,6 +165,65 @@ def inline_fresh_ir_in_place(module: types.ModuleType | None = None) -> bool:
     inline_function_in_place.__doc__ = worker.inline_function.__doc__
     module.copy = types.SimpleNamespace(**{**vars(copy), "deepcopy": _deepcopy_unless_fresh})
     worker.inline_function = inline_function_in_place
+    return True
+
+
+def _sets_of_names(value: Any) -> bool:
+    """Whether ``value`` is a dict (keys int or str) of sets whose members are names (str) or
+    tuples of names: what numba's copy propagation and alias analysis deep-copy.  (The
+    members' types are gathered with ``map``, in C: the maps hold thousands of pairs.)"""
+    if type(value) is not dict:
+        return False
+    for key, members in value.items():
+        if type(key) not in (int, str) or type(members) is not set:
+            return False
+        kinds = set(map(type, members))
+        if tuple in kinds:
+            kinds.discard(tuple)
+            tuples = members if not kinds else [m for m in members if type(m) is tuple]
+            if set(map(type, itertools.chain.from_iterable(tuples))) - {str}:
+                return False
+        if kinds - {str}:
+            return False
+    return True
+
+
+def _deepcopy_sets_of_names(value: Any, memo: dict | None = None) -> Any:
+    """``copy.deepcopy``, except on a dict of sets of names (:func:`_sets_of_names`): a new
+    dict of new sets of the same members, which is what ``deepcopy`` makes of them (a str, or
+    a tuple of str, deep-copies to itself)."""
+    if memo is None and _sets_of_names(value):
+        return {key: set(members) for key, members in value.items()}
+    return copy.deepcopy(value, memo)
+
+
+def copy_sets_of_names_shallowly(module: types.ModuleType | None = None) -> bool:
+    """Make numba's copy propagation and alias analysis copy their sets of variable names
+    without ``copy.deepcopy``'s walk over every member.
+
+    ``ir_utils.copy_propagate`` iterates its data-flow equations to a fixed point and
+    deep-copies the whole ``{block: {(lhs, rhs), ...}}`` map at each round to compare;
+    ``find_potential_aliases`` deep-copies its ``{name: {name, ...}}`` map.  In a parallel
+    pass, whose ``prange`` body is large once the models are inlined, these copies were the
+    largest single cost of a compile in a profile of a cold Taylor run.  Here the module's
+    ``copy.deepcopy`` gives, for a dict of sets of names, a new dict of new sets of the same
+    members (:func:`_deepcopy_sets_of_names`): equal to the deep copy, and just as free of the
+    original's later changes; anything else is deep-copied as before.
+
+    ``module`` is ``numba.core.ir_utils`` (the default) or numba-cuda's copy of it.  Returns
+    whether the change is in place: False where the module has no ``copy`` module of its own
+    (numba changed), or ``IMPACTSPH_NUMBA_DEEPCOPY=1`` is set, which keeps numba's way."""
+    if module is None:
+        try:
+            from numba.core import ir_utils as module
+        except ImportError:
+            return False
+    current = getattr(module, "copy", None)
+    if getattr(current, "deepcopy", None) is _deepcopy_sets_of_names:
+        return True
+    if current is not copy or os.environ.get("IMPACTSPH_NUMBA_DEEPCOPY", "") not in ("", "0"):
+        return False
+    module.copy = types.SimpleNamespace(**{**vars(copy), "deepcopy": _deepcopy_sets_of_names})
     return True
 
 
