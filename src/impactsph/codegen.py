@@ -127,8 +127,8 @@ def _dispatch(name: str, args: str, prefix: str, models: list[tuple[int, Any]],
     branch, and those of the fallback's function take the fallback: numba inlines a branch's
     callee where it is called, so each distinct function is compiled into the pass once.  The
     eight registered viscosity schemes all use Monaghan's ``Pi_ij``: with a branch each, the
-    Taylor bar's 2D pair pass compiled in 23.8-27.8 s, with one call in 16.9-19.5 s (cold,
-    alternating, docs/architecture.md "Compile time")."""
+    Taylor bar's 2D pair pass compiled in 25.9 and 28.0 s, with one call in 20.1 and 20.7 s
+    (cold, alternating, docs/architecture.md "Compile time")."""
     shared = inject[f"{prefix}{fallback_kind}"] if fallback_kind is not None else None
     branches: dict[int, tuple[int, list[int]]] = {}  # id(function) -> (first kind, kinds)
     for k, _ in models:
