@@ -102,6 +102,12 @@ def lock_cache_writes() -> bool:
     return True
 
 
+def _copy_module_with(deepcopy: Callable[..., Any]) -> types.SimpleNamespace:
+    """The ``copy`` module with its ``deepcopy`` replaced: what a numba module that imports
+    ``copy`` gets as its ``copy`` (the rest of the module, ``copy.copy`` included, unchanged)."""
+    return types.SimpleNamespace(**{**vars(copy), "deepcopy": deepcopy})
+
+
 #: set while :func:`inline_fresh_ir_in_place`'s ``inline_function`` splices a callee's fresh IR
 _FRESH_IR = contextvars.ContextVar("impactsph_fresh_inline_ir", default=False)
 
@@ -163,7 +169,7 @@ def inline_fresh_ir_in_place(module: types.ModuleType | None = None) -> bool:
     inline_function_in_place.fresh_ir_in_place = True
     inline_function_in_place.numba_original = worker.inline_function
     inline_function_in_place.__doc__ = worker.inline_function.__doc__
-    module.copy = types.SimpleNamespace(**{**vars(copy), "deepcopy": _deepcopy_unless_fresh})
+    module.copy = _copy_module_with(_deepcopy_unless_fresh)
     worker.inline_function = inline_function_in_place
     return True
 
@@ -223,7 +229,7 @@ def copy_sets_of_names_shallowly(module: types.ModuleType | None = None) -> bool
         return True
     if current is not copy or os.environ.get("IMPACTSPH_NUMBA_DEEPCOPY", "") not in ("", "0"):
         return False
-    module.copy = types.SimpleNamespace(**{**vars(copy), "deepcopy": _deepcopy_sets_of_names})
+    module.copy = _copy_module_with(_deepcopy_sets_of_names)
     return True
 
 
