@@ -11,6 +11,14 @@ if os.environ.get("PYTEST_XDIST_WORKER"):  # one of pytest-xdist's workers (-n):
     _cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     os.environ["NUMBA_NUM_THREADS"] = str(max(1, (_cores or 1) // _workers))
 
+# the generated passes compiled without numba's parallel transform (impactsph.physics.options.
+# parallel_default): the same results to the bit, in a third of the compile time, which is most
+# of this suite's time from a cold cache.  The workers run one thread each (above), so the
+# threads' code would only have cost compile time; tests/test_parallel_passes.py and
+# test_threads.py compile the threaded passes and check them against these.  Set
+# IMPACTSPH_PARALLEL=1 to run the whole suite on the threaded passes.
+os.environ.setdefault("IMPACTSPH_PARALLEL", "0")
+
 from functools import cache  # noqa: E402
 
 import pytest

@@ -123,18 +123,23 @@ def test_threads_setting_is_checked():
 
 def test_results_do_not_depend_on_the_thread_count():
     """The Taylor bar (AC, a wall) for 150 steps with one and with two threads, in a process
-    with two numba threads: positions and velocities bitwise equal."""
+    with two numba threads, and with the passes compiled serial (``$IMPACTSPH_PARALLEL=0``,
+    which the rest of the suite runs): positions and velocities bitwise equal."""
     script = textwrap.dedent("""
+        import os
         import numpy as np
         from impactsph import Simulation, load_case
         out = []
-        for n in (1, 2):
+        for n, parallel in ((1, "1"), (2, "1"), (2, "0")):
+            os.environ["IMPACTSPH_PARALLEL"] = parallel
             case = load_case("taylor", ["time.max_steps=150", f"compute.threads={n}",
                                         "output.figures=false"])
             sim = Simulation(case)
+            assert sim.solver.backend.options.parallel is (parallel == "1")
             sim.run()
             out.append((sim.state.position.copy(), sim.state.velocity.copy()))
-        print(np.array_equal(out[0][0], out[1][0]) and np.array_equal(out[0][1], out[1][1]))
+        print(all(np.array_equal(a[0], out[0][0]) and np.array_equal(a[1], out[0][1])
+                  for a in out[1:]))
     """)
     import os
     env = {**os.environ, "NUMBA_NUM_THREADS": "2"}

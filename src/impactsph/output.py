@@ -52,6 +52,7 @@ def provenance() -> dict[str, Any]:
     import numba
 
     from .models import EOS, STRENGTH, VISCOSITY
+    from .physics.options import parallel_default
 
     def where(model: Any) -> str:
         f = getattr(model, "pressure", None) or getattr(model, "return_map", None) or getattr(
@@ -60,6 +61,9 @@ def provenance() -> dict[str, Any]:
 
     return {"impactsph": __version__, "numpy": np.__version__, "numba": numba.__version__,
             "python": platform.python_version(),
+            # the passes compiled with numba's threads or serial ($IMPACTSPH_PARALLEL): the
+            # same results to the bit (tests/test_parallel_passes.py)
+            "parallel_passes": parallel_default(),
             "models": {kind: {m.name: where(m) or "impactsph" for m in registry}
                        for kind, registry in (("eos", EOS), ("strength", STRENGTH),
                                               ("viscosity", VISCOSITY))}}

@@ -8,7 +8,8 @@ for an option pays nothing for it.  The options come from a case's ``[stabilisat
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import os
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -23,6 +24,28 @@ CONTACT_TRACTIONS = ("pressure", "normal_stress")
 #: ``record_precision``: the packed records' dtypes (float32: a module of its own, whose records
 #: split the positions)
 RECORD_PRECISIONS = ("float64", "float32")
+#: the environment variable that compiles the generated passes without numba's parallel
+#: transform (:func:`parallel_default`)
+PARALLEL_VARIABLE = "IMPACTSPH_PARALLEL"
+
+
+def parallel_default() -> bool:
+    """Whether generated passes are compiled with ``parallel=True``: yes, unless
+    ``$IMPACTSPH_PARALLEL`` is ``0`` (``1`` or unset: yes; anything else is an error naming
+    the variable).
+
+    The serial module runs the same loops over the same chunks on one thread and gives the
+    same results to the bit (``tests/test_parallel_passes.py``); numba compiles it in about a
+    third of the time (the 2D pair pass 3.3 s against 9.3 s, a cold Taylor run 33 s against
+    51 s: docs/architecture.md, "Compile time").  The test suite sets it (``tests/conftest.py``:
+    its workers run one thread each, so the threads' code would only cost compile time), and
+    so may a user whose runs take one core each (a sweep's workers)."""
+    value = os.environ.get(PARALLEL_VARIABLE, "1").strip()
+    if value not in ("0", "1", ""):
+        raise ValueError(f"${PARALLEL_VARIABLE} = {value!r}: allowed are 1 (the passes run on "
+                         f"numba's threads, the default) and 0 (compiled serial: quicker to "
+                         f"compile, one thread)")
+    return value != "0"
 
 
 @dataclass(frozen=True)
@@ -74,7 +97,11 @@ class PassOptions:
       two parts, the position rounded and the rest (``SPLIT_POSITIONS``), and the passes add
       them in float64, so a pair's separation is as exact as in float64 wherever the bodies
       are; the other columns' rounding, and the arithmetic between two record values (done in
-      float32), are what change (docs/gpu.md, "Records in float32").
+      float32), are what change (docs/gpu.md, "Records in float32");
+    - ``parallel``: the passes are compiled with numba's ``parallel=True`` (their chunks on
+      numba's threads) or, False, as plain loops over the same chunks: the same results to
+      the bit, a third of the compile time, one thread.  Not from the case: from the
+      environment (:func:`parallel_default`), like numba's thread count.
     """
 
     gradient_correction: str = "none"
@@ -92,6 +119,7 @@ class PassOptions:
     switch_kind: int = -1
     uniform_h: bool = False
     record_precision: str = "float64"
+    parallel: bool = field(default_factory=parallel_default)
 
     def __post_init__(self) -> None:
         if self.record_precision not in RECORD_PRECISIONS:
@@ -174,6 +202,8 @@ class PassOptions:
             tag += "_uh"
         if self.record_precision == "float32":
             tag += "_f32"
+        if not self.parallel:
+            tag += "_serial"
         return tag
 
     def compensation(self, dim: int) -> float:
@@ -209,6 +239,7 @@ class PassOptions:
             f"SWITCH_VECTORISED = {self.switch_vectorised}",
             f"UNIFORM_H = {bool(self.uniform_h)}",
             f"SPLIT_POSITIONS = {self.record_precision == 'float32'}",
+            f"PARALLEL = {bool(self.parallel)}",
         ]
 
     @property

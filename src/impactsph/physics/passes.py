@@ -110,6 +110,9 @@ UNIFORM_H = False
 #: the records are float32 (``PassOptions.record_precision``) and carry each position in two
 #: parts, rounded (``X``) and the rest (``XL``), added in float64 (:func:`record_position`)
 SPLIT_POSITIONS = False
+#: the passes are compiled with numba's parallel transform (``PassOptions.parallel``; False:
+#: plain loops over the same chunks, the same results, a third of the compile time)
+PARALLEL = True
 JIT = nb.njit
 EOS_PARAMS = STRENGTH_PARAMS = DAMAGE_PARAMS = 6
 STRENGTH_STATE = DAMAGE_STATE = 4
@@ -1444,7 +1447,7 @@ def hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zet
 # -- the CPU passes --------------------------------------------------------------------------
 
 
-@JIT(parallel=True, cache=True)
+@JIT(parallel=PARALLEL, cache=True)
 def particle_pass(order, x, v, m, rho, e, S, carried, h, body, material, table, P):
     """Pass 1 over every row (ghosts included), in the list's order (``order[p]`` is the
     particle at sorted position ``p``)."""
@@ -1452,7 +1455,7 @@ def particle_pass(order, x, v, m, rho, e, S, carried, h, body, material, table, 
         particle_record(p, order[p], x, v, m, rho, e, S, carried, h, body, material, table, P)
 
 
-@JIT(parallel=True, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
+@JIT(parallel=PARALLEL, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
 def moment_pass(order, P, offsets, indices, starts, chunk_size):
     """The correction matrices of every row (FORCE_CORRECTION only), after the records.
     Compiled as :func:`pair_pass`, so that the neighbour loop of :func:`moment_correction`
@@ -1468,7 +1471,7 @@ def moment_pass(order, P, offsets, indices, starts, chunk_size):
             moment_correction(p, P, offsets, indices, listed, starts, SKIN_FILTER)
 
 
-@JIT(parallel=True, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
+@JIT(parallel=PARALLEL, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
 def gradient_pass(order, P, offsets, indices, starts, chunk_size):
     """The velocity gradients of every row into the records (VELOCITY_RECONSTRUCTION only),
     after the records and before the pair pass; compiled as :func:`moment_pass`."""
@@ -1482,7 +1485,7 @@ def gradient_pass(order, P, offsets, indices, starts, chunk_size):
             velocity_gradient_record(p, P, offsets, indices, listed, starts, SKIN_FILTER)
 
 
-@JIT(parallel=True, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
+@JIT(parallel=PARALLEL, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
 def pair_pass(n_active, order, P, offsets, indices, starts, visc_kind, visc_params,
               normal_stress, S, material, table, drho, dv, de, de_visc, contact_force,
               pair_count, dS, L_sorted, chunk_size):
@@ -1509,7 +1512,7 @@ def pair_pass(n_active, order, P, offsets, indices, starts, visc_kind, visc_para
                            dS, L, L_sorted, listed, starts, SKIN_FILTER)
 
 
-@JIT(parallel=True, cache=True)
+@JIT(parallel=PARALLEL, cache=True)
 def correction_pass(n_active, order, P, offsets, indices, visc_kind, correction_params,
                     dv_corr, de_corr, dv, de, chunk_size):
     """Pass 3 (a scheme with a correction only) over the active particles."""
@@ -1523,6 +1526,9 @@ def correction_pass(n_active, order, P, offsets, indices, visc_kind, correction_
                                      DIM, correction_params, dv_corr, de_corr, dv, de)
 
 
+# always threaded: the vectorised switches' reassociated sums (Balsara's, Morris-Monaghan's)
+# came out of LLVM in another order compiled serial (Balsara's factor 6e-15 apart after 40
+# steps of a small Taylor bar), where every other pass gives the same bits both ways
 @JIT(parallel=True, cache=True, fastmath=SWITCH_FASTMATH, error_model=SWITCH_ERROR_MODEL)
 def switch_pass(n_active, order, P, offsets, indices, visc_kind, switch_params, elapsed,
                 factor, memory, chunk_size):
@@ -1540,7 +1546,7 @@ def switch_pass(n_active, order, P, offsets, indices, visc_kind, switch_params, 
                                              memory)
 
 
-@JIT(parallel=True, cache=True)
+@JIT(parallel=PARALLEL, cache=True)
 def friction_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, mu, real_bodies,
                   normal_stress, dv, de, contact_force, chunk_size):
     """Friction between bodies (a case with ``[contact] friction > 0`` only) over the active
@@ -1555,7 +1561,7 @@ def friction_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, 
                                   real_bodies, normal_stress, dv, de, contact_force)
 
 
-@JIT(parallel=True, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
+@JIT(parallel=PARALLEL, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
 def hourglass_pass(n_active, order, P, L_sorted, offsets, indices, starts, material, table,
                    zeta, hg, dv, de, dhg, chunk_size):
     """The hourglass control over the active particles (after the pair pass, whose velocity
@@ -1596,7 +1602,7 @@ def keep_particle(i, x, v, rho, e, S, plastic_work, state, hg, x0, v0, rho0, e0,
         hg0[i, a] = hg[i, a]
 
 
-@JIT(parallel=True, cache=True)
+@JIT(parallel=PARALLEL, cache=True)
 def stage(n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, drho, de,
           dS, dhg, clamped, material, table, h, x, v, rho, e, S, plastic_work, state, hg,
           points, normals, inertia, walls, survey, m, added, hourglass, surveyed, bad_of):
@@ -1653,7 +1659,7 @@ def stage(n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv
         fold_survey(surveyed, bad_of, n_chunks)
 
 
-@JIT(parallel=True, cache=True)
+@JIT(parallel=PARALLEL, cache=True)
 def pressures(rho, e, material, table, out):
     """``out[i]``: the pressure of particle ``i`` from its material's EOS (Pa)."""
     for i in nb.prange(rho.shape[0]):

@@ -1,0 +1,101 @@
+"""The generated passes compiled with numba's parallel transform (the default) and without it
+(``$IMPACTSPH_PARALLEL=0``, which the rest of this suite runs: tests/conftest.py) give the
+same run to the bit.
+
+Each case runs a few dozen steps in both modules in this process, and every state array must
+be equal.  Between them the cases call every compiled pass of the template
+(:mod:`impactsph.physics.passes`) that a run calls: the particle pass, the moment pass (the
+kernel gradient correction of the forces), the gradient pass (the reconstructed velocity
+jump), the pair pass in 2D and 3D, the switch pass (Balsara), the correction pass (AC), the
+friction pass (two bodies, Coulomb friction), the hourglass pass and the stage.  The threads'
+side (one thread against two, and against the serial passes, in a process of two threads) is
+``tests/test_threads.py::test_results_do_not_depend_on_the_thread_count``.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+
+from impactsph.loading import load_case
+from impactsph.physics.options import PARALLEL_VARIABLE, PassOptions, parallel_default
+from impactsph.simulation import Simulation
+
+CASES = {
+    # the kernel gradient correction of the forces, the hourglass control, Balsara's switch:
+    # particle, moment, pair (2D), switch, hourglass passes and the stage, on a wall's ghosts
+    "taylor-2d-stabilised-balsara": ("taylor", [
+        "bodies.0.geometry.count=[8, 14]", "analysis=none",
+        "stabilisation.gradient_correction=velocity_gradient_and_forces",
+        "stabilisation.hourglass=1.0", 'viscosity={scheme="balsara"}', "time.max_steps=40"],
+        {"particle_pass", "moment_pass", "pair_pass", "switch_pass", "hourglass_pass", "stage"}),
+    # 3D, the reconstructed velocity jump: the gradient pass, the 3D pair pass and stage
+    "block-3d-reconstruction": ("taylor", [
+        "dimension=3", "analysis=none", "bodies.0.velocity=[0.0, 0.0, -200.0]",
+        "bodies.0.geometry.origin=[-0.0015, -0.0015, 0.0]",
+        "bodies.0.geometry.size=[0.003, 0.003, 0.00375]", "bodies.0.geometry.count=[4, 4, 5]",
+        "boundaries.0.point=[0.0, 0.0, 0.0]", "boundaries.0.normal=[0.0, 0.0, 1.0]",
+        'viscosity={scheme="reconstruction"}', "time.max_steps=30"],
+        {"particle_pass", "gradient_pass", "pair_pass", "stage"}),
+    # two rings that touch within the run, with friction between them and AC: the friction
+    # and correction passes
+    "rings-friction-ac": ("rings", [
+        "bodies.0.geometry.spacing=0.004", "bodies.1.geometry.spacing=0.004",
+        "bodies.0.geometry.centre=[-0.0405, 0.0]", "bodies.1.geometry.centre=[0.0405, 0.0]",
+        "analysis=none", "contact.friction=0.2", 'viscosity={scheme="ac"}',
+        "time.max_steps=60"],
+        {"pair_pass", "friction_pass", "correction_pass"}),
+}
+PASSES = ("particle_pass", "moment_pass", "gradient_pass", "pair_pass", "correction_pass",
+          "switch_pass", "friction_pass", "hourglass_pass", "stage")
+
+
+def _used(parallel: bool) -> set[tuple[str, str]]:
+    """(module, pass) of the generated CPU modules of this kind that hold machine code."""
+    used = set()
+    for name, module in list(sys.modules.items()):
+        generated = name.startswith("impactsph_generated.") and not name.endswith("_simulated")
+        if not generated or ("_serial_" in name) == parallel:
+            continue
+        for p in PASSES:
+            if getattr(getattr(module, p, None), "overloads", None):
+                used.add((name, p))
+    return used
+
+
+def _run(case: str, overrides: list[str], parallel: bool, monkeypatch):
+    monkeypatch.setenv(PARALLEL_VARIABLE, "1" if parallel else "0")
+    before = _used(parallel)
+    sim = Simulation(load_case(case, overrides))
+    assert sim.solver.backend.options.parallel is parallel
+    sim.run()
+    newly = {p for _, p in _used(parallel) - before}
+    return sim, newly
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_serial_passes_give_the_parallel_passes_run_to_the_bit(name, monkeypatch):
+    case, overrides, passes = CASES[name]
+    parallel, used = _run(case, overrides, True, monkeypatch)
+    serial, _ = _run(case, overrides, False, monkeypatch)
+    assert passes <= used, f"{name}: {sorted(passes - used)} did not run in the parallel passes"
+    assert parallel.state.step == serial.state.step > 0
+    assert parallel.solver.neighbours.builds == serial.solver.neighbours.builds
+    start = Simulation(load_case(case, overrides)).state.arrays()
+    ran, kept = parallel.state.arrays(), serial.state.arrays()
+    assert ran.keys() == kept.keys()
+    assert not np.array_equal(ran["velocity"], start["velocity"])  # the run did something
+    different = [key for key in ran if not np.array_equal(ran[key], kept[key])]
+    assert not different, f"{name}: {different} differ between the parallel and serial passes"
+
+
+def test_the_environment_chooses_and_bad_values_are_named(monkeypatch):
+    monkeypatch.delenv(PARALLEL_VARIABLE, raising=False)
+    assert parallel_default() is True and PassOptions().parallel is True
+    monkeypatch.setenv(PARALLEL_VARIABLE, "0")
+    assert PassOptions().parallel is False and PassOptions().tag.endswith("_serial")
+    monkeypatch.setenv(PARALLEL_VARIABLE, "yes")
+    with pytest.raises(ValueError, match=r"\$IMPACTSPH_PARALLEL = 'yes': allowed are 1 .* and 0"):
+        PassOptions()
