@@ -88,8 +88,8 @@ def _read_from(text: str, array: str, columns: str, position: str) -> str:
                             f"neighbour_separation_t(xi0, xi1, xi2, hi, {array}, jj)")
     text = _edit_loop(text, edit)
     head = "listed, starts, filter_skin):\n    \"\"\"Pass 2 for the active"
-    call_end = ("listed, starts, SKIN_FILTER)\n\n\n@JIT(parallel=True, cache=True)\n"
-                "def correction_pass")
+    call_end = ("listed, starts, SKIN_FILTER)\n\n\n@JIT(parallel=PARALLEL_OPTION, cache=True, "
+                "error_model=BODY_ERROR_MODEL)\ndef correction_pass")
     assert head in text and call_end in text, "the template's particle_rates changed"
     text = text.replace(head, head.replace("filter_skin)", f"filter_skin, {array})"), 1)
     text = text.replace(call_end, call_end.replace("SKIN_FILTER)", f"SKIN_FILTER, {array})", 1),

@@ -35,6 +35,7 @@ import os
 import sys
 import tempfile
 import types
+import warnings
 from functools import cache
 from pathlib import Path
 from types import ModuleType
@@ -48,6 +49,14 @@ from .physics.options import PassOptions
 
 BEGIN = "# >>> binding"
 END = "# <<< binding"
+
+# The serial passes (PassOptions.parallel False) are compiled with numba's parallel passes on
+# but its transform of prange loops off (physics/passes.py, PARALLEL_OPTION), and numba warns
+# of each that "no transformation for parallel execution was possible".  That is the point, so
+# the warning is silenced for the generated serial modules' files only.
+warnings.filterwarnings(
+    "ignore", message=r"(?s)\s*The keyword argument 'parallel=True' was specified but no "
+    r"transformation.*passes_\w*_serial_[0-9a-f]{16}\.py")
 #: the package modules whose code the template inlines (their source is part of the hash)
 TEMPLATE_IMPORTS = ("kernels.py", "materials.py", "physics/contact.py", "physics/continuity.py",
                     "physics/energy.py", "physics/momentum.py", "physics/reconstruction.py",

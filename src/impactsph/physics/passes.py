@@ -37,6 +37,7 @@ import math
 
 import numba as nb
 import numpy as np
+from numba.core.cpu_options import ParallelOptions
 
 from impactsph.boundaries import enforce_particle
 from impactsph.kernels import cubic_spline_gradient_factor, cubic_spline_shape
@@ -140,6 +141,16 @@ PAIR_FASTMATH = {"reassoc", "arcp", "nsz"}
 #: cantilever, benchmarks/README.md), none otherwise (Cullen-Dehnen's, with the same loop,
 #: gained nothing; the AC switches' loops skip the pairs beyond their reach, like the
 #: correction pass, and were 4% slower with them)
+#: numba's ``parallel`` option of the passes: True, or for the serial passes its
+#: simplifications (copy propagation, dead code) without the transform of ``prange`` loops
+#: into threaded ones
+PARALLEL_OPTION = True if PARALLEL else ParallelOptions(
+    {"comprehension": False, "reduction": False, "inplace_binop": False, "setitem": False,
+     "numpy": False, "stencil": False, "fusion": False, "prange": False})
+#: the error model of the passes that do not set their own: numba compiles a parallel loop's
+#: body with "numpy" (no zero-division checks) whatever the function's, so the serial passes
+#: (``PARALLEL = False``) take it too, for the same code in the loop
+BODY_ERROR_MODEL = "python" if PARALLEL else "numpy"
 SWITCH_FASTMATH = PAIR_FASTMATH if SWITCH_VECTORISED else False
 SWITCH_ERROR_MODEL = "numpy" if SWITCH_VECTORISED else "python"
 #: the CPU's vectorised neighbour loops (pair, moment, velocity gradient, hourglass) run over
@@ -1447,7 +1458,7 @@ def hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zet
 # -- the CPU passes --------------------------------------------------------------------------
 
 
-@JIT(parallel=PARALLEL, cache=True)
+@JIT(parallel=PARALLEL_OPTION, cache=True, error_model=BODY_ERROR_MODEL)
 def particle_pass(order, x, v, m, rho, e, S, carried, h, body, material, table, P):
     """Pass 1 over every row (ghosts included), in the list's order (``order[p]`` is the
     particle at sorted position ``p``)."""
@@ -1455,7 +1466,7 @@ def particle_pass(order, x, v, m, rho, e, S, carried, h, body, material, table, 
         particle_record(p, order[p], x, v, m, rho, e, S, carried, h, body, material, table, P)
 
 
-@JIT(parallel=PARALLEL, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
+@JIT(parallel=PARALLEL_OPTION, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
 def moment_pass(order, P, offsets, indices, starts, chunk_size):
     """The correction matrices of every row (FORCE_CORRECTION only), after the records.
     Compiled as :func:`pair_pass`, so that the neighbour loop of :func:`moment_correction`
@@ -1471,7 +1482,7 @@ def moment_pass(order, P, offsets, indices, starts, chunk_size):
             moment_correction(p, P, offsets, indices, listed, starts, SKIN_FILTER)
 
 
-@JIT(parallel=PARALLEL, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
+@JIT(parallel=PARALLEL_OPTION, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
 def gradient_pass(order, P, offsets, indices, starts, chunk_size):
     """The velocity gradients of every row into the records (VELOCITY_RECONSTRUCTION only),
     after the records and before the pair pass; compiled as :func:`moment_pass`."""
@@ -1485,7 +1496,7 @@ def gradient_pass(order, P, offsets, indices, starts, chunk_size):
             velocity_gradient_record(p, P, offsets, indices, listed, starts, SKIN_FILTER)
 
 
-@JIT(parallel=PARALLEL, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
+@JIT(parallel=PARALLEL_OPTION, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
 def pair_pass(n_active, order, P, offsets, indices, starts, visc_kind, visc_params,
               normal_stress, S, material, table, drho, dv, de, de_visc, contact_force,
               pair_count, dS, L_sorted, chunk_size):
@@ -1512,7 +1523,7 @@ def pair_pass(n_active, order, P, offsets, indices, starts, visc_kind, visc_para
                            dS, L, L_sorted, listed, starts, SKIN_FILTER)
 
 
-@JIT(parallel=PARALLEL, cache=True)
+@JIT(parallel=PARALLEL_OPTION, cache=True, error_model=BODY_ERROR_MODEL)
 def correction_pass(n_active, order, P, offsets, indices, visc_kind, correction_params,
                     dv_corr, de_corr, dv, de, chunk_size):
     """Pass 3 (a scheme with a correction only) over the active particles."""
@@ -1546,7 +1557,7 @@ def switch_pass(n_active, order, P, offsets, indices, visc_kind, switch_params, 
                                              memory)
 
 
-@JIT(parallel=PARALLEL, cache=True)
+@JIT(parallel=PARALLEL_OPTION, cache=True, error_model=BODY_ERROR_MODEL)
 def friction_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, mu, real_bodies,
                   normal_stress, dv, de, contact_force, chunk_size):
     """Friction between bodies (a case with ``[contact] friction > 0`` only) over the active
@@ -1561,7 +1572,7 @@ def friction_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, 
                                   real_bodies, normal_stress, dv, de, contact_force)
 
 
-@JIT(parallel=PARALLEL, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
+@JIT(parallel=PARALLEL_OPTION, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
 def hourglass_pass(n_active, order, P, L_sorted, offsets, indices, starts, material, table,
                    zeta, hg, dv, de, dhg, chunk_size):
     """The hourglass control over the active particles (after the pair pass, whose velocity
@@ -1602,7 +1613,7 @@ def keep_particle(i, x, v, rho, e, S, plastic_work, state, hg, x0, v0, rho0, e0,
         hg0[i, a] = hg[i, a]
 
 
-@JIT(parallel=PARALLEL, cache=True)
+@JIT(parallel=PARALLEL_OPTION, cache=True, error_model=BODY_ERROR_MODEL)
 def stage(n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, drho, de,
           dS, dhg, clamped, material, table, h, x, v, rho, e, S, plastic_work, state, hg,
           points, normals, inertia, walls, survey, m, added, hourglass, surveyed, bad_of):
@@ -1659,7 +1670,7 @@ def stage(n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv
         fold_survey(surveyed, bad_of, n_chunks)
 
 
-@JIT(parallel=PARALLEL, cache=True)
+@JIT(parallel=PARALLEL_OPTION, cache=True, error_model=BODY_ERROR_MODEL)
 def pressures(rho, e, material, table, out):
     """``out[i]``: the pressure of particle ``i`` from its material's EOS (Pa)."""
     for i in nb.prange(rho.shape[0]):
