@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from impactsph.loading import load_case
+from impactsph.output import provenance
 from impactsph.physics.options import PARALLEL_VARIABLE, PassOptions, parallel_default
 from impactsph.simulation import Simulation
 
@@ -94,8 +95,23 @@ def test_serial_passes_give_the_parallel_passes_run_to_the_bit(name, monkeypatch
 def test_the_environment_chooses_and_bad_values_are_named(monkeypatch):
     monkeypatch.delenv(PARALLEL_VARIABLE, raising=False)
     assert parallel_default() is True and PassOptions().parallel is True
+    assert provenance()["parallel_passes"] is True
     monkeypatch.setenv(PARALLEL_VARIABLE, "0")
     assert PassOptions().parallel is False and PassOptions().tag.endswith("_serial")
+    assert provenance()["parallel_passes"] is False  # every output records which
     monkeypatch.setenv(PARALLEL_VARIABLE, "yes")
     with pytest.raises(ValueError, match=r"\$IMPACTSPH_PARALLEL = 'yes': allowed are 1 .* and 0"):
         PassOptions()
+
+
+def test_the_command_line_refuses_a_bad_value_in_one_line_before_any_work(monkeypatch, tmp_path):
+    from typer.testing import CliRunner
+
+    from impactsph.cli import app
+
+    monkeypatch.setenv(PARALLEL_VARIABLE, "2")
+    res = CliRunner().invoke(app, ["run", "bars", "--quiet", "--out", str(tmp_path / "x")])
+    assert res.exit_code == 2
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "$IMPACTSPH_PARALLEL = '2'" in lines[0], res.output
+    assert not (tmp_path / "x").exists()

@@ -38,6 +38,12 @@ def _main(version: Annotated[bool, typer.Option(
         "--version", callback=_version, is_eager=True,
         help="print the version and exit")] = False) -> None:
     """SPH for solids under impact, with the Shaw-Reid acceleration correction."""
+    from .physics.options import parallel_default
+
+    try:  # the environment's settings, before any command does work
+        parallel_default()
+    except ValueError as exc:
+        _fail(str(exc))
 
 #: What ``impactsph run`` prints of every run's summary; the case's problem adds its own
 #: (:meth:`impactsph.problems.ProblemKind.summary_keys`).
