@@ -35,11 +35,14 @@ def parallel_default() -> bool:
     the variable).
 
     The serial module runs the same loops over the same chunks on one thread and gives the
-    same results to the bit (``tests/test_parallel_passes.py``); numba compiles it in about a
-    third of the time (the 2D pair pass 3.3 s against 9.3 s, a cold Taylor run 33 s against
-    51 s: docs/architecture.md, "Compile time").  The test suite sets it (``tests/conftest.py``:
-    its workers run one thread each, so the threads' code would only cost compile time), and
-    so may a user whose runs take one core each (a sweep's workers)."""
+    same results to the bit (``tests/test_parallel_passes.py``; its switch pass stays
+    threaded).  numba compiles it faster (the 2D pair pass 3.6 s against 9.3 s, the stage 9.6
+    s against 13.4 s, a cold Taylor run 33.5 s against 51 s), and it runs about 1.2x slower
+    on one thread than the threaded passes (docs/architecture.md, "Compile time").  The test
+    suite sets it (``tests/conftest.py``: its workers run one thread each and compile far more
+    variants than they run long), and so may a user whose runs are short enough that compiling
+    them is the larger cost.
+    """
     value = os.environ.get(PARALLEL_VARIABLE, "1").strip()
     if value not in ("0", "1", ""):
         raise ValueError(f"${PARALLEL_VARIABLE} = {value!r}: allowed are 1 (the passes run on "
@@ -100,8 +103,8 @@ class PassOptions:
       float32), are what change (docs/gpu.md, "Records in float32");
     - ``parallel``: the passes are compiled with numba's ``parallel=True`` (their chunks on
       numba's threads) or, False, as plain loops over the same chunks: the same results to
-      the bit, a third of the compile time, one thread.  Not from the case: from the
-      environment (:func:`parallel_default`), like numba's thread count.
+      the bit, quicker to compile, one thread.  Not from the case: from the environment
+      (:func:`parallel_default`), like numba's thread count.
     """
 
     gradient_correction: str = "none"
