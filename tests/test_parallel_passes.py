@@ -8,11 +8,10 @@ cases call every pass of the template (:mod:`impactsph.physics.passes`) that the
 modules compile serial: the particle pass, the moment pass (the kernel gradient correction of
 the forces), the gradient pass (the reconstructed velocity jump), the pair pass in 2D and 3D,
 the correction pass, the friction pass (two bodies, Coulomb friction), the hourglass pass and
-the stage.  The switch
-pass stays threaded in both (physics/passes.py: its reassociated sums came out in another
-order compiled serial, a difference of 6e-15 in Balsara's factor after 40 steps, which this
-test found).  The threads' side (one thread against two, and both against the serial passes,
-in a process of two threads) is
+the stage.  The switch pass stays threaded in both (physics/passes.py: its reassociated sums
+came out in another order compiled serial, a difference of 6e-15 in Balsara's factor after 40
+steps, which this test found).  The threads' side (one thread against two, and both against
+the serial passes, in a process of two threads) is
 ``tests/test_threads.py::test_results_do_not_depend_on_the_thread_count``.
 """
 

@@ -135,12 +135,6 @@ FASTMATH = {"arcp", "nsz"}
 #: ``error_model="numpy"`` (no zero-division checks, which are branches) this is what lets
 #: the loop vectorise: 2.3x on the 2D pair loop alone (benchmarks/README.md).
 PAIR_FASTMATH = {"reassoc", "arcp", "nsz"}
-#: the switch pass's flags: the pair pass's where the switch's neighbour loop is written for
-#: the vectoriser (Balsara and Morris-Monaghan: their velocity-gradient loop,
-#: :func:`impactsph.models.viscosity.switches.neighbour_fields`; the pass 40% faster on the
-#: cantilever, benchmarks/README.md), none otherwise (Cullen-Dehnen's, with the same loop,
-#: gained nothing; the AC switches' loops skip the pairs beyond their reach, like the
-#: correction pass, and were 4% slower with them)
 #: numba's ``parallel`` option of the passes: True, or for the serial passes its
 #: simplifications (copy propagation, dead code) without the transform of ``prange`` loops
 #: into threaded ones
@@ -151,6 +145,12 @@ PARALLEL_OPTION = True if PARALLEL else ParallelOptions(
 #: body with "numpy" (no zero-division checks) whatever the function's, so the serial passes
 #: (``PARALLEL = False``) take it too, for the same code in the loop
 BODY_ERROR_MODEL = "python" if PARALLEL else "numpy"
+#: the switch pass's flags: the pair pass's where the switch's neighbour loop is written for
+#: the vectoriser (Balsara and Morris-Monaghan: their velocity-gradient loop,
+#: :func:`impactsph.models.viscosity.switches.neighbour_fields`; the pass 40% faster on the
+#: cantilever, benchmarks/README.md), none otherwise (Cullen-Dehnen's, with the same loop,
+#: gained nothing; the AC switches' loops skip the pairs beyond their reach, like the
+#: correction pass, and were 4% slower with them)
 SWITCH_FASTMATH = PAIR_FASTMATH if SWITCH_VECTORISED else False
 SWITCH_ERROR_MODEL = "numpy" if SWITCH_VECTORISED else "python"
 #: the CPU's vectorised neighbour loops (pair, moment, velocity gradient, hourglass) run over
