@@ -13,10 +13,11 @@ if os.environ.get("PYTEST_XDIST_WORKER"):  # one of pytest-xdist's workers (-n):
 
 # the generated passes compiled without numba's parallel transform (impactsph.physics.options.
 # parallel_default): the same results to the bit, the pair pass compiled in about 40% of the
-# time (compiling is most of this suite's time from a cold cache), running 1.2x slower.  The
-# workers run one thread each (above), so the threads' code would mostly have cost compile
-# time; tests/test_parallel_passes.py and test_threads.py compile the threaded passes and
-# check them against these.  IMPACTSPH_PARALLEL=1 runs the whole suite on the threaded passes.
+# time (compiling is most of this suite's time from a cold cache), running as fast on one
+# thread (impactsph.physics.borrow).  The workers run one thread each (above), so the threads'
+# code would mostly have cost compile time; tests/test_parallel_passes.py and test_threads.py
+# compile the threaded passes and check them against these.  IMPACTSPH_PARALLEL=1 runs the
+# whole suite on the threaded passes.
 os.environ.setdefault("IMPACTSPH_PARALLEL", "0")
 
 from functools import cache  # noqa: E402

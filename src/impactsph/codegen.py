@@ -45,6 +45,7 @@ from . import atomic
 from .materials import TableLayout
 from .models import DAMAGE, EOS, STRENGTH, VISCOSITY
 from .models import registry as _registry
+from .physics.borrow import borrow_arguments
 from .physics.options import PassOptions
 
 BEGIN = "# >>> binding"
@@ -58,9 +59,9 @@ warnings.filterwarnings(
     "ignore", message=r"(?s)\s*The keyword argument 'parallel=True' was specified but no "
     r"transformation.*passes_\w*_serial_[0-9a-f]{16}\.py")
 #: the package modules whose code the template inlines (their source is part of the hash)
-TEMPLATE_IMPORTS = ("kernels.py", "materials.py", "physics/contact.py", "physics/continuity.py",
-                    "physics/energy.py", "physics/momentum.py", "physics/reconstruction.py",
-                    "physics/records.py", "physics/stress_rate.py")
+TEMPLATE_IMPORTS = ("kernels.py", "materials.py", "physics/borrow.py", "physics/contact.py",
+                    "physics/continuity.py", "physics/energy.py", "physics/momentum.py",
+                    "physics/reconstruction.py", "physics/records.py", "physics/stress_rate.py")
 PACKAGE = Path(__file__).parent
 
 
@@ -244,7 +245,12 @@ def generate(template: ModuleType, dim: int, options: PassOptions | str | None =
     start, end = text.index(BEGIN), text.index(END)
     end = text.index("\n", end) + 1
     block, inject = binding(dim, options)
-    return text[:start] + block + "\n" + text[end:], inject
+    text = text[:start] + block + "\n" + text[end:]
+    if not PassOptions.coerce(options).parallel:
+        # the serial passes' arrays without reference counts, as numba's threaded loop bodies
+        # get them (impactsph.physics.borrow)
+        text = borrow_arguments(text)
+    return text, inject
 
 
 def _fingerprint(text: str, inject: dict[str, Any]) -> str:

@@ -37,11 +37,12 @@ def parallel_default() -> bool:
     The serial module runs the same loops over the same chunks on one thread and gives the
     same results to the bit (``tests/test_parallel_passes.py``; its switch pass stays
     threaded).  numba compiles it faster (the 2D pair pass 3.6 s against 9.3 s, the stage 9.6
-    s against 13.4 s, a cold Taylor run 33.5 s against 51 s), and it runs about 1.2x slower
-    on one thread than the threaded passes (docs/architecture.md, "Compile time").  The test
-    suite sets it (``tests/conftest.py``: its workers run one thread each and compile far more
-    variants than they run long), and so may a user whose runs are short enough that compiling
-    them is the larger cost.
+    s against 13.4 s, a cold Taylor run 33.5 s against 51 s), and on one thread it runs as
+    fast as the threaded passes, its arrays without reference counts as numba's threaded
+    bodies get them (:mod:`impactsph.physics.borrow`; docs/architecture.md, "Compile
+    time").  The test suite sets it (``tests/conftest.py``: its workers run one thread each
+    and compile far more variants than they run long), and so may a user who runs on one
+    thread, or whose runs are short enough that compiling them is the larger cost.
     """
     value = os.environ.get(PARALLEL_VARIABLE, "1").strip()
     if value not in ("0", "1", ""):

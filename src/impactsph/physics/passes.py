@@ -63,6 +63,7 @@ from impactsph.models.columns import (
 from impactsph.models.columns import (
     VISCOSITY_MEMORY as CARRIED_MEMORY,
 )
+from impactsph.physics.borrow import borrowed  # noqa: F401 (codegen's serial passes)
 from impactsph.physics.contact import (
     FRICTION_REGULARISATION,
     contact_acceleration_pair,
@@ -112,7 +113,8 @@ UNIFORM_H = False
 #: parts, rounded (``X``) and the rest (``XL``), added in float64 (:func:`record_position`)
 SPLIT_POSITIONS = False
 #: the passes are compiled with numba's parallel transform (``PassOptions.parallel``; False:
-#: plain loops over the same chunks, the same results, quicker to compile, 1.2x slower)
+#: plain loops over the same chunks, the same results, quicker to compile; codegen starts
+#: each of them with ``a = borrowed(a)`` for its arguments: :mod:`impactsph.physics.borrow`)
 PARALLEL = True
 JIT = nb.njit
 EOS_PARAMS = STRENGTH_PARAMS = DAMAGE_PARAMS = 6

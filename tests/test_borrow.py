@@ -1,0 +1,159 @@
+"""The serial passes' arrays without reference counts (:mod:`impactsph.physics.borrow`).
+
+:func:`~impactsph.physics.borrow.borrow_arguments` starts each serial pass with ``a =
+borrowed(a)`` for its arguments.  What can go wrong, and is checked here on small functions
+compiled as the serial passes are (numba's parallel passes on, its ``prange`` transform off):
+numba's dead-code elimination taking a borrowed array for a new one and dropping the writes to
+it (it did, twice, while this was built: a run's survey came back empty); the reference counts
+still being there; an array handed back to Python that is not the caller's.  That the passes
+give the threaded passes' bits is ``tests/test_parallel_passes.py``'s.
+"""
+
+from __future__ import annotations
+
+import ast
+import importlib.util
+import re
+import sys
+
+import numba as nb
+import numpy as np
+import pytest
+
+from impactsph import codegen
+from impactsph.physics import passes
+from impactsph.physics.borrow import MARK, borrow_arguments, borrowed
+from impactsph.physics.options import PassOptions
+
+# (the small modules' passes, like the serial passes, have no prange loop left to transform)
+pytestmark = pytest.mark.filterwarnings("ignore::numba.NumbaPerformanceWarning")
+
+#: a module written as the template's passes are: a pass over chunks whose last writes (a
+#: fold after the loop, at indices known at run time) are the ones numba's dead-code
+#: elimination dropped; four arrays (a tuple ``a, b, c, d = ...`` of four lost its writes
+#: too); a view of a row, read in a branch (a reference count each)
+SOURCE = '''
+import numba as nb
+from numba.core.cpu_options import ParallelOptions
+
+from impactsph.physics.borrow import borrowed
+
+PARALLEL_OPTION = ParallelOptions(
+    {"comprehension": False, "reduction": False, "inplace_binop": False, "setitem": False,
+     "numpy": False, "stencil": False, "fusion": False, "prange": False})
+
+
+@nb.njit(inline="always")
+def row_total(row):
+    return row[0] + row[1]
+
+
+@nb.njit(inline="always")
+def fold(parts, codes, n):
+    parts[n, 0] = 0.0
+    for k in range(n):
+        parts[n, 0] += parts[k, 0]
+    codes[n] = -1
+
+
+@nb.njit(parallel=PARALLEL_OPTION, error_model="numpy")
+def chunk_pass(n, table, material, parts, codes):
+    """A pass."""
+    for k in nb.prange(n):
+        row = table[material[k]]
+        if material[k] >= 0:
+            parts[k, 0] = row_total(row)
+        codes[k] = k
+    fold(parts, codes, n)
+
+
+@nb.njit(parallel=PARALLEL_OPTION, error_model="numpy")
+def fill(values, out):
+    for i in nb.prange(values.shape[0]):
+        out[i] = 2.0 * values[i]
+    return out
+'''
+
+
+def _module(tmp_path, name: str, text: str):
+    path = tmp_path / f"{name}.py"
+    path.write_text(text)
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def _references(function) -> int:
+    """Reference-count calls in ``function``'s own optimised LLVM IR (not its callees')."""
+    (ir,) = function.inspect_llvm().values()
+    own, count = False, 0
+    for line in ir.splitlines():
+        if line.startswith("define"):
+            own = "chunk_pass" in line and "cpython" not in line and "cfunc" not in line
+        elif own:
+            count += len(re.findall(r"call void @NRT_(?:incref|decref)", line))
+    return count
+
+
+def _inputs():
+    n = 6
+    table = np.arange(8.0).reshape(4, 2)
+    material = np.array([0, 1, -1, 3, 2, 1], dtype=np.int32)
+    return n, table, material, np.full((n + 1, 1), 9.0), np.zeros(n + 1, np.int64)
+
+
+def test_the_borrowed_pass_writes_what_the_plain_one_writes_without_reference_counts(
+        tmp_path):
+    plain = _module(tmp_path, "borrow_plain", SOURCE)
+    borrowing = _module(tmp_path, "borrow_serial", borrow_arguments(SOURCE))
+    expected = _inputs()
+    plain.chunk_pass.py_func(*expected)
+    for module in (plain, borrowing):
+        got = _inputs()
+        module.chunk_pass(*got)
+        np.testing.assert_array_equal(got[3], expected[3])  # the fold's row included
+        np.testing.assert_array_equal(got[4], expected[4])
+    assert expected[4][-1] == -1 and expected[3][-1, 0] == expected[3][:-1, 0].sum()
+    # the views of table's rows took and gave back a reference each in the plain pass
+    assert _references(plain.chunk_pass) > 0
+    assert _references(borrowing.chunk_pass) == 0
+
+
+def test_an_array_handed_back_is_the_callers(tmp_path):
+    borrowing = _module(tmp_path, "borrow_back", borrow_arguments(SOURCE))
+    values, out = np.arange(5.0), np.zeros(5)
+    back = borrowing.fill(values, out)
+    assert back is out
+    np.testing.assert_array_equal(out, 2.0 * values)
+
+
+def test_borrowed_in_python_is_the_argument():
+    a = np.zeros(3)
+    assert borrowed(a) is a and borrowed(2.5) == 2.5
+    assert nb.njit(lambda x: borrowed(x))(7) == 7  # not an array: unchanged
+
+
+def _passes(text: str) -> dict[str, ast.FunctionDef]:
+    return {node.name: node for node in ast.walk(ast.parse(text))
+            if isinstance(node, ast.FunctionDef) and any(
+                isinstance(d, ast.Call) and any(k.arg == "parallel" and getattr(
+                    k.value, "id", None) == MARK for k in d.keywords)
+                for d in node.decorator_list)}
+
+
+def test_every_serial_pass_borrows_every_argument_first():
+    """In the generated serial module each pass marked ``parallel=PARALLEL_OPTION`` starts,
+    after its docstring, with one ``a = borrowed(a)`` per argument, in order; the threaded
+    module's passes have none (numba's threaded bodies get their arrays that way already)."""
+    serial, _ = codegen.generate(passes, 2, PassOptions(parallel=False))
+    threaded, _ = codegen.generate(passes, 2, PassOptions(parallel=True))
+    found = _passes(serial)
+    assert {"particle_pass", "pair_pass", "correction_pass", "stage"} <= set(found)
+    for name, node in found.items():
+        arguments = [a.arg for a in node.args.args]
+        first = node.body[1:1 + len(arguments)]
+        assert [ast.unparse(s) for s in first] == [f"{a} = borrowed({a})" for a in arguments], name
+    assert "= borrowed(" not in threaded
+    assert set(_passes(threaded)) == set(found)
