@@ -11,7 +11,8 @@ set of models is written out as a module of its own:
 1. the *binding*: ``DIM``, the material-table layout, and one dispatch function per model
    kind (``eos_pressure(kind, ...)``: an if-chain over the registered models' compiled
    functions, which are injected into the module under the names ``_eos_0``, ``_eos_1``, ...);
-2. the template's text, with its stub binding replaced by that one;
+2. the template's text, with its stub binding replaced by that one (and, for the serial
+   passes, each starting with its arguments borrowed: :mod:`impactsph.physics.borrow`);
 3. written once to ``<cache>/passes_<hash>.py`` and imported from there (numba keeps its
    machine code in ``__pycache__`` beside it).
 

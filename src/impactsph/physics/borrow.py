@@ -99,5 +99,4 @@ def _aliases_its_argument(lhs: str, args: list, alias_map: dict, arg_aliases: se
         alias_map.setdefault(lhs, set()).add(source)
 
 
-for _name in ("borrowed", "_without_meminfo"):
-    ir_utils.alias_func_extensions[(_name, __name__)] = _aliases_its_argument
+ir_utils.alias_func_extensions[("borrowed", __name__)] = _aliases_its_argument
