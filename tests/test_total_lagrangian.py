@@ -45,7 +45,7 @@ def deform(X: np.ndarray, A: np.ndarray, B: np.ndarray, rho: float = 1000.0):
     tl.deformation_pass(n, x, v, V0, rho * V0, np.full(n, rho), np.zeros(n),
                         np.zeros((n, 3, 3)), np.zeros(n), np.zeros(n, np.int32), table,
                         ref.offsets, ref.neighbours, ref.grad, ref.K, F, Fdot, Q, np.zeros(n),
-                        np.zeros((n, 6)), np.zeros(n))
+                        np.zeros((n, 6)), np.zeros(n), np.zeros(n))
     return ref, F, Fdot
 
 

@@ -69,10 +69,10 @@ def midpoint_stability_limit(zeta: float) -> float:
 def hourglass_frequency(ref: SimpleNamespace, m: np.ndarray, material: np.ndarray,
                         table: np.ndarray, alpha: float) -> np.ndarray:
     """Each particle's frequency (rad/s) in a zig-zag mode held by the hourglass penalty alone
-    (:func:`impactsph.physics.total_lagrangian.hourglass_pair`: a spring ``k_ij = alpha E
+    (:func:`impactsph.physics.total_lagrangian.hourglass_coefficient`: a spring ``k_ij = alpha E
     V0_i V0_j W_ij / |X_ij|^2`` per reference pair, ``E`` the pair's mean Young's modulus as
-    there, and a neighbour's displacement opposite to the particle's own doubling the
-    stretch)::
+    there, ``W_ij / |X_ij|^2`` the reference list's ``w``, and a neighbour's displacement
+    opposite to the particle's own doubling the stretch)::
 
         omega_i^2 = 2 sum_j k_ij / m_i
 
@@ -82,9 +82,8 @@ def hourglass_frequency(ref: SimpleNamespace, m: np.ndarray, material: np.ndarra
     n = m.shape[0]
     rows = np.repeat(np.arange(n), np.diff(ref.offsets))
     cols = ref.neighbours
-    R2 = ((ref.X[rows] - ref.X[cols]) ** 2).sum(axis=1)
     youngs = table[material, YOUNGS]
-    k = alpha * 0.5 * (youngs[rows] + youngs[cols]) * ref.V0[rows] * ref.V0[cols] * ref.w / R2
+    k = alpha * 0.5 * (youngs[rows] + youngs[cols]) * ref.V0[rows] * ref.V0[cols] * ref.w
     return np.sqrt(2.0 * np.bincount(rows, weights=k, minlength=n) / m)
 
 
@@ -182,6 +181,10 @@ class TotalLagrangianSolver:
         self.Fdot = np.zeros((n, dim, dim))
         self._Q = np.zeros((n, dim, dim))
         self._pressures = compiled_passes(dim).pressures
+        #: each particle's sound speed (the deformation pass's, for the force pass's viscosity)
+        #: and Young's modulus (the hourglass penalty's)
+        self._wave_speed = np.zeros(n)
+        self._youngs = np.ascontiguousarray(table[state.material, YOUNGS], dtype=np.float64)
         X = np.ascontiguousarray(state.initial_position, dtype=np.float64)
         V0 = tl.reference_volumes(state.mass, state.material, table)
         self.ref = tl.reference(X, V0, state.smoothing_length, state.body)
@@ -260,9 +263,9 @@ class TotalLagrangianSolver:
                             state.density, self._pressure, state.deviatoric_stress,
                             self._damage, state.material, self.table, ref.offsets,
                             ref.neighbours, ref.grad, ref.K, self.F, self.Fdot, self._Q,
-                            b.drho, b.dS, b.de)
+                            b.drho, b.dS, b.de, self._wave_speed)
         tl.force_pass(n, state.position, state.velocity, ref.X, ref.V0, state.mass,
-                      state.smoothing_length, state.density, state.material, self.table,
+                      state.smoothing_length, state.density, self._wave_speed, self._youngs,
                       ref.offsets, ref.neighbours, ref.grad, ref.w, ref.dw, self.F, self._Q,
                       self.visc, self.hourglass, b.dv, b.de, b.de_visc, self.Fdot, self._tau)
         self.powers = (float(state.mass @ b.de_visc), 0.0, 0.0)
