@@ -90,6 +90,9 @@ def main() -> int:
             for tree in trees:
                 env = dict(os.environ, PYTHONPATH=str(tree / "src"),
                            NUMBA_NUM_THREADS=str(args.threads))
+                # the threaded passes, as before 2026-12-05, unless the caller chose: with one
+                # numba thread and the variable unset, a run now compiles the serial ones
+                env.setdefault("IMPACTSPH_PARALLEL", "1")
                 out = subprocess.run([sys.executable, __file__, "--worker", "--dims", str(dim),
                                       "--n", str(args.n), "--repeat", str(args.repeat)],
                                      env=env, capture_output=True, text=True, check=True)

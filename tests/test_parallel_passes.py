@@ -92,10 +92,22 @@ def test_serial_passes_give_the_parallel_passes_run_to_the_bit(name, monkeypatch
 
 
 def test_the_environment_chooses_and_bad_values_are_named(monkeypatch):
+    import numba
+
     monkeypatch.delenv(PARALLEL_VARIABLE, raising=False)
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", 2)
     assert parallel_default() is True and PassOptions().parallel is True
     assert provenance()["parallel_passes"] is True
+    # unset, a process whose numba has one thread compiles the serial passes: the threaded
+    # ones could only cost it compile time; the variable still decides where it is set
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", 1)
+    assert parallel_default() is False and PassOptions().tag.endswith("_serial")
+    monkeypatch.setenv(PARALLEL_VARIABLE, "")
+    assert parallel_default() is False
+    monkeypatch.setenv(PARALLEL_VARIABLE, "1")
+    assert parallel_default() is True and PassOptions().parallel is True
     monkeypatch.setenv(PARALLEL_VARIABLE, "0")
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", 2)
     assert PassOptions().parallel is False and PassOptions().tag.endswith("_serial")
     assert provenance()["parallel_passes"] is False  # every output records which
     monkeypatch.setenv(PARALLEL_VARIABLE, "yes")

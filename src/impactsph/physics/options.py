@@ -30,9 +30,10 @@ PARALLEL_VARIABLE = "IMPACTSPH_PARALLEL"
 
 
 def parallel_default() -> bool:
-    """Whether generated passes are compiled with ``parallel=True``: yes, unless
-    ``$IMPACTSPH_PARALLEL`` is ``0`` (``1`` or unset: yes; anything else is an error naming
-    the variable).
+    """Whether generated passes are compiled with ``parallel=True``: ``$IMPACTSPH_PARALLEL``
+    ``1`` yes, ``0`` no; unset (or empty), yes unless numba has one thread in this process
+    (``NUMBA_NUM_THREADS=1``, or a machine of one core), where the threaded passes could only
+    cost compile time; anything else is an error naming the variable.
 
     The serial module runs the same loops over the same chunks on one thread and gives the
     same results to the bit (``tests/test_parallel_passes.py``; its switch pass stays
@@ -40,16 +41,22 @@ def parallel_default() -> bool:
     s against 13.4 s, a cold Taylor run 33.5 s against 51 s), and on one thread it runs as
     fast as the threaded passes, its arrays without reference counts as numba's threaded
     bodies get them (:mod:`impactsph.physics.borrow`; docs/architecture.md, "Compile
-    time").  The test suite sets it (``tests/conftest.py``: its workers run one thread each
-    and compile far more variants than they run long), and so may a user who runs on one
-    thread, or whose runs are short enough that compiling them is the larger cost.
+    time").  A process whose numba has one thread takes it by itself (a cold Taylor run on
+    one thread 44.9 s serial against 53.6 s threaded, 2026-12-05); the test suite sets it
+    (``tests/conftest.py``: its workers run one thread each and compile far more variants
+    than they run long), and so may a user whose runs are short enough that compiling them
+    is the larger cost.
     """
-    value = os.environ.get(PARALLEL_VARIABLE, "1").strip()
+    value = os.environ.get(PARALLEL_VARIABLE, "").strip()
     if value not in ("0", "1", ""):
         raise ValueError(f"${PARALLEL_VARIABLE} = {value!r}: allowed are 1 (the passes run on "
-                         f"numba's threads, the default) and 0 (compiled serial: quicker to "
-                         f"compile, one thread)")
-    return value != "0"
+                         f"numba's threads, the default where numba has more than one) and 0 "
+                         f"(compiled serial: quicker to compile, one thread)")
+    if value == "":
+        import numba
+
+        return int(numba.config.NUMBA_NUM_THREADS) > 1
+    return value == "1"
 
 
 @dataclass(frozen=True)
