@@ -96,13 +96,13 @@ def invert(A, out) -> float:
     return det
 
 
-@nb.njit(inline="always", cache=True)
+@nb.njit(cache=True)
 def vector(a, j, dim):
     """Row ``j`` of the ``(n, dim)`` array ``a`` as three numbers (0 past ``dim``)."""
     return (a[j, 0], a[j, 1] if dim > 1 else 0.0, a[j, 2] if dim > 2 else 0.0)
 
 
-@nb.njit(inline="always", cache=True)
+@nb.njit(cache=True)
 def matrix(a, j, dim):
     """Matrix ``j`` of the ``(n, dim, dim)`` array ``a`` as nine numbers, row by row (0 past
     ``dim``)."""
@@ -246,7 +246,7 @@ def deform_particle(i, x, v, V0, m, rho, pressure, S, damage, material, table, o
             Q[i, a, b] = s
 
 
-@nb.njit(inline="always", cache=True)
+@nb.njit(cache=True)
 def pair_error(Gi, Gj, R, y, e):
     """``((G_i + G_j) X_ij - 2 y_ij) . e``, with ``R = X_ij = X_j - X_i``, ``y = y_ij = y_j -
     y_i`` and ``e`` the current unit direction ``(x_j - x_i) / |x_j - x_i|`` (each three
@@ -261,7 +261,7 @@ def pair_error(Gi, Gj, R, y, e):
     return error
 
 
-@nb.njit(inline="always", cache=True)
+@nb.njit(cache=True)
 def hourglass_coefficient(alpha, youngs, V0i, V0j, w0_over_R2, delta) -> float:
     """Ganzenmueller's (2015, section 3) hourglass penalty of the pair ``ij``: the force on
     ``i`` is this times ``e``.  With ``X_ij = X_j - X_i``, ``x_ij = x_j - x_i`` and the error
