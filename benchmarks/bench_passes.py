@@ -18,8 +18,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -83,21 +81,18 @@ def main() -> int:
     if args.worker:
         print(json.dumps(measure(args.dims[0], int(args.n), args.repeat)))
         return 0
+    from _trees import worker_result
+
     trees = [HERE.parent] + [Path(t).resolve() for t in args.trees]
     results: dict[tuple[str, int], list[dict[str, float]]] = {}
     for _ in range(args.rounds):
         for dim in args.dims:
             for tree in trees:
-                env = dict(os.environ, PYTHONPATH=str(tree / "src"),
-                           NUMBA_NUM_THREADS=str(args.threads))
                 # the threaded passes, as before 2026-12-05, unless the caller chose: with one
                 # numba thread and the variable unset, a run now compiles the serial ones
-                env.setdefault("IMPACTSPH_PARALLEL", "1")
-                out = subprocess.run([sys.executable, __file__, "--worker", "--dims", str(dim),
-                                      "--n", str(args.n), "--repeat", str(args.repeat)],
-                                     env=env, capture_output=True, text=True, check=True)
-                results.setdefault((str(tree), dim), []).append(
-                    json.loads(out.stdout.strip().splitlines()[-1]))
+                results.setdefault((str(tree), dim), []).append(worker_result(
+                    __file__, tree, ["--dims", str(dim), "--n", str(args.n), "--repeat",
+                                     str(args.repeat)], args.threads, IMPACTSPH_PARALLEL="1"))
     print(f"{args.threads} thread(s), about {args.n:.0e} particles, best of {args.repeat} "
           f"steps per process, ms (a column per round; trees separated by |)")
     for dim in args.dims:

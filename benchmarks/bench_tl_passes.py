@@ -17,9 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import statistics
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -85,18 +83,16 @@ def main() -> int:
     if args.worker:
         print(json.dumps(measure(args.depth[0], args.steps)))
         return 0
+    from _trees import worker_result
+
     trees = [HERE.parent] + [Path(t).resolve() for t in args.trees]
     results: dict[tuple[str, int], list[dict[str, float]]] = {}
     for _ in range(args.rounds):
         for depth in args.depth:
             for tree in trees:
-                env = dict(os.environ, PYTHONPATH=str(tree / "src"),
-                           NUMBA_NUM_THREADS=str(args.threads))
-                out = subprocess.run([sys.executable, __file__, "--worker", "--depth",
-                                      str(depth), "--steps", str(args.steps)],
-                                     env=env, capture_output=True, text=True, check=True)
-                results.setdefault((str(tree), depth), []).append(
-                    json.loads(out.stdout.strip().splitlines()[-1]))
+                results.setdefault((str(tree), depth), []).append(worker_result(
+                    __file__, tree, ["--depth", str(depth), "--steps", str(args.steps)],
+                    args.threads))
     print(f"{args.threads} thread(s), {args.steps} steps a process, us per call (a column "
           f"per round; trees separated by |)")
     for depth in args.depth:
