@@ -151,7 +151,7 @@ class TotalLagrangianSolver:
 
     ``viscosity``: Monaghan's artificial viscosity (its ``pair`` parameters ``(alpha1, alpha2,
     epsilon, _)``); ``hourglass``: the coefficient alpha of the hourglass penalty
-    (:func:`impactsph.physics.total_lagrangian.hourglass_pair`), 0 for none;
+    (:func:`impactsph.physics.total_lagrangian.hourglass_coefficient`), 0 for none;
     ``penalty_stiffness`` and ``penalty_distance``: the contact between bodies
     (:class:`~impactsph.physics.penalty_contact.PenaltyContact`, used when there are two
     bodies or more) and with the rigid walls
