@@ -262,7 +262,8 @@ def test_hourglass_dashpot_is_silent_for_linear_fields():
         tl.force_pass(n, x, v, ref.X, V0, rho * V0, np.full(n, 1.3 * dx), np.full(n, rho),
                       wave_speed, table[material, YOUNGS], ref.offsets, ref.neighbours,
                       ref.grad, ref.w, ref.dw,
-                      F, Q, np.zeros(3), alpha, dv, de, np.zeros(n), Fdot, np.full(n, tau))
+                      F, Q, np.zeros(3), alpha, dv, de, np.zeros(n), Fdot, np.full(n, tau),
+                      tau > 0.0)
         out[alpha] = dv
     # a zig-zag of 1 mm/s in the velocity gives some 1e4 m/s^2 here; round-off is far below
     np.testing.assert_allclose(out[10.0], out[0.0], rtol=0, atol=1e-3)

@@ -210,6 +210,7 @@ class TotalLagrangianSolver:
             self.max_time_step = hourglass_step(hourglass_damping) / float(omega.max())
             if hourglass_damping > 0.0:
                 self._tau = 2.0 * hourglass_damping / omega
+        self._dashpot = bool(self._tau.any())
         #: m / (m + added mass), None without added mass (see :class:`~impactsph.solver.Solver`)
         self._inertia = state.inertia_fraction()
         #: the contact between bodies, None with one body
@@ -267,7 +268,8 @@ class TotalLagrangianSolver:
         tl.force_pass(n, state.position, state.velocity, ref.X, ref.V0, state.mass,
                       state.smoothing_length, state.density, self._wave_speed, self._youngs,
                       ref.offsets, ref.neighbours, ref.grad, ref.w, ref.dw, self.F, self._Q,
-                      self.visc, self.hourglass, b.dv, b.de, b.de_visc, self.Fdot, self._tau)
+                      self.visc, self.hourglass, b.dv, b.de, b.de_visc, self.Fdot, self._tau,
+                      self._dashpot)
         self.powers = (float(state.mass @ b.de_visc), 0.0, 0.0)
         if self.contact is not None:
             self.contact.add(n, state.position, state.velocity, state.mass, state.material,

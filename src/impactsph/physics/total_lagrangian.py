@@ -402,7 +402,7 @@ def deformation_pass(n_active, x, v, V0, m, rho, pressure, S, damage, material, 
 
 
 def force_pass(n_active, x, v, X, V0, m, h, rho, wave_speed, youngs, offsets, neighbours,
-               grad, w, dw, F, Q, visc, alpha, dv, de, de_visc, Fdot, tau) -> None:
+               grad, w, dw, F, Q, visc, alpha, dv, de, de_visc, Fdot, tau, dashpot) -> None:
     """(TL-7), the artificial viscosity and the hourglass penalty for every active particle:
     sets ``dv`` and ``de_visc``, adds to ``de``.  ``wave_speed``: each particle's sound speed
     (:func:`deformation_pass`); ``youngs``: each particle's Young's modulus (Pa).
@@ -417,11 +417,12 @@ def force_pass(n_active, x, v, X, V0, m, h, rho, wave_speed, youngs, offsets, ne
     antisymmetric, its power exactly the heating.  Hourglass penalty (``alpha`` > 0):
     :func:`hourglass_coefficient`, its power shared by the pair and taken from their internal
     energies, ``de_i/dt -= 1/2 f_i . (v_i - v_j) / m_i``, so the total energy is kept and a
-    rigid translation is not heated.  ``Fdot`` and ``tau`` (per particle, s; zeros for none):
-    the penalty's dashpot (:func:`hourglass_coefficient`)."""
+    rigid translation is not heated.  ``Fdot`` and ``tau`` (per particle, s): the penalty's
+    dashpot (:func:`hourglass_coefficient`), evaluated where ``dashpot`` is true (some ``tau``
+    > 0: the caller knows it once for the run, so the pass does not test every pair)."""
     compiled_passes(x.shape[1]).force_pass(
         n_active, x, v, X, V0, m, h, rho, wave_speed, youngs, offsets, neighbours, grad, w, dw,
-        F, Q, visc, alpha, dv, de, de_visc, Fdot, tau, bool(alpha > 0.0 and tau.any()))
+        F, Q, visc, alpha, dv, de, de_visc, Fdot, tau, bool(dashpot))
 
 
 def reference_pairs(X: np.ndarray, h: np.ndarray, body: np.ndarray
