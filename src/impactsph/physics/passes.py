@@ -72,7 +72,6 @@ from impactsph.physics.contact import (
     in_contact,
 )
 from impactsph.physics.continuity import continuity_pair, velocity_gradient_pair
-from impactsph.physics.energy import viscous_heating_pair
 from impactsph.physics.momentum import viscous_acceleration_pair
 from impactsph.physics.reconstruction import reconstructed_approach
 from impactsph.physics.records import record_columns, symmetric_index
@@ -812,9 +811,16 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
 
     The stress terms are regrouped, exactly in arithmetic: ``sum_j m_j A_i . grad W_ij =
     A_i . (sum_j m_j grad W_ij)`` and ``sum_j m_j A_i : (v_ij (x) grad W_ij) = A_i : (sum_j
-    m_j v_ij (x) grad W_ij)``, so ``A_i`` is applied once per particle
-    (``tests/test_rates_reference.py`` checks the whole against the term functions summed pair
-    by pair).
+    m_j v_ij (x) grad W_ij)``, so ``A_i`` is applied once per particle.  Other sums share
+    their products (issue 16; benchmarks/README.md, "Fewer operations a pair"): the
+    continuity sum ``sum_j V_j v_ij . grad W_ij`` is minus the trace of the velocity
+    gradient's sum; the viscous terms are multiples of ``fq r_ij`` (``grad W_ij = fq r_ij``),
+    so the viscous heating is ``-1/2`` the viscous acceleration's coefficient times ``z_ij .
+    r_ij``; the weighted gradients ``m_j grad W_ij`` serve the stress, ``G`` and ``T`` sums
+    alike; and the viscous push across bodies (a part of the contact force, for the few
+    particles at a contact) is summed in the second loop, not masked in the first.  The
+    results move at round-off (``tests/test_rates_reference.py`` checks the whole against
+    the term functions summed pair by pair).
 
     With the artificial stress (``ARTIFICIAL_STRESS`` = epsilon > 0; Monaghan 2000, Gray,
     Monaghan & Swift 2001, section 2) each pair of the same body also adds
@@ -892,9 +898,8 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     wi0 = Pi_[W] if COMPATIBLE_ENERGY else vi0
     wi1 = (Pi_[W + 1] if COMPATIBLE_ENERGY else vi1) if DIM > 1 else 0.0
     wi2 = (Pi_[W + 2] if COMPATIBLE_ENERGY else vi2) if DIM > 2 else 0.0
-    # accumulators: continuity / rho_i; sum m_j grad W (same body); sum m_j A_j . grad W;
+    # accumulators: sum m_j grad W (same body); sum m_j A_j . grad W;
     # contact and viscous accelerations; L; T = sum m_j v_ij (x) grad W; energies
-    cont = 0.0
     G0 = G1 = G2 = 0.0
     a0 = a1 = a2 = 0.0
     k0 = k1 = k2 = 0.0
@@ -951,27 +956,23 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
         fs = fq if same_body else 0.0
         count += 1 if inside else 0
         n_other += 0 if same_body or not inside else 1
-        g0 = fq * d0
-        g1 = fq * d1
-        g2 = fq * d2
         s0 = fs * d0  # the same-body kernel gradient
         s1 = fs * d1
         s2 = fs * d2
         u0 = vi0 - P[j, V]
         u1 = vi1 - P[j, V + 1] if DIM > 1 else 0.0
         u2 = vi2 - P[j, V + 2] if DIM > 2 else 0.0
-        vs = u0 * s0 + u1 * s1 + u2 * s2
         vr = u0 * d0 + u1 * d1 + u2 * d2
         if COMPATIBLE_ENERGY:  # the energy terms' velocity difference: the work velocity's
             z0 = wi0 - P[j, W]
             z1 = wi1 - P[j, W + 1] if DIM > 1 else 0.0
             z2 = wi2 - P[j, W + 2] if DIM > 2 else 0.0
+            zr = z0 * d0 + z1 * d1 + z2 * d2
         else:
             z0, z1, z2 = u0, u1, u2
-        vg = z0 * g0 + z1 * g1 + z2 * g2  # energy only (the viscous heating)
+            zr = vr
         m_j = np.float64(P[j, M])  # float32 records: its products with them in float64
         volume_j = np.float64(P[j, VOL])
-        cont += continuity_pair(1.0, volume_j, vs)
         if GRADIENT_CORRECTION:
             B00 -= volume_j * d0 * s0
             if DIM > 1:
@@ -1035,35 +1036,54 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
         w_j = volume_j if AXISYMMETRIC else m_j
         if AXISYMMETRIC:
             mr += volume_j * (xi0 - abs(neighbour_position(P, j, 0))) * s0
-        G0 += w_j * s0
-        a0 += m_j * P[j, A00] * t0
+        # the weighted gradients each serve several sums: ws = w_j s (G's pair term, and T's
+        # with z), mt = m_j t (the neighbour's stress meets it); without the correction of
+        # the forces and axisymmetry they are the same products
+        ws0 = w_j * s0
+        mt0 = m_j * t0
+        G0 += ws0
         L00 += velocity_gradient_pair(volume_j, u0, s0)
-        T00 += w_j * z0 * s0
-        if DIM > 1:
-            G1 += w_j * s1
-            a0 += m_j * P[j, A01] * t1
-            a1 += m_j * (P[j, A01] * t0 + P[j, A11] * t1)
+        T00 += z0 * ws0
+        if DIM == 1:
+            a0 += P[j, A00] * mt0
+        if DIM == 2:
+            ws1 = w_j * s1
+            mt1 = m_j * t1
+            G1 += ws1
+            a0 += P[j, A00] * mt0 + P[j, A01] * mt1
+            a1 += P[j, A01] * mt0 + P[j, A11] * mt1
             L01 += velocity_gradient_pair(volume_j, u0, s1)
             L10 += velocity_gradient_pair(volume_j, u1, s0)
             L11 += velocity_gradient_pair(volume_j, u1, s1)
-            T01 += w_j * z0 * s1
-            T10 += w_j * z1 * s0
-            T11 += w_j * z1 * s1
+            T01 += z0 * ws1
+            T10 += z1 * ws0
+            T11 += z1 * ws1
         if DIM > 2:
-            G2 += m_j * s2
-            a0 += m_j * P[j, A02] * t2
-            a1 += m_j * P[j, A12] * t2
-            a2 += m_j * (P[j, A02] * t0 + P[j, A12] * t1 + P[j, A22] * t2)
+            ws1 = w_j * s1
+            ws2 = w_j * s2
+            mt1 = m_j * t1
+            mt2 = m_j * t2
+            G1 += ws1
+            G2 += ws2
+            a0 += P[j, A00] * mt0 + P[j, A01] * mt1 + P[j, A02] * mt2
+            a1 += P[j, A01] * mt0 + P[j, A11] * mt1 + P[j, A12] * mt2
+            a2 += P[j, A02] * mt0 + P[j, A12] * mt1 + P[j, A22] * mt2
+            L01 += velocity_gradient_pair(volume_j, u0, s1)
+            L10 += velocity_gradient_pair(volume_j, u1, s0)
+            L11 += velocity_gradient_pair(volume_j, u1, s1)
             L02 += velocity_gradient_pair(volume_j, u0, s2)
             L12 += velocity_gradient_pair(volume_j, u1, s2)
             L20 += velocity_gradient_pair(volume_j, u2, s0)
             L21 += velocity_gradient_pair(volume_j, u2, s1)
             L22 += velocity_gradient_pair(volume_j, u2, s2)
-            T02 += m_j * z0 * s2
-            T12 += m_j * z1 * s2
-            T20 += m_j * z2 * s0
-            T21 += m_j * z2 * s1
-            T22 += m_j * z2 * s2
+            T01 += z0 * ws1
+            T10 += z1 * ws0
+            T11 += z1 * ws1
+            T02 += z0 * ws2
+            T12 += z1 * ws2
+            T20 += z2 * ws0
+            T21 += z2 * ws1
+            T22 += z2 * ws2
         vr_visc = vr
         if VELOCITY_RECONSTRUCTION:  # the jump at the midpoint (reconstruction.py), same body
             vr_rec = reconstructed_approach(vr, projected_slope(P, p, LV0, d0, d1, d2),
@@ -1072,29 +1092,38 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
             vr_visc = vr_rec if same_body else vr
         pi_ij = pair_viscosity(visc_kind, vr_visc, r2, h_ij, 0.5 * (ci + P[j, C]),
                                0.5 * (rhoi + P[j, RHO]), visc_params)
+        # grad W_ij = fq r_ij: each viscous term below is a multiple of fq r_ij
         if VISCOSITY_FACTOR:  # the switch: Pi_ij (f_i + f_j) / 2, symmetric in i, j
-            raw = viscous_acceleration_pair(m_j, pi_ij, 1.0)
-            wr0 += raw * g0
-            wr1 += raw * g1
-            wr2 += raw * g2
+            raw = viscous_acceleration_pair(m_j, pi_ij, fq)
+            wr0 += raw * d0
+            wr1 += raw * d1
+            wr2 += raw * d2
             pi_ij *= 0.5 * (fi + P[j, VF])
-        visc = viscous_acceleration_pair(m_j, pi_ij, 1.0)  # 0 if receding
-        w0 += visc * g0
-        w1 += visc * g1
-        w2 += visc * g2
-        other = 0.0 if same_body else visc  # the viscous push across bodies
-        f0 += other * g0
-        f1 += other * g1
-        f2 += other * g2
-        de_v += viscous_heating_pair(m_j, pi_ij, vg)
+        visc = viscous_acceleration_pair(m_j, pi_ij, fq)  # 0 if receding
+        w0 += visc * d0
+        w1 += visc * d1
+        w2 += visc * d2
+        # the viscous heating 1/2 m_j Pi_ij z_ij . grad W_ij (viscous_heating_pair) is
+        # -visc (z_ij . r_ij) / 2: two values and a constant.  (Written as the product of
+        # 1/2, m_j, Pi_ij, fq and z_ij . r_ij, a chain that reassociation may order by where
+        # its factors are defined, the serial and the threaded passes differed at round-off:
+        # tests/test_threads.py.)
+        de_v += -0.5 * visc * zr
+    # the continuity sum of eq 22 over the same body, sum_j V_j v_ij . grad W_ij, is minus
+    # the trace of the velocity gradient's sum (continuity_pair and velocity_gradient_pair
+    # are the same products), so the loop does not form it (results move at round-off)
+    cont = -(L00 + L11 + L22)
     # Second loop, only where the particle has neighbours of another body or wall ghosts
-    # within the support (a few particles at a contact surface): compression-only contact.
+    # within the support (a few particles at a contact surface): compression-only contact,
+    # and where the contact force is tracked, the viscous push across bodies (the first
+    # loop's viscous term of those pairs, again).
     # (its names carry c_, to keep them apart from the first loop's)
+    track_contact = contact_force.shape[0] > 0
     for c_k in range(offsets[p], offsets[p + 1] if n_other > 0 else offsets[p]):
         c_Pj = P[indices[c_k]]
         if c_Pj[BODY] == bi:
             continue
-        c_d0, c_d1, c_d2, c_r2, _, c_inv_h, c_q2 = pair_separation(Pi_, c_Pj)
+        c_d0, c_d1, c_d2, c_r2, c_h_ij, c_inv_h, c_q2 = pair_separation(Pi_, c_Pj)
         if c_q2 >= 4.0 or c_r2 == 0.0:
             continue
         c_fq = cubic_spline_gradient_factor(math.sqrt(c_q2), c_inv_h, DIM)
@@ -1105,6 +1134,16 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
         c_u1 = vi1 - c_Pj[V + 1] if DIM > 1 else 0.0
         c_u2 = vi2 - c_Pj[V + 2] if DIM > 2 else 0.0
         c_vg = c_u0 * c_g0 + c_u1 * c_g1 + c_u2 * c_g2
+        if track_contact:
+            c_pi = pair_viscosity(visc_kind, c_u0 * c_d0 + c_u1 * c_d1 + c_u2 * c_d2, c_r2,
+                                  c_h_ij, 0.5 * (ci + c_Pj[C]),
+                                  0.5 * (rhoi + c_Pj[RHO]), visc_params)
+            if VISCOSITY_FACTOR:
+                c_pi *= 0.5 * (fi + c_Pj[VF])
+            c_visc = viscous_acceleration_pair(np.float64(c_Pj[M]), c_pi, c_fq)
+            f0 += c_visc * c_d0
+            f1 += c_visc * c_d1
+            f2 += c_visc * c_d2
         c_wg = c_vg  # the energy term's: with the work velocity under the compatible update
         if COMPATIBLE_ENERGY:
             c_wg = (wi0 - c_Pj[W]) * c_g0
@@ -1150,7 +1189,6 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     de_s = de_contact
     if ARTIFICIAL_STRESS > 0.0:
         de_s -= 0.5 * xe
-    track_contact = contact_force.shape[0] > 0
     inv_own = 1.0 / rhoi if AXISYMMETRIC else 1.0  # sum m_j A_j grad W_ij over rho_i
     for a in range(DIM):
         s = acc[a] * inv_own + kc[a]
