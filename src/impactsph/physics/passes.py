@@ -653,7 +653,7 @@ def moment_correction(p, P, offsets, indices, listed, starts, filter_skin):
     xi1 = record_position(Pi_, 1) if DIM > 1 else 0.0
     xi2 = record_position(Pi_, 2) if DIM > 2 else 0.0
     hi = Pi_[H]
-    B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
+    B00 = B01 = B02 = B11 = B12 = B22 = 0.0  # (B is symmetric)
     # one loop without branches, vectorised as particle_rates' first loop (the support and
     # the body as a mask on the weight; moment_pass's flags)
     first, last = support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, starts,
@@ -667,14 +667,13 @@ def moment_correction(p, P, offsets, indices, listed, starts, filter_skin):
         B00 += w * d0 * d0
         if DIM > 1:
             B01 += w * d0 * d1
-            B10 += w * d1 * d0
             B11 += w * d1 * d1
         if DIM > 2:
             B02 += w * d0 * d2
             B12 += w * d1 * d2
-            B20 += w * d2 * d0
-            B21 += w * d2 * d1
             B22 += w * d2 * d2
+    # B is symmetric (r_ij (x) r_ij times a number): its lower triangle is its upper
+    B10, B20, B21 = B01, B02, B12
     _, I00, I01, I02, I10, I11, I12, I20, I21, I22 = moment_inverse(
         B00, B01, B02, B10, B11, B12, B20, B21, B22)
     Bi = ((I00, I01, I02), (I10, I11, I12), (I20, I21, I22))
@@ -706,7 +705,7 @@ def velocity_gradient_record(p, P, offsets, indices, listed, starts, filter_skin
     vi1 = Pi_[V + 1] if DIM > 1 else 0.0
     vi2 = Pi_[V + 2] if DIM > 2 else 0.0
     hi = Pi_[H]
-    B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
+    B00 = B01 = B02 = B11 = B12 = B22 = 0.0  # (B is symmetric)
     L00 = L01 = L02 = L10 = L11 = L12 = L20 = L21 = L22 = 0.0
     first, last = support_range(xi0, xi1, xi2, hi, P, offsets, indices, p, listed, starts,
                                 filter_skin)
@@ -722,7 +721,6 @@ def velocity_gradient_record(p, P, offsets, indices, listed, starts, filter_skin
         if DIM > 1:
             u1 = vi1 - P[j, V + 1]
             B01 += w * d0 * d1
-            B10 += w * d1 * d0
             B11 += w * d1 * d1
             L01 += w * u0 * d1
             L10 += w * u1 * d0
@@ -731,14 +729,14 @@ def velocity_gradient_record(p, P, offsets, indices, listed, starts, filter_skin
             u2 = vi2 - P[j, V + 2]
             B02 += w * d0 * d2
             B12 += w * d1 * d2
-            B20 += w * d2 * d0
-            B21 += w * d2 * d1
             B22 += w * d2 * d2
             L02 += w * u0 * d2
             L12 += w * u1 * d2
             L20 += w * u2 * d0
             L21 += w * u2 * d1
             L22 += w * u2 * d2
+    # B is symmetric (r_ij (x) r_ij times a number): its lower triangle is its upper
+    B10, B20, B21 = B01, B02, B12
     _, I00, I01, I02, I10, I11, I12, I20, I21, I22 = moment_inverse(
         B00, B01, B02, B10, B11, B12, B20, B21, B22)
     Bi = ((I00, I01, I02), (I10, I11, I12), (I20, I21, I22))
@@ -913,7 +911,7 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     T00 = T01 = T02 = T10 = T11 = T12 = T20 = T21 = T22 = 0.0
     # the kernel gradient correction's moment matrix B = -sum_j V_j r_ij (x) grad W_ij
     # (GRADIENT_CORRECTION only; see correct_velocity_gradient)
-    B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
+    B00 = B01 = B02 = B11 = B12 = B22 = 0.0  # (B is symmetric)
     # the artificial stress (ARTIFICIAL_STRESS > 0 only): the particle's own R_i, the sums
     # sum m_j f_ij^n (R_i + R_j) . grad W_ij and sum m_j f_ij^n v_ij . (R_i + R_j) . grad W_ij
     ri00 = ri01 = ri02 = ri11 = ri12 = ri22 = 0.0
@@ -977,13 +975,10 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
             B00 -= volume_j * d0 * s0
             if DIM > 1:
                 B01 -= volume_j * d0 * s1
-                B10 -= volume_j * d1 * s0
                 B11 -= volume_j * d1 * s1
             if DIM > 2:
                 B02 -= volume_j * d0 * s2
                 B12 -= volume_j * d1 * s2
-                B20 -= volume_j * d2 * s0
-                B21 -= volume_j * d2 * s1
                 B22 -= volume_j * d2 * s2
         # the kernel gradient that the neighbour's stress A_j meets: C_j grad W_ij with the
         # correction of the forces, grad W_ij otherwise
@@ -1204,8 +1199,8 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
             P[p, U + a] = wr[a]
         if track_contact:
             contact_force[i, a] = m_i * (kc[a] + fv[a])
-    if GRADIENT_CORRECTION:
-        correct_velocity_gradient(L, B00, B01, B02, B10, B11, B12, B20, B21, B22)
+    if GRADIENT_CORRECTION:  # B is symmetric: its lower triangle is its upper
+        correct_velocity_gradient(L, B00, B01, B02, B01, B11, B12, B02, B12, B22)
     if L_sorted.shape[0] > 0:
         for a in range(DIM):
             for b in range(DIM):
