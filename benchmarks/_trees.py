@@ -23,3 +23,18 @@ def worker_result(script: str | Path, tree: Path, args: list[str], threads: int,
     out = subprocess.run([sys.executable, str(script), "--worker", *args], env=environ,
                          capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def alternated(script: str | Path, trees: list[Path], keys: list[Any], worker_args,
+               rounds: int, threads: int, **env: str) -> dict[tuple[str, Any], list[dict]]:
+    """:func:`worker_result` of each tree for each key, ``rounds`` times, the trees
+    alternating within each key and round (so that a busy spell falls on all of them):
+    ``{(str(tree), key): [one result a round]}``; ``worker_args(key)`` gives the worker's
+    arguments."""
+    results: dict[tuple[str, Any], list[dict]] = {}
+    for _ in range(rounds):
+        for key in keys:
+            for tree in trees:
+                results.setdefault((str(tree), key), []).append(
+                    worker_result(script, tree, worker_args(key), threads, **env))
+    return results

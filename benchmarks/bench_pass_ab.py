@@ -47,8 +47,8 @@ PASSES = ("moment_pass", "gradient_pass", "pair_pass", "hourglass_pass")
 STABILISATION = {"gradient_correction": "velocity_gradient_and_forces", "hourglass": 2.0}
 
 
-def simulation(case: str, n: int):
-    """The case's simulation, ready for a rate evaluation."""
+def build(case: str, n: int):
+    """The case's simulation, built (nothing compiled or run)."""
     from impactsph import Simulation, load_case
     from impactsph.loading import validate_case
 
@@ -62,8 +62,14 @@ def simulation(case: str, n: int):
         rng = np.random.default_rng(1)
         sim.state.velocity[:] = rng.normal(size=sim.state.velocity.shape)
         return sim
-    sim = Simulation(load_case(case, ["output.figures=false"]))
-    sim.run(2e-6)
+    return Simulation(load_case(case, ["output.figures=false"]))
+
+
+def simulation(case: str, n: int):
+    """The case's simulation, ready for a rate evaluation (a built-in case after 2 us)."""
+    sim = build(case, n)
+    if case in ("taylor", "cantilever", "bars"):
+        sim.run(2e-6)
     return sim
 
 
@@ -81,11 +87,7 @@ def worker(case: str, n: int, uniform_h: bool) -> dict[str, Any]:
     from impactsph import codegen
     from impactsph.physics import passes
 
-    sim = simulation(case, n) if case not in ("taylor", "cantilever", "bars") else None
-    if sim is None:  # the built-in cases: built, not run (running would compile)
-        from impactsph import Simulation, load_case
-
-        sim = Simulation(load_case(case, ["output.figures=false"]))
+    sim = build(case, n)
     options = loops_options(sim, uniform_h)
     text, _ = codegen.generate(passes, sim.solver.backend.dim, options)
     return {"text": text, "tag": options.tag}

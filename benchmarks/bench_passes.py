@@ -81,18 +81,15 @@ def main() -> int:
     if args.worker:
         print(json.dumps(measure(args.dims[0], int(args.n), args.repeat)))
         return 0
-    from _trees import worker_result
+    from _trees import alternated
 
     trees = [HERE.parent] + [Path(t).resolve() for t in args.trees]
-    results: dict[tuple[str, int], list[dict[str, float]]] = {}
-    for _ in range(args.rounds):
-        for dim in args.dims:
-            for tree in trees:
-                # the threaded passes, as before 2026-12-05, unless the caller chose: with one
-                # numba thread and the variable unset, a run now compiles the serial ones
-                results.setdefault((str(tree), dim), []).append(worker_result(
-                    __file__, tree, ["--dims", str(dim), "--n", str(args.n), "--repeat",
-                                     str(args.repeat)], args.threads, IMPACTSPH_PARALLEL="1"))
+    # the threaded passes, as before 2026-12-05, unless the caller chose: with one numba
+    # thread and the variable unset, a run now compiles the serial ones
+    results = alternated(__file__, trees, args.dims,
+                         lambda dim: ["--dims", str(dim), "--n", str(args.n), "--repeat",
+                                      str(args.repeat)],
+                         args.rounds, args.threads, IMPACTSPH_PARALLEL="1")
     print(f"{args.threads} thread(s), about {args.n:.0e} particles, best of {args.repeat} "
           f"steps per process, ms (a column per round; trees separated by |)")
     for dim in args.dims:

@@ -83,16 +83,12 @@ def main() -> int:
     if args.worker:
         print(json.dumps(measure(args.depth[0], args.steps)))
         return 0
-    from _trees import worker_result
+    from _trees import alternated
 
     trees = [HERE.parent] + [Path(t).resolve() for t in args.trees]
-    results: dict[tuple[str, int], list[dict[str, float]]] = {}
-    for _ in range(args.rounds):
-        for depth in args.depth:
-            for tree in trees:
-                results.setdefault((str(tree), depth), []).append(worker_result(
-                    __file__, tree, ["--depth", str(depth), "--steps", str(args.steps)],
-                    args.threads))
+    results = alternated(__file__, trees, args.depth,
+                         lambda depth: ["--depth", str(depth), "--steps", str(args.steps)],
+                         args.rounds, args.threads)
     print(f"{args.threads} thread(s), {args.steps} steps a process, us per call (a column "
           f"per round; trees separated by |)")
     for depth in args.depth:

@@ -1037,16 +1037,16 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
         ws0 = w_j * s0
         mt0 = m_j * t0
         G0 += ws0
+        sa0 = P[j, A00] * mt0  # this pair's terms of the sums a (the neighbour's stress)
+        sa1 = sa2 = 0.0
         L00 += velocity_gradient_pair(volume_j, u0, s0)
         T00 += z0 * ws0
-        if DIM == 1:
-            a0 += P[j, A00] * mt0
-        if DIM == 2:
+        if DIM > 1:
             ws1 = w_j * s1
             mt1 = m_j * t1
             G1 += ws1
-            a0 += P[j, A00] * mt0 + P[j, A01] * mt1
-            a1 += P[j, A01] * mt0 + P[j, A11] * mt1
+            sa0 += P[j, A01] * mt1
+            sa1 = P[j, A01] * mt0 + P[j, A11] * mt1
             L01 += velocity_gradient_pair(volume_j, u0, s1)
             L10 += velocity_gradient_pair(volume_j, u1, s0)
             L11 += velocity_gradient_pair(volume_j, u1, s1)
@@ -1054,31 +1054,27 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
             T10 += z1 * ws0
             T11 += z1 * ws1
         if DIM > 2:
-            ws1 = w_j * s1
             ws2 = w_j * s2
-            mt1 = m_j * t1
             mt2 = m_j * t2
-            G1 += ws1
             G2 += ws2
-            a0 += P[j, A00] * mt0 + P[j, A01] * mt1 + P[j, A02] * mt2
-            a1 += P[j, A01] * mt0 + P[j, A11] * mt1 + P[j, A12] * mt2
-            a2 += P[j, A02] * mt0 + P[j, A12] * mt1 + P[j, A22] * mt2
-            L01 += velocity_gradient_pair(volume_j, u0, s1)
-            L10 += velocity_gradient_pair(volume_j, u1, s0)
-            L11 += velocity_gradient_pair(volume_j, u1, s1)
+            sa0 += P[j, A02] * mt2
+            sa1 += P[j, A12] * mt2
+            sa2 = P[j, A02] * mt0 + P[j, A12] * mt1 + P[j, A22] * mt2
             L02 += velocity_gradient_pair(volume_j, u0, s2)
             L12 += velocity_gradient_pair(volume_j, u1, s2)
             L20 += velocity_gradient_pair(volume_j, u2, s0)
             L21 += velocity_gradient_pair(volume_j, u2, s1)
             L22 += velocity_gradient_pair(volume_j, u2, s2)
-            T01 += z0 * ws1
-            T10 += z1 * ws0
-            T11 += z1 * ws1
             T02 += z0 * ws2
             T12 += z1 * ws2
             T20 += z2 * ws0
             T21 += z2 * ws1
             T22 += z2 * ws2
+        a0 += sa0
+        if DIM > 1:
+            a1 += sa1
+        if DIM > 2:
+            a2 += sa2
         vr_visc = vr
         if VELOCITY_RECONSTRUCTION:  # the jump at the midpoint (reconstruction.py), same body
             vr_rec = reconstructed_approach(vr, projected_slope(P, p, LV0, d0, d1, d2),
