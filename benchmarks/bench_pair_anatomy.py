@@ -244,6 +244,7 @@ def main(argv: list[str] | None = None) -> None:
 
     from impactsph.integrate import stable_time_step
     from impactsph.loading import validate_case
+    from impactsph.physics.chunked import run_chunked
     from impactsph.simulation import Simulation
 
     folder = Path(tempfile.mkdtemp(prefix="impactsph-anatomy-"))
@@ -265,37 +266,38 @@ def main(argv: list[str] | None = None) -> None:
         solver_pass = passes.pair_pass
 
         def grab(*a, _captured=captured, _solver_pass=solver_pass):
-            _captured["args"] = a
+            if a[0] == 0:  # the first thread's call, as one call over every chunk
+                _captured["args"] = (0, 1, *a[2:])
             return _solver_pass(*a)
 
         passes.pair_pass = grab
         sim.integrator.step(sim.state, dt)
         passes.pair_pass = solver_pass
         call = list(captured["args"])
-        record = call[2]
+        record = call[4]
         transposed = np.zeros((record.shape[1], record.shape[0] + 256))
         transposed[:, :record.shape[0]] = record.T
-        entries = int(call[4].shape[0])
-        offsets = call[3]
+        entries = int(call[6].shape[0])
+        offsets = call[5]
         if int(np.diff(offsets).max()) > 256:  # the scratch's rows; PT's padding
             sys.exit("bench_pair_anatomy: a neighbour row is longer than 256")
-        if "no_division" in args.variants and int(call[6]) != 0:
+        if "no_division" in args.variants and int(call[8]) != 0:
             sys.exit("bench_pair_anatomy: no_division replaces viscosity 0, not this case's")
-        own = np.repeat(np.arange(offsets.shape[0] - 1, dtype=call[4].dtype), np.diff(offsets))
+        own = np.repeat(np.arange(offsets.shape[0] - 1, dtype=call[6].dtype), np.diff(offsets))
         variants = [v for v in args.variants if v != "padded" or dim < 2]
         padded = []
         if "padded" in variants:
             columns = {c: int(getattr(passes, c)) for c in ("X", "H", "RHO", "BODY")}
-            padded = list(_padded(record, offsets, call[4], columns, dim))
+            padded = list(_padded(record, offsets, call[6], columns, dim))
             padded.append(padded[1][:-1])  # (its starts: 1D does not read them)
 
         def arguments(name, _call=call, _own=own, _transposed=transposed, _padded_=padded):
             if name == "self":
-                return _call[:4] + [_own] + _call[5:]
+                return _call[:6] + [_own] + _call[7:]
             if name == "padded":
-                return _call[:2] + _padded_ + _call[6:]
+                return _call[:4] + _padded_ + _call[8:]
             if name == "unsplit":  # every row tested from its start
-                return _call[:5] + [_call[3][:-1]] + _call[6:]
+                return _call[:7] + [_call[5][:-1]] + _call[8:]
             return _call + [_transposed] if name == "contiguous" else _call
 
         text = Path(passes.__file__).read_text()
@@ -313,7 +315,7 @@ def main(argv: list[str] | None = None) -> None:
                 times = []
                 for _ in range(args.repeat):
                     t0 = time.perf_counter()
-                    function(*given)
+                    run_chunked(function, args.threads, *given[2:])  # (given: 0, 1, ...)
                     times.append(time.perf_counter() - t0)
                 best[name].append(min(times))
         print(f"\n{dim}D, {record.shape[0]} particles, {entries} list entries, "

@@ -93,15 +93,40 @@ def worker(case: str, n: int, uniform_h: bool) -> dict[str, Any]:
     return {"text": text, "tag": options.tag}
 
 
+def chunked(function: Any) -> bool:
+    """Whether a pass takes ``(first, step, ...)`` (:mod:`impactsph.physics.chunked`, since
+    2026-12-05; a tree before then has ``prange`` passes without them)."""
+    return getattr(function, "py_func", function).__code__.co_varnames[:2] == ("first", "step")
+
+
+def call(module, name: str, args: list[Any]) -> None:
+    """``module``'s pass ``name`` on ``args`` (without ``first, step``) over every chunk, on
+    numba's thread count: a chunked pass through :func:`impactsph.physics.chunked.run_chunked`,
+    a ``prange`` one as it is."""
+    import numba
+
+    from impactsph.physics.chunked import run_chunked
+
+    function = getattr(module, name)
+    if chunked(function):
+        run_chunked(function, numba.get_num_threads(), *args)
+    else:
+        function(*args)
+
+
 def captured_inputs(sim, name: str) -> tuple[Any, list[Any] | None]:
     """The run's neighbour-loop module and the arguments of its pass ``name`` in one rate
-    evaluation (None if the evaluation does not call it)."""
+    evaluation (None if the evaluation does not call it), without a chunked pass's ``first,
+    step``."""
     sim.solver.rates(sim.state)
     module = sim.solver.backend._loops
     function, captured = getattr(module, name), {}
+    skip = 2 if chunked(function) else 0
 
     def capture(*args):
-        captured["args"] = [a.copy() if isinstance(a, np.ndarray) else a for a in args]
+        if not skip or args[0] == 0:  # (the call of the first thread)
+            captured["args"] = [a.copy() if isinstance(a, np.ndarray) else a
+                                for a in args[skip:]]
         return function(*args)
 
     # the rate buffers emptied (NaN) first, so that what the pass writes shows
@@ -143,7 +168,7 @@ def largest_differences(args: list[Any], here, other, name: str) -> tuple[list[f
     runs = []
     for module in (here, other):
         run = [a.copy() if isinstance(a, np.ndarray) else a for a in args]
-        getattr(module, name)(*run)
+        call(module, name, run)
         runs.append(run)
     diffs, written = [], 0
     for given, a, b in zip(args, *runs, strict=True):
@@ -162,10 +187,10 @@ def best_times(args: list[Any], modules: dict[str, Any], name: str, rounds: int,
     times: dict[str, list[float]] = {label: [] for label in modules}
     for _ in range(rounds):
         for label, module in modules.items():
-            function, best = getattr(module, name), np.inf
+            best = np.inf
             for _ in range(calls):
                 t0 = time.perf_counter()
-                function(*args)
+                call(module, name, args)
                 best = min(best, time.perf_counter() - t0)
             times[label].append(best)
     return times

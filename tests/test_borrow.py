@@ -135,25 +135,44 @@ def test_borrowed_in_python_is_the_argument():
     assert nb.njit(lambda x: borrowed(x))(7) == 7  # not an array: unchanged
 
 
-def _passes(text: str) -> dict[str, ast.FunctionDef]:
+def _passes(text: str, keyword: str = "parallel") -> dict[str, ast.FunctionDef]:
+    """The functions whose decorator passes ``parallel=PARALLEL_OPTION`` (``keyword``
+    "parallel") or ``nogil=True`` ("nogil": the chunked passes)."""
+    def marked(k: ast.keyword) -> bool:
+        if keyword == "parallel":
+            return k.arg == "parallel" and getattr(k.value, "id", None) == MARK
+        return k.arg == "nogil" and getattr(k.value, "value", None) is True
+
     return {node.name: node for node in ast.walk(ast.parse(text))
             if isinstance(node, ast.FunctionDef) and any(
-                isinstance(d, ast.Call) and any(k.arg == "parallel" and getattr(
-                    k.value, "id", None) == MARK for k in d.keywords)
+                isinstance(d, ast.Call) and any(marked(k) for k in d.keywords)
                 for d in node.decorator_list)}
+
+
+def _borrows_every_argument_first(node: ast.FunctionDef) -> bool:
+    arguments = [a.arg for a in node.args.args]
+    first = node.body[1:1 + len(arguments)]
+    return [ast.unparse(s) for s in first] == [f"{a} = borrowed({a})" for a in arguments]
 
 
 def test_every_serial_pass_borrows_every_argument_first():
     """In the generated serial module each pass marked ``parallel=PARALLEL_OPTION`` starts,
     after its docstring, with one ``a = borrowed(a)`` per argument, in order; the threaded
-    module's passes have none (numba's threaded bodies get their arrays that way already)."""
+    module's ``prange`` passes have none (numba's threaded bodies get their arrays that way
+    already).  The chunked passes (``nogil=True``: :mod:`impactsph.physics.chunked`) borrow
+    in both modules."""
     serial, _ = codegen.generate(passes, 2, PassOptions(parallel=False))
     threaded, _ = codegen.generate(passes, 2, PassOptions(parallel=True))
     found = _passes(serial)
-    assert {"particle_pass", "pair_pass", "correction_pass", "stage"} <= set(found)
+    assert {"particle_pass", "correction_pass", "stage"} <= set(found)
     for name, node in found.items():
-        arguments = [a.arg for a in node.args.args]
-        first = node.body[1:1 + len(arguments)]
-        assert [ast.unparse(s) for s in first] == [f"{a} = borrowed({a})" for a in arguments], name
-    assert "= borrowed(" not in threaded
+        assert _borrows_every_argument_first(node), name
     assert set(_passes(threaded)) == set(found)
+    for name, node in _passes(threaded).items():
+        assert "= borrowed(" not in ast.unparse(node), name
+    for text in (serial, threaded):
+        chunked = _passes(text, "nogil")
+        assert {"moment_pass", "gradient_pass", "pair_pass", "hourglass_pass",
+                "switch_pass"} <= set(chunked)
+        for name, node in chunked.items():
+            assert _borrows_every_argument_first(node), name

@@ -247,10 +247,9 @@ def generate(template: ModuleType, dim: int, options: PassOptions | str | None =
     end = text.index("\n", end) + 1
     block, inject = binding(dim, options)
     text = text[:start] + block + "\n" + text[end:]
-    if not PassOptions.coerce(options).parallel:
-        # the serial passes' arrays without reference counts, as numba's threaded loop bodies
-        # get them (impactsph.physics.borrow)
-        text = borrow_arguments(text)
+    # the serial passes' arrays, and the chunked passes' in any module, without reference
+    # counts, as numba's threaded loop bodies get them (impactsph.physics.borrow)
+    text = borrow_arguments(text, serial=not PassOptions.coerce(options).parallel)
     return text, inject
 
 

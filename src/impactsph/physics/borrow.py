@@ -60,18 +60,29 @@ def _borrowed(a):
 MARK = "PARALLEL_OPTION"
 
 
-def borrow_arguments(text: str) -> str:
+def _marked(node: ast.FunctionDef, serial: bool) -> bool:
+    """A pass to borrow for: ``parallel=PARALLEL_OPTION`` in a serial module; ``nogil=True``
+    (a pass over chunks in shares: :mod:`impactsph.physics.chunked`) in any."""
+    for d in node.decorator_list:
+        if not isinstance(d, ast.Call):
+            continue
+        for k in d.keywords:
+            if serial and k.arg == "parallel" and isinstance(k.value, ast.Name) \
+                    and k.value.id == MARK:
+                return True
+            if k.arg == "nogil" and isinstance(k.value, ast.Constant) and k.value.value is True:
+                return True
+    return False
+
+
+def borrow_arguments(text: str, serial: bool = True) -> str:
     """``text`` (a generated passes module) with ``a = borrowed(a)`` for each argument ``a``
-    of every function whose decorator passes ``parallel=PARALLEL_OPTION``, first after its
-    docstring."""
+    of every function whose decorator passes ``parallel=PARALLEL_OPTION`` (``serial``: a
+    module of serial passes) or ``nogil=True``, first after its docstring."""
     tree = ast.parse(text)
     inserts = []
     for node in ast.walk(tree):
-        if not isinstance(node, ast.FunctionDef):
-            continue
-        if not any(isinstance(d, ast.Call) and any(
-                k.arg == "parallel" and isinstance(k.value, ast.Name) and k.value.id == MARK
-                for k in d.keywords) for d in node.decorator_list):
+        if not isinstance(node, ast.FunctionDef) or not _marked(node, serial):
             continue
         names = [a.arg for a in node.args.args]
         body = node.body

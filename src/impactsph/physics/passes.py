@@ -40,6 +40,7 @@ import numpy as np
 from numba.core.cpu_options import ParallelOptions
 
 from impactsph.boundaries import enforce_particle
+from impactsph.jitcache import noalias_option
 from impactsph.kernels import cubic_spline_gradient_factor, cubic_spline_shape
 from impactsph.materials import (
     BULK,
@@ -132,10 +133,16 @@ FASTMATH = {"arcp", "nsz"}
 #: the pair pass also reassociates, so that LLVM can vectorise its first loop over the neighbours
 #: (:func:`particle_rates`: the sums run as several partial sums, one per vector lane, added at
 #: the end); still no "contract", for the reason above.  The order is fixed by the compiled
-#: code, so the results do not depend on the thread count or on the cache's state.  With
-#: ``error_model="numpy"`` (no zero-division checks, which are branches) this is what lets
-#: the loop vectorise: 2.3x on the 2D pair loop alone (benchmarks/README.md).
+#: code, so the results do not depend on the thread count or on the cache's state: the passes
+#: with these flags have no ``prange`` loop, whose body numba would compile twice (once as it
+#: runs in the process that compiled it, once as its cache holds it, and reassociation lets
+#: the two differ), but run in shares of their chunks (:mod:`impactsph.physics.chunked`).
+#: With ``error_model="numpy"`` (no zero-division checks, which are branches) this is what
+#: lets the loop vectorise: 2.3x on the 2D pair loop alone (benchmarks/README.md).
 PAIR_FASTMATH = {"reassoc", "arcp", "nsz"}
+#: the chunked passes' pointer arguments are marked ``noalias``, as numba marks a ``prange``
+#: body's (:func:`impactsph.jitcache.noalias_option`): they are called with distinct arrays
+NOALIAS = noalias_option()
 #: numba's ``parallel`` option of the passes: True, or for the serial passes its
 #: simplifications (copy propagation, dead code) without the transform of ``prange`` loops
 #: into threaded ones
@@ -1497,15 +1504,15 @@ def particle_pass(order, x, v, m, rho, e, S, carried, h, body, material, table, 
         particle_record(p, order[p], x, v, m, rho, e, S, carried, h, body, material, table, P)
 
 
-@JIT(parallel=PARALLEL_OPTION, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
-def moment_pass(order, P, offsets, indices, starts, chunk_size):
+@JIT(cache=True, nogil=True, **NOALIAS, fastmath=PAIR_FASTMATH, error_model="numpy")
+def moment_pass(first, step, order, P, offsets, indices, starts, chunk_size):
     """The correction matrices of every row (FORCE_CORRECTION only), after the records.
     Compiled as :func:`pair_pass`, so that the neighbour loop of :func:`moment_correction`
     vectorises (one thread at 1e5 particles: 2D 23.2 -> 12.3 ms, 3D 100 -> 48 ms;
     benchmarks/README.md)."""
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
-    for chunk in nb.prange(n_chunks):
+    for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
         start = chunk * chunk_size
         stop = min((chunk + 1) * chunk_size, n)
         listed = chunk_listed(offsets, indices, start, stop)
@@ -1513,13 +1520,13 @@ def moment_pass(order, P, offsets, indices, starts, chunk_size):
             moment_correction(p, P, offsets, indices, listed, starts, SKIN_FILTER)
 
 
-@JIT(parallel=PARALLEL_OPTION, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
-def gradient_pass(order, P, offsets, indices, starts, chunk_size):
+@JIT(cache=True, nogil=True, **NOALIAS, fastmath=PAIR_FASTMATH, error_model="numpy")
+def gradient_pass(first, step, order, P, offsets, indices, starts, chunk_size):
     """The velocity gradients of every row into the records (VELOCITY_RECONSTRUCTION only),
     after the records and before the pair pass; compiled as :func:`moment_pass`."""
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
-    for chunk in nb.prange(n_chunks):
+    for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
         start = chunk * chunk_size
         stop = min((chunk + 1) * chunk_size, n)
         listed = chunk_listed(offsets, indices, start, stop)
@@ -1527,17 +1534,18 @@ def gradient_pass(order, P, offsets, indices, starts, chunk_size):
             velocity_gradient_record(p, P, offsets, indices, listed, starts, SKIN_FILTER)
 
 
-@JIT(parallel=PARALLEL_OPTION, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
-def pair_pass(n_active, order, P, offsets, indices, starts, visc_kind, visc_params,
+@JIT(cache=True, nogil=True, **NOALIAS, fastmath=PAIR_FASTMATH, error_model="numpy")
+def pair_pass(first, step, n_active, order, P, offsets, indices, starts, visc_kind, visc_params,
               normal_stress, S, material, table, drho, dv, de, de_visc, contact_force,
               pair_count, dS, L_sorted, chunk_size):
-    """Pass 2 over the active particles, in parallel chunks of sorted positions; ghosts
-    (``order[p] >= n_active``) only take part as neighbours.  Compiled with PAIR_FASTMATH and
-    without zero-division checks (branches), so that LLVM vectorises the neighbour loop of
-    :func:`particle_rates`."""
+    """Pass 2 over the active particles, in chunks of sorted positions (share ``first`` of
+    ``step`` of them: :func:`impactsph.physics.chunked.run_chunked` runs the shares on
+    numba's threads); ghosts (``order[p] >= n_active``) only take part as neighbours.
+    Compiled with PAIR_FASTMATH and without zero-division checks (branches), so that LLVM
+    vectorises the neighbour loop of :func:`particle_rates`."""
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
-    for chunk in nb.prange(n_chunks):
+    for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
         L = np.empty((DIM, DIM))  # scratch: the velocity gradient of one particle
         start = chunk * chunk_size
         stop = min((chunk + 1) * chunk_size, n)
@@ -1568,18 +1576,18 @@ def correction_pass(n_active, order, P, offsets, indices, visc_kind, correction_
                                      DIM, correction_params, dv_corr, de_corr, dv, de)
 
 
-# always threaded: the vectorised switches' reassociated sums (Balsara's, Morris-Monaghan's)
-# came out of LLVM in another order compiled serial (Balsara's factor 6e-15 apart after 40
-# steps of a small Taylor bar), where every other pass gives the same bits both ways
-@JIT(parallel=True, cache=True, fastmath=SWITCH_FASTMATH, error_model=SWITCH_ERROR_MODEL)
-def switch_pass(n_active, order, P, offsets, indices, visc_kind, switch_params, elapsed,
-                factor, memory, chunk_size):
+# (a prange loop until 2026-12-05, threaded in the serial modules too: compiled serial, the
+# vectorised switches' sums had come out in another order than the threaded pass's, which was
+# the copy numba's cache holds, not the one a compiling process runs: impactsph.physics.chunked)
+@JIT(cache=True, nogil=True, **NOALIAS, fastmath=SWITCH_FASTMATH, error_model=SWITCH_ERROR_MODEL)
+def switch_pass(first, step, n_active, order, P, offsets, indices, visc_kind, switch_params,
+                elapsed, factor, memory, chunk_size):
     """The viscosity switch (a scheme with one) over the active particles, after the pair
     pass: ``factor[i]``, the particle's factor for the next rate evaluation (``elapsed``: the
     time since the factors in the records were set)."""
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
-    for chunk in nb.prange(n_chunks):
+    for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
         for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
             i = order[p]
             if i < n_active:
@@ -1603,9 +1611,9 @@ def friction_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, 
                                   real_bodies, normal_stress, dv, de, contact_force)
 
 
-@JIT(parallel=PARALLEL_OPTION, cache=True, fastmath=PAIR_FASTMATH, error_model="numpy")
-def hourglass_pass(n_active, order, P, L_sorted, offsets, indices, starts, material, table,
-                   zeta, hg, dv, de, dhg, chunk_size):
+@JIT(cache=True, nogil=True, **NOALIAS, fastmath=PAIR_FASTMATH, error_model="numpy")
+def hourglass_pass(first, step, n_active, order, P, L_sorted, offsets, indices, starts,
+                   material, table, zeta, hg, dv, de, dhg, chunk_size):
     """The hourglass control over the active particles (after the pair pass, whose velocity
     gradients it reads).  Compiled as :func:`pair_pass`, so that the neighbour loop of
     :func:`hourglass_particle` vectorises (one thread at 1e5 particles: 2D 40.6 -> 20.9 ms,
@@ -1615,7 +1623,7 @@ def hourglass_pass(n_active, order, P, L_sorted, offsets, indices, starts, mater
     35 -> 56 ms)."""
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
-    for chunk in nb.prange(n_chunks):
+    for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
         start = chunk * chunk_size
         stop = min((chunk + 1) * chunk_size, n)
         listed = chunk_listed(offsets, indices, start, stop)

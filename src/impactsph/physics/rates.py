@@ -18,6 +18,7 @@ import numpy as np
 from .. import codegen
 from ..models import VISCOSITY
 from . import passes as _template
+from .chunked import run_chunked, threads_for
 from .options import PassOptions
 from .records import record_columns
 
@@ -219,6 +220,7 @@ class CpuRates:
         if self._chunk is None or self._chunk[0] != n:  # get_num_threads takes a lock
             self._chunk = (n, chunk_size(n))
         chunk = self._chunk[1]
+        threads = threads_for(n, chunk, self.options.parallel)
         if hourglass > 0.0 and (b.dhg.shape[0] < n_active or hourglass_acceleration is None
                                 or hourglass_acceleration.shape != (n_active, self.dim)):
             raise ValueError("the hourglass control needs RateBuffers(..., hourglass=True) and "
@@ -227,19 +229,19 @@ class CpuRates:
         if self._gradients is None or self._gradients.shape[0] != rows:
             self._gradients = np.empty((rows, self.dim, self.dim))
         if k.FORCE_CORRECTION:
-            loops.moment_pass(nl.order, self._packed, nl.offsets, nl.indices, nl.filter_starts,
-                              chunk)
+            run_chunked(loops.moment_pass, threads, nl.order, self._packed, nl.offsets,
+                        nl.indices, nl.filter_starts, chunk)
             if after_moments is not None:
                 after_moments(self._packed, k.CM0)
         if k.VELOCITY_RECONSTRUCTION:
-            loops.gradient_pass(nl.order, self._packed, nl.offsets, nl.indices,
-                                nl.filter_starts, chunk)
+            run_chunked(loops.gradient_pass, threads, nl.order, self._packed, nl.offsets,
+                        nl.indices, nl.filter_starts, chunk)
             if after_moments is not None:  # a matrix as C: a mirror ghost gets R L R
                 after_moments(self._packed, k.LV0)
-        loops.pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
-                        nl.filter_starts, viscosity.kind, viscosity.pair,
-                        self.options.normal_stress, S, material, table, b.drho, b.dv, b.de,
-                        b.de_visc, b.contact_force, b.pair_count, b.dS, self._gradients, chunk)
+        run_chunked(loops.pair_pass, threads, n_active, nl.order, self._packed, nl.offsets,
+                    nl.indices, nl.filter_starts, viscosity.kind, viscosity.pair,
+                    self.options.normal_stress, S, material, table, b.drho, b.dv, b.de,
+                    b.de_visc, b.contact_force, b.pair_count, b.dS, self._gradients, chunk)
         if b.de_pairs.shape[0]:
             np.copyto(b.de_pairs[:n_active], b.de[:n_active])
         if after_pairs is not None:
@@ -258,13 +260,13 @@ class CpuRates:
             if b.factor.shape[0] < n_active:
                 raise ValueError("a viscosity switch needs RateBuffers(..., switched=True)")
             near_offsets, near_indices = nl.within(viscosity.switch_reach)
-            self.switch_pass(viscosity.kind)(
-                n_active, nl.order, self._packed, near_offsets, near_indices, viscosity.kind,
-                viscosity.switch, float(switch_elapsed), b.factor, b.memory, chunk)
+            run_chunked(self.switch_pass(viscosity.kind), threads, n_active, nl.order,
+                        self._packed, near_offsets, near_indices, viscosity.kind,
+                        viscosity.switch, float(switch_elapsed), b.factor, b.memory, chunk)
         if hourglass > 0.0:
-            loops.hourglass_pass(n_active, nl.order, self._packed, self._gradients,
-                                 nl.offsets, nl.indices, nl.filter_starts, material, table,
-                                 hourglass, hourglass_acceleration, b.dv, b.de, b.dhg, chunk)
+            run_chunked(loops.hourglass_pass, threads, n_active, nl.order, self._packed,
+                        self._gradients, nl.offsets, nl.indices, nl.filter_starts, material,
+                        table, hourglass, hourglass_acceleration, b.dv, b.de, b.dhg, chunk)
 
 
     def work_energy(self, n_active: int, work_velocity: np.ndarray, neighbours,
@@ -283,12 +285,14 @@ class CpuRates:
         nl = neighbours
         self._packed[:, k.W:k.W + self.dim] = work_velocity[nl.order]
         # (the evaluation's own module: its neighbour loops, the same sums)
-        self._loops.pair_pass(n_active, nl.order, self._packed, nl.offsets, nl.indices,
-                              nl.filter_starts, viscosity.kind, viscosity.pair,
-                              self.options.normal_stress, S, material, table, scratch.drho,
-                              scratch.dv, scratch.de, scratch.de_visc, scratch.contact_force[:0],
-                              scratch.pair_count, scratch.dS, np.empty((0, self.dim, self.dim)),
-                              self._chunk[1])
+        chunk = self._chunk[1]
+        run_chunked(self._loops.pair_pass,
+                    threads_for(nl.order.shape[0], chunk, self.options.parallel), n_active,
+                    nl.order, self._packed, nl.offsets, nl.indices, nl.filter_starts,
+                    viscosity.kind, viscosity.pair, self.options.normal_stress, S, material,
+                    table, scratch.drho, scratch.dv, scratch.de, scratch.de_visc,
+                    scratch.contact_force[:0], scratch.pair_count, scratch.dS,
+                    np.empty((0, self.dim, self.dim)), chunk)
         return scratch.de
 
 
@@ -369,6 +373,6 @@ def switch_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray, h:
     out, new_memory = np.zeros(n), np.zeros(n)
     compiled_passes(dim, options=PassOptions(viscosity_factor=True, switch_kind=settings.kind,
                                              record_precision=record_precision)).switch_pass(
-        n, neighbours.order, packed, neighbours.offsets, neighbours.indices, settings.kind,
+        0, 1, n, neighbours.order, packed, neighbours.offsets, neighbours.indices, settings.kind,
         settings.switch, float(elapsed), out, new_memory, chunk_size(n))
     return (out, new_memory) if with_memory else out

@@ -41,10 +41,12 @@ from types import SimpleNamespace
 import numba as nb
 import numpy as np
 
-from impactsph.jitcache import njit_variant
+from impactsph.jitcache import njit_variant, noalias_option
 from impactsph.kernels import cubic_spline, cubic_spline_gradient_factor
 from impactsph.materials import RHO0, SHEAR, WAVE_MODULUS
 from impactsph.models.viscosity.monaghan import monaghan_viscosity
+from impactsph.physics.borrow import borrowed
+from impactsph.physics.chunked import run_chunked, threads_for
 from impactsph.physics.stress_rate import jaumann_stress_rate_nd
 
 #: a reference moment matrix whose determinant is below this (its eigenvalues' geometric mean
@@ -57,6 +59,11 @@ CHUNK = 64
 #: over the neighbours (the sums run as partial sums, one per vector lane); no "contract",
 #: for the determinism of ``impactsph.physics.passes.FASTMATH``
 PASS_FASTMATH = {"reassoc", "arcp", "nsz"}
+#: the passes' compile options: run in shares of their chunks (``nogil``), their
+#: distinct arrays marked ``noalias`` as a ``prange`` body's were
+#: (:func:`impactsph.jitcache.noalias_option`)
+PASS_OPTIONS = {"nogil": True, "fastmath": PASS_FASTMATH, "error_model": "numpy",
+                **noalias_option()}
 
 
 @nb.njit(inline="always", cache=True)
@@ -356,15 +363,41 @@ def force_particle(i, x, v, X, V0, m, h, rho, wave_speed, youngs, offsets, neigh
 def compiled_passes(dim: int) -> SimpleNamespace:
     """:func:`deformation_pass` and :func:`force_pass` compiled for ``dim`` (1, 2 or 3), a
     constant in their code, so that the small ``dim`` x ``dim`` loops unroll (with
-    ``x.shape[1]`` they stayed loops).  Each parallel work item is a chunk of :data:`CHUNK`
-    particles that allocates its scratch once: an allocation per particle cost more than the
-    particle's arithmetic."""
+    ``x.shape[1]`` they stayed loops).  Each work item is a chunk of :data:`CHUNK` particles
+    that allocates its scratch once: an allocation per particle cost more than the particle's
+    arithmetic.  The passes take ``(first, step, ...)`` and run share ``first`` of ``step`` of
+    the chunks, the shares on numba's threads (:mod:`impactsph.physics.chunked`; a ``prange``
+    loop under :data:`PASS_FASTMATH` gave the process that compiled it other bits than the
+    processes that loaded it from numba's cache), with their arrays borrowed
+    (:mod:`impactsph.physics.borrow`), as a threaded loop's body had them."""
 
-    @njit_variant(f"{dim}d", parallel=True, fastmath=PASS_FASTMATH, error_model="numpy")
-    def deformation(n_active, x, v, V0, m, rho, pressure, S, damage, material, table, offsets,
-                    neighbours, grad, K, F, Fdot, Q, drho, dS, de,
+    @njit_variant(f"{dim}d", **PASS_OPTIONS)
+    def deformation(first, step, n_active, x, v, V0, m, rho, pressure, S, damage, material,
+                    table, offsets, neighbours, grad, K, F, Fdot, Q, drho, dS, de,
                     wave_speed):  # pragma: no cover
-        for chunk in nb.prange((n_active + CHUNK - 1) // CHUNK):
+        x = borrowed(x)
+        v = borrowed(v)
+        V0 = borrowed(V0)
+        m = borrowed(m)
+        rho = borrowed(rho)
+        pressure = borrowed(pressure)
+        S = borrowed(S)
+        damage = borrowed(damage)
+        material = borrowed(material)
+        table = borrowed(table)
+        offsets = borrowed(offsets)
+        neighbours = borrowed(neighbours)
+        grad = borrowed(grad)
+        K = borrowed(K)
+        F = borrowed(F)
+        Fdot = borrowed(Fdot)
+        Q = borrowed(Q)
+        drho = borrowed(drho)
+        dS = borrowed(dS)
+        de = borrowed(de)
+        wave_speed = borrowed(wave_speed)
+        n_chunks = (n_active + CHUNK - 1) // CHUNK
+        for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
             Fi = np.empty((dim, dim))
             Fd = np.empty((dim, dim))
             Finv = np.empty((dim, dim))
@@ -375,14 +408,37 @@ def compiled_passes(dim: int) -> SimpleNamespace:
                                 offsets, neighbours, grad, K, F, Fdot, Q, drho, dS, de,
                                 wave_speed, Fi, Fd, Finv, L, Pk, dim)
 
-    @njit_variant(f"{dim}d", parallel=True, fastmath=PASS_FASTMATH, error_model="numpy")
-    def force(n_active, x, v, X, V0, m, h, rho, wave_speed, youngs, offsets, neighbours, grad,
-              w, dw, F, Q, visc, alpha, dv, de, de_visc, Fdot, tau,
+    @njit_variant(f"{dim}d", **PASS_OPTIONS)
+    def force(first, step, n_active, x, v, X, V0, m, h, rho, wave_speed, youngs, offsets,
+              neighbours, grad, w, dw, F, Q, visc, alpha, dv, de, de_visc, Fdot, tau,
               dashpot):  # pragma: no cover
-        for i in nb.prange(n_active):
-            force_particle(i, x, v, X, V0, m, h, rho, wave_speed, youngs, offsets, neighbours,
-                           grad, w, dw, F, Q, visc, alpha, dv, de, de_visc, dim, Fdot, tau,
-                           dashpot)
+        x = borrowed(x)
+        v = borrowed(v)
+        X = borrowed(X)
+        V0 = borrowed(V0)
+        m = borrowed(m)
+        h = borrowed(h)
+        rho = borrowed(rho)
+        wave_speed = borrowed(wave_speed)
+        youngs = borrowed(youngs)
+        offsets = borrowed(offsets)
+        neighbours = borrowed(neighbours)
+        grad = borrowed(grad)
+        w = borrowed(w)
+        dw = borrowed(dw)
+        F = borrowed(F)
+        Q = borrowed(Q)
+        dv = borrowed(dv)
+        de = borrowed(de)
+        de_visc = borrowed(de_visc)
+        Fdot = borrowed(Fdot)
+        tau = borrowed(tau)
+        n_chunks = (n_active + CHUNK - 1) // CHUNK
+        for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
+            for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n_active)):
+                force_particle(i, x, v, X, V0, m, h, rho, wave_speed, youngs, offsets,
+                               neighbours, grad, w, dw, F, Q, visc, alpha, dv, de, de_visc,
+                               dim, Fdot, tau, dashpot)
 
     return SimpleNamespace(deformation_pass=deformation, force_pass=force)
 
@@ -396,7 +452,7 @@ def deformation_pass(n_active, x, v, V0, m, rho, pressure, S, damage, material, 
     the stress power's ``de`` and the sound speed ``wave_speed = sqrt(M / rho)`` (``M`` the
     material's wave modulus; m/s) that :func:`force_pass`'s viscosity reads; ``pressure`` from
     the equations of state (undamaged)."""
-    compiled_passes(x.shape[1]).deformation_pass(
+    run_chunked(compiled_passes(x.shape[1]).deformation_pass, threads_for(n_active, CHUNK, True),
         n_active, x, v, V0, m, rho, pressure, S, damage, material, table, offsets, neighbours,
         grad, K, F, Fdot, Q, drho, dS, de, wave_speed)
 
@@ -420,7 +476,7 @@ def force_pass(n_active, x, v, X, V0, m, h, rho, wave_speed, youngs, offsets, ne
     rigid translation is not heated.  ``Fdot`` and ``tau`` (per particle, s): the penalty's
     dashpot (:func:`hourglass_coefficient`), evaluated where ``dashpot`` is true (some ``tau``
     > 0: the caller knows it once for the run, so the pass does not test every pair)."""
-    compiled_passes(x.shape[1]).force_pass(
+    run_chunked(compiled_passes(x.shape[1]).force_pass, threads_for(n_active, CHUNK, True),
         n_active, x, v, X, V0, m, h, rho, wave_speed, youngs, offsets, neighbours, grad, w, dw,
         F, Q, visc, alpha, dv, de, de_visc, Fdot, tau, bool(dashpot))
 

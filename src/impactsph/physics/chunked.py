@@ -1,0 +1,161 @@
+"""The passes over chunks, run in shares on numba's threads (issue 16, 2026-12-05).
+
+The neighbour passes that LLVM vectorises (:func:`~impactsph.physics.passes.pair_pass`, the
+moment, gradient and hourglass passes, and a vectorised viscosity switch) are compiled with
+reassociation (``PAIR_FASTMATH``).  As numba ``prange`` loops they came out as two codes: numba
+compiles a threaded loop's body as a function of its own, links a copy into the pass and
+optimises that copy again; the process that compiled the pass runs the first, numba's cache
+holds the second, and reassociation lets the second optimisation order a sum otherwise.  A run
+then differed in its last bits between the first process on a machine and every later one,
+and from the serial passes (docs/architecture.md, "One compiled code a pass").
+
+So these passes have no ``prange``: each takes ``(first, step, ...)`` and runs its share
+``first`` of ``step`` of its chunks (a block of consecutive chunks, so that a thread's
+particles are neighbours), and :func:`run_chunked` runs the ``step`` shares on numba's threads
+through a small ``prange`` loop of its own (:func:`_drive`) that calls the pass at its address
+(:func:`_call_at`): the loop holds no arithmetic, and the pass is not linked into it, so every
+process, threaded or not, compiling or loading, runs the one code of the pass that numba
+compiled and cached.  Each particle's sums are made by one thread in a fixed order whatever
+the thread count.  (Calling the shares from a pool of Python threads instead cost 1.4x on
+the Taylor bar's 1407 particles on two threads: each pass is a fraction of a millisecond
+there, and the threads' hand-over is not.)  The pass's native entry is looked up once for its
+arguments' types (:func:`_address`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numba as nb
+import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.core.callconv import excinfo_t
+from numba.extending import intrinsic
+
+#: the marks around a tuple's elements in :func:`_flat` (no pass takes scalars of these types)
+_OPEN, _CLOSE = np.uint8(0), np.uint16(0)
+
+
+def _flat(arguments: tuple[Any, ...]) -> tuple[Any, ...]:
+    """``arguments`` with each tuple among them spliced in between the marks ``_OPEN`` and
+    ``_CLOSE``: numba's ``prange`` passes a tuple into its loop's body as its elements, and
+    cannot pass one whose elements are tuples."""
+    flat: list[Any] = []
+    for a in arguments:
+        if isinstance(a, tuple):
+            flat += [_OPEN, *a, _CLOSE]
+        else:
+            flat.append(a)
+    return tuple(flat)
+
+
+def _grouped(flat_types: tuple[Any, ...]) -> list[tuple[int, int, Any]]:
+    """``(start, stop, type)`` of each argument in :func:`_flat`'s types: one element, or the
+    elements between the marks as a tuple."""
+    groups, k = [], 0
+    while k < len(flat_types):
+        if flat_types[k] == types.uint8:
+            stop = k + 1
+            while flat_types[stop] != types.uint16:
+                stop += 1
+            groups.append((k + 1, stop, types.BaseTuple.from_types(flat_types[k + 1:stop])))
+            k = stop + 1
+        else:
+            groups.append((k, k + 1, flat_types[k]))
+            k += 1
+    return groups
+
+
+@intrinsic
+def _call_at(typingctx, address, first, step, flat):
+    """``f(first, step, *arguments)`` for the compiled function ``f`` (numba's calling
+    convention, returning nothing) whose native entry is at ``address``, the ``arguments``
+    given as :func:`_flat` makes them: a call through a pointer, so ``f``'s code is not linked
+    into the caller."""
+    if not isinstance(address, types.Integer) or not isinstance(flat, types.BaseTuple):
+        return None
+    groups = _grouped(tuple(flat))
+    argument_types = (first, step, *(g[2] for g in groups))
+
+    def codegen(context, builder, signature, args):
+        at, share, shares, packed = args
+        elements = [builder.extract_value(packed, k) for k in range(len(flat))]
+        values = [share, shares]
+        for start, stop, kind in groups:
+            if stop - start == 1 and not isinstance(kind, types.BaseTuple):
+                values.append(elements[start])
+            else:
+                values.append(context.make_tuple(builder, kind, elements[start:stop]))
+        conv = context.call_conv
+        function = builder.inttoptr(
+            at, conv.get_function_type(types.none, argument_types).as_pointer())
+        returned = conv.get_return_type(types.none).pointee
+        result = cgutils.alloca_once(builder, returned)
+        builder.store(cgutils.get_null_value(returned), result)
+        excinfo = cgutils.alloca_once(builder, ir.PointerType(excinfo_t), name="excinfo")
+        native = list(conv._get_arg_packer(argument_types).as_arguments(builder, values))
+        code = builder.call(function, [result, excinfo, *native])
+        status = conv._get_return_status(builder, code, builder.load(excinfo))
+        with cgutils.if_unlikely(builder, status.is_error):
+            conv.return_status_propagate(builder, status)
+        return context.get_dummy_value()
+
+    return types.none(address, first, step, flat), codegen
+
+
+@nb.njit(parallel=True, cache=True)
+def _drive(address, threads, flat):  # pragma: no cover (compiled)
+    """The pass at ``address`` for each share ``(t, threads, *arguments)`` in parallel (the
+    arguments as :func:`_flat` makes them)."""
+    for t in nb.prange(threads):
+        _call_at(address, t, threads, flat)
+
+
+#: per chunked pass, its last call's arguments (held, so that their ids stay theirs) and the
+#: address of its code compiled for their types
+_ADDRESSES: dict[int, tuple[tuple[Any, ...], tuple[int, ...], int]] = {}
+
+
+def _address(chunk_pass: Any, arguments: tuple[Any, ...]) -> int:
+    """The native entry of ``chunk_pass`` compiled for ``(0, 1, *arguments)``'s types
+    (compiled, or loaded from numba's cache, on first use)."""
+    ids = tuple(map(id, arguments))
+    known = _ADDRESSES.get(id(chunk_pass))
+    if known is not None and known[1] == ids:
+        return known[2]
+    signature = tuple(nb.typeof(a) for a in (0, 1, *arguments))
+    overload = chunk_pass.overloads.get(signature)
+    if overload is None:
+        chunk_pass.compile(signature)
+        overload = chunk_pass.overloads[signature]
+    at = overload.library.get_pointer_to_function(overload.fndesc.llvm_func_name)
+    _ADDRESSES[id(chunk_pass)] = (arguments, ids, at)
+    return at
+
+
+def threads_for(rows: int, chunk_size: int, threaded: bool) -> int:
+    """How many shares :func:`run_chunked` runs ``rows`` rows in, in chunks of
+    ``chunk_size``: numba's current thread count (``numba.set_num_threads``, which
+    ``compute.threads`` sets) where the passes are threaded, at most one a chunk; 1 for the
+    serial passes."""
+    if not threaded:
+        return 1
+    chunks = (rows + chunk_size - 1) // chunk_size
+    return max(1, min(nb.get_num_threads(), chunks))
+
+
+def run_chunked(chunk_pass: Callable[..., Any], threads: int, *args: Any) -> None:
+    """``chunk_pass(t, threads, *args)`` for every share ``t = 0 .. threads - 1``: called
+    directly for one, else on numba's threads (:func:`_drive`); a ``chunk_pass`` that is no
+    numba dispatcher (a wrapper a test or a benchmark put in its place) gets the shares one
+    after another."""
+    if threads <= 1:
+        chunk_pass(0, 1, *args)
+    elif not hasattr(chunk_pass, "overloads"):
+        for t in range(threads):
+            chunk_pass(t, threads, *args)
+    else:
+        _drive(_address(chunk_pass, args), threads, _flat(args))

@@ -1,0 +1,62 @@
+"""The chunked passes' runner (:mod:`impactsph.physics.chunked`): every chunk once, in shares
+on numba's threads, the pass called at its address; and a compiled chunked pass gives the
+same bits on one thread and on several."""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from impactsph.physics.chunked import run_chunked, threads_for
+
+
+@nb.njit(nogil=True)
+def _count_chunks(first, step, seen, shares):
+    chunks = seen.shape[0]
+    shares[first] += step  # each share once, told the share count
+    for chunk in range(first * chunks // step, (first + 1) * chunks // step):
+        seen[chunk] += 1
+
+
+def test_each_share_runs_once_and_the_chunks_are_covered_once():
+    for threads in (1, 2, 3):
+        seen, shares = np.zeros(11, dtype=np.int64), np.zeros(3, dtype=np.int64)
+        run_chunked(_count_chunks, threads, seen, shares)
+        assert seen.tolist() == [1] * 11, threads
+        assert shares.tolist() == [threads] * threads + [0] * (3 - threads), threads
+
+
+def test_threads_for_takes_numbas_count_at_most_one_a_chunk_and_one_serial(monkeypatch):
+    monkeypatch.setattr(nb, "get_num_threads", lambda: 4)
+    assert threads_for(1000, 100, True) == 4
+    assert threads_for(250, 100, True) == 3  # three chunks
+    assert threads_for(10, 100, True) == 1
+    assert threads_for(1000, 100, False) == 1  # the serial passes
+
+
+@nb.njit(nogil=True, fastmath={"reassoc", "arcp", "nsz"})
+def _row_sums(first, step, values, out, chunk_size):
+    n = values.shape[0]
+    chunks = (n + chunk_size - 1) // chunk_size
+    for chunk in range(first * chunks // step, (first + 1) * chunks // step):
+        for i in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
+            s = 0.0
+            for k in range(values.shape[1]):
+                s += values[i, k]
+            out[i] = s
+
+
+def test_a_compiled_chunked_pass_gives_the_same_bits_in_any_number_of_shares():
+    values = np.random.default_rng(3).normal(size=(997, 61))
+    outs = []
+    for threads in (1, 2, 3):
+        out = np.full(997, np.nan)
+        run_chunked(_row_sums, threads, values, out, 16)
+        outs.append(out)
+    assert not np.isnan(outs[0]).any()
+    assert outs[0].tobytes() == outs[1].tobytes() == outs[2].tobytes()
+    # a new array of another type: the pass compiled again for it, at another address
+    out32 = np.full(997, np.nan, dtype=np.float32)
+    run_chunked(_row_sums, 2, values, out32, 16)
+    assert np.allclose(out32, outs[0], rtol=1e-6)
+    assert len(_row_sums.overloads) == 2
