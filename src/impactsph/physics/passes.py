@@ -149,6 +149,12 @@ NOALIAS = noalias_option()
 PARALLEL_OPTION = True if PARALLEL else ParallelOptions(
     {"comprehension": False, "reduction": False, "inplace_binop": False, "setitem": False,
      "numpy": False, "stencil": False, "fusion": False, "prange": False})
+#: the chunked passes' (:mod:`impactsph.physics.chunked`) ``parallel`` option in every
+#: module: numba's parallel passes' simplifications without any transform (they have no
+#: ``prange``), as the serial passes have them
+CHUNKED_OPTION = ParallelOptions(
+    {"comprehension": False, "reduction": False, "inplace_binop": False, "setitem": False,
+     "numpy": False, "stencil": False, "fusion": False, "prange": False})
 #: the error model of the passes that do not set their own: numba compiles a parallel loop's
 #: body with "numpy" (no zero-division checks) whatever the function's, so the serial passes
 #: (``PARALLEL = False``) take it too, for the same code in the loop
@@ -1504,7 +1510,8 @@ def particle_pass(order, x, v, m, rho, e, S, carried, h, body, material, table, 
         particle_record(p, order[p], x, v, m, rho, e, S, carried, h, body, material, table, P)
 
 
-@JIT(cache=True, nogil=True, **NOALIAS, fastmath=PAIR_FASTMATH, error_model="numpy")
+@JIT(parallel=CHUNKED_OPTION, cache=True, nogil=True, **NOALIAS,
+     fastmath=PAIR_FASTMATH, error_model="numpy")
 def moment_pass(first, step, order, P, offsets, indices, starts, chunk_size):
     """The correction matrices of every row (FORCE_CORRECTION only), after the records.
     Compiled as :func:`pair_pass`, so that the neighbour loop of :func:`moment_correction`
@@ -1520,7 +1527,8 @@ def moment_pass(first, step, order, P, offsets, indices, starts, chunk_size):
             moment_correction(p, P, offsets, indices, listed, starts, SKIN_FILTER)
 
 
-@JIT(cache=True, nogil=True, **NOALIAS, fastmath=PAIR_FASTMATH, error_model="numpy")
+@JIT(parallel=CHUNKED_OPTION, cache=True, nogil=True, **NOALIAS,
+     fastmath=PAIR_FASTMATH, error_model="numpy")
 def gradient_pass(first, step, order, P, offsets, indices, starts, chunk_size):
     """The velocity gradients of every row into the records (VELOCITY_RECONSTRUCTION only),
     after the records and before the pair pass; compiled as :func:`moment_pass`."""
@@ -1534,7 +1542,8 @@ def gradient_pass(first, step, order, P, offsets, indices, starts, chunk_size):
             velocity_gradient_record(p, P, offsets, indices, listed, starts, SKIN_FILTER)
 
 
-@JIT(cache=True, nogil=True, **NOALIAS, fastmath=PAIR_FASTMATH, error_model="numpy")
+@JIT(parallel=CHUNKED_OPTION, cache=True, nogil=True, **NOALIAS,
+     fastmath=PAIR_FASTMATH, error_model="numpy")
 def pair_pass(first, step, n_active, order, P, offsets, indices, starts, visc_kind, visc_params,
               normal_stress, S, material, table, drho, dv, de, de_visc, contact_force,
               pair_count, dS, L_sorted, chunk_size):
@@ -1579,7 +1588,8 @@ def correction_pass(n_active, order, P, offsets, indices, visc_kind, correction_
 # (a prange loop until 2026-12-05, threaded in the serial modules too: compiled serial, the
 # vectorised switches' sums had come out in another order than the threaded pass's, which was
 # the copy numba's cache holds, not the one a compiling process runs: impactsph.physics.chunked)
-@JIT(cache=True, nogil=True, **NOALIAS, fastmath=SWITCH_FASTMATH, error_model=SWITCH_ERROR_MODEL)
+@JIT(parallel=CHUNKED_OPTION, cache=True, nogil=True, **NOALIAS,
+     fastmath=SWITCH_FASTMATH, error_model=SWITCH_ERROR_MODEL)
 def switch_pass(first, step, n_active, order, P, offsets, indices, visc_kind, switch_params,
                 elapsed, factor, memory, chunk_size):
     """The viscosity switch (a scheme with one) over the active particles, after the pair
@@ -1611,7 +1621,8 @@ def friction_pass(n_active, order, P, offsets, indices, visc_kind, visc_params, 
                                   real_bodies, normal_stress, dv, de, contact_force)
 
 
-@JIT(cache=True, nogil=True, **NOALIAS, fastmath=PAIR_FASTMATH, error_model="numpy")
+@JIT(parallel=CHUNKED_OPTION, cache=True, nogil=True, **NOALIAS,
+     fastmath=PAIR_FASTMATH, error_model="numpy")
 def hourglass_pass(first, step, n_active, order, P, L_sorted, offsets, indices, starts,
                    material, table, zeta, hg, dv, de, dhg, chunk_size):
     """The hourglass control over the active particles (after the pair pass, whose velocity

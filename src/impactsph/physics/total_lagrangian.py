@@ -36,10 +36,12 @@ from __future__ import annotations
 
 import functools
 import math
+import warnings
 from types import SimpleNamespace
 
 import numba as nb
 import numpy as np
+from numba.core.cpu_options import ParallelOptions
 
 from impactsph.jitcache import njit_variant, noalias_option
 from impactsph.kernels import cubic_spline, cubic_spline_gradient_factor
@@ -63,7 +65,16 @@ PASS_FASTMATH = {"reassoc", "arcp", "nsz"}
 #: distinct arrays marked ``noalias`` as a ``prange`` body's were
 #: (:func:`impactsph.jitcache.noalias_option`)
 PASS_OPTIONS = {"nogil": True, "fastmath": PASS_FASTMATH, "error_model": "numpy",
-                **noalias_option()}
+                **noalias_option(),
+                # numba's parallel passes' simplifications, no transform (as the SPH passes')
+                "parallel": ParallelOptions(
+                    {"comprehension": False, "reduction": False, "inplace_binop": False,
+                     "setitem": False, "numpy": False, "stencil": False, "fusion": False,
+                     "prange": False})}
+# (numba warns that those options found nothing to run in parallel: that is the point)
+warnings.filterwarnings(
+    "ignore", message=r"(?s)\s*The keyword argument 'parallel=True' was specified but no "
+    r"transformation.*total_lagrangian\.py\", line \d+:.*def (deformation|force)\(")
 
 
 @nb.njit(inline="always", cache=True)
