@@ -99,19 +99,20 @@ def chunked(function: Any) -> bool:
     return getattr(function, "py_func", function).__code__.co_varnames[:2] == ("first", "step")
 
 
-def call(module, name: str, args: list[Any]) -> None:
-    """``module``'s pass ``name`` on ``args`` (without ``first, step``) over every chunk, on
-    numba's thread count: a chunked pass through :func:`impactsph.physics.chunked.run_chunked`,
-    a ``prange`` one as it is."""
+def caller(module, name: str) -> Any:
+    """A call of ``module``'s pass ``name`` on its arguments without ``first, step``, over
+    every chunk on numba's thread count: a chunked pass through
+    :func:`impactsph.physics.chunked.run_chunked`, a ``prange`` one as it is."""
+    import functools
+
     import numba
 
     from impactsph.physics.chunked import run_chunked
 
     function = getattr(module, name)
     if chunked(function):
-        run_chunked(function, numba.get_num_threads(), *args)
-    else:
-        function(*args)
+        return functools.partial(run_chunked, function, numba.get_num_threads())
+    return function
 
 
 def captured_inputs(sim, name: str) -> tuple[Any, list[Any] | None]:
@@ -168,7 +169,7 @@ def largest_differences(args: list[Any], here, other, name: str) -> tuple[list[f
     runs = []
     for module in (here, other):
         run = [a.copy() if isinstance(a, np.ndarray) else a for a in args]
-        call(module, name, run)
+        caller(module, name)(*run)
         runs.append(run)
     diffs, written = [], 0
     for given, a, b in zip(args, *runs, strict=True):
@@ -187,10 +188,10 @@ def best_times(args: list[Any], modules: dict[str, Any], name: str, rounds: int,
     times: dict[str, list[float]] = {label: [] for label in modules}
     for _ in range(rounds):
         for label, module in modules.items():
-            best = np.inf
+            function, best = caller(module, name), np.inf
             for _ in range(calls):
                 t0 = time.perf_counter()
-                call(module, name, args)
+                function(*args)
                 best = min(best, time.perf_counter() - t0)
             times[label].append(best)
     return times

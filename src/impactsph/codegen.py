@@ -65,7 +65,8 @@ warnings.filterwarnings(
     r"transformation.*passes_\w*[0-9a-f]{16}\.py\", line \d+:.*"
     r"def (moment|gradient|pair|hourglass|switch)_pass\(")
 #: the package modules whose code the template inlines (their source is part of the hash)
-TEMPLATE_IMPORTS = ("kernels.py", "materials.py", "physics/borrow.py", "physics/contact.py",
+TEMPLATE_IMPORTS = ("kernels.py", "materials.py", "physics/borrow.py", "physics/chunked.py",
+                    "physics/contact.py",
                     "physics/continuity.py", "physics/energy.py", "physics/momentum.py",
                     "physics/reconstruction.py", "physics/records.py", "physics/stress_rate.py")
 PACKAGE = Path(__file__).parent

@@ -33,7 +33,17 @@ from llvmlite import ir
 from numba import types
 from numba.core import cgutils
 from numba.core.callconv import excinfo_t
+from numba.core.cpu_options import ParallelOptions
 from numba.extending import intrinsic
+
+#: the ``parallel`` option of the chunked passes (and of the serial passes,
+#: :data:`impactsph.physics.passes.PARALLEL_OPTION`): numba's parallel passes'
+#: simplifications (copy propagation, dead code, array analysis), which a ``prange`` body gets
+#: and without which the pair pass took 1.07-1.12x as long, and no transform (they have no
+#: ``prange``)
+SIMPLIFICATIONS_ONLY = ParallelOptions(
+    {"comprehension": False, "reduction": False, "inplace_binop": False, "setitem": False,
+     "numpy": False, "stencil": False, "fusion": False, "prange": False})
 
 #: the marks around a tuple's elements in :func:`_flat` (no pass takes scalars of these types)
 _OPEN, _CLOSE = np.uint8(0), np.uint16(0)
@@ -114,9 +124,9 @@ def _drive(address, threads, flat):  # pragma: no cover (compiled)
         _call_at(address, t, threads, flat)
 
 
-#: per chunked pass, its last call's arguments (held, so that their ids stay theirs) and the
-#: address of its code compiled for their types
-_ADDRESSES: dict[int, tuple[tuple[Any, ...], tuple[int, ...], int]] = {}
+#: per chunked pass, the pass and its last call's arguments (held, so that their ids stay
+#: theirs), and the address of its code compiled for their types
+_ADDRESSES: dict[int, tuple[Any, tuple[Any, ...], tuple[int, ...], int]] = {}
 
 
 def _address(chunk_pass: Any, arguments: tuple[Any, ...]) -> int:
@@ -124,15 +134,15 @@ def _address(chunk_pass: Any, arguments: tuple[Any, ...]) -> int:
     (compiled, or loaded from numba's cache, on first use)."""
     ids = tuple(map(id, arguments))
     known = _ADDRESSES.get(id(chunk_pass))
-    if known is not None and known[1] == ids:
-        return known[2]
+    if known is not None and known[0] is chunk_pass and known[2] == ids:
+        return known[3]
     signature = tuple(nb.typeof(a) for a in (0, 1, *arguments))
     overload = chunk_pass.overloads.get(signature)
     if overload is None:
         chunk_pass.compile(signature)
         overload = chunk_pass.overloads[signature]
     at = overload.library.get_pointer_to_function(overload.fndesc.llvm_func_name)
-    _ADDRESSES[id(chunk_pass)] = (arguments, ids, at)
+    _ADDRESSES[id(chunk_pass)] = (chunk_pass, arguments, ids, at)
     return at
 
 

@@ -37,7 +37,6 @@ import math
 
 import numba as nb
 import numpy as np
-from numba.core.cpu_options import ParallelOptions
 
 from impactsph.boundaries import enforce_particle
 from impactsph.jitcache import noalias_option
@@ -65,6 +64,7 @@ from impactsph.models.columns import (
     VISCOSITY_MEMORY as CARRIED_MEMORY,
 )
 from impactsph.physics.borrow import borrowed  # noqa: F401 (codegen's serial passes)
+from impactsph.physics.chunked import SIMPLIFICATIONS_ONLY
 from impactsph.physics.contact import (
     FRICTION_REGULARISATION,
     contact_acceleration_pair,
@@ -146,15 +146,10 @@ NOALIAS = noalias_option()
 #: numba's ``parallel`` option of the passes: True, or for the serial passes its
 #: simplifications (copy propagation, dead code) without the transform of ``prange`` loops
 #: into threaded ones
-PARALLEL_OPTION = True if PARALLEL else ParallelOptions(
-    {"comprehension": False, "reduction": False, "inplace_binop": False, "setitem": False,
-     "numpy": False, "stencil": False, "fusion": False, "prange": False})
+PARALLEL_OPTION = True if PARALLEL else SIMPLIFICATIONS_ONLY
 #: the chunked passes' (:mod:`impactsph.physics.chunked`) ``parallel`` option in every
-#: module: numba's parallel passes' simplifications without any transform (they have no
-#: ``prange``), as the serial passes have them
-CHUNKED_OPTION = ParallelOptions(
-    {"comprehension": False, "reduction": False, "inplace_binop": False, "setitem": False,
-     "numpy": False, "stencil": False, "fusion": False, "prange": False})
+#: module: the serial passes' simplifications, no transform (they have no ``prange``)
+CHUNKED_OPTION = SIMPLIFICATIONS_ONLY
 #: the error model of the passes that do not set their own: numba compiles a parallel loop's
 #: body with "numpy" (no zero-division checks) whatever the function's, so the serial passes
 #: (``PARALLEL = False``) take it too, for the same code in the loop

@@ -41,14 +41,13 @@ from types import SimpleNamespace
 
 import numba as nb
 import numpy as np
-from numba.core.cpu_options import ParallelOptions
 
 from impactsph.jitcache import njit_variant, noalias_option
 from impactsph.kernels import cubic_spline, cubic_spline_gradient_factor
 from impactsph.materials import RHO0, SHEAR, WAVE_MODULUS
 from impactsph.models.viscosity.monaghan import monaghan_viscosity
 from impactsph.physics.borrow import borrowed
-from impactsph.physics.chunked import run_chunked, threads_for
+from impactsph.physics.chunked import SIMPLIFICATIONS_ONLY, run_chunked, threads_for
 from impactsph.physics.stress_rate import jaumann_stress_rate_nd
 
 #: a reference moment matrix whose determinant is below this (its eigenvalues' geometric mean
@@ -65,12 +64,7 @@ PASS_FASTMATH = {"reassoc", "arcp", "nsz"}
 #: distinct arrays marked ``noalias`` as a ``prange`` body's were
 #: (:func:`impactsph.jitcache.noalias_option`)
 PASS_OPTIONS = {"nogil": True, "fastmath": PASS_FASTMATH, "error_model": "numpy",
-                **noalias_option(),
-                # numba's parallel passes' simplifications, no transform (as the SPH passes')
-                "parallel": ParallelOptions(
-                    {"comprehension": False, "reduction": False, "inplace_binop": False,
-                     "setitem": False, "numpy": False, "stencil": False, "fusion": False,
-                     "prange": False})}
+                **noalias_option(), "parallel": SIMPLIFICATIONS_ONLY}
 # (numba warns that those options found nothing to run in parallel: that is the point)
 warnings.filterwarnings(
     "ignore", message=r"(?s)\s*The keyword argument 'parallel=True' was specified but no "
