@@ -25,6 +25,8 @@ from typing import Any
 from impactsph import Simulation, __version__, load_case
 from impactsph import solver as solver_module
 from impactsph.neighbours import NeighbourList
+from impactsph.physics import rates as rates_module
+from impactsph.physics import total_lagrangian
 
 #: (label, parent) of each timed part, in the table's order; a part's parent holds its time
 PARTS = (("run (wall)", None), ("step", "run (wall)"), ("survey", "run (wall)"),
@@ -72,6 +74,25 @@ class Timers:
         self._undo.append((owner, name, own[name] if name in own else None, name in own))
         setattr(owner, name, timed_hand_out)
 
+    def wrap_chunked(self, owner: Any, name: str = "run_chunked") -> None:
+        """A timer around the module's ``run_chunked``, under the name of the pass it runs:
+        the chunked passes (:mod:`impactsph.physics.chunked`) must stay numba dispatchers,
+        or ``run_chunked`` runs their shares one after another instead of on the threads."""
+        run = getattr(owner, name)
+        seconds, calls, clock = self.seconds, self.calls, time.perf_counter
+
+        def timed(chunk_pass: Any, threads: int, *args: Any) -> None:
+            label = chunk_pass.__name__
+            start = clock()
+            try:
+                run(chunk_pass, threads, *args)
+            finally:
+                seconds[label] += clock() - start
+                calls[label] += 1
+
+        self._undo.append((owner, name, run, True))
+        setattr(owner, name, timed)
+
     def restore(self) -> None:
         """Every wrapped attribute as it was."""
         for owner, name, original, had_own in reversed(self._undo):
@@ -80,6 +101,12 @@ class Timers:
             else:  # an instance's bound method: the class's again
                 delattr(owner, name)
         self._undo.clear()
+
+
+def _chunked(compiled: Any) -> bool:
+    """Whether ``compiled`` is a chunked pass: ``(first, step, ...)``."""
+    py_func = getattr(compiled, "py_func", None)
+    return py_func is not None and py_func.__code__.co_varnames[:2] == ("first", "step")
 
 
 def instrument(sim: Simulation, timers: Timers) -> list[tuple[str, str]]:
@@ -92,14 +119,21 @@ def instrument(sim: Simulation, timers: Timers) -> list[tuple[str, str]]:
     modules = [passes]
     if hasattr(solver.backend, "neighbour_loops"):
         modules.append(solver.backend.neighbour_loops(True))
+    # the chunked passes are timed around run_chunked, which must be handed the dispatchers
+    for module in (rates_module, total_lagrangian):
+        timers.wrap_chunked(module)
     for name in sorted(dir(passes)):  # every compiled pass this module has
         if name.endswith("_pass") and callable(getattr(passes, name)):
-            if name == "switch_pass" and hasattr(solver.backend, name):
+            if _chunked(getattr(passes, name)):
+                pass  # timed by run_chunked's timer (the switch's own module's too)
+            elif name == "switch_pass" and hasattr(solver.backend, name):
                 timers.wrap_returned(solver.backend, name, name)  # the switch's own module
             else:
                 for module in modules:
                     timers.wrap(module, name, name)
             parts.append((name, "step"))
+    # the total-Lagrangian passes (run_chunked's too; shown where they ran)
+    parts += [("deformation_pass", "step"), ("force_pass", "step")]
     steps: list[tuple[Any, str, str]] = [
         (integrator, "_stage_pass", "stage (update, return map, walls, survey)"),
         (integrator, "_keep", "start copies"),

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numba as nb
 import numpy as np
+import pytest
 
 from impactsph.physics.chunked import run_chunked, threads_for
 
@@ -60,3 +61,47 @@ def test_a_compiled_chunked_pass_gives_the_same_bits_in_any_number_of_shares():
     run_chunked(_row_sums, 2, values, out32, 16)
     assert np.allclose(out32, outs[0], rtol=1e-6)
     assert len(_row_sums.overloads) == 2
+
+
+def test_a_numba_that_cannot_build_the_drive_gets_python_threads_and_one_warning(monkeypatch):
+    """``_call_at`` uses numba's private calling-convention helpers; where a numba release
+    has changed them, the compilation of ``_drive`` fails, and the shares must still run, on
+    Python threads, to the same bits, with one warning that says so."""
+    from impactsph.physics import chunked
+
+    class _Unbuildable:
+        def compile(self, signature):
+            raise AttributeError("'CPUCallConv' object has no attribute '_get_arg_packer'")
+
+        def __call__(self, *args):
+            raise AssertionError("the drive must not run where it could not be compiled")
+
+    values = np.random.default_rng(5).normal(size=(501, 37))
+    serial = np.full(501, np.nan)
+    run_chunked(_row_sums, 1, values, serial, 16)
+    monkeypatch.setattr(chunked, "_drive", _Unbuildable())
+    monkeypatch.setattr(chunked, "_DRIVE_BROKEN", None)
+    monkeypatch.setattr(chunked, "_DRIVEN", set())
+    monkeypatch.setattr(chunked, "_ADDRESSES", {})
+    outs = []
+    with pytest.warns(RuntimeWarning, match="Python threads") as caught:
+        for threads in (2, 3, 2):
+            out = np.full(501, np.nan)
+            run_chunked(_row_sums, threads, values, out, 16)
+            outs.append(out)
+    assert len(caught) == 1  # told once
+    assert "_get_arg_packer" in chunked._DRIVE_BROKEN
+    for out in outs:
+        assert out.tobytes() == serial.tobytes()
+
+
+def test_the_drive_is_compiled_once_for_a_passes_argument_types(monkeypatch):
+    from impactsph.physics import chunked
+
+    monkeypatch.setattr(chunked, "_ADDRESSES", {})
+    values = np.random.default_rng(6).normal(size=(301, 7))
+    for _ in range(3):
+        out = np.empty(301)
+        run_chunked(_row_sums, 2, values, out, 16)
+    assert chunked._DRIVE_BROKEN is None
+    assert nb.typeof(chunked._flat((values, out, 16))) in chunked._DRIVEN

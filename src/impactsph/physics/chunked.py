@@ -19,12 +19,18 @@ compiled and cached.  Each particle's sums are made by one thread in a fixed ord
 the thread count.  (Calling the shares from a pool of Python threads instead cost 1.4x on
 the Taylor bar's 1407 particles on two threads: each pass is a fraction of a millisecond
 there, and the threads' hand-over is not.)  The pass's native entry is looked up once for its
-arguments' types (:func:`_address`).
+arguments' types (:func:`_address`).  :func:`_call_at` builds its call with numba's private
+calling-convention helpers, and numba is not pinned: where a numba release has changed them,
+:func:`_drive` fails to compile, and the shares run on a pool of Python threads instead (the
+same calls, so the same bits), with one ``RuntimeWarning`` that says so
+(:func:`_drive_ready`).
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numba as nb
@@ -125,25 +131,76 @@ def _drive(address, threads, flat):  # pragma: no cover (compiled)
 
 
 #: per chunked pass, the pass and its last call's arguments (held, so that their ids stay
-#: theirs), and the address of its code compiled for their types
-_ADDRESSES: dict[int, tuple[Any, tuple[Any, ...], tuple[int, ...], int]] = {}
+#: theirs), the address of its code compiled for their types, and whether :func:`_drive`
+#: runs with them (:func:`_drive_ready`)
+_ADDRESSES: dict[int, tuple[Any, tuple[Any, ...], tuple[int, ...], int, bool]] = {}
 
 
-def _address(chunk_pass: Any, arguments: tuple[Any, ...]) -> int:
+def _address(chunk_pass: Any, arguments: tuple[Any, ...]) -> tuple[int, bool]:
     """The native entry of ``chunk_pass`` compiled for ``(0, 1, *arguments)``'s types
-    (compiled, or loaded from numba's cache, on first use)."""
+    (compiled, or loaded from numba's cache, on first use), and whether :func:`_drive` can
+    call it (:func:`_drive_ready`)."""
     ids = tuple(map(id, arguments))
     known = _ADDRESSES.get(id(chunk_pass))
     if known is not None and known[0] is chunk_pass and known[2] == ids:
-        return known[3]
+        return known[3], known[4]
     signature = tuple(nb.typeof(a) for a in (0, 1, *arguments))
     overload = chunk_pass.overloads.get(signature)
     if overload is None:
         chunk_pass.compile(signature)
         overload = chunk_pass.overloads[signature]
     at = overload.library.get_pointer_to_function(overload.fndesc.llvm_func_name)
-    _ADDRESSES[id(chunk_pass)] = (chunk_pass, arguments, ids, at)
-    return at
+    driven = _drive_ready(at, _flat(arguments))
+    _ADDRESSES[id(chunk_pass)] = (chunk_pass, arguments, ids, at, driven)
+    return at, driven
+
+
+#: why :func:`_drive` could not be compiled with this numba (its calling convention is not
+#: the one :func:`_call_at` knows), or None: then the shares run on Python threads
+_DRIVE_BROKEN: str | None = None
+#: the flat argument types :func:`_drive` has been compiled for
+_DRIVEN: set[Any] = set()
+
+
+def _drive_ready(address: int, flat: tuple[Any, ...]) -> bool:
+    """Whether :func:`_drive` runs for these arguments: compiled (or loaded) on first use of
+    their types (an address and a thread count are integers).  :func:`_call_at` builds its
+    call with numba's private calling-convention helpers; a numba release that changed them
+    makes the compilation fail, which is told once (a ``RuntimeWarning``) and answered with
+    Python threads (:func:`_run_on_pool`: the same bits, more overhead a call)."""
+    global _DRIVE_BROKEN
+    if _DRIVE_BROKEN is not None:
+        return False
+    flat_type = nb.typeof(flat)
+    if flat_type in _DRIVEN:
+        return True
+    try:
+        _drive.compile((nb.typeof(address), types.int64, flat_type))
+    except Exception as error:  # noqa: BLE001 (any failure to build the call: fall back)
+        _DRIVE_BROKEN = f"{type(error).__name__}: {str(error).splitlines()[0][:200]}"
+        warnings.warn(f"impactsph: the chunked passes cannot be driven on numba "
+                      f"{nb.__version__}'s threads ({_DRIVE_BROKEN}); they run on Python "
+                      f"threads instead (the same results, slower for small runs)",
+                      RuntimeWarning, stacklevel=3)
+        return False
+    _DRIVEN.add(flat_type)
+    return True
+
+
+_POOL: ThreadPoolExecutor | None = None
+
+
+def _run_on_pool(chunk_pass: Callable[..., Any], threads: int, args: tuple[Any, ...]) -> None:
+    """The shares on a pool of Python threads: the passes are compiled ``nogil=True``, so
+    they run at once; each share is the same call as on numba's threads."""
+    global _POOL
+    if _POOL is None or _POOL._max_workers < threads:
+        if _POOL is not None:
+            _POOL.shutdown()
+        _POOL = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="impactsph-share")
+    futures = [_POOL.submit(chunk_pass, t, threads, *args) for t in range(threads)]
+    for future in futures:
+        future.result()  # (a share's exception raised here)
 
 
 def threads_for(rows: int, chunk_size: int, threaded: bool) -> int:
@@ -159,13 +216,18 @@ def threads_for(rows: int, chunk_size: int, threaded: bool) -> int:
 
 def run_chunked(chunk_pass: Callable[..., Any], threads: int, *args: Any) -> None:
     """``chunk_pass(t, threads, *args)`` for every share ``t = 0 .. threads - 1``: called
-    directly for one, else on numba's threads (:func:`_drive`); a ``chunk_pass`` that is no
-    numba dispatcher (a wrapper a test or a benchmark put in its place) gets the shares one
-    after another."""
+    directly for one, else on numba's threads (:func:`_drive`), or on Python threads where
+    this numba cannot compile that (:func:`_drive_ready`); a ``chunk_pass`` that is no numba
+    dispatcher (a wrapper a test or a benchmark put in its place) gets the shares one after
+    another."""
     if threads <= 1:
         chunk_pass(0, 1, *args)
     elif not hasattr(chunk_pass, "overloads"):
         for t in range(threads):
             chunk_pass(t, threads, *args)
     else:
-        _drive(_address(chunk_pass, args), threads, _flat(args))
+        address, driven = _address(chunk_pass, args)
+        if driven:
+            _drive(address, threads, _flat(args))
+        else:
+            _run_on_pool(chunk_pass, threads, args)
