@@ -156,7 +156,9 @@ def test_ac_paper_energy_shows_its_imbalance(run_bars):
 
 def test_ac_momentum_drift_is_measured_not_hidden():
     """In 2D with random velocities the correction is not antisymmetric: the summary's drift
-    is the true change of total momentum, and it is far above AV's round-off."""
+    is the true change of total momentum, and it is far above AV's round-off.  (AV's drift is
+    round-off in both measures, whose sums run in different orders: the survey's chunks and
+    ``ParticleState.momentum``'s product; there the two are only held below 1e-13.)"""
     from impactsph.loading import validate_case
     from impactsph.problem import build_problem
     from impactsph.simulation import Simulation
@@ -181,7 +183,11 @@ def test_ac_momentum_drift_is_measured_not_hidden():
         sim = Simulation(case, problem)
         sim.run()
         true_drift = np.linalg.norm(sim.state.momentum() - p0) / scale
-        assert sim.summary()["momentum_drift"] >= true_drift * (1 - 1e-9)
+        summary_drift = sim.summary()["momentum_drift"]
+        if scheme == "ac":  # the run's largest drift: at least the final one
+            assert summary_drift >= true_drift * (1 - 1e-9)
+        else:
+            assert summary_drift < 1e-13
         drift[scheme] = true_drift
     assert drift["av"] < 1e-13
     assert drift["ac"] > 1e-8

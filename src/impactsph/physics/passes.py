@@ -128,18 +128,23 @@ viscosity_switch = None
 #: passes served from numba's cache gave results differing at 1e-12 relative (the AC bars),
 #: so a run's last digits depended on the cache's state; without it they agree bitwise
 #: (``test_plugin_registers_the_models_for_the_command_line``, cold caches), at 6% of the step
-#: time (benchmarks/README.md).
+#: time (benchmarks/README.md).  (The cause was numba's two compilations of a ``prange``
+#: body, docs/architecture.md "One compiled code a pass"; these flags serve the passes that
+#: keep their ``prange``.)
 FASTMATH = {"arcp", "nsz"}
 #: the pair pass also reassociates, so that LLVM can vectorise its first loop over the neighbours
 #: (:func:`particle_rates`: the sums run as several partial sums, one per vector lane, added at
-#: the end); still no "contract", for the reason above.  The order is fixed by the compiled
-#: code, so the results do not depend on the thread count or on the cache's state: the passes
-#: with these flags have no ``prange`` loop, whose body numba would compile twice (once as it
-#: runs in the process that compiled it, once as its cache holds it, and reassociation lets
-#: the two differ), but run in shares of their chunks (:mod:`impactsph.physics.chunked`).
+#: the end), and fuses multiply-adds ("contract", since 2026-12-05: the pair pass 0.91-0.94 of
+#: its time without, benchmarks/README.md "Fused multiply-adds in the chunked passes").  The
+#: order is fixed by the compiled code, so the results do not depend on the thread count or
+#: on the cache's state: the passes with these flags have no ``prange`` loop, whose body numba
+#: would compile twice (once as it runs in the process that compiled it, once as its cache
+#: holds it, and reassociation or contraction lets the two differ), but run in shares of
+#: their chunks (:mod:`impactsph.physics.chunked`; ``tests/test_parallel_passes.py`` holds a
+#: compiling and a loading process to the serial passes' bits).
 #: With ``error_model="numpy"`` (no zero-division checks, which are branches) this is what
 #: lets the loop vectorise: 2.3x on the 2D pair loop alone (benchmarks/README.md).
-PAIR_FASTMATH = {"reassoc", "arcp", "nsz"}
+PAIR_FASTMATH = {"reassoc", "arcp", "nsz", "contract"}
 #: the chunked passes' pointer arguments are marked ``noalias``, as numba marks a ``prange``
 #: body's (:func:`impactsph.jitcache.noalias_option`): they are called with distinct arrays
 NOALIAS = noalias_option()
@@ -798,8 +803,9 @@ def stress_rate(L, S_i, shear, dS_i):
     """:func:`impactsph.physics.stress_rate.jaumann_stress_rate` as a call of its own, not
     inlined into the pair pass: with the pass's reassociating flags (PAIR_FASTMATH) on it, a
     process that compiled the passes and one that loaded them from numba's cache gave stress
-    rates that differed in the last bit.  ``DIM`` is passed as a constant, so the loops unroll
-    (:func:`impactsph.physics.stress_rate.jaumann_stress_rate_nd`)."""
+    rates that differed in the last bit (the pair pass was a ``prange`` loop then, whose body
+    numba compiles twice: :mod:`impactsph.physics.chunked`).  ``DIM`` is passed as a
+    constant, so the loops unroll (:func:`impactsph.physics.stress_rate.jaumann_stress_rate_nd`)."""
     jaumann_stress_rate_nd(L, S_i, shear, dS_i, DIM)
 
 

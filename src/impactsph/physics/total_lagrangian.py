@@ -56,10 +56,12 @@ from impactsph.physics.stress_rate import jaumann_stress_rate_nd
 SINGULAR_MOMENT = 0.05
 #: particles per work item of the deformation pass (each item allocates its scratch once)
 CHUNK = 64
-#: the passes' floating-point flags: reassociation, so that LLVM can vectorise their loops
-#: over the neighbours (the sums run as partial sums, one per vector lane); no "contract",
-#: for the determinism of ``impactsph.physics.passes.FASTMATH``
-PASS_FASTMATH = {"reassoc", "arcp", "nsz"}
+#: the passes' floating-point flags, ``impactsph.physics.passes.PAIR_FASTMATH``'s:
+#: reassociation, so that LLVM can vectorise their loops over the neighbours (the sums run as
+#: partial sums, one per vector lane), and fused multiply-adds; run in shares of their chunks
+#: (no ``prange``), each pass is one compiled code, so neither flag makes a compiling process
+#: and a loading one differ (:mod:`impactsph.physics.chunked`)
+PASS_FASTMATH = {"reassoc", "arcp", "nsz", "contract"}
 #: the passes' compile options: run in shares of their chunks (``nogil``), their
 #: distinct arrays marked ``noalias`` as a ``prange`` body's were
 #: (:func:`impactsph.jitcache.noalias_option`)
