@@ -85,14 +85,14 @@ def _used(parallel: bool) -> set[tuple[str, str]]:
     return used
 
 
-def _run(case: str, overrides: list[str], parallel: bool, monkeypatch):
-    monkeypatch.setenv(PARALLEL_VARIABLE, "1" if parallel else "0")
-    before = _used(parallel)
+def _serial_run(case: str, overrides: list[str], monkeypatch) -> Simulation:
+    """The case run here on the serial passes (the threaded ones run in child processes,
+    :func:`_child_run`)."""
+    monkeypatch.setenv(PARALLEL_VARIABLE, "0")
     sim = Simulation(load_case(case, overrides))
-    assert sim.solver.backend.options.parallel is parallel
+    assert sim.solver.backend.options.parallel is False
     sim.run()
-    newly = {p for _, p in _used(parallel) - before}
-    return sim, newly
+    return sim
 
 
 def _child_run(name: str, out: str) -> None:
@@ -134,7 +134,7 @@ def _threaded_in_a_child(name: str, cache: Path, out: Path) -> tuple[dict, dict]
 @pytest.mark.parametrize("name", list(CASES))
 def test_serial_passes_give_the_parallel_passes_run_to_the_bit(name, monkeypatch, tmp_path):
     case, overrides, passes = CASES[name]
-    serial, _ = _run(case, overrides, False, monkeypatch)
+    serial = _serial_run(case, overrides, monkeypatch)
     kept = serial.state.arrays()
     start = Simulation(load_case(case, overrides)).state.arrays()
     assert not np.array_equal(kept["velocity"], start["velocity"])  # the run did something
