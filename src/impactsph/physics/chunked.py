@@ -187,17 +187,20 @@ def _drive_ready(address: int, flat: tuple[Any, ...]) -> bool:
     return True
 
 
+#: the Python threads of :func:`_run_on_pool`, and how many it has
 _POOL: ThreadPoolExecutor | None = None
+_POOL_SIZE = 0
 
 
 def _run_on_pool(chunk_pass: Callable[..., Any], threads: int, args: tuple[Any, ...]) -> None:
     """The shares on a pool of Python threads: the passes are compiled ``nogil=True``, so
     they run at once; each share is the same call as on numba's threads."""
-    global _POOL
-    if _POOL is None or _POOL._max_workers < threads:
+    global _POOL, _POOL_SIZE
+    if _POOL is None or _POOL_SIZE < threads:
         if _POOL is not None:
             _POOL.shutdown()
         _POOL = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="impactsph-share")
+        _POOL_SIZE = threads
     futures = [_POOL.submit(chunk_pass, t, threads, *args) for t in range(threads)]
     for future in futures:
         future.result()  # (a share's exception raised here)
