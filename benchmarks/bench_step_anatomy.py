@@ -19,7 +19,7 @@ import json
 import platform
 import time
 from collections import Counter
-from types import SimpleNamespace
+from collections.abc import Callable
 from typing import Any
 
 from impactsph import Simulation, __version__, load_case
@@ -41,56 +41,24 @@ class Timers:
         self.calls: Counter[str] = Counter()
         self._undo: list[tuple[Any, str, Any, bool]] = []
 
-    def wrap(self, owner: Any, name: str, label: str) -> None:
+    def wrap(self, owner: Any, name: str, label: str | Callable[[tuple], str]) -> None:
+        """A timer around the attribute, under ``label``, or ``label(args)`` of each call
+        (``run_chunked``'s timer names the pass it runs: the chunked passes themselves must
+        stay numba dispatchers, or ``run_chunked`` runs their shares one after another)."""
         function = getattr(owner, name)
         seconds, calls, clock = self.seconds, self.calls, time.perf_counter
 
         def timed(*args: Any, **kwargs: Any) -> Any:
+            key = label if isinstance(label, str) else label(args)
             start = clock()
             try:
                 return function(*args, **kwargs)
             finally:
-                seconds[label] += clock() - start
-                calls[label] += 1
+                seconds[key] += clock() - start
+                calls[key] += 1
 
         own = vars(owner)  # the owner's own attribute (module, class or instance), if any
         self._undo.append((owner, name, own[name] if name in own else None, name in own))
-        setattr(owner, name, timed)
-
-    def wrap_returned(self, owner: Any, name: str, label: str) -> None:
-        """A timer around what the attribute returns (a method that hands out a compiled
-        function, such as the CPU backend's ``switch_pass(kind)``)."""
-        hand_out = getattr(owner, name)
-        timed: dict[Any, Any] = {}
-
-        def timed_hand_out(*args: Any) -> Any:
-            if args not in timed:
-                holder = SimpleNamespace(function=hand_out(*args))
-                self.wrap(holder, "function", label)
-                timed[args] = holder.function
-            return timed[args]
-
-        own = vars(owner)
-        self._undo.append((owner, name, own[name] if name in own else None, name in own))
-        setattr(owner, name, timed_hand_out)
-
-    def wrap_chunked(self, owner: Any, name: str = "run_chunked") -> None:
-        """A timer around the module's ``run_chunked``, under the name of the pass it runs:
-        the chunked passes (:mod:`impactsph.physics.chunked`) must stay numba dispatchers,
-        or ``run_chunked`` runs their shares one after another instead of on the threads."""
-        run = getattr(owner, name)
-        seconds, calls, clock = self.seconds, self.calls, time.perf_counter
-
-        def timed(chunk_pass: Any, threads: int, *args: Any) -> None:
-            label = chunk_pass.__name__
-            start = clock()
-            try:
-                run(chunk_pass, threads, *args)
-            finally:
-                seconds[label] += clock() - start
-                calls[label] += 1
-
-        self._undo.append((owner, name, run, True))
         setattr(owner, name, timed)
 
     def restore(self) -> None:
@@ -119,16 +87,12 @@ def instrument(sim: Simulation, timers: Timers) -> list[tuple[str, str]]:
     modules = [passes]
     if hasattr(solver.backend, "neighbour_loops"):
         modules.append(solver.backend.neighbour_loops(True))
-    # the chunked passes are timed around run_chunked, which must be handed the dispatchers
+    # the chunked passes (the switch's own module's too) are timed around run_chunked
     for module in (rates_module, total_lagrangian):
-        timers.wrap_chunked(module)
+        timers.wrap(module, "run_chunked", lambda args: args[0].__name__)
     for name in sorted(dir(passes)):  # every compiled pass this module has
         if name.endswith("_pass") and callable(getattr(passes, name)):
-            if _chunked(getattr(passes, name)):
-                pass  # timed by run_chunked's timer (the switch's own module's too)
-            elif name == "switch_pass" and hasattr(solver.backend, name):
-                timers.wrap_returned(solver.backend, name, name)  # the switch's own module
-            else:
+            if not _chunked(getattr(passes, name)):
                 for module in modules:
                     timers.wrap(module, name, name)
             parts.append((name, "step"))

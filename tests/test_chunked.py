@@ -81,7 +81,6 @@ def test_a_numba_that_cannot_build_the_drive_gets_python_threads_and_one_warning
     run_chunked(_row_sums, 1, values, serial, 16)
     monkeypatch.setattr(chunked, "_drive", _Unbuildable())
     monkeypatch.setattr(chunked, "_DRIVE_BROKEN", None)
-    monkeypatch.setattr(chunked, "_DRIVEN", set())
     monkeypatch.setattr(chunked, "_ADDRESSES", {})
     outs = []
     with pytest.warns(RuntimeWarning, match="Python threads") as caught:
@@ -95,13 +94,26 @@ def test_a_numba_that_cannot_build_the_drive_gets_python_threads_and_one_warning
         assert out.tobytes() == serial.tobytes()
 
 
-def test_the_drive_is_compiled_once_for_a_passes_argument_types(monkeypatch):
+def test_a_pass_is_looked_up_once_for_its_arrays_whatever_its_numbers(monkeypatch):
+    """The address and the drive are looked up once for a pass's arrays: a new Python number
+    (``float(elapsed)`` is a new object each call) does not look them up again, a new array
+    does; and the drive is compiled once for the arguments' types."""
     from impactsph.physics import chunked
 
+    lookups = []
+    ready = chunked._drive_ready
     monkeypatch.setattr(chunked, "_ADDRESSES", {})
+    monkeypatch.setattr(chunked, "_drive_ready",
+                        lambda *a: lookups.append(1) or ready(*a))
     values = np.random.default_rng(6).normal(size=(301, 7))
-    for _ in range(3):
-        out = np.empty(301)
-        run_chunked(_row_sums, 2, values, out, 16)
+    out = np.empty(301)
+    for chunk_size in (16, 17, 16):  # a new int object's value, the same arrays
+        out[:] = np.nan
+        run_chunked(_row_sums, 2, values, out, chunk_size)
+        assert np.allclose(out, values.sum(axis=1), rtol=1e-14, atol=0.0)
+    assert len(lookups) == 1
+    run_chunked(_row_sums, 2, values, np.empty(301), 16)  # another array
+    assert len(lookups) == 2
     assert chunked._DRIVE_BROKEN is None
-    assert nb.typeof(chunked._flat((values, out, 16))) in chunked._DRIVEN
+    signature = (nb.int64, nb.int64, nb.typeof(chunked._flat((values, out, 16))))
+    assert sum(tuple(s) == signature for s in chunked._drive.overloads) == 1

@@ -131,18 +131,25 @@ def _drive(address, threads, flat):  # pragma: no cover (compiled)
 
 
 #: per chunked pass, the pass and its last call's arguments (held, so that their ids stay
-#: theirs), the address of its code compiled for their types, and whether :func:`_drive`
-#: runs with them (:func:`_drive_ready`)
-_ADDRESSES: dict[int, tuple[Any, tuple[Any, ...], tuple[int, ...], int, bool]] = {}
+#: theirs), their key (:func:`_key`), the address of its code compiled for their types, and
+#: whether :func:`_drive` runs with them (:func:`_drive_ready`)
+_ADDRESSES: dict[int, tuple[Any, tuple[Any, ...], tuple[Any, ...], int, bool]] = {}
+
+
+def _key(arguments: tuple[Any, ...]) -> tuple[Any, ...]:
+    """What fixes the types of ``arguments`` without typing them: a Python number's type
+    (a new object each call, as ``float(elapsed)``: its id would miss every time), any other
+    argument's id."""
+    return tuple(type(a) if isinstance(a, (int, float)) else id(a) for a in arguments)
 
 
 def _address(chunk_pass: Any, arguments: tuple[Any, ...]) -> tuple[int, bool]:
     """The native entry of ``chunk_pass`` compiled for ``(0, 1, *arguments)``'s types
     (compiled, or loaded from numba's cache, on first use), and whether :func:`_drive` can
     call it (:func:`_drive_ready`)."""
-    ids = tuple(map(id, arguments))
+    key = _key(arguments)
     known = _ADDRESSES.get(id(chunk_pass))
-    if known is not None and known[0] is chunk_pass and known[2] == ids:
+    if known is not None and known[0] is chunk_pass and known[2] == key:
         return known[3], known[4]
     signature = tuple(nb.typeof(a) for a in (0, 1, *arguments))
     overload = chunk_pass.overloads.get(signature)
@@ -151,31 +158,27 @@ def _address(chunk_pass: Any, arguments: tuple[Any, ...]) -> tuple[int, bool]:
         overload = chunk_pass.overloads[signature]
     at = overload.library.get_pointer_to_function(overload.fndesc.llvm_func_name)
     driven = _drive_ready(at, _flat(arguments))
-    _ADDRESSES[id(chunk_pass)] = (chunk_pass, arguments, ids, at, driven)
+    _ADDRESSES[id(chunk_pass)] = (chunk_pass, arguments, key, at, driven)
     return at, driven
 
 
 #: why :func:`_drive` could not be compiled with this numba (its calling convention is not
 #: the one :func:`_call_at` knows), or None: then the shares run on Python threads
 _DRIVE_BROKEN: str | None = None
-#: the flat argument types :func:`_drive` has been compiled for
-_DRIVEN: set[Any] = set()
 
 
 def _drive_ready(address: int, flat: tuple[Any, ...]) -> bool:
     """Whether :func:`_drive` runs for these arguments: compiled (or loaded) on first use of
-    their types (an address and a thread count are integers).  :func:`_call_at` builds its
+    their types (an address and a thread count are integers; numba's ``compile`` returns at
+    once for types it has).  :func:`_call_at` builds its
     call with numba's private calling-convention helpers; a numba release that changed them
     makes the compilation fail, which is told once (a ``RuntimeWarning``) and answered with
     Python threads (:func:`_run_on_pool`: the same bits, more overhead a call)."""
     global _DRIVE_BROKEN
     if _DRIVE_BROKEN is not None:
         return False
-    flat_type = nb.typeof(flat)
-    if flat_type in _DRIVEN:
-        return True
     try:
-        _drive.compile((nb.typeof(address), types.int64, flat_type))
+        _drive.compile((nb.typeof(address), types.int64, nb.typeof(flat)))
     except Exception as error:  # noqa: BLE001 (any failure to build the call: fall back)
         _DRIVE_BROKEN = f"{type(error).__name__}: {str(error).splitlines()[0][:200]}"
         warnings.warn(f"impactsph: the chunked passes cannot be driven on numba "
@@ -183,7 +186,6 @@ def _drive_ready(address: int, flat: tuple[Any, ...]) -> bool:
                       f"threads instead (the same results, slower for small runs)",
                       RuntimeWarning, stacklevel=3)
         return False
-    _DRIVEN.add(flat_type)
     return True
 
 
