@@ -40,13 +40,18 @@ def _chunk_totals(chunk, n, m, v, de_visc, dv_corr, de_corr, contact_force, pair
     """:func:`rate_totals`' partial sums of one chunk of particles into ``part[chunk]``."""
     dim = v.shape[1]
     heat = work = corr_heat = pairs = 0.0
-    f = np.zeros(3)
+    # the force's components in scalars, not a small array: an array's sums went through
+    # memory, a load and a store per particle and component (the same sums, the same order)
+    f0 = f1 = f2 = 0.0
     for i in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n)):
         heat += m[i] * de_visc[i]
         pairs += pair_count[i]
         if contact_force.shape[0] > 0:
-            for a in range(dim):
-                f[a] += contact_force[i, a]
+            f0 += contact_force[i, 0]
+            if dim > 1:
+                f1 += contact_force[i, 1]
+            if dim > 2:
+                f2 += contact_force[i, 2]
         if corrected:
             corr_heat += m[i] * de_corr[i]
             for a in range(dim):
@@ -55,8 +60,9 @@ def _chunk_totals(chunk, n, m, v, de_visc, dv_corr, de_corr, contact_force, pair
     part[chunk, 1] = work
     part[chunk, 2] = corr_heat
     part[chunk, 3] = pairs
-    for a in range(3):
-        part[chunk, 4 + a] = f[a]
+    part[chunk, 4] = f0
+    part[chunk, 5] = f1
+    part[chunk, 6] = f2
 
 
 @nb.njit(inline="always", cache=True)
