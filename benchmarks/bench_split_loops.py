@@ -10,8 +10,9 @@ The midpoint step evaluates the rates twice a step (docs/modelling.md); a stagge
 (stress from the half-step velocity, forces from the new stress) would run the two loops once
 each.  So ``kinematic + forces`` against 2 is what such a step would save on the pair pass
 (benchmarks/README.md, "Why not one rate evaluation a step").  Each variant is made in a
-temporary ``git worktree`` of HEAD whose ``physics/passes.py`` has the other sums' lines
-deleted from ``particle_rates``' first loop (LLVM drops what then feeds nothing); both keep
+temporary ``git worktree`` of HEAD whose ``physics/passes.py`` is this tree's (uncommitted
+changes included) with the other sums' lines deleted from ``particle_rates``' first loop
+(LLVM drops what then feeds nothing), and timed against this tree's whole pass; both keep
 the per-particle part after the loop, which a real split would share out, so their sum
 overstates the split a little.  Timing only: the variants' outputs are not rates.
 """
