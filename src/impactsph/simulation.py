@@ -57,18 +57,6 @@ class RunRecord:
     thread_changes: list[tuple[float, float, int]] = field(default_factory=list)
 
 
-@nb.njit(inline="always", cache=True)
-def _squares(i, velocity, position, initial_position):  # pragma: no cover (compiled)
-    """``(|v_i|^2, |x_i - x0_i|^2)``: what :func:`body_totals` sums of particle ``i``."""
-    v2 = 0.0
-    u2 = 0.0
-    for a in range(velocity.shape[1]):
-        v2 += velocity[i, a] * velocity[i, a]
-        d = position[i, a] - initial_position[i, a]
-        u2 += d * d
-    return v2, u2
-
-
 @nb.njit(cache=True)
 def body_totals(body, mass, added_mass, velocity, specific_energy, plastic_work, position,
                 initial_position, n_bodies):  # pragma: no cover (compiled)
@@ -77,23 +65,14 @@ def body_totals(body, mass, added_mass, velocity, specific_energy, plastic_work,
     plastic work (J) and the largest squared displacement ``|x - x0|^2`` (m^2), as the
     columns of an ``(n_bodies, 4)`` array."""
     out = np.zeros((n_bodies, 4))
-    if n_bodies == 1:  # the sums in scalars (an array's go through memory): the same order
-        kinetic = internal = plastic = largest = 0.0
-        for i in range(body.shape[0]):
-            v2, u2 = _squares(i, velocity, position, initial_position)
-            kinetic += 0.5 * (mass[i] + added_mass[i]) * v2
-            internal += mass[i] * specific_energy[i]
-            plastic += mass[i] * plastic_work[i]
-            if u2 > largest:
-                largest = u2
-        out[0, 0] = kinetic
-        out[0, 1] = internal
-        out[0, 2] = plastic
-        out[0, 3] = largest
-        return out
     for i in range(body.shape[0]):
         b = body[i]
-        v2, u2 = _squares(i, velocity, position, initial_position)
+        v2 = 0.0
+        u2 = 0.0
+        for a in range(velocity.shape[1]):
+            v2 += velocity[i, a] * velocity[i, a]
+            d = position[i, a] - initial_position[i, a]
+            u2 += d * d
         out[b, 0] += 0.5 * (mass[i] + added_mass[i]) * v2
         out[b, 1] += mass[i] * specific_energy[i]
         out[b, 2] += mass[i] * plastic_work[i]

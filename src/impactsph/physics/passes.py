@@ -801,11 +801,13 @@ def contact_traction(Pi_, Pj, d0, d1, d2, r2, normal_stress):
 @JIT(cache=True, fastmath=FASTMATH)
 def stress_rate(L, S_i, shear, dS_i):
     """:func:`impactsph.physics.stress_rate.jaumann_stress_rate` as a call of its own, not
-    inlined into the pair pass: with the pass's reassociating flags (PAIR_FASTMATH) on it, a
-    process that compiled the passes and one that loaded them from numba's cache gave stress
-    rates that differed in the last bit (the pair pass was a ``prange`` loop then, whose body
-    numba compiles twice: :mod:`impactsph.physics.chunked`).  ``DIM`` is passed as a
-    constant, so the loops unroll (:func:`impactsph.physics.stress_rate.jaumann_stress_rate_nd`)."""
+    inlined into the pair pass.  It was made one when the pair pass was a ``prange`` loop: with
+    the pass's reassociating flags (PAIR_FASTMATH) on it, a compiling and a loading process
+    gave stress rates that differed in the last bit (:mod:`impactsph.physics.chunked`).  That
+    cause is gone, but inlined it measured no better (2026-12-06, ``bench_pass_ab.py``: 0.975
+    of the pass's time in 2D, 1.02 in 3D, medians; benchmarks/README.md), so it stays a call.
+    ``DIM`` is passed as a constant, so the loops unroll
+    (:func:`impactsph.physics.stress_rate.jaumann_stress_rate_nd`)."""
     jaumann_stress_rate_nd(L, S_i, shear, dS_i, DIM)
 
 
