@@ -215,3 +215,16 @@ def test_check_says_which_scheme_runs(source, extra, expected):
     assert res.exit_code == 0, res.output
     line = res.output.splitlines()[1]
     assert line.startswith("scheme: ") and expected in line, line
+
+
+def test_the_command_line_starts_without_matplotlib():
+    """``import impactsph`` and the command line's module leave matplotlib alone (a run
+    imports it where it draws): it was half of every command's start, ``impactsph --help``
+    and each sweep worker's included."""
+    import subprocess
+    import sys
+
+    code = "import sys, impactsph.cli; print(sorted(m for m in sys.modules if 'matplotlib' in m))"
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert res.stdout.strip() == "[]", res.stdout

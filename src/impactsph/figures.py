@@ -11,7 +11,8 @@ from pathlib import Path
 from typing import Any
 
 from .loading import validate_case
-from .plotting import energies_figure, kinetic_energy_figure, label_of
+from .plotting import energies_figure, kinetic_energy_figure
+from .preflight import label_of
 from .problems.registry import get_problem
 
 log = logging.getLogger("impactsph")

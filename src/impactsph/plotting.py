@@ -15,6 +15,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from .atomic import atomic_path  # noqa: E402
+from .preflight import label_of  # noqa: E402, F401 - a run's label, for the figures' legends
 
 
 def save_figure(fig: matplotlib.figure.Figure, path: Path) -> Path:
@@ -86,24 +87,6 @@ def energies_figure(runs: list[dict[str, Any]], path: Path, dimension: int | Non
 
 #: the most runs :func:`energies_figure` draws, one panel each
 ENERGY_PANELS = 4
-
-
-def label_of(case: Any) -> str:
-    """Short label of a run's viscosity settings, e.g. ``AV (0.3, 0.3)``, ``AC (shepard)``,
-    ``balsara (1, 1)``: another scheme by its name and the coefficients its pair term uses;
-    ``, total-Lagrangian`` after it for that formulation."""
-    from .models import VISCOSITY
-
-    v = case.viscosity
-    if v.scheme == "ac":
-        return f"AC ({v.correction})"
-    alpha1, alpha2 = VISCOSITY[v.scheme].pair_parameters(v)[:2]
-    name = "AV" if v.scheme == "av" else v.scheme
-    limiter = getattr(v, "limiter", "van_leer")
-    suffix = f", {limiter}" if limiter != "van_leer" else ""
-    formulation = (", total-Lagrangian"
-                   if getattr(case, "formulation", "") == "total_lagrangian" else "")
-    return f"{name} ({alpha1:g}, {alpha2:g}{suffix}){formulation}"
 
 
 def shapes_figure(runs: list[dict[str, Any]], path: Path, title: str, *,

@@ -182,12 +182,28 @@ class Report:
         return [*self.estimate.lines(), *(f.line() for f in self.findings)]
 
 
+def label_of(case: Any) -> str:
+    """Short label of a run's viscosity settings, e.g. ``AV (0.3, 0.3)``, ``AC (shepard)``,
+    ``balsara (1, 1)``: another scheme by its name and the coefficients its pair term uses;
+    ``, total-Lagrangian`` after it for that formulation."""
+    from .models import VISCOSITY
+
+    v = case.viscosity
+    if v.scheme == "ac":
+        return f"AC ({v.correction})"
+    alpha1, alpha2 = VISCOSITY[v.scheme].pair_parameters(v)[:2]
+    name = "AV" if v.scheme == "av" else v.scheme
+    limiter = getattr(v, "limiter", "van_leer")
+    suffix = f", {limiter}" if limiter != "van_leer" else ""
+    formulation = (", total-Lagrangian"
+                   if getattr(case, "formulation", "") == "total_lagrangian" else "")
+    return f"{name} ({alpha1:g}, {alpha2:g}{suffix}){formulation}"
+
+
 def scheme_line(case: Case) -> str:
     """One line that says which discretisation the case runs, its ``"auto"`` defaults
     resolved (docs/stabilisation.md, "Defaults, and why"): the viscosity, the formulation,
     the kernel, the stabilisation and the walls' contact options."""
-    from .plotting import label_of
-
     widths = sorted({case.h_over_dx_of(b) for b in range(len(case.bodies))})
     h = " and ".join(f"{_g(w)}" for w in widths)
     stretch = case.kernel.max_stretch

@@ -19,7 +19,6 @@ from typing import Any
 
 from .config import Case
 from .errors import RunInterrupted
-from .figures import draw_figures
 from .interrupt import StopRequest
 from .measures import run_measures
 from .output import (
@@ -29,8 +28,7 @@ from .output import (
     write_snapshots,
     write_summary,
 )
-from .plotting import label_of
-from .preflight import scheme_line
+from .preflight import label_of, scheme_line
 from .problems.registry import analyse
 from .rundir import IfExists, RunLock, check_run_dir, clear_outputs, make_run_dir, remove_if_empty
 from .runlog import run_log
@@ -250,6 +248,8 @@ def _run(sim: Simulation, case: Case, out: Path, *,
                         f"figures are drawn without it")
                 log.warning("%s", note)
                 summary["notes"].append(note)
+        from .figures import draw_figures  # matplotlib: imported where a run draws
+
         summary["figures"] = [str(p) for p in draw_figures(runs, out, notes=summary["notes"])]
         write_summary(out, summary)  # again, with the list of figures
     for note in summary["notes"]:
