@@ -94,10 +94,12 @@ def test_a_numba_that_cannot_build_the_drive_gets_python_threads_and_one_warning
         assert out.tobytes() == serial.tobytes()
 
 
-def test_a_pass_is_looked_up_once_for_its_arrays_whatever_its_numbers(monkeypatch):
-    """The address and the drive are looked up once for a pass's arrays: a new Python number
-    (``float(elapsed)`` is a new object each call) does not look them up again, a new array
-    does; and the drive is compiled once for the arguments' types."""
+def test_a_pass_is_looked_up_once_for_its_arguments_kinds(monkeypatch):
+    """The address and the drive are looked up once for the kinds of a pass's arguments: a
+    new Python number (``float(elapsed)`` is a new object each call) does not look them up
+    again, nor a new array or a new view of the same dtype, dimensions, layout and
+    writeability (a 1D run's row starts, ``offsets[:-1]``, are a new view at each
+    evaluation); an array of another kind does, and runs with its own code."""
     from impactsph.physics import chunked
 
     lookups = []
@@ -112,8 +114,22 @@ def test_a_pass_is_looked_up_once_for_its_arrays_whatever_its_numbers(monkeypatc
         run_chunked(_row_sums, 2, values, out, chunk_size)
         assert np.allclose(out, values.sum(axis=1), rtol=1e-14, atol=0.0)
     assert len(lookups) == 1
-    run_chunked(_row_sums, 2, values, np.empty(301), 16)  # another array
+    run_chunked(_row_sums, 2, values.copy(), np.empty(301), 16)  # new arrays, same kinds
+    whole = np.empty(302)
+    run_chunked(_row_sums, 2, values, whole[:-1], 16)  # a new view, the same kind
+    assert len(lookups) == 1
+    assert np.allclose(whole[:-1], values.sum(axis=1), rtol=1e-14, atol=0.0)
+    strided = np.full(602, np.nan)
+    run_chunked(_row_sums, 2, values, strided[::2], 16)  # not contiguous: another kind
     assert len(lookups) == 2
+    assert np.allclose(strided[::2], values.sum(axis=1), rtol=1e-14, atol=0.0)
+    assert np.isnan(strided[1::2]).all()
+    frozen = values.copy()
+    frozen.flags.writeable = False  # read-only: another numba type, so another kind
+    run_chunked(_row_sums, 2, frozen, out, 16)
+    assert len(lookups) == 3
+    assert chunked._kinds((values, out)) != chunked._kinds((frozen, out))
+    assert chunked._kinds((values, out)) != chunked._kinds((values.astype(np.float32), out))
     assert chunked._DRIVE_BROKEN is None
     signature = (nb.int64, nb.int64, nb.typeof(chunked._flat((values, out, 16))))
     assert sum(tuple(s) == signature for s in chunked._drive.overloads) == 1

@@ -171,6 +171,14 @@ def _check_splits(nl: NeighbourList, dim: int) -> None:
     if dim < 2:
         assert nl.splits is None
         np.testing.assert_array_equal(nl.filter_starts, nl.offsets[:-1])
+        # one view while the offsets are the same array (a pass's arguments stay the same
+        # objects, which the chunked passes' lookup finds at once), a new one for new offsets
+        assert nl.filter_starts is nl.filter_starts
+        before, offsets = nl.filter_starts, nl.offsets
+        nl.offsets = offsets + 0
+        assert nl.filter_starts is not before and nl.filter_starts.base is nl.offsets
+        np.testing.assert_array_equal(nl.filter_starts, before)
+        nl.offsets = offsets
         return
     assert nl.splits.shape == (nl.offsets.shape[0] - 1,)
     assert np.all(nl.offsets[:-1] <= nl.splits) and np.all(nl.splits <= nl.offsets[1:])

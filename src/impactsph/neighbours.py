@@ -461,8 +461,15 @@ class NeighbourList:
     def filter_starts(self) -> np.ndarray:
         """Where the 2D and 3D passes start testing each row's entries against the support
         (``passes.support_range``): :attr:`splits`, or, without them, each row's start (the
-        whole row tested)."""
-        return self.offsets[:-1] if self.splits is None else self.splits
+        whole row tested): one view of ``offsets`` while they are the same array, so that a
+        pass's arguments stay the same objects from one evaluation to the next
+        (:func:`impactsph.physics.chunked._address` finds them at once)."""
+        if self.splits is not None:
+            return self.splits
+        known = self.__dict__.get("_row_starts")  # (the offsets, their view)
+        if known is None or known[0] is not self.offsets:
+            known = self.__dict__["_row_starts"] = (self.offsets, self.offsets[:-1])
+        return known[1]
 
     def within(self, reach: float) -> tuple[np.ndarray, np.ndarray]:
         """``(offsets, indices)`` of a list that holds every pair within ``reach`` times the
