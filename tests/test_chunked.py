@@ -133,3 +133,30 @@ def test_a_pass_is_looked_up_once_for_its_arguments_kinds(monkeypatch):
     assert chunked._DRIVE_BROKEN is None
     signature = (nb.int64, nb.int64, nb.typeof(chunked._flat((values, out, 16))))
     assert sum(tuple(s) == signature for s in chunked._drive.overloads) == 1
+
+
+def test_a_run_types_its_pass_arguments_once(monkeypatch):
+    """A run's chunked pass is typed (``numba.typeof`` of its arguments and the drive's tuple,
+    some 0.6 ms) once, not at each evaluation: its arrays keep their kinds from one list
+    build to the next.  A 1D list's row starts were a new view at every evaluation, and the
+    bars spent 77% of their run typing them (benchmarks/README.md, "The chunked passes'
+    lookup").  The test suite's serial passes run in one share, so the shares are asked for
+    here; the run's state is the one share's to the bit."""
+    from impactsph import Simulation, load_case
+    from impactsph.physics import chunked, rates
+
+    case = load_case("bars", ["time.max_steps=40"])
+    alone = Simulation(case)
+    alone.run()
+    typed, looked_up = [], []
+    ready, address = chunked._drive_ready, chunked._address
+    monkeypatch.setattr(chunked, "_ADDRESSES", {})
+    monkeypatch.setattr(chunked, "_drive_ready", lambda *a: typed.append(1) or ready(*a))
+    monkeypatch.setattr(chunked, "_address", lambda *a: looked_up.append(1) or address(*a))
+    monkeypatch.setattr(rates, "threads_for", lambda rows, chunk, threaded: 2)
+    shared = Simulation(case)
+    shared.run()
+    assert shared.solver.neighbours.builds > 1  # new lists came, of the same kinds
+    assert len(looked_up) > 80 and len(typed) == 1, (len(looked_up), len(typed))
+    for name, value in alone.state.arrays().items():
+        assert np.asarray(value).tobytes() == np.asarray(shared.state.arrays()[name]).tobytes()
