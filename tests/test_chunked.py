@@ -130,6 +130,10 @@ def test_a_pass_is_looked_up_once_for_its_arguments_kinds(monkeypatch):
     assert len(lookups) == 3
     assert chunked._kinds((values, out)) != chunked._kinds((frozen, out))
     assert chunked._kinds((values, out)) != chunked._kinds((values.astype(np.float32), out))
+    # a tuple by its elements' kinds: a new tuple of the same kinds is the same kind
+    assert chunked._kinds(((0.3, 0.4), 2)) == chunked._kinds(((0.5, 0.6), 3))
+    assert chunked._kinds(((0.3, 0.4), 2)) != chunked._kinds(((0.3, 4), 2))
+    assert chunked._kinds(((0.3, 0.4),)) != chunked._kinds(((0.3, 0.4, 0.5),))
     assert chunked._DRIVE_BROKEN is None
     signature = (nb.int64, nb.int64, nb.typeof(chunked._flat((values, out, 16))))
     assert sum(tuple(s) == signature for s in chunked._drive.overloads) == 1

@@ -155,13 +155,16 @@ def _ids(arguments: tuple[Any, ...]) -> tuple[Any, ...]:
 def _kind(argument: Any) -> Any:
     """What fixes ``numba.typeof(argument)`` without typing it: for an ndarray the fields of
     numba's array type (dtype, dimensions, layout from the contiguity flags, read-only,
-    aligned), for a number its type, for anything else its id."""
+    aligned), for a number its type, for a plain tuple its elements' kinds (numba types a
+    tuple by its elements' types), for anything else its id."""
     if type(argument) is np.ndarray:
         flags = argument.flags
         return (argument.dtype, argument.ndim, flags.c_contiguous, flags.f_contiguous,
                 flags.writeable, flags.aligned)
     if isinstance(argument, _NUMBERS):
         return type(argument)
+    if type(argument) is tuple:
+        return (tuple, *map(_kind, argument))
     return id(argument)
 
 
