@@ -137,9 +137,8 @@ def _drive(address, threads, flat):  # pragma: no cover (compiled)
 _ADDRESSES: dict[int, tuple[Any, tuple[Any, ...], tuple[Any, ...], int, bool,
                             tuple[Any, ...]]] = {}
 
-#: the scalars whose numba type is their Python type's
-_NUMBERS = (int, float, np.number, np.bool_)
-#: the scalar types the passes are handed, for :func:`_ids` (a set lookup, not an isinstance)
+#: the scalar types the passes are handed, whose numba type is their type's (a set lookup,
+#: not an isinstance); a number of another type is taken by its id
 _NUMBER_TYPES = frozenset({int, float, bool, np.float64, np.float32, np.int64, np.int32,
                            np.intp, np.bool_})
 
@@ -147,8 +146,7 @@ _NUMBER_TYPES = frozenset({int, float, bool, np.float64, np.float32, np.int64, n
 def _ids(arguments: tuple[Any, ...]) -> tuple[Any, ...]:
     """The quick test that ``arguments`` are the last call's: a number's type (a new object
     each call, as ``float(elapsed)``: its id would miss every time), any other argument's
-    id (3 us for 25 arguments).  A number of another type is taken by its id, so a new one
-    is found by its kind instead (:func:`_kinds`)."""
+    id (3 us for 25 arguments)."""
     return tuple([type(a) if type(a) in _NUMBER_TYPES else id(a) for a in arguments])
 
 
@@ -161,7 +159,7 @@ def _kind(argument: Any) -> Any:
         flags = argument.flags
         return (argument.dtype, argument.ndim, flags.c_contiguous, flags.f_contiguous,
                 flags.writeable, flags.aligned)
-    if isinstance(argument, _NUMBERS):
+    if type(argument) in _NUMBER_TYPES:
         return type(argument)
     if type(argument) is tuple:
         return (tuple, *map(_kind, argument))
