@@ -219,7 +219,7 @@ def test_check_says_which_scheme_runs(source, extra, expected):
 
 def test_the_command_line_starts_without_matplotlib():
     """``import impactsph`` and the command line's module leave matplotlib alone (a run
-    imports it where it draws): it was half of every command's start, ``impactsph --help``
+    imports it where it draws): it was a third of every command's start, ``impactsph --help``
     and each sweep worker's included."""
     import subprocess
     import sys
