@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from impactsph import Simulation, load_case
-from impactsph.integrate import _inertia
+from impactsph.integrate import _inertia, run_stage
 from impactsph.models.columns import THICKNESS_RATIO
 from impactsph.physics.rates import compiled_passes
 
@@ -54,11 +54,12 @@ def test_the_stage_in_one_pass_is_the_stage_then_the_walls_then_the_survey(overr
     apart = s.copy()
     start = it._keep(apart, "_apart")
     dim = apart.dim
-    compiled_passes(dim, options=it.stage_options).stage(
-        it.n_active, dt, False, start.position, start.velocity, start.density,
-        start.specific_energy, start.deviatoric_stress, start.plastic_work,
-        start.material_state, start.hourglass_acceleration, start.velocity, *rates,
-        apart.clamped, apart.material, it.table, apart.smoothing_length,
+    stage = compiled_passes(dim, options=it.stage_options).stage
+    run_stage(
+        stage, it.stage_options.parallel, it.n_active, dt, False, start.position,
+        start.velocity, start.density, start.specific_energy, start.deviatoric_stress,
+        start.plastic_work, start.material_state, start.hourglass_acceleration,
+        start.velocity, *rates, apart.clamped, apart.material, it.table, apart.smoothing_length,
         *(getattr(apart, f) for f in FIELDS), np.zeros((0, dim)), np.zeros((0, dim)),
         it._inertia, np.zeros_like(it._wall_parts), False, apart.mass, apart.added_mass,
         it.hourglass, np.zeros_like(it._survey_parts), np.zeros_like(it._bad_of))
@@ -168,3 +169,30 @@ def test_a_particle_behind_a_wall_is_the_surveys_last_kind_of_bad_value():
     with pytest.raises(SimulationError, match="particle crossed a wall") as info:
         sim.run()
     assert info.value.particle == min(behind) and info.value.step == 0
+
+
+def test_the_stage_in_shares_is_the_stage_in_one(monkeypatch):
+    """The stage runs in shares of its chunks on numba's threads
+    (:func:`impactsph.integrate.run_stage`, a chunked pass): in four shares (whatever this
+    worker's thread count) the state, the walls' count and impulse, and the survey are the
+    one share's to the bit, the chunks' sums folded in chunk order after the shares."""
+    import impactsph.integrate as integrate
+
+    results = []
+    for shares in (1, 4):
+        monkeypatch.setattr(integrate, "threads_for", lambda rows, chunk, threaded, k=shares: k)
+        sim = _pushed_through_the_wall([])
+        s, it = sim.state, sim.integrator
+        rates = [np.array(r) for r in sim.solver.rates(s)]
+        it._inertia = _inertia(s)
+        start = it._save_start(s, copy=False)
+        count = it._stage(s, 2e-9, start, start.velocity, rates, 1.0, True, keep=True,
+                          survey=True)
+        results.append((s, count, it.constraint_impulse.copy(), it.take_survey()))
+    (one, count, impulse, survey), (four, count4, impulse4, survey4) = results
+    assert count == count4 > 50 and integrate.survey_chunks(one.n) >= 4
+    np.testing.assert_array_equal(impulse4, impulse)
+    assert survey4[0] == survey[0] and survey4[2] == survey[2] == -1
+    np.testing.assert_array_equal(survey4[1], survey[1])
+    for f in FIELDS:
+        np.testing.assert_array_equal(getattr(four, f), getattr(one, f), err_msg=f)

@@ -63,7 +63,7 @@ warnings.filterwarnings(
 warnings.filterwarnings(
     "ignore", message=r"(?s)\s*The keyword argument 'parallel=True' was specified but no "
     r"transformation.*passes_\w*[0-9a-f]{16}\.py\", line \d+:.*"
-    r"def (moment|gradient|pair|hourglass|switch)_pass\(")
+    r"def ((moment|gradient|pair|hourglass|switch)_pass|stage)\(")
 #: the package modules whose code the template inlines (their source is part of the hash)
 TEMPLATE_IMPORTS = ("kernels.py", "materials.py", "physics/borrow.py", "physics/chunked.py",
                     "physics/contact.py",

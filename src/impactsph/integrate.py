@@ -15,12 +15,14 @@ from __future__ import annotations
 
 from functools import cache
 from types import SimpleNamespace
+from typing import Any
 
 import numba as nb
 import numpy as np
 
 from .jitcache import njit_variant
 from .materials import TableLayout
+from .physics.chunked import run_chunked, threads_for
 from .physics.options import PassOptions
 from .physics.rates import compiled_passes
 from .physics.stress_rate import store_upper, symmetric_full
@@ -28,6 +30,7 @@ from .physics.survey import (
     SURVEY_CHUNK,
     SURVEY_START,
     SURVEY_WIDTH,
+    fold_stage,
     fold_survey,
     folded_survey,
     store_survey,
@@ -98,6 +101,20 @@ def keep_upper(S, out) -> None:
     6.2 us for ``np.take``, and half its time at 1e5 particles on two threads)."""
     for i in nb.prange(S.shape[0]):
         store_upper(S, out, i)
+
+
+def run_stage(stage_pass: Any, threaded: bool, n_active: int, *arguments: Any) -> None:
+    """One integrator stage of ``n_active`` particles: ``stage_pass`` (a generated module's
+    :func:`impactsph.physics.passes.stage`, a chunked pass) called with ``(n_active,
+    *arguments)`` in shares on numba's threads where ``threaded``
+    (:func:`impactsph.physics.chunked.run_chunked`, a share a chunk of :data:`SURVEY_CHUNK`
+    particles at most), then its chunks' wall rows and surveys folded in chunk order
+    (:func:`impactsph.physics.survey.fold_stage`): the same bits whatever the thread count."""
+    run_chunked(stage_pass, threads_for(n_active, SURVEY_CHUNK, threaded), n_active,
+                *arguments)
+    # the stage's last arguments: walls, survey, m, added, hourglass, surveyed, bad_of
+    walls, survey, surveyed, bad_of = arguments[-7], arguments[-6], arguments[-2], arguments[-1]
+    fold_stage(n_active, walls, survey, surveyed, bad_of)
 
 
 class MidpointIntegrator:
@@ -217,16 +234,16 @@ class MidpointIntegrator:
                              f"yy, yz, zz), impactsph.physics.stress_rate.jaumann_stress_rate")
         points, normals = self.planes
         walls = self._wall_parts
-        self._stage_pass(self.n_active, dt, keep, start.position, start.velocity,
-                         start.density, start.specific_energy, start.deviatoric_stress,
-                         start.plastic_work, start.material_state,
-                         start.hourglass_acceleration, v_rate, dv, drho, de, dS, dhg,
-                         state.clamped, state.material, self.table, state.smoothing_length,
-                         state.position, state.velocity, state.density, state.specific_energy,
-                         state.deviatoric_stress, state.plastic_work, state.material_state,
-                         state.hourglass_acceleration, points, normals, self._inertia, walls,
-                         survey, state.mass, state.added_mass, self.hourglass,
-                         self._survey_parts, self._bad_of)
+        run_stage(self._stage_pass, self.stage_options.parallel, self.n_active, dt, keep,
+                  start.position, start.velocity, start.density, start.specific_energy,
+                  start.deviatoric_stress, start.plastic_work, start.material_state,
+                  start.hourglass_acceleration, v_rate, dv, drho, de, dS, dhg, state.clamped,
+                  state.material, self.table, state.smoothing_length, state.position,
+                  state.velocity, state.density, state.specific_energy,
+                  state.deviatoric_stress, state.plastic_work, state.material_state,
+                  state.hourglass_acceleration, points, normals, self._inertia, walls, survey,
+                  state.mass, state.added_mass, self.hourglass, self._survey_parts,
+                  self._bad_of)
         if survey:
             self.last_survey = folded_survey(self._survey_parts, self._bad_of)
         if self.walls is None:

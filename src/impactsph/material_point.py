@@ -40,6 +40,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from .integrate import run_stage
 from .materials import (
     MaterialModel,
     TableLayout,
@@ -200,9 +201,9 @@ def material_point(material: Any, *, strain_rate: float, strain: float | None = 
         de[0] = tau * float(np.sum(sigma[:dim, :dim] * D)) / rho0[0]
         jaumann_stress_rate(L, S0[0], model.shear_modulus, dS[0])
         S0_six[:] = symmetric_upper(S0)
-        k.stage(1, dt, False, x0, v0, rho0, e0, S0_six, pw0, state0, hg0, v0, dv, drho, de, dS,
-                dhg, clamped, mat, table, h, x, v, rho, e, S, pw, state, hg, *no_walls, False,
-                *no_survey)
+        run_stage(k.stage, False, 1, dt, False, x0, v0, rho0, e0, S0_six, pw0, state0, hg0, v0,
+                  dv, drho, de, dS, dhg, clamped, mat, table, h, x, v, rho, e, S, pw, state, hg,
+                  *no_walls, False, *no_survey)
         p_new = pressure_of(rho / state[0, THICKNESS_RATIO], e, state[0, DAMAGE_COLUMN])
         return (1.0 - state[0, DAMAGE_COLUMN]) * S[0] - p_new * np.eye(3)
 

@@ -80,7 +80,6 @@ from impactsph.physics.stress_rate import UPPER, jaumann_stress_rate_nd, store_u
 from impactsph.physics.survey import (
     SURVEY_CHUNK,
     SURVEY_START,
-    fold_survey,
     store_survey,
     survey_chunks,
     survey_particle,
@@ -1666,12 +1665,16 @@ def keep_particle(i, x, v, rho, e, S, plastic_work, state, hg, x0, v0, rho0, e0,
         hg0[i, a] = hg[i, a]
 
 
-@JIT(parallel=PARALLEL_OPTION, cache=True, error_model=BODY_ERROR_MODEL)
-def stage(n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, drho, de,
-          dS, dhg, clamped, material, table, h, x, v, rho, e, S, plastic_work, state, hg,
-          points, normals, inertia, walls, survey, m, added, hourglass, surveyed, bad_of):
-    """One integrator stage of every active particle, in one parallel region, chunk by
-    chunk of :data:`SURVEY_CHUNK` particles; for each particle in turn:
+# (a prange loop until 2026-12-06: numba typed and compiled its body twice, the function and then
+# the loop's body as a function of its own, 10-12 s on a cold cache; chunked, 6-7 s)
+@JIT(parallel=CHUNKED_OPTION, cache=True, nogil=True, error_model="numpy")
+def stage(first, step, n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv,
+          drho, de, dS, dhg, clamped, material, table, h, x, v, rho, e, S, plastic_work, state,
+          hg, points, normals, inertia, walls, survey, m, added, hourglass, surveyed, bad_of):
+    """One integrator stage of the active particles of share ``first`` of ``step``
+    (:mod:`impactsph.physics.chunked`: :func:`impactsph.integrate.run_stage` runs the shares
+    and then folds the chunks' results), chunk by chunk of :data:`SURVEY_CHUNK` particles; for
+    each particle in turn:
 
     1. with ``keep``, its integrated fields (``x, v, ...``) into the step's start copy
        (``x0, v0, ...``), before the stage reads that copy (the midpoint step's predictor);
@@ -1679,19 +1682,22 @@ def stage(n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv
     3. the walls' constraint (:func:`impactsph.boundaries.enforce_particle`, planes
        ``points``, ``normals``; none if they have no rows), its impulse (of the masses
        ``inertia``) and the times it moved the particle into ``walls[chunk] = (moved,
-       impulse)``, the chunks' sums in chunk order into the last row;
+       impulse)``, which :func:`impactsph.physics.survey.fold_stage` adds in chunk order
+       into the last row;
     4. with ``survey``, the particle into its chunk's survey
        (:func:`impactsph.physics.survey.survey_particle`, its material density
        ``rho / thickness ratio`` as :attr:`impactsph.state.ParticleState.material_density`;
        masses ``m`` and ``added``, hourglass control's ``hourglass``, a particle left behind
        one of the planes after the constraint a bad value): ``surveyed[chunk]``,
-       ``bad_of[chunk]``, folded into their last rows as the survey's own pass folds them
-       (:func:`impactsph.physics.survey.fold_survey`), to the same bits.
+       ``bad_of[chunk]``, which ``fold_stage`` folds into their last rows as the survey's own
+       pass folds them (:func:`impactsph.physics.survey.fold_survey`), to the same bits.
 
     Each particle's steps read and write only its own rows, so one pass gives what the
-    stage, the walls' pass and the survey gave one after another."""
+    stage, the walls' pass and the survey gave one after another.  The "numpy" error model
+    is the one numba gave the body of the ``prange`` loop this was (the same code); not
+    ``NOALIAS``: ``v_rate`` may be ``v``."""
     n_chunks = survey_chunks(n_active)
-    for chunk in nb.prange(n_chunks):
+    for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
         impulse = walls[chunk, 1:]
         for a in range(impulse.shape[0]):
             impulse[a] = 0.0
@@ -1713,14 +1719,6 @@ def stage(n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv
         walls[chunk, 0] = moved
         if survey:
             store_survey(acc, surveyed, bad_of, chunk)
-    # the chunks' results in chunk order, into the row after them
-    for k in range(walls.shape[1]):
-        walls[n_chunks, k] = 0.0
-    for chunk in range(n_chunks):
-        for k in range(walls.shape[1]):
-            walls[n_chunks, k] += walls[chunk, k]
-    if survey:
-        fold_survey(surveyed, bad_of, n_chunks)
 
 
 @JIT(parallel=PARALLEL_OPTION, cache=True, error_model=BODY_ERROR_MODEL)

@@ -157,3 +157,19 @@ def survey_chunks(n: int) -> int:
     """The chunks of a survey of ``n`` particles (at least one); the survey's arrays have a
     row more, for the folded result."""
     return max(1, (n + SURVEY_CHUNK - 1) // SURVEY_CHUNK)
+
+
+@nb.njit(cache=True)
+def fold_stage(n_active, walls, survey, surveyed, bad_of):  # pragma: no cover (compiled)
+    """After every share of the integrator's stage of ``n_active`` particles
+    (:func:`impactsph.physics.passes.stage`): its chunks' wall rows ``walls[chunk] = (moved,
+    impulse)`` added in chunk order into the row after them, and with ``survey`` its chunks'
+    surveys folded (:func:`fold_survey`)."""
+    n_chunks = survey_chunks(n_active)
+    for k in range(walls.shape[1]):
+        walls[n_chunks, k] = 0.0
+    for chunk in range(n_chunks):
+        for k in range(walls.shape[1]):
+            walls[n_chunks, k] += walls[chunk, k]
+    if survey:
+        fold_survey(surveyed, bad_of, n_chunks)
