@@ -287,3 +287,29 @@ def test_the_cell_sort_is_a_stable_sort_by_the_cells_z_order(dim):
     for k in range(cell_start.shape[0]):
         np.testing.assert_array_equal(np.sort(order[cell_start[k]:cell_end[k]]),
                                       np.flatnonzero(keys == k))
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_the_list_in_shares_is_the_list_in_one(dim, monkeypatch):
+    """The builder's sweeps run in shares of the rows' chunks on numba's threads
+    (:func:`impactsph.physics.chunked.run_chunked`): built in three shares (whatever this
+    worker's thread count), every array of the list, its inner list, splits and order, is the
+    one share's to the bit, with a radius per pair too (the stretch's lists)."""
+    import impactsph.neighbours as neighbours
+
+    rng = np.random.default_rng(40 + dim)
+    x = rng.random((700, dim)) * [1.0, 0.6, 0.5][:dim]  # 11 chunks of 64 rows
+    h = 0.05 * (1.0 + 0.3 * rng.random(700))
+    lists = []
+    for shares in (1, 3):
+        monkeypatch.setattr(neighbours, "threads_for", lambda rows, chunk, threaded, k=shares: k)
+        lists.append([NeighbourList.build(x, 0.13, 0.02, inner_reach=0.5),
+                      NeighbourList.build(x, 0.13, 0.02, inner_reach=0.5, h=h)])
+    for one, three in zip(*lists, strict=True):
+        assert one.indices.size > 5 * len(x)  # rows of several neighbours
+        for field in ("order", "offsets", "indices", "inner_offsets", "inner_indices",
+                      "splits"):
+            a, b = getattr(one, field), getattr(three, field)
+            assert (a is None) == (b is None) == (field == "splits" and dim == 1), field
+            if a is not None:
+                np.testing.assert_array_equal(a, b, err_msg=field)

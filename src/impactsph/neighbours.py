@@ -38,6 +38,7 @@ bit (``tests/test_neighbours.py``).
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from functools import cache
 
@@ -46,6 +47,13 @@ import numpy as np
 
 from .jitcache import njit_variant
 from .kernels import SUPPORT_RADIUS
+from .physics.chunked import SIMPLIFICATIONS_ONLY, run_chunked, threads_for
+
+# the sweeps take numba's parallel simplifications without a loop to run in parallel (they run
+# in shares, as the chunked passes do: physics/chunked.py), and numba says so at each compile
+warnings.filterwarnings(
+    "ignore", message=r"(?s)\s*The keyword argument 'parallel=True' was specified but no "
+    r"transformation.*neighbours\.py\", line \d+:.*def sweep_rows\(")
 
 #: relative round-off allowed when comparing ``support + skin`` with the list's radius (the
 #: sum recomputed from an unchanged support may differ from the stored radius in its last bit)
@@ -142,17 +150,28 @@ def distance2(xp0, xp1, xp2, xs, q, dim):
 
 @cache
 def _build_functions(dim: int):
-    """Compile the cell-list builder for one dimension (``dim`` is a compile-time constant;
-    the helpers are module functions: numba caches a closure only if it captures no compiled
-    function)."""
+    """The cell-list builder for one dimension (``dim`` is a compile-time constant; the
+    helpers are module functions: numba caches a closure only if it captures no compiled
+    function): ``(build, max_displacement)``.
+
+    ``build`` is Python that runs three compiled parts: ``prepare`` (the cells, the counting
+    sort, the positions in the cells' order), ``sweep_rows`` twice (count, then store) over
+    the rows in shares on numba's threads (:func:`impactsph.physics.chunked.run_chunked`),
+    and ``running_totals`` between them.  (One function with ``prange`` loops until 2026-12-06:
+    numba types and compiles a ``prange`` loop's body twice, and the 1D builder took 11-16 s
+    to compile on a cold cache, the longest compilation of the README's first command;
+    benchmarks/README.md, "Compile time of the stage and the neighbour build".)"""
     if dim not in (1, 2, 3):
         raise ValueError(f"dim = {dim!r}: the neighbour list is built for 1, 2 or 3 dimensions")
 
-    @njit_variant(f"{dim}d", parallel=True)
-    def build(x, radius, inner_radius, h, support_per_h, skin):
+    @njit_variant(f"{dim}d")
+    def prepare(x, radius, h):
+        """The cells (lower corner ``lo``, counts ``ncell``), the counting sort
+        (:func:`cell_sort`) and the positions ``xs`` and smoothing lengths ``hs`` (none
+        without a radius per pair) in its order."""
         n = x.shape[0]
         per_pair = h.shape[0] > 0  # a radius per pair: support_per_h h_ij + skin
-        lo = np.empty(dim)
+        lo = np.zeros(dim)
         ncell = np.ones(dim, dtype=np.int64)
         if n > 0:
             for a in range(dim):
@@ -163,18 +182,24 @@ def _build_functions(dim: int):
         order, cell_start, cell_end = cell_sort(x, lo, radius, ncell)
         xs = np.empty((n, dim))
         hs = np.empty(n if per_pair else 0)
-        for p in nb.prange(n):
+        for p in range(n):
             for a in range(dim):
                 xs[p, a] = x[order[p], a]
             if per_pair:
                 hs[p] = h[order[p]]
-        r2max = radius * radius
-        r2inner = min(inner_radius, radius) ** 2  # 0: no inner list
-        inner = inner_radius > 0.0
-        offsets = np.zeros(n + 1, dtype=np.int64)
-        indices = np.empty(0, dtype=np.int32)
-        inner_offsets = np.zeros(n + 1 if inner else 0, dtype=np.int64)
-        inner_indices = np.empty(0, dtype=np.int32)
+        return lo, ncell, order, cell_start, cell_end, xs, hs
+
+    @njit_variant(f"{dim}d", parallel=SIMPLIFICATIONS_ONLY, nogil=True)
+    def sweep_rows(first, step, sweep, xs, hs, lo, ncell, cell_start, cell_end, radius,
+                   r2max, r2inner, r2front, support_per_h, skin, h_largest, slack,
+                   largest_cell, offsets, indices, inner_offsets, inner_indices, splits):
+        """Share ``first`` of ``step`` of the rows' chunks (:data:`CHUNK` rows each) in sweep
+        ``sweep``: 0 counts each row's neighbours (and its inner list's) into ``offsets[p +
+        1]`` (``inner_offsets[p + 1]``), 1 stores them, the offsets made running totals
+        between the two (``running_totals``)."""
+        n = xs.shape[0]
+        per_pair = hs.shape[0] > 0
+        inner = inner_offsets.shape[0] > 0
         # 2D and 3D with a skin: each row in two parts, the pairs within their support at the
         # build (or within the inner list's radius) first, in the stencil's order, then the
         # rest of the row, the skin's, stored from the row's end back (so the count sweep
@@ -185,15 +210,6 @@ def _build_functions(dim: int):
         # test only the back part (issue 16, benchmarks/README.md).  Without a skin the
         # radius is the support and every row is all front
         split = dim > 1
-        support_now = radius - skin
-        r2front = max(min(support_now * support_now, r2max), r2inner)
-        splits = np.zeros(n if split else 0, dtype=np.int64)
-        n0 = ncell[0]
-        n1 = ncell[1] if dim > 1 else 1
-        n2 = ncell[2] if dim > 2 else 1
-        lo0 = lo[0]
-        lo1 = lo[1] if dim > 1 else 0.0
-        lo2 = lo[2] if dim > 2 else 0.0
         # 3D: a stencil cell whose box lies at or beyond the radius from the particle holds
         # no neighbour of it and is skipped (its edge is the radius, so only the edge and
         # corner cells can be: on average 6.4 of the 27 cells' volume; the 3D build 6-10%
@@ -204,158 +220,192 @@ def _build_functions(dim: int):
         # more than the round-off of the boxes' faces and of the binning, so that no cell
         # holding a neighbour is skipped: the list is the same to the bit
         prune = dim > 2 or (dim == 2 and per_pair)
-        h_largest = hs.max() if per_pair and n > 0 else 0.0
-        reach = 0.0
-        for a in range(dim):
-            reach = max(reach, abs(lo[a]) + (ncell[a] + 1) * radius)
-        slack = 64.0 * EPSILON * reach
-        # two sweeps of the same loop: count the neighbours, then (offsets known) store them;
-        # written out here, not in a helper, so that dim is a compile-time constant and the
+        # the two sweeps are the same loop: count the neighbours, then (offsets known) store
+        # them; written out here, not in a helper, so that dim is a compile-time constant and the
         # small loops unroll.  The stencil's cells are visited with axis 0 fastest (the
         # order of the list); the count is branch-free (LLVM vectorises it), the store only in
         # its 3D gathering of a cell's candidates (below)
         prefilter = dim > 2
-        largest_cell = 0
-        if prefilter:
-            for k in range(cell_start.shape[0]):
-                largest_cell = max(largest_cell, cell_end[k] - cell_start[k])
-        for sweep in range(2):
-            if sweep == 1:
-                for p in range(n):
-                    offsets[p + 1] += offsets[p]
-                indices = np.empty(offsets[n], dtype=np.int32)
-                if inner:
-                    for p in range(n):
-                        inner_offsets[p + 1] += inner_offsets[p]
-                    inner_indices = np.empty(inner_offsets[n], dtype=np.int32)
-            for chunk in nb.prange((n + CHUNK - 1) // CHUNK):
-                # the 3D store sweep's scratch: a cell's candidates
-                candidates = np.empty(largest_cell if prefilter and sweep == 1 else 0,
-                                      dtype=np.int64)
-                for p in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n)):
-                    xp0 = xs[p, 0]
-                    xp1 = xs[p, 1] if dim > 1 else 0.0
-                    xp2 = xs[p, 2] if dim > 2 else 0.0
-                    hp = hs[p] if per_pair else 0.0
-                    c0 = min(max(int((xp0 - lo0) / radius), 0), n0 - 1)
-                    c1 = min(max(int((xp1 - lo1) / radius), 0), n1 - 1) if dim > 1 else 0
-                    c2 = min(max(int((xp2 - lo2) / radius), 0), n2 - 1) if dim > 2 else 0
-                    found = 0
-                    found_inner = 0
-                    found_back = 0
-                    pos = offsets[p]
-                    back = offsets[p + 1] - 1  # the row's last entry
-                    pos_inner = inner_offsets[p] if inner else 0
-                    # pruning (3D, and 2D with a radius per pair): the particle's distances to
-                    # its cell's lower and upper faces on each axis (less the slack; 0 where
-                    # negative), the gaps to the stencil's cells, against its reach (with a
-                    # radius per pair its own: none of its pairs is kept further than with the
-                    # largest h, so a cell beyond that holds none)
-                    reach2 = r2max
-                    if per_pair:
-                        reach2 = kept_within2(hp, h_largest, support_per_h, skin, r2max,
-                                              r2inner)
-                    below0 = max(xp0 - (lo0 + c0 * radius) - slack, 0.0) if prune else 0.0
-                    above0 = max(lo0 + (c0 + 1) * radius - xp0 - slack, 0.0) if prune else 0.0
-                    below1 = max(xp1 - (lo1 + c1 * radius) - slack, 0.0) if prune else 0.0
-                    above1 = max(lo1 + (c1 + 1) * radius - xp1 - slack, 0.0) if prune else 0.0
-                    below2 = max(xp2 - (lo2 + c2 * radius) - slack, 0.0) if prune else 0.0
-                    above2 = max(lo2 + (c2 + 1) * radius - xp2 - slack, 0.0) if prune else 0.0
-                    for e2 in range(-1 if dim > 2 else 0, 2 if dim > 2 else 1):
-                        k2 = c2 + e2
-                        if k2 < 0 or k2 >= n2:
+        n0 = ncell[0]
+        n1 = ncell[1] if dim > 1 else 1
+        n2 = ncell[2] if dim > 2 else 1
+        lo0 = lo[0]
+        lo1 = lo[1] if dim > 1 else 0.0
+        lo2 = lo[2] if dim > 2 else 0.0
+        n_chunks = (n + CHUNK - 1) // CHUNK
+        for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
+            # the 3D store sweep's scratch: a cell's candidates
+            candidates = np.empty(largest_cell if prefilter and sweep == 1 else 0,
+                                  dtype=np.int64)
+            for p in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n)):
+                xp0 = xs[p, 0]
+                xp1 = xs[p, 1] if dim > 1 else 0.0
+                xp2 = xs[p, 2] if dim > 2 else 0.0
+                hp = hs[p] if per_pair else 0.0
+                c0 = min(max(int((xp0 - lo0) / radius), 0), n0 - 1)
+                c1 = min(max(int((xp1 - lo1) / radius), 0), n1 - 1) if dim > 1 else 0
+                c2 = min(max(int((xp2 - lo2) / radius), 0), n2 - 1) if dim > 2 else 0
+                found = 0
+                found_inner = 0
+                found_back = 0
+                pos = offsets[p]
+                back = offsets[p + 1] - 1  # the row's last entry
+                pos_inner = inner_offsets[p] if inner else 0
+                # pruning (3D, and 2D with a radius per pair): the particle's distances to
+                # its cell's lower and upper faces on each axis (less the slack; 0 where
+                # negative), the gaps to the stencil's cells, against its reach (with a
+                # radius per pair its own: none of its pairs is kept further than with the
+                # largest h, so a cell beyond that holds none)
+                reach2 = r2max
+                if per_pair:
+                    reach2 = kept_within2(hp, h_largest, support_per_h, skin, r2max,
+                                          r2inner)
+                below0 = max(xp0 - (lo0 + c0 * radius) - slack, 0.0) if prune else 0.0
+                above0 = max(lo0 + (c0 + 1) * radius - xp0 - slack, 0.0) if prune else 0.0
+                below1 = max(xp1 - (lo1 + c1 * radius) - slack, 0.0) if prune else 0.0
+                above1 = max(lo1 + (c1 + 1) * radius - xp1 - slack, 0.0) if prune else 0.0
+                below2 = max(xp2 - (lo2 + c2 * radius) - slack, 0.0) if prune else 0.0
+                above2 = max(lo2 + (c2 + 1) * radius - xp2 - slack, 0.0) if prune else 0.0
+                for e2 in range(-1 if dim > 2 else 0, 2 if dim > 2 else 1):
+                    k2 = c2 + e2
+                    if k2 < 0 or k2 >= n2:
+                        continue
+                    gap2 = below2 if e2 < 0 else (above2 if e2 > 0 else 0.0)
+                    gap2 = gap2 * gap2
+                    for e1 in range(-1 if dim > 1 else 0, 2 if dim > 1 else 1):
+                        k1 = c1 + e1
+                        if k1 < 0 or k1 >= n1:
                             continue
-                        gap2 = below2 if e2 < 0 else (above2 if e2 > 0 else 0.0)
-                        gap2 = gap2 * gap2
-                        for e1 in range(-1 if dim > 1 else 0, 2 if dim > 1 else 1):
-                            k1 = c1 + e1
-                            if k1 < 0 or k1 >= n1:
+                        gap1 = below1 if e1 < 0 else (above1 if e1 > 0 else 0.0)
+                        gap12 = gap2 + gap1 * gap1
+                        if prune and gap12 >= reach2:
+                            continue
+                        for e0 in range(-1, 2):
+                            k0 = c0 + e0
+                            if k0 < 0 or k0 >= n0:
                                 continue
-                            gap1 = below1 if e1 < 0 else (above1 if e1 > 0 else 0.0)
-                            gap12 = gap2 + gap1 * gap1
-                            if prune and gap12 >= reach2:
+                            gap0 = below0 if e0 < 0 else (above0 if e0 > 0 else 0.0)
+                            if prune and gap12 + gap0 * gap0 >= reach2:
                                 continue
-                            for e0 in range(-1, 2):
-                                k0 = c0 + e0
-                                if k0 < 0 or k0 >= n0:
-                                    continue
-                                gap0 = below0 if e0 < 0 else (above0 if e0 > 0 else 0.0)
-                                if prune and gap12 + gap0 * gap0 >= reach2:
-                                    continue
-                                if dim == 1:
-                                    kc = k0
-                                elif dim == 2:
-                                    kc = k0 * n1 + k1
-                                else:
-                                    kc = (k0 * n1 + k1) * n2 + k2
-                                q0 = cell_start[kc]
-                                q1 = cell_end[kc]
-                                if sweep == 0:
-                                    cnt = 0
-                                    cnt_inner = 0
-                                    for q in range(q0, q1):
-                                        r2 = distance2(xp0, xp1, xp2, xs, q, dim)
-                                        other = q != p
-                                        lim = r2max
-                                        if per_pair:
-                                            lim = kept_within2(hp, hs[q], support_per_h, skin,
-                                                               r2max, r2inner)
-                                        cnt += 1 if (r2 < lim) & other else 0
-                                        cnt_inner += 1 if (r2 < r2inner) & other else 0
-                                    found += cnt
-                                    found_inner += cnt_inner
-                                    continue
-                                # 3D: the candidates within reach first, without a branch (each
-                                # stored at the next free place, which advances only if it is
-                                # kept: about a fifth of them are), then the store below runs
-                                # over those alone (3D build 8% faster; 2D, where about half are
-                                # kept, 23% slower with it)
-                                u0 = q0
-                                u1 = q1
-                                if prefilter:
-                                    kept = 0
-                                    for q in range(q0, q1):
-                                        r2 = distance2(xp0, xp1, xp2, xs, q, dim)
-                                        lim = r2max
-                                        if per_pair:
-                                            lim = kept_within2(hp, hs[q], support_per_h, skin,
-                                                               r2max, r2inner)
-                                        candidates[kept] = q
-                                        kept += 1 if (r2 < lim) & (q != p) else 0
-                                    u0 = 0
-                                    u1 = kept
-                                for u in range(u0, u1):
-                                    q = candidates[u] if prefilter else u
-                                    if q == p:
-                                        continue
+                            if dim == 1:
+                                kc = k0
+                            elif dim == 2:
+                                kc = k0 * n1 + k1
+                            else:
+                                kc = (k0 * n1 + k1) * n2 + k2
+                            q0 = cell_start[kc]
+                            q1 = cell_end[kc]
+                            if sweep == 0:
+                                cnt = 0
+                                cnt_inner = 0
+                                for q in range(q0, q1):
                                     r2 = distance2(xp0, xp1, xp2, xs, q, dim)
+                                    other = q != p
                                     lim = r2max
-                                    front_lim = r2front
                                     if per_pair:
                                         lim = kept_within2(hp, hs[q], support_per_h, skin,
                                                            r2max, r2inner)
-                                        # (the pair's support: its reach less the
-                                        # skin, as the reach was summed)
-                                        rs = (0.5 * support_per_h * (hp + hs[q]) + skin) - skin
-                                        front_lim = min(lim, max(rs * rs, r2inner))
-                                    if r2 < lim:
-                                        # the row's back part, filled from the row's end, or
-                                        # its front (a select, not a branch: the two are not
-                                        # predictable)
-                                        to_back = split and r2 >= front_lim
-                                        at = back - found_back if to_back else pos + found
-                                        indices[at] = q
-                                        found_back += 1 if to_back else 0
-                                        found += 0 if to_back else 1
-                                        if inner and r2 < r2inner:
-                                            inner_indices[pos_inner + found_inner] = q
-                                            found_inner += 1
-                    if sweep == 0:
-                        offsets[p + 1] = found
-                        if inner:
-                            inner_offsets[p + 1] = found_inner
-                    elif split:
-                        splits[p] = pos + found
+                                    cnt += 1 if (r2 < lim) & other else 0
+                                    cnt_inner += 1 if (r2 < r2inner) & other else 0
+                                found += cnt
+                                found_inner += cnt_inner
+                                continue
+                            # 3D: the candidates within reach first, without a branch (each
+                            # stored at the next free place, which advances only if it is
+                            # kept: about a fifth of them are), then the store below runs
+                            # over those alone (3D build 8% faster; 2D, where about half are
+                            # kept, 23% slower with it)
+                            u0 = q0
+                            u1 = q1
+                            if prefilter:
+                                kept = 0
+                                for q in range(q0, q1):
+                                    r2 = distance2(xp0, xp1, xp2, xs, q, dim)
+                                    lim = r2max
+                                    if per_pair:
+                                        lim = kept_within2(hp, hs[q], support_per_h, skin,
+                                                           r2max, r2inner)
+                                    candidates[kept] = q
+                                    kept += 1 if (r2 < lim) & (q != p) else 0
+                                u0 = 0
+                                u1 = kept
+                            for u in range(u0, u1):
+                                q = candidates[u] if prefilter else u
+                                if q == p:
+                                    continue
+                                r2 = distance2(xp0, xp1, xp2, xs, q, dim)
+                                lim = r2max
+                                front_lim = r2front
+                                if per_pair:
+                                    lim = kept_within2(hp, hs[q], support_per_h, skin,
+                                                       r2max, r2inner)
+                                    # (the pair's support: its reach less the
+                                    # skin, as the reach was summed)
+                                    rs = (0.5 * support_per_h * (hp + hs[q]) + skin) - skin
+                                    front_lim = min(lim, max(rs * rs, r2inner))
+                                if r2 < lim:
+                                    # the row's back part, filled from the row's end, or
+                                    # its front (a select, not a branch: the two are not
+                                    # predictable)
+                                    to_back = split and r2 >= front_lim
+                                    at = back - found_back if to_back else pos + found
+                                    indices[at] = q
+                                    found_back += 1 if to_back else 0
+                                    found += 0 if to_back else 1
+                                    if inner and r2 < r2inner:
+                                        inner_indices[pos_inner + found_inner] = q
+                                        found_inner += 1
+                if sweep == 0:
+                    offsets[p + 1] = found
+                    if inner:
+                        inner_offsets[p + 1] = found_inner
+                elif split:
+                    splits[p] = pos + found
+
+    @njit_variant(f"{dim}d")
+    def running_totals(offsets, inner_offsets):
+        """The counts of sweep 0 (``offsets[p + 1]``, ``inner_offsets[p + 1]``) made running
+        totals, and the index arrays of sweep 1, of their sizes."""
+        n = offsets.shape[0] - 1
+        for p in range(n):
+            offsets[p + 1] += offsets[p]
+        inner_indices = np.empty(0, dtype=np.int32)
+        if inner_offsets.shape[0] > 0:
+            for p in range(n):
+                inner_offsets[p + 1] += inner_offsets[p]
+            inner_indices = np.empty(inner_offsets[n], dtype=np.int32)
+        return np.empty(offsets[n], dtype=np.int32), inner_indices
+
+    def build(x, radius, inner_radius, h, support_per_h, skin):
+        """The list of the rows ``x`` within ``radius`` (with a radius per pair ``h``:
+        ``support_per_h h_ij + skin``, no further), its inner list within ``inner_radius``
+        (0: none) and its rows' splits (2D and 3D): ``(order, offsets, indices,
+        inner_offsets, inner_indices, splits)``."""
+        n = x.shape[0]
+        per_pair = h.shape[0] > 0
+        lo, ncell, order, cell_start, cell_end, xs, hs = prepare(x, radius, h)
+        r2max = radius * radius
+        r2inner = min(inner_radius, radius) ** 2  # 0: no inner list
+        inner = inner_radius > 0.0
+        support_now = radius - skin
+        r2front = max(min(support_now * support_now, r2max), r2inner)
+        h_largest = float(hs.max()) if per_pair and n > 0 else 0.0
+        reach = 0.0
+        for a in range(dim):
+            reach = max(reach, abs(float(lo[a])) + (int(ncell[a]) + 1) * radius)
+        slack = 64.0 * EPSILON * reach
+        largest_cell = int((cell_end - cell_start).max()) if dim > 2 and n > 0 else 0
+        offsets = np.zeros(n + 1, dtype=np.int64)
+        inner_offsets = np.zeros(n + 1 if inner else 0, dtype=np.int64)
+        splits = np.zeros(n if dim > 1 else 0, dtype=np.int64)
+        threads = threads_for(n, CHUNK, True)
+        indices = inner_indices = np.empty(0, dtype=np.int32)
+        for sweep in range(2):
+            run_chunked(sweep_rows, threads, sweep, xs, hs, lo, ncell, cell_start, cell_end,
+                        radius, r2max, r2inner, r2front, support_per_h, skin, h_largest, slack,
+                        largest_cell, offsets, indices, inner_offsets, inner_indices, splits)
+            if sweep == 0:
+                indices, inner_indices = running_totals(offsets, inner_offsets)
         return order, offsets, indices, inner_offsets, inner_indices, splits
 
     @njit_variant(f"{dim}d")
