@@ -160,7 +160,8 @@ def _build_functions(dim: int):
     and ``running_totals`` between them.  (One function with ``prange`` loops until 2026-12-06:
     numba types and compiles a ``prange`` loop's body twice, and the 1D builder took 11-16 s
     to compile on a cold cache, the longest compilation of the README's first command;
-    benchmarks/README.md, "Compile time of the stage and the neighbour build".)"""
+    benchmarks/README.md, "A cold first command: the stage and the neighbour builder in
+    shares".)"""
     if dim not in (1, 2, 3):
         raise ValueError(f"dim = {dim!r}: the neighbour list is built for 1, 2 or 3 dimensions")
 
@@ -385,7 +386,8 @@ def _build_functions(dim: int):
         per_pair = h.shape[0] > 0
         lo, ncell, order, cell_start, cell_end, xs, hs = prepare(x, radius, h)
         r2max = radius * radius
-        r2inner = min(inner_radius, radius) ** 2  # 0: no inner list
+        r2inner = min(inner_radius, radius)
+        r2inner = r2inner * r2inner  # 0: no inner list (a product, as the compiled ** 2 was)
         inner = inner_radius > 0.0
         support_now = radius - skin
         r2front = max(min(support_now * support_now, r2max), r2inner)
