@@ -80,15 +80,33 @@ def morton_code(c0, c1, c2, dim):
 
 
 @nb.njit(cache=True)
-def cell_sort(x, lo, cell, ncell):
-    """The particles sorted by cell, the cells in Z order and the particles of a cell in
-    their given order (the order a stable sort by the cells' Morton codes gives), by a
-    counting sort: ``(order, cell_start, cell_end)`` with ``order[p]`` the particle at sorted
-    position ``p`` and the particles of the cell of row-major number ``k`` at sorted positions
-    ``cell_start[k]:cell_end[k]``.  Only the occupied cells' codes are computed and sorted
-    (several particles share a cell), so it costs a fraction of a sort of the particles' codes
-    (the 2D build of 1e5 particles 20-23% faster than with that sort, the 3D build 6%:
-    benchmarks/README.md)."""
+def cell_grid(x, radius):  # pragma: no cover (compiled)
+    """The cells of edge ``radius`` around the rows ``x``: their lower corner ``lo`` (the
+    rows' smallest coordinates; zeros without rows) and their count along each axis, at least
+    one.  (Loops: numpy's ``x.min(axis=0)`` and ``max`` took 6.8 ms for 1e5 2D rows, numba's
+    ``.min()`` a second to compile.)"""
+    n, dim = x.shape
+    lo = np.zeros(dim)
+    ncell = np.ones(dim, dtype=np.int64)
+    if n == 0:
+        return lo, ncell
+    hi = np.empty(dim)
+    for a in range(dim):
+        lo[a] = x[0, a]
+        hi[a] = x[0, a]
+    for i in range(1, n):
+        for a in range(dim):
+            lo[a] = min(lo[a], x[i, a])
+            hi[a] = max(hi[a], x[i, a])
+    for a in range(dim):
+        ncell[a] = max(1, int((hi[a] - lo[a]) / radius) + 1)
+    return lo, ncell
+
+
+@nb.njit(cache=True)
+def cell_codes(x, lo, cell, ncell):  # pragma: no cover (compiled)
+    """The first half of :func:`cell_sort`: each particle's cell (its row-major number
+    ``key``), each cell's count, the occupied cells and their Morton codes."""
     n, dim = x.shape
     total_cells = 1
     for a in range(dim):
@@ -99,28 +117,64 @@ def cell_sort(x, lo, cell, ncell):
         for a in range(dim):
             k = k * ncell[a] + min(max(int((x[i, a] - lo[a]) / cell), 0), ncell[a] - 1)
         key[i] = k
-    cell_start = np.zeros(total_cells, dtype=np.int64)
-    cell_end = np.zeros(total_cells, dtype=np.int64)
-    for i in range(n):  # (cell_end holds each cell's count until the end)
-        cell_end[key[i]] += 1
-    occupied = np.flatnonzero(cell_end)
-    codes = np.empty(occupied.shape[0], dtype=np.int64)
+    count = np.zeros(total_cells, dtype=np.int64)
+    for i in range(n):
+        count[key[i]] += 1
+    occupied_cells = 0
+    for k in range(total_cells):
+        occupied_cells += 1 if count[k] > 0 else 0
+    occupied = np.empty(occupied_cells, dtype=np.int64)
+    m = 0
+    for k in range(total_cells):
+        if count[k] > 0:
+            occupied[m] = k
+            m += 1
+    codes = np.empty(occupied_cells, dtype=np.int64)
     n1 = ncell[1] if dim > 1 else 1
     n2 = ncell[2] if dim > 2 else 1
-    for m in range(occupied.shape[0]):
+    for m in range(occupied_cells):
         k = occupied[m]
         codes[m] = morton_code(k // (n1 * n2), (k // n2) % n1, k % n2, dim)
+    return key, count, occupied, codes
+
+
+@nb.njit(cache=True)
+def cell_scatter(key, count, occupied, by_code):  # pragma: no cover (compiled)
+    """The second half of :func:`cell_sort`: the occupied cells in the order ``by_code`` (of
+    their Morton codes) given their ranges of sorted positions, and the particles scattered
+    into them in their given order: ``(order, cell_start, cell_end)``."""
+    cell_start = np.zeros(count.shape[0], dtype=np.int64)
+    cell_end = count  # each cell's count until the end, then the cursor of the scatter
     start = 0
-    for m in np.argsort(codes):
+    for m in by_code:
         k = occupied[m]
         cell_start[k] = start
         start += cell_end[k]
-        cell_end[k] = cell_start[k]  # now the cursor of the scatter below
-    order = np.empty(n, dtype=np.int64)
-    for i in range(n):
+        cell_end[k] = cell_start[k]
+    order = np.empty(key.shape[0], dtype=np.int64)
+    for i in range(key.shape[0]):
         order[cell_end[key[i]]] = i
         cell_end[key[i]] += 1
     return order, cell_start, cell_end
+
+
+def cell_sort(x: np.ndarray, lo: np.ndarray, cell: float,
+              ncell: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The particles sorted by cell, the cells in Z order and the particles of a cell in
+    their given order (the order a stable sort by the cells' Morton codes gives), by a
+    counting sort: ``(order, cell_start, cell_end)`` with ``order[p]`` the particle at sorted
+    position ``p`` and the particles of the cell of row-major number ``k`` at sorted positions
+    ``cell_start[k]:cell_end[k]``.  Only the occupied cells' codes are computed and sorted
+    (several particles share a cell), so it costs a fraction of a sort of the particles' codes
+    (the 2D build of 1e5 particles 20-23% faster than with that sort, the 3D build 6%:
+    benchmarks/README.md).
+
+    The occupied cells' codes are distinct, so numpy's sort of them (between the two
+    compiled halves, :func:`cell_codes` and :func:`cell_scatter`) gives the one order any
+    sort would; numba's own sort took 1.1-1.7 s of a cold first run to compile.
+    """
+    key, count, occupied, codes = cell_codes(x, lo, cell, ncell)
+    return cell_scatter(key, count, occupied, np.argsort(codes))
 
 
 @nb.njit(inline="always", cache=True)
@@ -154,33 +208,24 @@ def _build_functions(dim: int):
     helpers are module functions: numba caches a closure only if it captures no compiled
     function): ``(build, max_displacement)``.
 
-    ``build`` is Python that runs three compiled parts: ``prepare`` (the cells, the counting
-    sort, the positions in the cells' order), ``sweep_rows`` twice (count, then store) over
-    the rows in shares on numba's threads (:func:`impactsph.physics.chunked.run_chunked`),
-    and ``running_totals`` between them.  (One function with ``prange`` loops until 2026-12-06:
-    numba types and compiles a ``prange`` loop's body twice, and the 1D builder took 11-16 s
-    to compile on a cold cache, the longest compilation of the README's first command;
-    benchmarks/README.md, "A cold first command: the stage and the neighbour builder in
+    ``build`` is Python that finds the cells (:func:`cell_grid`), sorts the particles by
+    cell (:func:`cell_sort`), copies their positions in that order (``sorted_copies``), and
+    runs ``sweep_rows`` twice (count, then store) over the rows in shares on numba's threads
+    (:func:`impactsph.physics.chunked.run_chunked`), with ``running_totals`` between them.
+    (One function with ``prange`` loops until 2026-12-06: numba types and compiles a
+    ``prange`` loop's body twice, and the 1D builder took 11-16 s to compile on a cold cache,
+    the longest compilation of the README's first command; benchmarks/README.md, "A cold
+    first command: the stage and the neighbour builder in
     shares".)"""
     if dim not in (1, 2, 3):
         raise ValueError(f"dim = {dim!r}: the neighbour list is built for 1, 2 or 3 dimensions")
 
     @njit_variant(f"{dim}d")
-    def prepare(x, radius, h):
-        """The cells (lower corner ``lo``, counts ``ncell``), the counting sort
-        (:func:`cell_sort`) and the positions ``xs`` and smoothing lengths ``hs`` (none
-        without a radius per pair) in its order."""
+    def sorted_copies(x, h, order):
+        """The positions ``xs`` and smoothing lengths ``hs`` (none without a radius per
+        pair, ``h`` empty) in the cells' order ``order``."""
         n = x.shape[0]
-        per_pair = h.shape[0] > 0  # a radius per pair: support_per_h h_ij + skin
-        lo = np.zeros(dim)
-        ncell = np.ones(dim, dtype=np.int64)
-        if n > 0:
-            for a in range(dim):
-                lo[a] = x[:, a].min()
-                ncell[a] = max(1, int((x[:, a].max() - lo[a]) / radius) + 1)
-        # cells in Z order (neighbouring cells mostly close in memory in 2D and 3D), the
-        # particles of a cell in their given order
-        order, cell_start, cell_end = cell_sort(x, lo, radius, ncell)
+        per_pair = h.shape[0] > 0
         xs = np.empty((n, dim))
         hs = np.empty(n if per_pair else 0)
         for p in range(n):
@@ -188,7 +233,7 @@ def _build_functions(dim: int):
                 xs[p, a] = x[order[p], a]
             if per_pair:
                 hs[p] = h[order[p]]
-        return lo, ncell, order, cell_start, cell_end, xs, hs
+        return xs, hs
 
     @njit_variant(f"{dim}d", parallel=SIMPLIFICATIONS_ONLY, nogil=True)
     def sweep_rows(first, step, sweep, xs, hs, lo, ncell, cell_start, cell_end, radius,
@@ -383,8 +428,12 @@ def _build_functions(dim: int):
         (0: none) and its rows' splits (2D and 3D): ``(order, offsets, indices,
         inner_offsets, inner_indices, splits)``."""
         n = x.shape[0]
-        per_pair = h.shape[0] > 0
-        lo, ncell, order, cell_start, cell_end, xs, hs = prepare(x, radius, h)
+        per_pair = h.shape[0] > 0  # a radius per pair: support_per_h h_ij + skin
+        lo, ncell = cell_grid(x, radius)
+        # cells in Z order (neighbouring cells mostly close in memory in 2D and 3D), the
+        # particles of a cell in their given order
+        order, cell_start, cell_end = cell_sort(x, lo, radius, ncell)
+        xs, hs = sorted_copies(x, h, order)
         r2max = radius * radius
         r2inner = min(inner_radius, radius)
         r2inner = r2inner * r2inner  # 0: no inner list (a product, as the compiled ** 2 was)
