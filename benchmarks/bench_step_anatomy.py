@@ -23,6 +23,7 @@ from collections.abc import Callable
 from typing import Any
 
 from impactsph import Simulation, __version__, load_case
+from impactsph import integrate as integrate_module
 from impactsph import solver as solver_module
 from impactsph.neighbours import NeighbourList
 from impactsph.physics import rates as rates_module
@@ -99,7 +100,9 @@ def instrument(sim: Simulation, timers: Timers) -> list[tuple[str, str]]:
     # the total-Lagrangian passes (run_chunked's too; shown where they ran)
     parts += [("deformation_pass", "step"), ("force_pass", "step")]
     steps: list[tuple[Any, str, str]] = [
-        (integrator, "_stage_pass", "stage (update, return map, walls, survey)"),
+        # (around run_stage, not the pass: a chunked pass must stay a numba dispatcher, or
+        # run_chunked runs its shares one after another)
+        (integrate_module, "run_stage", "stage (update, return map, walls, survey)"),
         (integrator, "_keep", "start copies"),
         (integrator, "_constrain", "walls' constraint (SSP-RK3's combinations)"),
         (solver, "_build", "neighbour list rebuild"),
