@@ -84,7 +84,7 @@ def cell_grid(x, radius):  # pragma: no cover (compiled)
     """The cells of edge ``radius`` around the rows ``x``: their lower corner ``lo`` (the
     rows' smallest coordinates; zeros without rows) and their count along each axis, at least
     one.  (Loops: numpy's ``x.min(axis=0)`` and ``max`` took 6.8 ms for 1e5 2D rows, numba's
-    ``.min()`` a second to compile.)"""
+    ``.min()`` 0.5-0.9 s to compile.)"""
     n, dim = x.shape
     lo = np.zeros(dim)
     ncell = np.ones(dim, dtype=np.int64)
@@ -215,8 +215,7 @@ def _build_functions(dim: int):
     (One function with ``prange`` loops until 2026-12-06: numba types and compiles a
     ``prange`` loop's body twice, and the 1D builder took 11-16 s to compile on a cold cache,
     the longest compilation of the README's first command; benchmarks/README.md, "A cold
-    first command: the stage and the neighbour builder in
-    shares".)"""
+    first command: the stage and the neighbour builder in shares".)"""
     if dim not in (1, 2, 3):
         raise ValueError(f"dim = {dim!r}: the neighbour list is built for 1, 2 or 3 dimensions")
 
