@@ -702,9 +702,10 @@ class Compute(_Model):
     threads: Annotated[int, Field(ge=1)] | Literal["auto"] = Field(
         "auto", description="CPU threads of the compiled passes: 'auto' samples about once a "
         "second how many cores other processes hold and runs on the cores left (at most "
-        "numba's thread count at the start, NUMBA_NUM_THREADS unless set lower), saying so in "
-        "the log when the count changes; a number fixes it (capped at NUMBA_NUM_THREADS); the "
-        "results do not depend on it (impactsph.threads)")
+        "numba's thread count at the start, NUMBA_NUM_THREADS unless set lower), and takes "
+        "half of them where trials of a few blocks of steps time that faster (a small run), "
+        "saying so in the log when the count changes; a number fixes it (capped at "
+        "NUMBA_NUM_THREADS); the results do not depend on it (impactsph.threads)")
     resident: bool = Field(
         True, description="with device = 'gpu': keep the state on the GPU between steps (the "
         "whole step runs there: docs/gpu.md) where the case allows it; the log says when it "

@@ -55,6 +55,8 @@ class RunRecord:
     #: the thread count's changes: (wall seconds into the run, cores other processes held,
     #: new count) (:class:`~.threads.ThreadGovernor`)
     thread_changes: list[tuple[float, float, int]] = field(default_factory=list)
+    #: the governor's trials of a smaller thread count (:class:`~.threads.ThreadGovernor`)
+    thread_trials: list[dict[str, object]] = field(default_factory=list)
 
 
 @nb.njit(cache=True)
@@ -479,6 +481,12 @@ class Simulation:
                 f"\"Why AC's 3D runs blow up\"); viscosity.scheme = \"ac_pairwise\" or \"av\" "
                 f"holds such runs")
 
+    def _threaded_passes(self) -> bool:
+        """Whether the step's passes run on numba's threads (not where
+        ``$IMPACTSPH_PARALLEL=0`` compiled them serial)."""
+        options = getattr(getattr(self.solver, "backend", None), "options", None)
+        return bool(getattr(options, "parallel", True))
+
     # -- the loop ------------------------------------------------------------------------
     def run(self, t_end: float | None = None,
             callback: Callable[[Simulation], None] | None = None) -> RunRecord:
@@ -498,7 +506,8 @@ class Simulation:
         s = self._state
         survey = self._survey()
         dt0 = survey.dt
-        governor = ThreadGovernor(self.case.compute.threads)
+        governor = ThreadGovernor(self.case.compute.threads,
+                                  tune=resident is None and self._threaded_passes())
         start = _time.perf_counter()
         try:
             while s.time < t_end * (1 - 1e-12):
@@ -548,6 +557,7 @@ class Simulation:
                 self._sync()
             self.record.wall_seconds += _time.perf_counter() - start
             self.record.thread_changes.extend(governor.changes)
+            self.record.thread_trials.extend(governor.trials)
             governor.close()
         return self.record
 
@@ -583,6 +593,7 @@ class Simulation:
             "neighbour_list_builds": self.solver.neighbours.builds,
             "device": self.solver.backend.device,
             "thread_changes": [list(c) for c in self.record.thread_changes],
+            "thread_trials": list(self.record.thread_trials),
             "wall_constraint_events": self.integrator.constraint_events,
             "kinetic_energy_initial": float(ke[0]),
             "kinetic_energy_final": float(ke[-1]),
