@@ -126,6 +126,23 @@ def write_history(out: Path, sim: Any) -> None:
         write_text(out / "gauges.csv", _csv_text(_gauge_rows(sim)))
 
 
+def _plain_row(fields: list[str], row: dict[str, Any]) -> str | None:
+    """The CSV line of ``row``'s ``fields`` (``nan`` for one it lacks) where every value is a
+    ``float`` (written by ``repr``) or an ``int``: the text :class:`csv.DictWriter` writes,
+    without its per-row dictionary; None for a row with any other value."""
+    cells = []
+    for k in fields:
+        v = row.get(k, "nan")
+        kind = type(v)
+        if kind is float or kind is int:
+            cells.append(repr(v))
+        elif v == "nan" and kind is str:
+            cells.append(v)
+        else:
+            return None
+    return ",".join(cells) + "\n"
+
+
 class HistoryStream:
     """``history.csv``, ``probes.csv`` and ``gauges.csv`` (with gauges) written while a run
     goes: created with the rows
@@ -168,11 +185,21 @@ class HistoryStream:
                 extrasaction="ignore", restval="nan")
             if self._done[name] == 0:
                 writer.writeheader()
+        fields = writer.fieldnames
+        lines = []
         for r in rows:
-            writer.writerow({k: repr(v) if isinstance(v, float) else v for k, v in r.items()})
+            line = _plain_row(fields, r)
+            if line is None:  # a value that csv may quote: its writer
+                writer.writerow({k: repr(v) if isinstance(v, float) else v
+                                 for k, v in r.items()})
+                lines.append(buf.getvalue())
+                buf.seek(0)
+                buf.truncate()
+            else:
+                lines.append(line)
         try:
             fh = self._files[name]
-            fh.write(buf.getvalue().encode())
+            fh.write((buf.getvalue() + "".join(lines)).encode())
             fh.flush()
         except OSError as exc:
             raise output_error(exc, self.out / name) from exc
