@@ -330,3 +330,32 @@ def test_checkpoint_without_the_rows_splits_loads_and_a_wrong_split_is_refused(t
     with pytest.raises(ValueError, match=r"splits has shape \(3,\)"):
         NeighbourList(nl.offsets, nl.indices, nl.radius, nl.skin, nl.reference_positions,
                       order=nl.order, splits=nl.splits[:3])
+
+
+def test_the_history_stream_writes_write_historys_bytes(tmp_path):
+    """The stream's rows (floats by ``repr``, ints, and the values csv
+    may quote or writes otherwise: a string with a comma, a numpy float, None) are the
+    bytes ``write_history`` writes for the same rows."""
+    from types import SimpleNamespace
+
+    from impactsph.output import HistoryStream, write_history
+
+    rows = [{"time": 0.0, "step": 0, "energy": 1.0 / 3.0, "note": 1e-300},
+            {"time": 1.5e-7, "step": 1, "energy": float("nan"), "note": -0.0},
+            {"time": 3e-7, "step": 2, "energy": np.float64(2.5), "note": "a, b"},
+            {"time": 4.5e-7, "step": 3, "energy": float("inf"), "note": None}]
+    sim = SimpleNamespace(record=SimpleNamespace(history=[rows[0]], probes={}, gauges=[]),
+                          case=SimpleNamespace(dimension=2))
+    streamed = tmp_path / "streamed"
+    whole = tmp_path / "whole"
+    streamed.mkdir()
+    whole.mkdir()
+    stream = HistoryStream(streamed, sim)
+    for k in range(1, len(rows)):
+        sim.record.history.append(rows[k])
+        stream.update(sim)
+    stream.close()
+    write_history(whole, sim)
+    text = (streamed / "history.csv").read_bytes()
+    assert text == (whole / "history.csv").read_bytes()
+    assert b'"a, b"' in text and b"0.3333333333333333" in text
