@@ -8,7 +8,10 @@ The AC runs' last digits depend on the machine as well as the code: on an AMD Ze
 and the shortened cantilever's momentum drift 1.3e-12 relative away from the values recorded
 on the Zen 4 and Intel machines before it (the AV runs agree to 1e-13).  Not the compiled
 code's target (``NUMBA_CPU_NAME=znver4`` on the Zen 5 gives the Zen 5's digits) nor
-OpenBLAS's kernels (``OPENBLAS_CORETYPE``); the cause was not found.  So a machine whose CPU
+OpenBLAS's kernels (``OPENBLAS_CORETYPE``); the cause was not found.  Since the pair pass
+vectorises and fuses its sums (generation 2), a Zen 4 (``znver4``, 2026-12-06) gives the AC
+bars' profile oscillation 1.2e-11 relative away from the shared file, recorded on an Intel
+Xeon (the code of 34da93d and of the commit after it give the same digits there).  So a machine whose CPU
 has a file of its own, ``tests/data/pinned_results.<cpu>.json`` (``python
 tests/pinned_runs.py --this-cpu``, from a commit whose results match the shared file
 elsewhere), is held to that file, and every other machine to the shared one.
