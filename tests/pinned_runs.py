@@ -11,10 +11,11 @@ code's target (``NUMBA_CPU_NAME=znver4`` on the Zen 5 gives the Zen 5's digits) 
 OpenBLAS's kernels (``OPENBLAS_CORETYPE``); the cause was not found.  Since the pair pass
 vectorises and fuses its sums (generation 2), a Zen 4 (``znver4``, 2026-12-06) gives the AC
 bars' profile oscillation 1.2e-11 relative away from the shared file, recorded on an Intel
-Xeon (the code of 34da93d and of the commit after it give the same digits there).  So a machine whose CPU
-has a file of its own, ``tests/data/pinned_results.<cpu>.json`` (``python
-tests/pinned_runs.py --this-cpu``, from a commit whose results match the shared file
-elsewhere), is held to that file, and every other machine to the shared one.
+Xeon (34da93d, whose results matched the shared file there, gives the Zen 4 the same digits
+as the commits after it).  So a machine whose CPU has a file of its own,
+``tests/data/pinned_results.<cpu>.json`` (``python tests/pinned_runs.py --this-cpu``, from a
+commit whose results match the shared file elsewhere), is held to that file, and every other
+machine to the shared one.
 
 Each file carries the ``generation`` of the pins it was recorded from: re-recording the
 shared file counts it up, and ``--this-cpu`` copies the shared file's.  A CPU file of an
