@@ -196,3 +196,62 @@ def test_the_stage_in_shares_is_the_stage_in_one(monkeypatch):
     np.testing.assert_array_equal(survey4[1], survey[1])
     for f in FIELDS:
         np.testing.assert_array_equal(getattr(four, f), getattr(one, f), err_msg=f)
+
+
+def _taylor_of(tmp_path, library: str):
+    """The Taylor bar with its iron replaced by the library's ``library`` material."""
+    from importlib.resources import files
+
+    text = (files("impactsph") / "cases" / "taylor.toml").read_text()
+    start = text.index("[materials.iron]")
+    end = text.index("\n[", text.index("[materials.iron.mie_gruneisen]") + 1)
+    text = text[:start] + f'[materials.iron]\nlibrary = "{library}"\n' + text[end:]
+    path = tmp_path / f"taylor_{library}.toml"
+    path.write_text(text)
+    return load_case(path, ["time.max_steps=60", "output.figures=false"])
+
+
+def test_the_stage_names_only_its_runs_models(tmp_path):
+    """The integrator's stage comes from a module whose dispatches name only the strength
+    models with a return map and the damage models with an update that its materials use
+    (``PassOptions.strength_kinds``, ``damage_kinds``): none for the elastic bars, von Mises
+    for the Taylor bar, Johnson-Cook's hardening and damage for a copper bar; and that stage
+    gives the run the stage of every registered model gives it, to the bit."""
+    from dataclasses import replace
+
+    from impactsph.models import DAMAGE, STRENGTH
+
+    names = lambda registry, kinds: [list(registry)[k].name for k in kinds]  # noqa: E731
+    bars = Simulation(load_case("bars", ["output.figures=false"])).integrator.stage_options
+    assert (bars.strength_kinds, bars.damage_kinds) == ((), ())
+    taylor = Simulation(load_case("taylor", ["output.figures=false"])).integrator.stage_options
+    assert names(STRENGTH, taylor.strength_kinds) == ["elastic_plastic"]
+    assert taylor.damage_kinds == ()
+    case = _taylor_of(tmp_path, "ofhc_copper")
+    lean, full = Simulation(case), Simulation(case)
+    options = lean.integrator.stage_options
+    assert names(STRENGTH, options.strength_kinds) == ["johnson_cook"]
+    assert names(DAMAGE, options.damage_kinds) == ["johnson_cook_damage"]
+    module = compiled_passes(2, options=options)
+    every = compiled_passes(2, options=replace(options, strength_kinds=None, damage_kinds=None))
+    assert module is not every and module.__name__ != every.__name__
+    source = open(module.__file__).read()
+    dispatch = source[source.index("def strength_return"):source.index("def damage_update")]
+    assert dispatch.count("return _strength_") == 1
+    full.integrator._stage_pass = every.stage
+    lean.run()
+    full.run()
+    for field in ("position", "velocity", "density", "specific_energy", "deviatoric_stress",
+                  "plastic_work", "material_state"):
+        assert np.array_equal(getattr(lean.state, field), getattr(full.state, field)), field
+    assert lean.state.plastic_work.max() > 0.0
+
+
+@pytest.mark.parametrize(("field", "kinds"), [("strength_kinds", (3, 2)),
+                                               ("strength_kinds", (99,)),
+                                               ("damage_kinds", (0, 0))])
+def test_the_stage_models_are_checked(field, kinds):
+    from impactsph.physics.options import PassOptions
+
+    with pytest.raises(ValueError, match=field):
+        PassOptions(**{field: kinds})

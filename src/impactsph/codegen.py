@@ -173,12 +173,14 @@ def binding(dim: int, options: PassOptions | str | None = None) -> tuple[str, di
     for k, m in eos:
         inject[f"_eos_{k}"] = m.pressure
         described.append(f"#   eos {k}: {m.name} ({_qualified(m.pressure)})")
-    strength = [(k, m) for k, m in enumerate(STRENGTH) if m.return_map is not None]
+    strength = [(k, m) for k, m in enumerate(STRENGTH) if m.return_map is not None
+                and (options.strength_kinds is None or k in options.strength_kinds)]
     for k, m in enumerate(STRENGTH):
         if m.return_map is not None:
             inject[f"_strength_{k}"] = m.return_map
         described.append(f"#   strength {k}: {m.name} ({_qualified(m.return_map)})")
-    damage = [(k, m) for k, m in enumerate(DAMAGE) if m.update is not None]
+    damage = [(k, m) for k, m in enumerate(DAMAGE) if m.update is not None
+              and (options.damage_kinds is None or k in options.damage_kinds)]
     for k, m in enumerate(DAMAGE):
         if m.update is not None:
             inject[f"_damage_{k}"] = m.update

@@ -21,7 +21,8 @@ import numba as nb
 import numpy as np
 
 from .jitcache import njit_variant
-from .materials import TableLayout
+from .materials import DAMAGE_KIND, STRENGTH_KIND, TableLayout
+from .models import DAMAGE, STRENGTH
 from .physics.chunked import run_chunked, threads_for
 from .physics.options import PassOptions
 from .physics.rates import compiled_passes
@@ -77,6 +78,17 @@ def _survey_kernel(dim: int):
         return courant * part[n_chunks, 0], part[n_chunks, 1:].copy(), bad_of[n_chunks]
 
     return survey
+
+
+def models_of(table: np.ndarray) -> dict[str, tuple[int, ...]]:
+    """The strength models with a return map and the damage models with an update that the
+    material ``table``'s rows use, as :class:`~impactsph.physics.options.PassOptions`'
+    ``strength_kinds`` and ``damage_kinds``: the stage's module names only these."""
+    strength, damage = list(STRENGTH), list(DAMAGE)
+    return {"strength_kinds": tuple(sorted({int(k) for k in table[:, STRENGTH_KIND]
+                                            if strength[int(k)].return_map is not None})),
+            "damage_kinds": tuple(sorted({int(k) for k in table[:, DAMAGE_KIND]
+                                          if damage[int(k)].update is not None}))}
 
 
 def stable_time_step(state: ParticleState, table: np.ndarray, courant: float,
@@ -154,10 +166,11 @@ class MidpointIntegrator:
         self.clamp_impulse = np.zeros(dim)
         self.table = table
         self.n_active = n_active
-        # the stage depends on no option of the pair passes but the 2D model: one module
-        # serves every run of that kind
+        # the stage depends on no option of the pair passes but the 2D model and the
+        # materials' models: one module serves every run of that kind
         #: the options of the passes' module whose stage this integrator runs
-        self.stage_options = PassOptions(plane_stress=plane_stress, axisymmetric=axisymmetric)
+        self.stage_options = PassOptions(plane_stress=plane_stress, axisymmetric=axisymmetric,
+                                         **models_of(table))
         self._stage_pass = compiled_passes(dim, options=self.stage_options).stage
         self.survey_kernel = _survey_kernel(dim)
         #: the hourglass control's zeta, which the survey's signal speed includes

@@ -1009,9 +1009,24 @@ def kernels_cached(case: Case) -> bool | None:
                                if case.kernel.max_stretch <= 1.0 else [])
         pairs = any(cached(compiled_passes(case.dimension, options=o).pair_pass)
                     for o in modules)
-        return pairs and cached(compiled_passes(case.dimension).stage)
+        return pairs and cached(compiled_passes(case.dimension,
+                                                options=stage_options_of_case(case)).stage)
     except (AttributeError, OSError, TypeError):
         return None
+
+
+def stage_options_of_case(case: Case) -> Any:
+    """The options of the module whose stage a CPU run of ``case`` runs
+    (:class:`impactsph.integrate.MidpointIntegrator`'s ``stage_options``)."""
+    from .integrate import models_of
+    from .materials import material_table, resolve_material
+    from .physics.options import PassOptions
+
+    table = material_table([resolve_material(n, m) for n, m in case.materials.items()],
+                           case.time.wave_speed)
+    two_d = getattr(case, "two_dimensional", "")
+    return PassOptions(plane_stress=two_d == "plane_stress", axisymmetric=two_d == "axisymmetric",
+                       **models_of(table))
 
 
 def compile_notice(case: Case) -> str | None:

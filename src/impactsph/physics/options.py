@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..models.registry import VISCOSITY
+from ..models.registry import DAMAGE, STRENGTH, VISCOSITY
 
 #: ``gradient_correction`` modes and the file-name tag of their generated modules
 GRADIENT_CORRECTIONS = {"none": "", "velocity_gradient": "_kgc",
@@ -109,6 +109,15 @@ class PassOptions:
       them in float64, so a pair's separation is as exact as in float64 wherever the bodies
       are; the other columns' rounding, and the arithmetic between two record values (done in
       float32), are what change (docs/gpu.md, "Records in float32");
+    - ``strength_kinds``, ``damage_kinds``: the strength and damage models (their kind codes,
+      the positions in the registries) whose return maps and updates the module's
+      ``strength_return`` and ``damage_update`` name; None (the default) for every registered
+      one.  The integrator's stage comes from a module with just the models of its run's
+      materials (:class:`impactsph.integrate.MidpointIntegrator`): numba inlines every model
+      a dispatch names into the stage, and the 1D bars' stage compiled in 4.0-4.3 s with its
+      one return map against 7.0 s with all six models (benchmarks/README.md, "The stage
+      with its run's models"); a module that names a model is never run on a material of
+      another, since the dispatch's last branch is the elastic model's;
     - ``parallel``: the passes are compiled with numba's ``parallel=True`` (their chunks on
       numba's threads) or, False, as plain loops over the same chunks: the same results to
       the bit, quicker to compile, one thread.  Not from the case: from the environment
@@ -130,6 +139,8 @@ class PassOptions:
     switch_kind: int = -1
     uniform_h: bool = False
     record_precision: str = "float64"
+    strength_kinds: tuple[int, ...] | None = None
+    damage_kinds: tuple[int, ...] | None = None
     parallel: bool = field(default_factory=parallel_default)
 
     def __post_init__(self) -> None:
@@ -142,6 +153,13 @@ class PassOptions:
         if self.contact_traction not in CONTACT_TRACTIONS:
             raise ValueError(f"contact_traction = {self.contact_traction!r}: allowed are "
                              f"{', '.join(map(repr, CONTACT_TRACTIONS))}")
+        for name, kinds, registry in (("strength_kinds", self.strength_kinds, STRENGTH),
+                                      ("damage_kinds", self.damage_kinds, DAMAGE)):
+            if kinds is not None and (tuple(sorted(set(kinds))) != tuple(kinds)
+                                      or any(not 0 <= k < len(registry) for k in kinds)):
+                raise ValueError(f"{name} = {kinds!r}: allowed are None (every registered "
+                                 f"model) and a sorted tuple of distinct kind codes in "
+                                 f"0..{len(registry) - 1}")
         if self.switch_kind != -1:
             switches = [k for k, m in enumerate(VISCOSITY) if m.switch is not None]
             if self.switch_kind not in switches or not self.viscosity_factor:
@@ -213,6 +231,10 @@ class PassOptions:
             tag += "_uh"
         if self.record_precision == "float32":
             tag += "_f32"
+        if self.strength_kinds is not None:
+            tag += "_s" + "-".join(map(str, self.strength_kinds))
+        if self.damage_kinds is not None:
+            tag += "_d" + "-".join(map(str, self.damage_kinds))
         if not self.parallel:
             tag += "_serial"
         return tag
