@@ -66,10 +66,20 @@ def wait_for_rows(proc: subprocess.Popen, out: Path, n: int = 30) -> None:
 
 
 @pytest.fixture(scope="module")
-def interrupted(tmp_path_factory):
+def compiled(tmp_path_factory) -> None:
+    """The case's kernels in the cache (three steps of it, here), so that the runs in
+    subprocesses print no compile notice: a cold cache's first run says it compiles, in a
+    line of its own (``preflight.compile_notice``), and the tests count their lines."""
+    run_case(load_case("bars", [*SETS, "time.max_steps=3"]), tmp_path_factory.mktemp("warm"))
+
+
+@pytest.fixture(scope="module")
+def interrupted(tmp_path_factory, compiled):
     """A run in a subprocess, seen while it runs (a second run into its directory at that
     moment), then sent SIGINT; and the same case run whole, here."""
     root = tmp_path_factory.mktemp("interrupt")
+    whole = root / "whole"
+    run_case(load_case("bars", SETS), whole)
     out = root / "run"
     proc = start_run(out)
     try:
@@ -83,8 +93,6 @@ def interrupted(tmp_path_factory):
     finally:
         if proc.poll() is None:
             proc.kill()
-    whole = root / "whole"
-    run_case(load_case("bars", SETS), whole)
     return {"out": out, "whole": whole, "proc": proc, "stdout": stdout, "stderr": stderr,
             "lock": lock, "second": second, "rows_then": rows_then}
 
@@ -151,7 +159,7 @@ def test_restart_with_the_printed_command_reproduces_the_history(interrupted):
     assert not (out / "checkpoint.h5").exists()
 
 
-def test_sigterm_stops_the_same_way(tmp_path):
+def test_sigterm_stops_the_same_way(tmp_path, compiled):
     out = tmp_path / "run"
     proc = start_run(out)
     try:
