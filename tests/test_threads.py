@@ -334,3 +334,73 @@ def test_no_trials_for_a_fixed_count_or_serial_passes(monkeypatch):
     g3 = m.governor(tune=False)
     m.run(g3, 1000, {2: 100e-6, 1: 50e-6}.__getitem__)
     assert g3.trials == [] and g3.threads == 2
+
+
+def test_a_run_in_pieces_keeps_its_count_and_its_trials(monkeypatch):
+    """A simulation run in pieces (``sim.run(t)`` again and again) resumes its governor: the
+    count its trials chose holds from the next piece's first step, with no trial until the
+    spacing has passed in run time (the time between the pieces not counted), and a trial
+    cut by the end of a piece begins its block again, so the gap is in no block."""
+    from impactsph import threads as module
+
+    m, g = _trial_machine(monkeypatch)
+    seconds_on = {2: 100e-6, 1: 80e-6}.__getitem__
+    m.run(g, 2000, seconds_on)
+    assert [t["chosen"] for t in g.trials] == [1, 1] and g.threads == 1
+    g.close()
+    assert g.threads == 2 and g.resumable("auto", True)
+    assert not g.resumable(1, True) and not g.resumable("auto", False)
+    m.now += 100.0  # the caller's own work between the pieces
+    g.resume()
+    assert g.threads == 1 and m.calls[-1] == 1
+    counts = m.run(g, 500, seconds_on)
+    assert set(counts) == {1} and len(g.trials) == 2
+    due = g.trials[1]["end"] + module.SPACING * (g.trials[1]["end"] - g.trials[0]["start"])
+    m.run(g, int(due / 80e-6) + 1000, seconds_on)
+    assert len(g.trials) == 4 and g.trials[2]["start"] == pytest.approx(due, abs=2e-4)
+
+    # a trial cut in the middle of its first one-thread block: that block begins again
+    # after the gap (counted in it, the gap would make one thread look 1.5 times slower and
+    # stop the trial at once, keeping two)
+    m2, g2 = _trial_machine(monkeypatch)
+    m2.run(g2, 150, seconds_on)
+    assert g2.threads == 1 and g2._trial is not None
+    g2.close()
+    m2.now += 50.0
+    g2.resume()
+    m2.run(g2, 2000, seconds_on)
+    assert [t["chosen"] for t in g2.trials] == [1, 1]
+    assert g2.trials[0]["step_seconds"] == pytest.approx([100e-6, 80e-6])
+    assert g2.trials[0]["end"] - g2.trials[0]["start"] < 1.0
+
+    # a fixed count: set again for each piece, no trials
+    m3 = Machine()
+    g3 = m3.governor(setting=1, tune=True)
+    m3.run(g3, 100, seconds_on)
+    g3.close()
+    assert g3.threads == 2 and g3.resumable(1, True)
+    g3.resume()
+    assert set(m3.run(g3, 100, seconds_on)) == {1} and g3.trials == [] and m3.calls == [1, 2, 1]
+
+
+def test_a_simulation_resumes_its_governor(monkeypatch):
+    """``Simulation.run`` called twice keeps one governor, and a second simulation gets its
+    own; each call's record lists only the trials of that call."""
+    from impactsph import Simulation, load_case
+    from impactsph import simulation as module
+
+    made = []
+
+    class Recording(module.ThreadGovernor):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            made.append(self)
+
+    monkeypatch.setattr(module, "ThreadGovernor", Recording)
+    sim = Simulation(load_case("bars", ["output.figures=false"]))
+    sim.run(t_end=2e-6)
+    sim.run(t_end=4e-6)
+    assert len(made) == 1
+    Simulation(load_case("bars", ["output.figures=false"])).run(t_end=1e-6)
+    assert len(made) == 2
+    assert len(sim.record.thread_trials) == len(made[0].trials)

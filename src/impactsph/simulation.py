@@ -114,6 +114,8 @@ class Simulation:
             self.problem.state = state
         self._resident = None  # the state on the GPU between steps (gpu_step.ResidentStep)
         self._handed_out = False  # whether `state` was read (by a callback) since it was reset
+        #: the thread governor of the last ``run`` call, which the next one resumes
+        self._governor: ThreadGovernor | None = None
         self._state: ParticleState = self.problem.state
         self.walls = walls_of(case.boundaries, case.dimension)
         self.solver: Solver | TotalLagrangianSolver
@@ -506,8 +508,13 @@ class Simulation:
         s = self._state
         survey = self._survey()
         dt0 = survey.dt
-        governor = ThreadGovernor(self.case.compute.threads,
-                                  tune=resident is None and self._threaded_passes())
+        setting, tune = self.case.compute.threads, resident is None and self._threaded_passes()
+        governor = self._governor
+        if governor is not None and governor.resumable(setting, tune):
+            governor.resume()  # a run in pieces keeps its count and its trials' schedule
+        else:
+            governor = self._governor = ThreadGovernor(setting, tune=tune)
+        changes, trials = len(governor.changes), len(governor.trials)
         start = _time.perf_counter()
         try:
             while s.time < t_end * (1 - 1e-12):
@@ -556,8 +563,8 @@ class Simulation:
             if resident is not None and not resident.host_current:  # the state back
                 self._sync()
             self.record.wall_seconds += _time.perf_counter() - start
-            self.record.thread_changes.extend(governor.changes)
-            self.record.thread_trials.extend(governor.trials)
+            self.record.thread_changes.extend(governor.changes[changes:])
+            self.record.thread_trials.extend(governor.trials[trials:])
             governor.close()
         return self.record
 

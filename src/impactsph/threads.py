@@ -34,7 +34,9 @@ a few slow steps, not for a whole trial (never early the other way).  Trials are
 the load changes the count, and otherwise after :data:`SPACING` times their own duration (at
 most about 2% of a run at a count that is not the best).  The choices are logged (``threads:
 2 -> 1 (a step took 295 us on 1 thread against 310 us on 2 threads)``) and listed in
-``summary.json``'s ``thread_trials``.
+``summary.json``'s ``thread_trials``.  A simulation run in pieces (``sim.run(t)`` called again
+and again) keeps one governor: each piece goes on at the count, and with the trials'
+schedule, the last one left (:meth:`ThreadGovernor.resume`).
 
 The results do not depend on the thread count: each particle's sums are made by one thread in
 a fixed order, and the step is a minimum (``tests/test_threads.py``).  Where ``/proc/stat``
@@ -175,6 +177,10 @@ class ThreadTrial:
             self._decide(upper, lower)
         return self.count
 
+    def restart_block(self) -> None:
+        """Begin the current block again (its steps so far are not counted)."""
+        self._steps = -1
+
     def _decide(self, upper: float, lower: float) -> None:
         self.done = True
         self.chosen = self.counts[1] if lower < (1.0 - self.margin) * upper else self.counts[0]
@@ -199,19 +205,25 @@ class ThreadGovernor:
         import numba
 
         self._set = set_threads or numba.set_num_threads
+        self._get = get_threads or numba.get_num_threads
+        #: the ``compute.threads`` setting and whether trials run (:meth:`resumable`)
+        self.setting, self.tune = setting, tune
+        self._closed_at: float | None = None
+        self._trial_started = 0.0
+        self._trial_at, self._settle, self._confirming = float("inf"), 0, False
         self.usable = usable_cores() if usable is None else usable
         self.interval = interval
         self._busy, self._own, self._clock = busy, own, clock
         self.auto = setting == "auto"
         #: the thread count the passes use now
-        self.threads = (get_threads or numba.get_num_threads)()
+        self.threads = self._get()
         self._initial = self.threads
         #: the most threads "auto" gives the passes: the count at the start
         self.most = self.threads
         #: the count the load allows ("auto"; the trials choose at most this)
         self.cap = self.threads
         #: (wall seconds into the run, other processes' cores, new count) at each change the
-        #: load made
+        #: load made (the seconds of the runs so far, where :meth:`resume` went on)
         self.changes: list[tuple[float, float, int]] = []
         #: each finished trial: wall seconds into the run at its start and its end, the two
         #: counts, their fastest blocks' seconds a step, the count chosen
@@ -321,7 +333,35 @@ class ThreadGovernor:
                 self._schedule(now, settle=True)
 
     def close(self) -> None:
-        """Give back the thread count the run started with (the calling thread's)."""
+        """Give back the thread count the run started with (the calling thread's).  A later
+        :meth:`resume` (the simulation's next ``run`` call) takes up the count, the trial and
+        the schedule where they were."""
+        self._held = self.threads
+        self._closed_at = self._clock()
         if self.threads != self._initial:
             self._set(self._initial)
             self.threads = self._initial
+
+    def resumable(self, setting: int | str, tune: bool) -> bool:
+        """Whether :meth:`resume` may go on for a run of ``setting`` and ``tune``: the same
+        ones, after :meth:`close`, with numba's count what it was at the start."""
+        return (self._closed_at is not None and setting == self.setting and tune == self.tune
+                and self._get() == self._initial)
+
+    def resume(self) -> None:
+        """Go on after :meth:`close`: the count it held, a trial in progress with its block
+        begun again, the load sampled afresh; the time between the two is no run's (it is
+        left out of the times in :attr:`changes` and :attr:`trials`, and of the trials')."""
+        now = self._clock()
+        gap = now - self._closed_at
+        self._closed_at = None
+        self._start += gap
+        self._trial_at += gap
+        self._trial_started += gap
+        if self._trial is not None:
+            self._trial.started += gap
+            self._trial.restart_block()
+        self._use(self._held)
+        if self._next != float("inf"):
+            self._last = (now, self._busy(), self._own())
+            self._next = now + self.interval
