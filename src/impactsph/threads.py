@@ -19,10 +19,11 @@ ends.  A fixed ``compute.threads = N`` sets N threads once and samples nothing.
 
 On an idle machine the cores left are not always worth taking: a small run's step is many
 parallel regions of a few microseconds each, and a second thread can cost more in hand-overs
-than it gives (the 1D bars and plates, 202 and 400 particles, took 1.04-1.29 times as long on
-two threads as on one; the 2D rings and Taylor bar 0.65-0.85: benchmarks/README.md, "Small
-runs: the thread count measured").  Where that lies depends on the machine, the case and the
-load, so "auto" does not guess it from the particle count: it measures it.  A
+than it gives (the 1D bars and plates, 202 and 400 particles, took 1.04-1.47 times as long on
+two threads as on one, once 0.70 in a spell; the 2D rings and Taylor bar 0.65-0.96:
+benchmarks/README.md, "Small runs: the thread count measured").  Where that lies depends on
+the machine, the case and the load, so "auto" does not guess it from the particle count: it
+measures it.  A
 :class:`ThreadTrial` runs blocks of steps at the count the load allows (``upper``) and at half
 of it (``lower``), three blocks each, alternated, each block at least :data:`BLOCK_STEPS`
 steps and :data:`BLOCK_SECONDS` of wall time after one step to settle.  It compares each
