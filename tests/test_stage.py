@@ -221,7 +221,9 @@ def test_the_stage_names_only_its_runs_models(tmp_path):
 
     from impactsph.models import DAMAGE, STRENGTH
 
-    names = lambda registry, kinds: [list(registry)[k].name for k in kinds]  # noqa: E731
+    def names(registry, kinds):
+        return [list(registry)[k].name for k in kinds]
+
     bars = Simulation(load_case("bars", ["output.figures=false"])).integrator.stage_options
     assert (bars.strength_kinds, bars.damage_kinds) == ((), ())
     taylor = Simulation(load_case("taylor", ["output.figures=false"])).integrator.stage_options

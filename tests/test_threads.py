@@ -385,7 +385,8 @@ def test_a_run_in_pieces_keeps_its_count_and_its_trials(monkeypatch):
 
 def test_a_simulation_resumes_its_governor(monkeypatch):
     """``Simulation.run`` called twice keeps one governor, and a second simulation gets its
-    own; each call's record lists only the trials of that call."""
+    own; each call's record adds only the trials of that call (the governor here records
+    one at the first step of each call)."""
     from impactsph import Simulation, load_case
     from impactsph import simulation as module
 
@@ -395,6 +396,17 @@ def test_a_simulation_resumes_its_governor(monkeypatch):
         def __init__(self, *args, **kwargs):
             super().__init__(*args, **kwargs)
             made.append(self)
+            self._fresh = True
+
+        def resume(self):
+            super().resume()
+            self._fresh = True
+
+        def tick(self):
+            if self._fresh:
+                self.trials.append({"call": len(self.trials)})
+                self._fresh = False
+            super().tick()
 
     monkeypatch.setattr(module, "ThreadGovernor", Recording)
     sim = Simulation(load_case("bars", ["output.figures=false"]))
@@ -403,4 +415,4 @@ def test_a_simulation_resumes_its_governor(monkeypatch):
     assert len(made) == 1
     Simulation(load_case("bars", ["output.figures=false"])).run(t_end=1e-6)
     assert len(made) == 2
-    assert len(sim.record.thread_trials) == len(made[0].trials)
+    assert sim.record.thread_trials == [{"call": 0}, {"call": 1}] == made[0].trials

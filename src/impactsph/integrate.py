@@ -80,15 +80,20 @@ def _survey_kernel(dim: int):
     return survey
 
 
-def models_of(table: np.ndarray) -> dict[str, tuple[int, ...]]:
-    """The strength models with a return map and the damage models with an update that the
-    material ``table``'s rows use, as :class:`~impactsph.physics.options.PassOptions`'
-    ``strength_kinds`` and ``damage_kinds``: the stage's module names only these."""
+def stage_options(table: np.ndarray, plane_stress: bool = False,
+                  axisymmetric: bool = False) -> PassOptions:
+    """The options of the passes' module whose stage a run of the material ``table`` and
+    2D model runs: the stage depends on no option of the pair passes but the 2D model and
+    the strength models with a return map and the damage models with an update that the
+    table's rows use (``strength_kinds``, ``damage_kinds``: the module names only these), so
+    one module serves every run of that kind."""
     strength, damage = list(STRENGTH), list(DAMAGE)
-    return {"strength_kinds": tuple(sorted({int(k) for k in table[:, STRENGTH_KIND]
-                                            if strength[int(k)].return_map is not None})),
-            "damage_kinds": tuple(sorted({int(k) for k in table[:, DAMAGE_KIND]
-                                          if damage[int(k)].update is not None}))}
+    return PassOptions(
+        plane_stress=plane_stress, axisymmetric=axisymmetric,
+        strength_kinds=tuple(sorted({int(k) for k in table[:, STRENGTH_KIND]
+                                     if strength[int(k)].return_map is not None})),
+        damage_kinds=tuple(sorted({int(k) for k in table[:, DAMAGE_KIND]
+                                   if damage[int(k)].update is not None})))
 
 
 def stable_time_step(state: ParticleState, table: np.ndarray, courant: float,
@@ -166,11 +171,8 @@ class MidpointIntegrator:
         self.clamp_impulse = np.zeros(dim)
         self.table = table
         self.n_active = n_active
-        # the stage depends on no option of the pair passes but the 2D model and the
-        # materials' models: one module serves every run of that kind
         #: the options of the passes' module whose stage this integrator runs
-        self.stage_options = PassOptions(plane_stress=plane_stress, axisymmetric=axisymmetric,
-                                         **models_of(table))
+        self.stage_options = stage_options(table, plane_stress, axisymmetric)
         self._stage_pass = compiled_passes(dim, options=self.stage_options).stage
         self.survey_kernel = _survey_kernel(dim)
         #: the hourglass control's zeta, which the survey's signal speed includes

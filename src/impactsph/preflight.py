@@ -997,6 +997,8 @@ def kernels_cached(case: Case) -> bool | None:
     the case's own (bodies of different h); either one cached counts."""
     from dataclasses import replace
 
+    from .integrate import stage_options
+    from .materials import material_table, resolve_material
     from .physics.options import PassOptions
     from .physics.rates import compiled_passes
 
@@ -1009,24 +1011,13 @@ def kernels_cached(case: Case) -> bool | None:
                                if case.kernel.max_stretch <= 1.0 else [])
         pairs = any(cached(compiled_passes(case.dimension, options=o).pair_pass)
                     for o in modules)
-        return pairs and cached(compiled_passes(case.dimension,
-                                                options=stage_options_of_case(case)).stage)
+        table = material_table([resolve_material(n, m) for n, m in case.materials.items()],
+                               case.time.wave_speed)
+        two_d = getattr(case, "two_dimensional", "")
+        stage = stage_options(table, two_d == "plane_stress", two_d == "axisymmetric")
+        return pairs and cached(compiled_passes(case.dimension, options=stage).stage)
     except (AttributeError, OSError, TypeError):
         return None
-
-
-def stage_options_of_case(case: Case) -> Any:
-    """The options of the module whose stage a CPU run of ``case`` runs
-    (:class:`impactsph.integrate.MidpointIntegrator`'s ``stage_options``)."""
-    from .integrate import models_of
-    from .materials import material_table, resolve_material
-    from .physics.options import PassOptions
-
-    table = material_table([resolve_material(n, m) for n, m in case.materials.items()],
-                           case.time.wave_speed)
-    two_d = getattr(case, "two_dimensional", "")
-    return PassOptions(plane_stress=two_d == "plane_stress", axisymmetric=two_d == "axisymmetric",
-                       **models_of(table))
 
 
 def compile_notice(case: Case) -> str | None:

@@ -113,11 +113,11 @@ class PassOptions:
       the positions in the registries) whose return maps and updates the module's
       ``strength_return`` and ``damage_update`` name; None (the default) for every registered
       one.  The integrator's stage comes from a module with just the models of its run's
-      materials (:class:`impactsph.integrate.MidpointIntegrator`): numba inlines every model
-      a dispatch names into the stage, and the 1D bars' stage compiled in 4.0-4.3 s with its
-      one return map against 7.0 s with all six models (benchmarks/README.md, "The stage
-      with its run's models"); a module that names a model is never run on a material of
-      another, since the dispatch's last branch is the elastic model's;
+      materials (:func:`impactsph.integrate.stage_options`): numba inlines every model a
+      dispatch names into the stage, and the elastic 1D bars' stage (no return map)
+      compiled in 3.5-3.8 s against 6.4-6.6 s with all six models (benchmarks/README.md,
+      "The stage with its run's models").  Such a module must run only materials whose
+      models it names: the dispatch's fallback for any other is the elastic model's;
     - ``parallel``: the passes are compiled with numba's ``parallel=True`` (their chunks on
       numba's threads) or, False, as plain loops over the same chunks: the same results to
       the bit, quicker to compile, one thread.  Not from the case: from the environment
