@@ -390,6 +390,32 @@ def test_version():
     assert res.output.strip() == f"impactsph {__version__}"
 
 
+def test_a_value_of_several_types_is_told_every_type_it_may_take():
+    """A field that takes a number or ``"auto"`` (or a number or a list) says both in its one
+    line, for the value given, not the first member's message and "1 more error"."""
+    told = {
+        "compute.threads=0": "compute.threads = 0: Input should be greater than or equal to 1 "
+                             "or 'auto'",
+        "compute.threads=two": "compute.threads = 'two': Input should be a valid integer or "
+                               "'auto'",
+        "kernel.max_stretch=5": "kernel.max_stretch = 5: Input should be less than or equal to "
+                                "4 or 'auto'",
+        "stabilisation.hourglass=-1": "stabilisation.hourglass = -1: Input should be greater "
+                                      "than or equal to 0 or 'auto'",
+    }
+    for setting, line in told.items():
+        res = runner.invoke(app, ["check", "bars", "--set", setting])
+        assert res.exit_code == 2, setting
+        assert res.output.strip() == f"error: {line}"
+    res = runner.invoke(app, ["check", "taylor", "--set", "bodies.0.geometry.spacing='x'"])
+    assert res.output.strip() == ("error: bodies.0.geometry.spacing = 'x': Input should be a "
+                                  "valid number or a valid list")
+    # two fields wrong: the second is still counted
+    res = runner.invoke(app, ["check", "bars", "--set", "compute.threads=0", "--set",
+                              "kernel.max_stretch=5"])
+    assert res.output.strip().endswith("or 'auto' (and 1 more error)")
+
+
 def test_did_you_mean_for_a_misspelt_key(tmp_path):
     res = runner.invoke(app, ["check", "bars", "--set", "viscosity.alpah1=0.5"])
     assert res.exit_code == 2
@@ -406,7 +432,7 @@ def test_did_you_mean_for_a_misspelt_key(tmp_path):
     res = runner.invoke(app, ["check", "bars", "--set",
                               'output.probes.0={name = "m", body = "left", positon = [0.0]}'])
     assert res.output.strip() == ("error: output.probes.0.positon: unknown key; did you mean "
-                                  "'position'? (and 1 more errors)")
+                                  "'position'? (and 1 more error)")
     res = runner.invoke(app, ["check", "taylor", "--set", "bodies.0.geometry.cont=[9, 29]"])
     assert res.output.strip() == "error: bodies.0.geometry.cont: unknown key; did you mean " \
         "'count'?"

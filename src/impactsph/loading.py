@@ -204,17 +204,40 @@ def _misspelt_first(errors: list[Any]) -> list[Any]:
     return errors
 
 
+#: how pydantic begins most of its messages, which :func:`_alternatives` says once
+SHOULD_BE = "Input should be "
+
+
+def _alternatives(errors: list[Any]) -> tuple[str, list[Any]]:
+    """The message of the first error, with those of the other members of the same union
+    field for the same value joined to it (``compute.threads = 0``: ``Input should be greater
+    than or equal to 1 or 'auto'``, not the integer's alone and "1 more error"), and the
+    errors left."""
+    first = errors[0]
+    if not (first["loc"] and _is_type_tag(first["loc"][-1])):
+        return first["msg"], errors[1:]
+    same = [e for e in errors if e is first or (
+        e["loc"][:-1] == first["loc"][:-1] and e["loc"] and _is_type_tag(e["loc"][-1])
+        and repr(e.get("input")) == repr(first.get("input")))]  # (repr: nan == nan)
+    messages = [e["msg"] for e in same]
+    if all(m.startswith(SHOULD_BE) for m in messages):
+        messages = [messages[0], *(m[len(SHOULD_BE):] for m in messages[1:])]
+    return " or ".join(messages), [e for e in errors if not any(e is s for s in same)]
+
+
 def _format_error(exc: ValidationError) -> str:
     errors = _misspelt_first(exc.errors())
     err = errors[0]
     loc = _location(err["loc"])
-    msg = err["msg"]
+    msg, others = _alternatives(errors)
     if msg.startswith("Value error, "):
         msg = msg[len("Value error, "):]
     value = err.get("input")
     if err["type"] == "geometry_type" and isinstance(value, dict):
         loc, value = f"{loc}.type", value.get("type")
-    more = f" (and {len(errors) - 1} more errors)" if len(errors) > 1 else ""
+    # the other fields in error (a union field's members' errors are one field's)
+    fields = len({(_location(e["loc"]), repr(e.get("input"))) for e in others})
+    more = f" (and {fields} more error{'s' if fields > 1 else ''})" if fields else ""
     if err["type"] == "extra_forbidden":
         hint = did_you_mean(err["loc"][-1], allowed_keys(err["loc"][:-1])) if err["loc"] else ""
         return f"{loc}: unknown key{hint}{more}"
