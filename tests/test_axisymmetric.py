@@ -187,6 +187,21 @@ def test_axisymmetric_defaults_leave_out_what_is_not_available():
     assert len(axis) == 1 and list(axis[0].normal) == [1.0, 0.0]
 
 
+def test_the_set_ups_warning_is_in_the_run_log(tmp_path):
+    """The device's warning comes while the run is set up, before its run.log is open: the
+    run directory's log holds it too, first, once."""
+    from impactsph.runner import run_case
+
+    case = validate_case(axisymmetric_case([0.003, 0.01], 0.001, [0.0, -1.0], [], 2e-8,
+                                           compute={"device": "gpu"}))
+    out = tmp_path / "run"
+    run_case(case, out, figures=False)
+    lines = (out / "run.log").read_text().splitlines()
+    warned = [n for n, line in enumerate(lines) if "WARNING impactsph.devices: compute.device "
+              "= 'gpu' but the axis of axisymmetry" in line]
+    assert warned == [0], lines[:3]
+
+
 def test_gpu_device_runs_axisymmetry_on_the_cpu_with_a_warning(caplog):
     """The axis is a symmetry plane, which the GPU passes do not mirror: with
     ``compute.device = "gpu"`` the run goes to the CPU and says why, before any work (on any

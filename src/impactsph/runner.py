@@ -31,7 +31,7 @@ from .output import (
 from .preflight import label_of, scheme_line
 from .problems.registry import analyse
 from .rundir import IfExists, RunLock, check_run_dir, clear_outputs, make_run_dir, remove_if_empty
-from .runlog import run_log
+from .runlog import held_warnings, run_log
 from .simulation import Simulation, SimulationError
 
 log = logging.getLogger("impactsph")
@@ -141,18 +141,20 @@ def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], No
     lock = RunLock(out)
     try:
         lock.acquire()
-        # a case that cannot be set up (CaseError) leaves no directory
-        if restart is not None:
-            from .checkpoint import load_checkpoint
+        # a case that cannot be set up (CaseError) leaves no directory; its set-up's warnings
+        # go to run.log once that is open
+        with held_warnings() as setup_warnings:
+            if restart is not None:
+                from .checkpoint import load_checkpoint
 
-            sim = load_checkpoint(restart, case, verify=False)
-        else:
-            sim = Simulation(case)
+                sim = load_checkpoint(restart, case, verify=False)
+            else:
+                sim = Simulation(case)
         if isinstance(stop, StopRequest):
             stop.arm()  # set up: a signal now asks for a stop after a step
         if if_exists == "overwrite":
             clear_outputs(out)
-        with run_log(out):
+        with run_log(out, earlier=setup_warnings):
             if restart is not None:
                 log.info("restarted from %s at t = %g s (step %d)", restart, sim.state.time,
                          sim.state.step)
