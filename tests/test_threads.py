@@ -91,7 +91,7 @@ def test_the_governor_gives_back_the_starting_count(monkeypatch):
     assert m.calls == [1, 2] and g.threads == 2
 
 
-def test_a_fixed_count_is_set_once_and_capped(monkeypatch):
+def test_a_fixed_count_is_set_once_and_capped(monkeypatch, caplog):
     import numba
     monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", 2)
     m = Machine()
@@ -100,7 +100,11 @@ def test_a_fixed_count_is_set_once_and_capped(monkeypatch):
     g.tick()
     assert m.calls == [1] and not g.auto
     m2 = Machine()
-    assert m2.governor(setting=8).threads == 2 and m2.calls == []  # capped at numba's count
+    with caplog.at_level("INFO", logger="impactsph"):
+        assert m2.governor(setting=8).threads == 2 and m2.calls == []  # capped at numba's
+    # ... and the log says so (the count itself does not change: no other line)
+    assert [r.getMessage() for r in caplog.records] == [
+        "threads: compute.threads = 8, but numba has 2 (NUMBA_NUM_THREADS): running on 2"]
 
 
 def test_without_a_load_reading_auto_keeps_numbas_count(monkeypatch):

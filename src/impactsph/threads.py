@@ -235,8 +235,11 @@ class ThreadGovernor:
         self._block = (BLOCK_STEPS if block_steps is None else block_steps,
                        BLOCK_SECONDS if block_seconds is None else block_seconds)
         if not self.auto:
-            self._apply(min(int(setting), int(numba.config.NUMBA_NUM_THREADS)),
-                        other=float("nan"))
+            most = int(numba.config.NUMBA_NUM_THREADS)
+            if int(setting) > most:
+                log.info("threads: compute.threads = %d, but numba has %d (NUMBA_NUM_THREADS): "
+                         "running on %d", int(setting), most, most)
+            self._apply(min(int(setting), most), other=float("nan"))
             self._next = float("inf")
             self._tuning = False
             return
