@@ -382,6 +382,18 @@ def test_run_names_are_readable_and_unique_and_old_sweeps_resume(tmp_path):
 
 # --- the command line: --version, did you mean, the log -----------------------------------------
 
+def test_the_help_wraps_its_paragraphs_and_keeps_their_brackets():
+    """The commands' help is their docstrings, each paragraph wrapped to the terminal (typer
+    showed their source line breaks) and their brackets as written (rich markup dropped
+    ``[materials.X]``)."""
+    wide = {"COLUMNS": "200"}
+    listing = runner.invoke(app, ["--help"], env=wide).output
+    assert 'use one in a case with [materials.X] library = "NAME"' in listing
+    assert "estimates of memory and run time, and warnings" in listing
+    run_help = runner.invoke(app, ["run", "--help"], env=wide).output
+    assert "and prints the command that continues it (exit code 130)" in run_help
+
+
 def test_version():
     from impactsph._version import __version__
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import json
 import logging
 import sys
@@ -484,6 +485,23 @@ def _fmt(v) -> str:
     if isinstance(v, float):
         return f"{v:.4g}"
     return str(v)[:40]
+
+
+def _help_of(doc: str) -> str:
+    """A command's docstring as its help: each paragraph on one line, so that the terminal
+    wraps it (typer shows the line breaks of every paragraph but the first as they are, and
+    those of the first in the commands' list), and its brackets kept as text (typer reads the
+    help as rich markup, which took ``[materials.X]`` for a style and dropped it)."""
+    from rich.markup import escape
+
+    paragraphs = inspect.cleandoc(doc).split("\n\n")
+    return "\n\n".join(escape(" ".join(line.strip() for line in p.splitlines()))
+                       for p in paragraphs)
+
+
+for _command in app.registered_commands:
+    if _command.help is None and _command.callback is not None and _command.callback.__doc__:
+        _command.help = _help_of(_command.callback.__doc__)
 
 
 def main() -> None:  # pragma: no cover
