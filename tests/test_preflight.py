@@ -67,7 +67,7 @@ def test_check_prints_counts_and_estimates_for_taylor():
     res = runner.invoke(app, ["check", "taylor"])
     assert res.exit_code == 0, res.output
     lines = res.output.splitlines()
-    assert lines[0] == "taylor: valid (2D plane strain, 1 bodies)"
+    assert lines[0] == "taylor: valid (2D plane strain, 1 body)"
     assert lines[1].startswith("scheme: AC ")  # tests/test_cli.py checks the line
     assert lines[2] == "particles: bar 1,407; total 1,407 (+ 63 wall ghosts)"
     assert lines[3].startswith("estimated memory: ") and " MB" in lines[3]

@@ -215,7 +215,8 @@ def check(case: Annotated[str, typer.Argument(help="case file or built-in name")
     except CaseError as exc:
         _fail(str(exc))
     model = f" {c.two_dimensional.replace('_', ' ')}" if c.dimension == 2 else ""
-    typer.echo(f"{c.name}: valid ({c.dimension}D{model}, {len(c.bodies)} bodies)")
+    bodies = f"{len(c.bodies)} bod{'y' if len(c.bodies) == 1 else 'ies'}"
+    typer.echo(f"{c.name}: valid ({c.dimension}D{model}, {bodies})")
     typer.echo(scheme_line(c))
     typer.echo("\n".join(report.lines()))
 
