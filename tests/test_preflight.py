@@ -326,11 +326,21 @@ def test_pair_rate_is_kept_for_later_estimates(tmp_path, monkeypatch):
     assert pf.pair_rate("cpu", 2)[0] == rate  # it gave up cores: a loaded machine's rate
     # through after_run: not from a restarted run (pairs since t = 0, wall time since the
     # restart)
-    case, summary3 = validate_case(block_case(name="rates")), {**summary, "dimension": 3}
+    # a 3D case with no 3D rate of its own borrows the 2D one, and says so; a 1D one does not
+    rate3, source3 = pf.pair_rate("cpu", 3)
+    assert rate3 == rate
+    assert source3.endswith("in 2D, " + source.split(", ")[-1][:-1] + "; no 3D run has "
+                            "measured one)"), source3
+    assert pf.pair_rate("cpu", 1)[0] == pf.DEFAULT_PAIR_RATE
+    case, summary3 = validate_case(block_case(name="rates")), {
+        **summary, "dimension": 3, "wall_seconds": 20.0}
     pf.after_run(case, summary3, restarted=True, echo=lambda line: None)
-    assert pf.pair_rate("cpu", 3)[0] == pf.DEFAULT_PAIR_RATE
+    assert pf.pair_rate("cpu", 3) == (rate3, source3)
     pf.after_run(case, summary3, echo=lambda line: None)
-    assert pf.pair_rate("cpu", 3)[0] == rate
+    rate3, source3 = pf.pair_rate("cpu", 3)
+    assert rate3 == pytest.approx(4e8 / (20.0 - 1000 * pf.STEP_SECONDS))
+    assert "'rates', " in source3 and "2D" not in source3
+    assert pf.pair_rate("cpu", 2)[0] == rate  # each dimension its own, once it has one
 
 
 def test_a_kernel_that_follows_the_stretch_keeps_its_own_rate(tmp_path, monkeypatch):

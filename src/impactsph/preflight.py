@@ -458,26 +458,33 @@ def pair_rate(device: str, dim: int, stretch: bool = False) -> tuple[float, str]
     """Pair evaluations per second for runs of dimension ``dim`` on ``device`` with this many
     numba threads, with a kernel that follows the stretch or not (``stretch``): the rate the
     last run of that kind measured on this machine (stored by :func:`record_pair_rate`),
-    else that of a run with the other kernel times or over :data:`STRETCH_COST`, else
-    :data:`DEFAULT_PAIR_RATE`; and where it comes from."""
+    else that of a run with the other kernel times or over :data:`STRETCH_COST`; else, for a
+    2D or 3D case whose dimension has no rate yet, the other dimension's (a pair costs about
+    the same in the two: the lattices' 1.15e8 and 1.14e8 pairs/s of 2026-12-06,
+    benchmarks/README.md); else :data:`DEFAULT_PAIR_RATE`; and where it comes from."""
     try:
         stored = json.loads(_pair_rate_path().read_text())
     except (OSError, ValueError):
         stored = {}
     # the other kind's rate, as this kind's: a stretching run's is STRETCH_COST times slower
     borrowed = 1.0 / STRETCH_COST if stretch else STRETCH_COST
-    for kind, factor in ((stretch, 1.0), (not stretch, borrowed)):
-        try:
-            entry = stored[_pair_rate_key(device, dim, kind)]
-            rate = float(entry["rate"]) * factor
-            if rate > 0 and math.isfinite(rate):
-                other = "" if kind == stretch else (
-                    f" with {'a fixed kernel' if stretch else 'a kernel that follows the stretch'}"
-                    f", its rate {'over' if stretch else 'times'} {STRETCH_COST}")
-                return rate, (f"(measured on this machine by a run of {entry['case']!r}, "
-                              f"{entry['date']}{other})")
-        except (KeyError, ValueError, TypeError):
-            pass
+    dims = (dim, 5 - dim) if dim in (2, 3) else (dim,)
+    for run_dim in dims:
+        for kind, factor in ((stretch, 1.0), (not stretch, borrowed)):
+            try:
+                entry = stored[_pair_rate_key(device, run_dim, kind)]
+                rate = float(entry["rate"]) * factor
+                if rate > 0 and math.isfinite(rate):
+                    where = "" if run_dim == dim else f" in {run_dim}D"
+                    kernel = "a fixed kernel" if stretch else "a kernel that follows the stretch"
+                    other = "" if kind == stretch else (
+                        f" with {kernel}, its rate {'over' if stretch else 'times'} "
+                        f"{STRETCH_COST}")
+                    none = "" if run_dim == dim else f"; no {dim}D run has measured one"
+                    return rate, (f"(measured on this machine by a run of {entry['case']!r}"
+                                  f"{where}, {entry['date']}{other}{none})")
+            except (KeyError, ValueError, TypeError):
+                pass
     return DEFAULT_PAIR_RATE, "(a conservative default: no run on this machine has measured one)"
 
 
