@@ -187,9 +187,12 @@ def test_axisymmetric_defaults_leave_out_what_is_not_available():
     assert len(axis) == 1 and list(axis[0].normal) == [1.0, 0.0]
 
 
-def test_the_set_ups_warning_is_in_the_run_log(tmp_path):
+def test_the_set_ups_log_lines_are_in_the_run_log(tmp_path):
     """The device's warning comes while the run is set up, before its run.log is open: the
-    run directory's log holds it too, first, once."""
+    run directory's log holds it too, first, once; so does a restart's warning about its
+    checkpoint, logged before the directory is taken."""
+    import h5py
+
     from impactsph.runner import run_case
 
     case = validate_case(axisymmetric_case([0.003, 0.01], 0.001, [0.0, -1.0], [], 2e-8,
@@ -200,6 +203,19 @@ def test_the_set_ups_warning_is_in_the_run_log(tmp_path):
     warned = [n for n, line in enumerate(lines) if "WARNING impactsph.devices: compute.device "
               "= 'gpu' but the axis of axisymmetry" in line]
     assert warned == [0], lines[:3]
+    # a checkpoint of an older version (no checksum): told on restart, and in run.log
+    from impactsph.checkpoint import write_checkpoint
+    sim = Simulation(case)
+    sim.run(t_end=1e-8)
+    path = write_checkpoint(sim, tmp_path / "old.h5")
+    with h5py.File(path, "a") as f:
+        del f.attrs["sha256"]
+    again = tmp_path / "again"
+    run_case(case, again, figures=False, restart=path)
+    lines = (again / "run.log").read_text().splitlines()
+    assert "read unverified" in lines[0] and "WARNING" in lines[0]
+    assert sum("read unverified" in line for line in lines) == 1
+    assert any("compute.device = 'gpu' but" in line for line in lines[1:3])
 
 
 def test_gpu_device_runs_axisymmetry_on_the_cpu_with_a_warning(caplog):

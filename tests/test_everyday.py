@@ -414,6 +414,13 @@ def test_a_value_of_several_types_is_told_every_type_it_may_take():
                                 "4 or 'auto'",
         "stabilisation.hourglass=-1": "stabilisation.hourglass = -1: Input should be greater "
                                       "than or equal to 0 or 'auto'",
+        "stabilisation.hourglass=nan": "stabilisation.hourglass = nan: Input should be a "
+                                       "finite number or 'auto'",  # (nan != nan)
+        "bodies.0.clamped=5": "bodies.0.clamped = 5: Input should be a valid dictionary or "
+                              "instance of Region or a valid list",  # a model member
+        # a list: the list member's error, where it lies
+        "bodies.0.geometry.spacing=[1,'x']": "bodies.0.geometry.spacing.1 = 'x': Input should "
+                                             "be a valid number",
     }
     for setting, line in told.items():
         res = runner.invoke(app, ["check", "bars", "--set", setting])

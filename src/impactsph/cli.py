@@ -493,11 +493,13 @@ def _help_of(doc: str) -> str:
     wraps it (typer shows the line breaks of every paragraph but the first as they are, and
     those of the first in the commands' list), and its brackets kept as text (typer reads the
     help as rich markup, which took ``[materials.X]`` for a style and dropped it)."""
+    import typer.core
     from rich.markup import escape
 
-    paragraphs = inspect.cleandoc(doc).split("\n\n")
-    return "\n\n".join(escape(" ".join(line.strip() for line in p.splitlines()))
-                       for p in paragraphs)
+    markup = typer.core.HAS_RICH and app.rich_markup_mode == "rich"  # (TYPER_USE_RICH=0: no)
+    paragraphs = (" ".join(line.strip() for line in p.splitlines())
+                  for p in inspect.cleandoc(doc).split("\n\n"))
+    return "\n\n".join(escape(p) if markup else p for p in paragraphs)
 
 
 for _command in app.registered_commands:

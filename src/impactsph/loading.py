@@ -204,39 +204,67 @@ def _misspelt_first(errors: list[Any]) -> list[Any]:
     return errors
 
 
-#: how pydantic begins most of its messages, which :func:`_alternatives` says once
+#: how pydantic begins most of its messages, which :func:`_union_error` says once
 SHOULD_BE = "Input should be "
 
 
-def _alternatives(errors: list[Any]) -> tuple[str, list[Any]]:
-    """The message of the first error, with those of the other members of the same union
-    field for the same value joined to it (``compute.threads = 0``: ``Input should be greater
-    than or equal to 1 or 'auto'``, not the integer's alone and "1 more error"), and the
-    errors left."""
+def _member_position(err: Any, errors: list[Any]) -> int | None:
+    """Where in ``err``'s location pydantic names the member of a union field that the error
+    is of: the first part that is one of its type tags (``constrained-int``,
+    ``list[constrained-float]``), or a name in whose place another error at the same path has
+    a type tag (a model member: ``Region`` beside ``list[Region]``); None for an error of no
+    union."""
+    loc = err["loc"]
+    for k, part in enumerate(loc):
+        if not isinstance(part, str):
+            continue
+        if _is_type_tag(part) or any(len(e["loc"]) > k and e["loc"][:k] == loc[:k]
+                                     and _is_type_tag(e["loc"][k]) for e in errors):
+            return k
+    return None
+
+
+def _field_of(err: Any, errors: list[Any]) -> tuple[Any, ...]:
+    """The location of the field an error is of (a union field's, for its members')."""
+    k = _member_position(err, errors)
+    return tuple(err["loc"]) if k is None else tuple(err["loc"][:k])
+
+
+def _union_error(errors: list[Any]) -> tuple[Any, tuple[Any, ...], str, list[Any]]:
+    """The error to report, its location (without pydantic's member names), its message and
+    the errors of other fields.  The errors of one union field's members (its value matched
+    none) are one: where a member's error lies inside the value (``spacing = [1, 'x']``: the
+    list's item 1), the value has that member's shape and that error is told; else the
+    members' messages are joined (``compute.threads = 0``: ``Input should be greater than or
+    equal to 1 or 'auto'``), not the first member's alone and "1 more error"."""
     first = errors[0]
-    if not (first["loc"] and _is_type_tag(first["loc"][-1])):
-        return first["msg"], errors[1:]
-    same = [e for e in errors if e is first or (
-        e["loc"][:-1] == first["loc"][:-1] and e["loc"] and _is_type_tag(e["loc"][-1])
-        and repr(e.get("input")) == repr(first.get("input")))]  # (repr: nan == nan)
-    messages = [e["msg"] for e in same]
+    k = _member_position(first, errors)
+    if k is None:
+        return first, tuple(first["loc"]), first["msg"], errors[1:]
+    field = tuple(first["loc"][:k])
+    group = [e for e in errors if tuple(e["loc"][:k]) == field and len(e["loc"]) > k]
+    others = [e for e in errors if not any(e is g for g in group)]
+    inside = [e for e in group if len(e["loc"]) > k + 1]
+    if inside:  # the value took a member's shape: that member's error
+        err = inside[0]
+        return err, (*field, *err["loc"][k + 1:]), err["msg"], others
+    messages = [e["msg"] for e in group]
     if all(m.startswith(SHOULD_BE) for m in messages):
         messages = [messages[0], *(m[len(SHOULD_BE):] for m in messages[1:])]
-    return " or ".join(messages), [e for e in errors if not any(e is s for s in same)]
+    return first, field, " or ".join(messages), others
 
 
 def _format_error(exc: ValidationError) -> str:
     errors = _misspelt_first(exc.errors())
-    err = errors[0]
-    loc = _location(err["loc"])
-    msg, others = _alternatives(errors)
+    err, where, msg, others = _union_error(errors)
+    loc = _location(where)
     if msg.startswith("Value error, "):
         msg = msg[len("Value error, "):]
     value = err.get("input")
     if err["type"] == "geometry_type" and isinstance(value, dict):
         loc, value = f"{loc}.type", value.get("type")
     # the other fields in error (a union field's members' errors are one field's)
-    fields = len({(_location(e["loc"]), repr(e.get("input"))) for e in others})
+    fields = len({_location(_field_of(e, errors)) for e in others})
     more = f" (and {fields} more error{'s' if fields > 1 else ''})" if fields else ""
     if err["type"] == "extra_forbidden":
         hint = did_you_mean(err["loc"][-1], allowed_keys(err["loc"][:-1])) if err["loc"] else ""

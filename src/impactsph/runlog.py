@@ -6,7 +6,8 @@ When that logger would drop INFO records (the default, or ``impactsph run --quie
 opened to INFO for the run, and the records below its former level reach ``run.log`` only:
 what the console (the root logger's handlers) shows does not change.  The warnings of the
 run's set-up, logged before its directory was its own (a GPU asked for and the CPU used:
-:mod:`impactsph.devices`), are held by :func:`held_warnings` and written first.
+:mod:`impactsph.devices`; a checkpoint read unverified), are held by :func:`held_records`
+and written first.
 """
 
 from __future__ import annotations
@@ -35,10 +36,10 @@ class _Forward(logging.Handler):
 
 
 class _Held(logging.Handler):
-    """Keeps the records it is given (:func:`held_warnings`)."""
+    """Keeps the records it is given (:func:`held_records`)."""
 
     def __init__(self) -> None:
-        super().__init__(logging.WARNING)
+        super().__init__(logging.INFO)
         self.records: list[logging.LogRecord] = []
 
     def emit(self, record: logging.LogRecord) -> None:
@@ -46,29 +47,11 @@ class _Held(logging.Handler):
 
 
 @contextlib.contextmanager
-def held_warnings() -> Iterator[list[logging.LogRecord]]:
-    """The ``impactsph`` records of level WARNING and above logged while the block runs (as
-    the console shows them too), for :func:`run_log`'s ``earlier``: a run's set-up, before
-    its ``run.log`` can be opened."""
+def _at_info() -> Iterator[logging.Logger]:
+    """The ``impactsph`` logger opened to INFO while the block runs, where it would drop INFO
+    records, with the records below its former level kept off the console (the root
+    logger's handlers see what they saw before)."""
     logger = logging.getLogger("impactsph")
-    held = _Held()
-    logger.addHandler(held)
-    try:
-        yield held.records
-    finally:
-        logger.removeHandler(held)
-
-
-@contextlib.contextmanager
-def run_log(out: Path | str, earlier: Sequence[logging.LogRecord] = ()) -> Iterator[Path]:
-    """Append the ``impactsph`` log records of level INFO and above to ``out/run.log`` while
-    the block runs (a restarted run appends to its log), after the ``earlier`` records
-    (:func:`held_warnings`; written to the file only, the console has shown them)."""
-    path = Path(out) / RUN_LOG
-    logger = logging.getLogger("impactsph")
-    handler = logging.FileHandler(path, mode="a", encoding="utf-8", delay=True)
-    handler.setLevel(logging.INFO)
-    handler.setFormatter(logging.Formatter(FORMAT))
     level, propagate = logger.level, logger.propagate
     effective = logger.getEffectiveLevel()
     forward = None
@@ -78,15 +61,44 @@ def run_log(out: Path | str, earlier: Sequence[logging.LogRecord] = ()) -> Itera
             logger.propagate = False
             forward = _Forward(effective)
             logger.addHandler(forward)
-    logger.addHandler(handler)
-    for record in earlier:
-        handler.handle(record)
     try:
-        yield path
+        yield logger
     finally:
-        logger.removeHandler(handler)
-        handler.close()
         if forward is not None:
             logger.removeHandler(forward)
         logger.setLevel(level)
         logger.propagate = propagate
+
+
+@contextlib.contextmanager
+def held_records() -> Iterator[list[logging.LogRecord]]:
+    """The ``impactsph`` records of level INFO and above logged while the block runs (the
+    console shows what it would have), for :func:`run_log`'s ``earlier``: a run's set-up,
+    before its ``run.log`` can be opened."""
+    with _at_info() as logger:
+        held = _Held()
+        logger.addHandler(held)
+        try:
+            yield held.records
+        finally:
+            logger.removeHandler(held)
+
+
+@contextlib.contextmanager
+def run_log(out: Path | str, earlier: Sequence[logging.LogRecord] = ()) -> Iterator[Path]:
+    """Append the ``impactsph`` log records of level INFO and above to ``out/run.log`` while
+    the block runs (a restarted run appends to its log), after the ``earlier`` records
+    (:func:`held_records`; written to the file only, the console has shown them)."""
+    path = Path(out) / RUN_LOG
+    handler = logging.FileHandler(path, mode="a", encoding="utf-8", delay=True)
+    handler.setLevel(logging.INFO)
+    handler.setFormatter(logging.Formatter(FORMAT))
+    with _at_info() as logger:
+        logger.addHandler(handler)
+        for record in earlier:
+            handler.handle(record)
+        try:
+            yield path
+        finally:
+            logger.removeHandler(handler)
+            handler.close()

@@ -31,7 +31,7 @@ from .output import (
 from .preflight import label_of, scheme_line
 from .problems.registry import analyse
 from .rundir import IfExists, RunLock, check_run_dir, clear_outputs, make_run_dir, remove_if_empty
-from .runlog import held_warnings, run_log
+from .runlog import held_records, run_log
 from .simulation import Simulation, SimulationError
 
 log = logging.getLogger("impactsph")
@@ -133,17 +133,19 @@ def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], No
     :class:`SimulationError` is raised."""
     out = Path(out)
     check_run_dir(out, "keep" if restart is not None and if_exists == "refuse" else if_exists)
+    checked: list = []  # the checkpoint's verification's log lines, for run.log
     if restart is not None:
         from .checkpoint import verify_checkpoint
 
-        verify_checkpoint(restart, case)
+        with held_records() as checked:
+            verify_checkpoint(restart, case)
     created = make_run_dir(out)
     lock = RunLock(out)
     try:
         lock.acquire()
-        # a case that cannot be set up (CaseError) leaves no directory; its set-up's warnings
-        # go to run.log once that is open
-        with held_warnings() as setup_warnings:
+        # a case that cannot be set up (CaseError) leaves no directory; its set-up's log
+        # lines go to run.log once that is open
+        with held_records() as setup_lines:
             if restart is not None:
                 from .checkpoint import load_checkpoint
 
@@ -154,7 +156,7 @@ def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], No
             stop.arm()  # set up: a signal now asks for a stop after a step
         if if_exists == "overwrite":
             clear_outputs(out)
-        with run_log(out, earlier=setup_warnings):
+        with run_log(out, earlier=[*checked, *setup_lines]):
             if restart is not None:
                 log.info("restarted from %s at t = %g s (step %d)", restart, sim.state.time,
                          sim.state.step)
