@@ -123,3 +123,36 @@ def test_the_history_contact_force_is_the_steps_impulse(name):
     impulse = sum(r["dt"] * r["contact_force_left_x"] for r in rows)
     assert abs(p1 - p0) > 0.1 * abs(p0)  # the bars have met
     assert abs(impulse - (p1 - p0)) <= 1e-10 * abs(p0)
+
+
+def test_the_combination_is_numpys_to_the_bit():
+    """The SSP-RK3 step's convex combination of every integrated field
+    (:func:`impactsph.integrate.combine_kept`, one compiled loop) gives what numpy's ``y *= 1 -
+    w; y += w * y0`` gives, to the bit, the kept deviator as its six components: two
+    products and a sum, not a fused multiply-add (which would change the last bits)."""
+    from impactsph.integrate import combine_kept
+    from impactsph.physics.stress_rate import symmetric_full, symmetric_upper
+
+    rng = np.random.default_rng(7)
+    n, dim, width = 257, 2, 9
+    shapes = [(n, dim), (n, dim), (n,), (n,), (n, 3, 3), (n,), (n, width), (n, dim)]
+    fields = [rng.normal(size=s) * 10.0 ** rng.integers(-8, 9) for s in shapes]
+    fields[4] = 0.5 * (fields[4] + fields[4].transpose(0, 2, 1))  # a symmetric deviator
+    kept = [rng.normal(size=s) * 10.0 ** rng.integers(-8, 9) for s in shapes]
+    kept[4] = symmetric_upper(0.5 * (kept[4] + kept[4].transpose(0, 2, 1)))
+    for weight in (0.75, 1.0 / 3.0):
+        expected = []
+        for y, k in zip(fields, kept, strict=True):
+            y = y.copy()
+            y *= 1.0 - weight
+            y += weight * (symmetric_full(k) if y.ndim == 3 else k)
+            expected.append(y)
+        got = [y.copy() for y in fields]
+        combine_kept(weight, *got, *kept)
+        for a, b in zip(got, expected, strict=True):
+            assert np.array_equal(a, b)
+        # no hourglass columns (the control off): the other fields the same
+        got = [y.copy() for y in fields[:7]] + [np.zeros((n, 0))]
+        combine_kept(weight, *got, *kept[:7], np.zeros((n, 0)))
+        for a, b in zip(got[:7], expected[:7], strict=True):
+            assert np.array_equal(a, b)
