@@ -156,22 +156,3 @@ def test_the_combination_is_numpys_to_the_bit():
         combine_kept(weight, *got, *kept[:7], np.zeros((n, 0)))
         for a, b in zip(got[:7], expected[:7], strict=True):
             assert np.array_equal(a, b)
-
-
-def test_the_bodies_contact_forces_are_bincounts_to_the_bit():
-    """Each evaluation's contact force summed by body (``simulation.add_body_forces``, the
-    history's ``contact_force_<body>_<axis>``) is ``np.bincount``'s sum of each component, in
-    particle order, to the bit, times the evaluation's weight."""
-    from impactsph.simulation import add_body_forces
-
-    rng = np.random.default_rng(11)
-    for n, bodies, dim in ((1096, 2, 2), (203, 3, 1), (500, 4, 3)):
-        body = rng.integers(0, bodies, n).astype(np.int32)
-        force = rng.normal(size=(n, dim)) * 10.0 ** rng.integers(-6, 6, size=(n, 1))
-        expected, got = np.zeros((bodies, dim)), np.zeros((bodies, dim))
-        for weight in (1.0 / 6.0, 1.0, 2.0 / 3.0):
-            for a in range(dim):
-                expected[:, a] += weight * np.bincount(body, weights=force[:, a],
-                                                       minlength=bodies)
-            add_body_forces(body, force, weight, got)
-            assert np.array_equal(got, expected)

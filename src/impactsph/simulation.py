@@ -83,20 +83,6 @@ def body_totals(body, mass, added_mass, velocity, specific_energy, plastic_work,
     return out
 
 
-@nb.njit(cache=True)
-def add_body_forces(body, force, weight, out) -> None:  # pragma: no cover (compiled)
-    """``out[b] += weight * (the sum of ``force[i]`` over body b's particles)``, each body's
-    sum in particle order: what ``np.bincount(body, weights=force[:, a])`` gives, component
-    by component, without its copy of each column (11 us an evaluation on the rings)."""
-    sums = np.zeros(out.shape)
-    for i in range(body.shape[0]):
-        for a in range(force.shape[1]):
-            sums[body[i], a] += force[i, a]
-    for b in range(out.shape[0]):
-        for a in range(out.shape[1]):
-            out[b, a] += weight * sums[b, a]
-
-
 @dataclass
 class Survey:
     """The state at a glance (see :meth:`Simulation._survey`)."""
@@ -293,8 +279,10 @@ class Simulation:
         n_bodies = self._body_force.shape[0]
         if n_bodies > 1:
             s = self._state
-            add_body_forces(s.body, self.solver.buffers.contact_force[: s.n], weight,
-                            self._body_force)
+            force = self.solver.buffers.contact_force[: s.n]
+            for a in range(s.dim):
+                self._body_force[:, a] += weight * np.bincount(s.body, weights=force[:, a],
+                                                               minlength=n_bodies)
         heating, work, corr_heating = self.solver.powers
         books = self._step_books
         self._step_books = (books[0] + weight * heating, books[1] + weight * work,
