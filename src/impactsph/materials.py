@@ -226,6 +226,12 @@ def resolve_material(name: str, material: Any) -> MaterialModel:
         damage_parameters=material.damage_parameters())
 
 
+def case_materials(case: Any) -> list[MaterialModel]:
+    """The case's ``[materials]``, resolved (library entries included), in the case's order:
+    the rows of its material table, whose index a particle's ``material`` is."""
+    return [resolve_material(name, case.materials[name]) for name in case.materials]
+
+
 def material_table(materials: list[MaterialModel], wave_speed: str,
                    layout: TableLayout | None = None) -> np.ndarray:
     """Stack the materials' rows into the ``(n_materials, layout.n_columns)`` table."""

@@ -567,9 +567,9 @@ def initial_time_step(case: Case, *, cfl_only: bool = False) -> float:
 
 def state_width(case: Case) -> int:
     """Columns of the case's material state (:meth:`TableLayout.state_width_of`)."""
-    from .materials import TableLayout, resolve_material
+    from .materials import TableLayout, case_materials
 
-    materials = [resolve_material(name, case.materials[name]) for name in case.materials]
+    materials = case_materials(case)
     return TableLayout.registered().state_width_of([m.model for m in materials],
                                                    [m.damage for m in materials])
 
@@ -1005,7 +1005,7 @@ def kernels_cached(case: Case) -> bool | None:
     from dataclasses import replace
 
     from .integrate import stage_options
-    from .materials import material_table, resolve_material
+    from .materials import case_materials, material_table
     from .physics.options import PassOptions
     from .physics.rates import compiled_passes
 
@@ -1018,10 +1018,9 @@ def kernels_cached(case: Case) -> bool | None:
                                if case.kernel.max_stretch <= 1.0 else [])
         pairs = any(cached(compiled_passes(case.dimension, options=o).pair_pass)
                     for o in modules)
-        table = material_table([resolve_material(n, m) for n, m in case.materials.items()],
-                               case.time.wave_speed)
-        two_d = getattr(case, "two_dimensional", "")
-        stage = stage_options(table, two_d == "plane_stress", two_d == "axisymmetric")
+        table = material_table(case_materials(case), case.time.wave_speed)
+        stage = stage_options(table, case.two_dimensional == "plane_stress",
+                              case.two_dimensional == "axisymmetric")
         return pairs and cached(compiled_passes(case.dimension, options=stage).stage)
     except (AttributeError, OSError, TypeError):
         return None

@@ -10,7 +10,7 @@ from .config import Case, CaseError
 from .driven import prescribed
 from .geometry import body_particles, inside
 from .initial import body_velocity
-from .materials import MaterialModel, TableLayout, material_table, resolve_material
+from .materials import MaterialModel, TableLayout, case_materials, material_table
 from .models import DAMAGE
 from .models.columns import TEMPERATURE, THICKNESS_RATIO
 from .state import ParticleState
@@ -132,7 +132,7 @@ def build_problem(case: Case) -> Problem:
     info: dict[str, float] = {}
     layout = TableLayout.registered()
     mat_names = list(case.materials)
-    materials = [resolve_material(n, case.materials[n]) for n in mat_names]
+    materials = case_materials(case)
     dim = case.dimension
     table = material_table(materials, case.time.wave_speed, layout)
     parts: dict[str, list[np.ndarray]] = {k: [] for k in
