@@ -72,7 +72,7 @@ def test_the_stage_in_one_pass_is_the_stage_then_the_walls_then_the_survey(overr
     # in one pass, the start copy made by the stage itself
     kept = {f: getattr(s, f).copy() for f in FIELDS}
     together = it._save_start(s, copy=False)
-    count = it._stage(s, dt, together, together.velocity, rates, 1.0, True, keep=True,
+    count = it._stage(s, dt, together, rates, 1.0, True, keep=True,
                       survey=True)
     assert moved > 50 and count == moved == it.constraint_events
     np.testing.assert_allclose(it.constraint_impulse, impulse, rtol=1e-13, atol=0.0)
@@ -104,7 +104,7 @@ def test_the_stages_survey_finds_the_first_bad_value_and_needs_no_thread_count()
             numba.set_num_threads(n_threads)
             state = s.copy()
             start = it._save_start(state, copy=False)
-            it._stage(state, 1e-9, start, start.velocity, rates, 1.0, True, keep=True,
+            it._stage(state, 1e-9, start, rates, 1.0, True, keep=True,
                       survey=True)
             results.append((state, it.take_survey()))
     finally:
@@ -186,7 +186,7 @@ def test_the_stage_in_shares_is_the_stage_in_one(monkeypatch):
         rates = [np.array(r) for r in sim.solver.rates(s)]
         it._inertia = _inertia(s)
         start = it._save_start(s, copy=False)
-        count = it._stage(s, 2e-9, start, start.velocity, rates, 1.0, True, keep=True,
+        count = it._stage(s, 2e-9, start, rates, 1.0, True, keep=True,
                           survey=True)
         results.append((s, count, it.constraint_impulse.copy(), it.take_survey()))
     (one, count, impulse, survey), (four, count4, impulse4, survey4) = results

@@ -261,9 +261,12 @@ class MidpointIntegrator:
         keep_upper(state.deviatoric_stress, buf.deviatoric_stress)
         return buf
 
-    def _stage(self, state: ParticleState, dt: float, start: SimpleNamespace, v_rate, rates,
+    def _stage(self, state: ParticleState, dt: float, start: SimpleNamespace, rates,
                share: float, last: bool, keep: bool = False, survey: bool = False) -> int:
-        """One forward-Euler stage ``y = start + dt ydot`` (positions with ``v_rate``), then
+        """One forward-Euler stage ``y = start + dt ydot``, the positions' rate the state's
+        own velocities (each particle's read before the stage overwrites it: with ``keep``,
+        the velocity it starts from; else the midpoint step's corrector's midpoint velocity),
+        then
         the walls' constraint (its impulse with the share ``share`` in the run's books; its
         events counted if this is the step's ``last`` stage), in one pass
         (:func:`impactsph.physics.passes.stage`): with ``keep``, the state is first copied
@@ -276,10 +279,14 @@ class MidpointIntegrator:
                              f"yy, yz, zz), impactsph.physics.stress_rate.jaumann_stress_rate")
         points, normals = self.planes
         walls = self._wall_parts
+        # (every stage hands the pass the same arrays but for its start's: a stage of the
+        # midpoint step looks its compiled code up by their identities alone,
+        # impactsph.physics.chunked._address, 2026-12-06)
         run_stage(self._stage_pass, self.stage_options.parallel, self.n_active, dt, keep,
                   start.position, start.velocity, start.density, start.specific_energy,
                   start.deviatoric_stress, start.plastic_work, start.material_state,
-                  start.hourglass_acceleration, v_rate, dv, drho, de, dS, dhg, state.clamped,
+                  start.hourglass_acceleration, state.velocity, dv, drho, de, dS, dhg,
+                  state.clamped,
                   state.material, self.table, state.smoothing_length, state.position,
                   state.velocity, state.density, state.specific_energy,
                   state.deviatoric_stress, state.plastic_work, state.material_state,
@@ -345,15 +352,15 @@ class MidpointIntegrator:
         start = self._save_start(state, copy=False)
         drivers = self.drivers
         # the predictor's state is discarded: its constraint's impulse has no share
-        self._stage(state, 0.5 * dt, start, start.velocity, self._rates(state, 0, state.time),
-                    0.0, False, keep=True)
+        self._stage(state, 0.5 * dt, start, self._rates(state, 0, state.time), 0.0, False,
+                    keep=True)
         if drivers is not None:
             drivers.apply(state.velocity, state.time + 0.5 * dt)
         rates = self._rates(state, 1, state.time + 0.5 * dt)
         # x(t + dt) = x(t) + dt v(t + dt/2): the kernel reads each particle's midpoint
         # velocity before it overwrites it, so the velocity array itself is the position rate.
         # The stage surveys its result unless something follows it that changes the state
-        self._stage(state, dt, start, state.velocity, rates, 1.0, True,
+        self._stage(state, dt, start, rates, 1.0, True,
                     survey=drivers is None and self.work is None)
         if drivers is not None:
             drivers.apply(state.velocity, state.time + dt)
@@ -426,22 +433,22 @@ class SspRk3Integrator(MidpointIntegrator):
         # stage 2/3, the result 1
         rates = self._rates(state, 0, t)
         mean_dv = self.WEIGHTS[0] * rates[0][: state.n] if books else None
-        self._stage(state, dt, start, start.velocity, rates, 1.0 / 6.0, False, keep=True)
+        self._stage(state, dt, start, rates, 1.0 / 6.0, False, keep=True)
         if drivers is not None:
             drivers.apply(state.velocity, t + dt)
         y1 = self._keep(state, "_y1", copy=False)
         rates = self._rates(state, 1, t + dt)
         if books:
             mean_dv += self.WEIGHTS[1] * rates[0][: state.n]
-        self._stage(state, dt, y1, y1.velocity, rates, 1.0 / 6.0, False, keep=True)
+        self._stage(state, dt, y1, rates, 1.0 / 6.0, False, keep=True)
         self._combine(state, start, 0.75, 2.0 / 3.0)
         if drivers is not None:
             drivers.apply(state.velocity, t + 0.5 * dt)
-        y2 = self._keep(state, "_y2", copy=False)
+        y2 = self._keep(state, "_y1", copy=False)  # (y1's buffers: y1 is read no more)
         rates = self._rates(state, 2, None)
         if books:
             mean_dv += self.WEIGHTS[2] * rates[0][: state.n]
-        self._stage(state, dt, y2, y2.velocity, rates, 2.0 / 3.0, True, keep=True)
+        self._stage(state, dt, y2, rates, 2.0 / 3.0, True, keep=True)
         self._combine(state, start, 1.0 / 3.0, 1.0)
         if drivers is not None:
             drivers.apply(state.velocity, t + dt)
