@@ -257,3 +257,52 @@ def test_the_stage_models_are_checked(field, kinds):
 
     with pytest.raises(ValueError, match=field):
         PassOptions(**{field: kinds})
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_a_chunks_rows_are_finite_exactly_where_no_particle_has_a_bad_field(dim):
+    """:func:`impactsph.physics.survey.rows_finite`, the survey's one vectorised check of a
+    chunk, is true exactly where :func:`~impactsph.physics.survey.bad_field` finds no bad
+    field in any of the chunk's particles: a non-finite value planted in each field and each
+    component in turn (an infinity, a NaN), a density of zero or below, and arrays that are
+    not C-contiguous (a copy's rows are checked)."""
+    from impactsph.physics.survey import bad_field, rows_finite
+
+    @numba.njit
+    def bad_fields(lo, hi, x, v, rho, e, S):
+        return [bad_field(i, x, v, rho, e, S) for i in range(lo, hi)]
+
+    rng = np.random.default_rng(8)
+    n = 40
+    fields = {"x": rng.normal(size=(n, dim)), "v": rng.normal(size=(n, dim)),
+              "rho": rng.uniform(1.0, 2.0, n), "e": rng.normal(size=n),
+              "S": rng.normal(size=(n, 3, 3))}
+    plants = [(name, index) for name, a in fields.items()
+              for index in np.ndindex(a.shape[1:])]
+    cases = 0
+    for (name, index), bad in zip(plants * 2, [np.inf] * len(plants) + [np.nan] * len(plants),
+                                  strict=True):
+        for i in (0, 17, n - 1):
+            a = {k: f.copy() for k, f in fields.items()}
+            a[name][(i, *index)] = -bad if cases % 2 else bad
+            for lo, hi in ((0, n), (0, i), (i, i + 1), (min(i + 1, n - 1), n)):
+                args = (a["x"], a["v"], a["rho"], a["e"], a["S"])
+                found = any(f >= 0 for f in bad_fields(lo, hi, *args))
+                assert found == (lo <= i < hi), (name, index, i, lo, hi)
+                assert rows_finite(lo, hi, *args) is not found, (name, index, i, lo, hi)
+            cases += 1
+    for density in (0.0, -1.0):
+        a = {k: f.copy() for k, f in fields.items()}
+        a["rho"][5] = density
+        args = (a["x"], a["v"], a["rho"], a["e"], a["S"])
+        assert not rows_finite(0, n, *args) and rows_finite(6, n, *args)
+        assert bad_fields(5, 6, *args) == [5]
+    # arrays that are not C-contiguous: Fortran order, and every other row of a larger one
+    fortran = {k: np.asfortranarray(f) for k, f in fields.items()}
+    strided = {k: np.repeat(f, 2, axis=0)[::2] for k, f in fields.items()}
+    for a in (fortran, strided):
+        args = (a["x"], a["v"], a["rho"], a["e"], a["S"])
+        assert rows_finite(0, n, *args) and rows_finite(3, 30, *args)
+        a["S"][20, 2, 1] = np.nan
+        assert not rows_finite(0, n, *args) and rows_finite(21, n, *args)
+        assert not rows_finite(20, 21, *args) and bad_fields(20, 21, *args) == [4]

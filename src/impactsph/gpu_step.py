@@ -193,7 +193,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
         if i < n:
             first, step, ke, ie, p0, p1, p2 = survey_particle(
                 i, n, x, v, rho[i], rho, e, S, m, m[i], h, material, table, 0.0, points,
-                normals, SURVEY_START)
+                normals, SURVEY_START, False)
             if first >= 0:
                 cuda.atomic.min(bad, 0, first)
             sh[0, t] = step

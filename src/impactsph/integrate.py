@@ -34,6 +34,7 @@ from .physics.survey import (
     fold_stage,
     fold_survey,
     folded_survey,
+    rows_finite,
     store_survey,
     survey_chunks,
     survey_particle,
@@ -69,10 +70,12 @@ def _survey_kernel(dim: int):
         bad_of = np.empty(n_chunks + 1, dtype=np.int64)
         for chunk in nb.prange(n_chunks):
             acc = SURVEY_START
-            for i in range(chunk * SURVEY_CHUNK, min((chunk + 1) * SURVEY_CHUNK, n_active)):
+            lo, hi = chunk * SURVEY_CHUNK, min((chunk + 1) * SURVEY_CHUNK, n_active)
+            checked = rows_finite(lo, hi, x, v, rho, e, S)
+            for i in range(lo, hi):
                 acc = survey_particle(i, n_active, x, v, rho[i], rho, e, S, m,
                                       m[i] + added[i], h, material, table, hourglass, points,
-                                      normals, acc)
+                                      normals, acc, checked)
             store_survey(acc, part, bad_of, chunk)
         fold_survey(part, bad_of, n_chunks)
         return courant * part[n_chunks, 0], part[n_chunks, 1:].copy(), bad_of[n_chunks]

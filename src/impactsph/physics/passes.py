@@ -80,6 +80,7 @@ from impactsph.physics.stress_rate import UPPER, jaumann_stress_rate_nd, store_u
 from impactsph.physics.survey import (
     SURVEY_CHUNK,
     SURVEY_START,
+    rows_finite,
     store_survey,
     survey_chunks,
     survey_particle,
@@ -1703,7 +1704,8 @@ def stage(first, step, n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg
             impulse[a] = 0.0
         moved = 0
         acc = SURVEY_START
-        for i in range(chunk * SURVEY_CHUNK, min((chunk + 1) * SURVEY_CHUNK, n_active)):
+        lo, hi = chunk * SURVEY_CHUNK, min((chunk + 1) * SURVEY_CHUNK, n_active)
+        for i in range(lo, hi):
             if keep:
                 keep_particle(i, x, v, rho, e, S, plastic_work, state, hg, x0, v0, rho0, e0,
                               S0, pw0, state0, hg0)
@@ -1712,12 +1714,13 @@ def stage(first, step, n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg
                              plastic_work, state, hg)
             if points.shape[0] > 0:
                 moved += enforce_particle(i, x, v, inertia, points, normals, impulse)
-            if survey:
+        walls[chunk, 0] = moved
+        if survey:  # the chunk's rows, still in the cache, checked in one vectorised loop
+            checked = rows_finite(lo, hi, x, v, rho, e, S)
+            for i in range(lo, hi):
                 acc = survey_particle(i, n_active, x, v, rho[i] / state[i, THICKNESS_RATIO],
                                       rho, e, S, m, m[i] + added[i], h, material, table,
-                                      hourglass, points, normals, acc)
-        walls[chunk, 0] = moved
-        if survey:
+                                      hourglass, points, normals, acc, checked)
             store_survey(acc, surveyed, bad_of, chunk)
 
 

@@ -15,6 +15,7 @@ import math
 
 import numba as nb
 import numpy as np
+from numba.extending import overload
 
 from impactsph.boundaries import plane_distance
 from impactsph.materials import SHEAR, WAVE_MODULUS
@@ -64,13 +65,47 @@ def bad_field(i, x, v, rho, e, S):
     return -1
 
 
+def _flat_rows(a, lo, hi):
+    """The rows ``lo`` to ``hi - 1`` of ``a`` as one flat array (compiled code only: a view
+    of a C-contiguous ``a``, a copy of any other)."""
+    raise NotImplementedError("compiled code only")
+
+
+@overload(_flat_rows, inline="always")
+def _flat_rows_compiled(a, lo, hi):
+    if a.layout == "C":
+        return lambda a, lo, hi: a[lo:hi].reshape(-1)
+    return lambda a, lo, hi: np.ascontiguousarray(a[lo:hi]).reshape(-1)
+
+
+@nb.njit(inline="always", cache=True)
+def rows_finite(lo, hi, x, v, rho, e, S):
+    """Whether particles ``lo`` to ``hi - 1`` have no bad field (:func:`bad_field`): every
+    position, velocity, density, specific energy and deviatoric stress finite and every
+    density positive.  A flat loop a field, from zero, with no branch, which LLVM
+    vectorises: 2.6 us for the Taylor bar's 1,407 particles, where :func:`bad_field` a
+    particle took 16 us (2026-12-06).  A chunk for which this is true needs no
+    :func:`bad_field` a particle (:func:`survey_particle`'s ``checked``)."""
+    ok = True
+    densities, energies = _flat_rows(rho, lo, hi), _flat_rows(e, lo, hi)
+    for k in range(densities.shape[0]):
+        ok &= (abs(densities[k]) < np.inf) & (abs(energies[k]) < np.inf) & (densities[k] > 0.0)
+    stresses = _flat_rows(S, lo, hi)
+    for k in range(stresses.shape[0]):
+        ok &= abs(stresses[k]) < np.inf
+    positions, velocities = _flat_rows(x, lo, hi), _flat_rows(v, lo, hi)
+    for k in range(positions.shape[0]):
+        ok &= (abs(positions[k]) < np.inf) & (abs(velocities[k]) < np.inf)
+    return ok
+
+
 #: a chunk's survey before its first particle (:func:`survey_particle`'s ``acc``)
 SURVEY_START = (-1, np.inf, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 @nb.njit(inline="always", cache=True)
 def survey_particle(i, n, x, v, rho_i, rho, e, S, m, inertia_i, h, material, table, hourglass,
-                    points, normals, acc):
+                    points, normals, acc, checked):
     """Particle ``i`` (of ``n``) added to its chunk's survey ``acc = (first, step, KE, IE,
     p_x, p_y, p_z)`` (start: :data:`SURVEY_START`); returns the new ``acc``.  ``first``: the
     chunk's first bad code, ``field * n + i`` for the first particle of the first bad field
@@ -83,13 +118,14 @@ def survey_particle(i, n, x, v, rho_i, rho, e, S, m, inertia_i, h, material, tab
     The CPU's survey, its stage and the GPU's survey kernel (:mod:`impactsph.gpu_step`) call
     this.  With the hourglass
     control (``hourglass`` = zeta > 0) the signal speed adds :data:`HOURGLASS_SPEED` zeta times
-    the shear wave speed."""
+    the shear wave speed.  ``checked``: the particle is known to have no bad field
+    (:func:`rows_finite` of its chunk), so :func:`bad_field` is not asked."""
     first, step, ke, ie, p0, p1, p2 = acc
     dim = x.shape[1]
     speed2 = 0.0
     for a in range(dim):
         speed2 += v[i, a] * v[i, a]
-    field = bad_field(i, x, v, rho, e, S)
+    field = -1 if checked else bad_field(i, x, v, rho, e, S)
     if field < 0:
         for w in range(points.shape[0]):
             if plane_distance(x, i, points, normals, w) < 0.0:
