@@ -219,6 +219,10 @@ class MidpointIntegrator:
         #: number; None if that step made none.  :meth:`take_survey` hands it out once.
         self.last_survey: tuple[float, np.ndarray, int] | None = None
         self._any_clamped: bool | None = None
+        #: the clamped particles' rows and their inertia, for the supports' impulse
+        #: (:meth:`_first_step`)
+        self._clamped_rows = np.zeros(0, dtype=np.int64)
+        self._clamped_inertia = np.zeros(0)
         self._inertia: np.ndarray | None = None
         self._start: SimpleNamespace | None = None
 
@@ -344,11 +348,25 @@ class MidpointIntegrator:
         mean *= 0.5
         state.specific_energy += dt * self.work(state, mean)
 
+    def _first_step(self, state: ParticleState) -> None:
+        """What the steps of a run keep from its first: the masses the impulses take
+        (:func:`_inertia`: mass + added mass, impulses = inertia dv) and the clamped
+        particles' rows and inertia (the supports' impulse, :meth:`_clamp_impulse`)."""
+        self._inertia = _inertia(state)
+        self._clamped_rows = np.flatnonzero(state.clamped)
+        self._clamped_inertia = self._inertia[self._clamped_rows]
+        self._any_clamped = self._clamped_rows.size > 0
+
+    def _clamp_impulse(self, dt: float, dv: np.ndarray) -> None:
+        """The supports' impulse over ``dt``: minus what the step's mean accelerations
+        ``dv`` would have given the clamped particles (the clamped rows taken by index, not by
+        a mask over every particle: 1.9 us against 4.3 us on the cantilever, the same bits)."""
+        self.clamp_impulse -= dt * (self._clamped_inertia @ dv[self._clamped_rows])
+
     def step(self, state: ParticleState, dt: float) -> None:
         """Advance ``state`` by ``dt`` in place."""
         if self._any_clamped is None:
-            self._any_clamped = bool(state.clamped.any())
-            self._inertia = _inertia(state)  # mass + added mass: impulses = inertia dv
+            self._first_step(state)
         self.last_survey = None
         # the start's copy is made by the predictor's stage (the first rate evaluation
         # changes none of the integrated fields)
@@ -372,8 +390,7 @@ class MidpointIntegrator:
         if self.work is not None:
             self._compatible_energy(state, start, dt)
         if self._any_clamped:
-            clamped = state.clamped
-            self.clamp_impulse -= dt * (self._inertia[clamped] @ rates[0][: state.n][clamped])
+            self._clamp_impulse(dt, rates[0])
         state.time += dt
         state.step += 1
 
@@ -423,8 +440,7 @@ class SspRk3Integrator(MidpointIntegrator):
     def step(self, state: ParticleState, dt: float) -> None:
         """Advance ``state`` by ``dt`` in place."""
         if self._any_clamped is None:
-            self._any_clamped = bool(state.clamped.any())
-            self._inertia = _inertia(state)
+            self._first_step(state)
         # each stage copies the state it starts from into its buffers, particle by particle
         # (``keep``): a rate evaluation changes none of the integrated fields
         start = self._save_start(state, copy=False)
@@ -457,8 +473,7 @@ class SspRk3Integrator(MidpointIntegrator):
             drivers.apply(state.velocity, t + dt)
             drivers.account(self._inertia, mean_dv, t, dt)
         if self._any_clamped:
-            clamped = state.clamped
-            self.clamp_impulse -= dt * (self._inertia[clamped] @ mean_dv[clamped])
+            self._clamp_impulse(dt, mean_dv)
         state.time += dt
         state.step += 1
 
