@@ -463,11 +463,12 @@ class SspRk3Integrator(MidpointIntegrator):
         self._combine(state, start, 0.75, 2.0 / 3.0)
         if drivers is not None:
             drivers.apply(state.velocity, t + 0.5 * dt)
-        y2 = self._keep(state, "_y1", copy=False)  # (y1's buffers: y1 is read no more)
         rates = self._rates(state, 2, None)
         if books:
             mean_dv += self.WEIGHTS[2] * rates[0][: state.n]
-        self._stage(state, dt, y2, rates, 2.0 / 3.0, True, keep=True)
+        # y2 kept in y1's buffers (y1 is read no more): the second and third stages hand the
+        # stage pass the same arrays
+        self._stage(state, dt, y1, rates, 2.0 / 3.0, True, keep=True)
         self._combine(state, start, 1.0 / 3.0, 1.0)
         if drivers is not None:
             drivers.apply(state.velocity, t + dt)
