@@ -53,6 +53,25 @@ def test_skin_triggers_rebuild():
     assert pairs_of(nl) == brute_force_pairs(moved, 1.9)
 
 
+def test_rank_is_the_inverse_of_the_order_and_follows_each_rebuild():
+    """``rank`` (the particle pass writes particle i's record to row ``rank[i]``) is the
+    inverse permutation of ``order``, made once per build and made again after a rebuild."""
+    rng = np.random.default_rng(4)
+    x = rng.random((300, 2))
+    nl = NeighbourList.build(x, support=0.12, skin=0.02)
+    assert not np.array_equal(nl.order, np.arange(300))  # a real permutation
+    rank = nl.rank
+    assert rank.dtype == nl.order.dtype
+    assert np.array_equal(rank[nl.order], np.arange(300))
+    assert np.array_equal(nl.order[rank], np.arange(300))
+    assert nl.rank is rank  # made once per build
+    moved = x + rng.normal(0.0, 0.05, x.shape)
+    nl.update(moved, support=0.12)
+    assert nl.builds == 2
+    assert np.array_equal(nl.rank[nl.order], np.arange(300))
+    assert not np.array_equal(nl.rank, rank)  # the new build's order, not the old one's
+
+
 def test_support_growing_past_the_radius_makes_the_list_stale():
     """The list holds pairs within support + skin of the build: a larger support needs a new
     list even if nothing has moved; a recomputed equal support (round-off) does not."""

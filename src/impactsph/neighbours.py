@@ -571,6 +571,18 @@ class NeighbourList:
             known = self.__dict__["_row_starts"] = (self.offsets, self.offsets[:-1])
         return known[1]
 
+    @property
+    def rank(self) -> np.ndarray:
+        """Each particle's sorted position, ``rank[order[p]] = p`` (the inverse of
+        :attr:`order`), made once per build: the particle pass walks the particles in their
+        own order and writes each record to its row (``passes.particle_pass``)."""
+        known = self.__dict__.get("_rank")  # (the order, its inverse)
+        if known is None or known[0] is not self.order:
+            rank = np.empty_like(self.order)
+            rank[self.order] = np.arange(self.order.shape[0], dtype=self.order.dtype)
+            known = self.__dict__["_rank"] = (self.order, rank)
+        return known[1]
+
     def within(self, reach: float) -> tuple[np.ndarray, np.ndarray]:
         """``(offsets, indices)`` of a list that holds every pair within ``reach`` times the
         support: the inner list where it reaches that far, else the whole list."""
