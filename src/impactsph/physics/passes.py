@@ -74,6 +74,7 @@ from impactsph.physics.contact import (
 )
 from impactsph.physics.continuity import continuity_pair, velocity_gradient_pair
 from impactsph.physics.momentum import viscous_acceleration_pair
+from impactsph.physics.prefetch import prefetch_row
 from impactsph.physics.reconstruction import reconstructed_approach
 from impactsph.physics.records import record_columns, symmetric_index
 from impactsph.physics.stress_rate import UPPER, jaumann_stress_rate_nd, store_upper
@@ -1237,6 +1238,27 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
         dS[i, UPPER[2][2]] += 2.0 * g / 3.0
 
 
+#: how many sorted positions ahead the pair pass asks the caches for a particle's rows that it
+#: reads and writes by number (:func:`impactsph.physics.prefetch.prefetch_row`)
+PREFETCH_AHEAD = 4
+#: from how many rows on it does so: below, the arrays sit in a core's cache (16,384 rows of
+#: the stress alone are 1.2 MB) and the hints cost the Taylor bar's pass 3-5%
+PREFETCH_ROWS = 16384
+#: the cache lines a packed record's row can touch (a row of float64 at any offset in a line)
+RECORD_LINES = (RECORD_WIDTH * 8 + 2 * 63) // 64
+
+
+@JIT(inline="always", cache=True)
+def particle_ahead(order, p, n_active, far):
+    """The active particle :data:`PREFETCH_AHEAD` sorted positions after ``p``, whose rows a
+    pass that reads and writes by number asks the caches for; -1 where there is none (a
+    ghost, the list's end) or where the rows are few (``far`` False)."""
+    if not far:
+        return -1
+    ahead = order[min(p + PREFETCH_AHEAD, order.shape[0] - 1)]
+    return ahead if ahead < n_active else -1
+
+
 #: plane stress: the out-of-plane stress ``sigma_zz`` is zeroed to ``PLANE_STRESS_TOLERANCE``
 #: times the bulk modulus (1e-13 K: 0.02 Pa for steel), in at most ``PLANE_STRESS_ITERATIONS``
 #: secant steps (:func:`plane_stress_stage`; two to four on the paper's cantilever)
@@ -1513,8 +1535,14 @@ def particle_pass(rank, x, v, m, rho, e, S, carried, h, body, material, table, P
     sequence and each record's row is written whole; in the list's order the reads jumped
     about the state, which took a 2D lattice of 1e5 particles 2.8-3.9 ms a pass against
     1.0 ms in sequence (benchmarks/README.md, "The particle pass in the particles' order").
-    Each record is the same whatever the order."""
-    for i in nb.prange(rank.shape[0]):
+    Each record is the same whatever the order.  From :data:`PREFETCH_ROWS` rows on, the
+    row a few particles ahead is asked of the caches for writing
+    (:func:`impactsph.physics.prefetch.prefetch_row`: a hint, the same bits)."""
+    n = rank.shape[0]
+    far = n >= PREFETCH_ROWS
+    for i in nb.prange(n):
+        if far:
+            prefetch_row(P, rank[min(i + PREFETCH_AHEAD, n - 1)], RECORD_LINES, True)
         particle_record(rank[i], i, x, v, m, rho, e, S, carried, h, body, material, table, P)
 
 
@@ -1562,12 +1590,22 @@ def pair_pass(first, step, n_active, order, P, offsets, indices, starts, visc_ki
     vectorises the neighbour loop of :func:`particle_rates`."""
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
+    far = n >= PREFETCH_ROWS  # rows by number that no longer sit in a core's cache
     for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
         L = np.empty((DIM, DIM))  # scratch: the velocity gradient of one particle
         start = chunk * chunk_size
         stop = min((chunk + 1) * chunk_size, n)
         listed = chunk_listed(offsets, indices, start, stop)
         for p in range(start, stop):
+            ahead = particle_ahead(order, p, n_active, far)
+            if ahead >= 0:  # the rows read and written by number (a hint: the same bits)
+                prefetch_row(S, ahead, 2, False)
+                prefetch_row(dS, ahead, 2, True)
+                prefetch_row(dv, ahead, 2, True)
+                prefetch_row(drho, ahead, 1, True)
+                prefetch_row(de, ahead, 1, True)
+                prefetch_row(de_visc, ahead, 1, True)
+                prefetch_row(pair_count, ahead, 1, True)
             i = order[p]
             if i >= n_active:
                 if P.shape[1] > U:
@@ -1585,8 +1623,15 @@ def correction_pass(n_active, order, P, offsets, indices, visc_kind, correction_
     """Pass 3 (a scheme with a correction only) over the active particles."""
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
+    far = n >= PREFETCH_ROWS
     for chunk in nb.prange(n_chunks):
         for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
+            ahead = particle_ahead(order, p, n_active, far)
+            if ahead >= 0:  # (as in pair_pass)
+                prefetch_row(dv_corr, ahead, 2, True)
+                prefetch_row(de_corr, ahead, 1, True)
+                prefetch_row(dv, ahead, 2, True)
+                prefetch_row(de, ahead, 1, True)
             i = order[p]
             if i < n_active:
                 viscosity_correction(visc_kind, p, i, P, offsets, indices, CORRECTION_COLUMNS,
@@ -1642,11 +1687,18 @@ def hourglass_pass(first, step, n_active, order, P, L_sorted, offsets, indices, 
     35 -> 56 ms)."""
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
+    far = n >= PREFETCH_ROWS
     for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
         start = chunk * chunk_size
         stop = min((chunk + 1) * chunk_size, n)
         listed = chunk_listed(offsets, indices, start, stop)
         for p in range(start, stop):
+            ahead = particle_ahead(order, p, n_active, far)
+            if ahead >= 0:  # (as in pair_pass)
+                prefetch_row(hg, ahead, 2, False)
+                prefetch_row(dhg, ahead, 2, True)
+                prefetch_row(dv, ahead, 2, True)
+                prefetch_row(de, ahead, 1, True)
             i = order[p]
             if i < n_active:
                 hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zeta,
