@@ -126,6 +126,17 @@ def _pair(xi, yi, vxi, vyi, ci, rhoi, h, ad, x, y, vx, vy, c, rho, j):  # pragma
     return f * rx, f * ry, vxij, vyij, visc
 
 
+@njit(inline="always")
+def _own_terms(mj, vj, fx, fy, dvw, vxij, vyij, wx, wy, visc, sixx, sixy,
+               siyy):  # pragma: no cover (benchmark)
+    """The pair's terms of the particle's eight sums (``fx, fy``: ``(A_i + A_j + Pi_ij I) .
+    grad W_ij``)."""
+    return (-mj * fx, -mj * fy, vj * dvw,
+            mj * (vxij * (sixx * wx + sixy * wy) + vyij * (sixy * wx + siyy * wy)
+                  + 0.5 * visc * dvw),
+            -vj * vxij * wx, -vj * vxij * wy, -vj * vyij * wx, -vj * vyij * wy)
+
+
 @njit(parallel=True, fastmath=FLAGS, error_model="numpy", cache=True)
 def bare(x, y, vx, vy, rho, m, p, sxx, sxy, syy, c, h, offsets, neighbours,
             out):  # pragma: no cover (benchmark)
@@ -145,17 +156,17 @@ def bare(x, y, vx, vy, rho, m, p, sxx, sxy, syy, c, h, offsets, neighbours,
             txy = sixy - sxy[j] * invj
             tyy = siyy + (p[j] - syy[j]) * invj + visc
             mj = m[j]
-            vj = mj / rho[j]
-            dvw = vxij * wx + vyij * wy
-            axi -= mj * (txx * wx + txy * wy)
-            ayi -= mj * (txy * wx + tyy * wy)
-            dr += vj * dvw
-            dei += mj * (vxij * (sixx * wx + sixy * wy) + vyij * (sixy * wx + siyy * wy)
-                         + 0.5 * visc * dvw)
-            g0 -= vj * vxij * wx
-            g1 -= vj * vxij * wy
-            g2 -= vj * vyij * wx
-            g3 -= vj * vyij * wy
+            terms = _own_terms(mj, mj / rho[j], txx * wx + txy * wy, txy * wx + tyy * wy,
+                               vxij * wx + vyij * wy, vxij, vyij, wx, wy, visc, sixx, sixy,
+                               siyy)
+            axi += terms[0]
+            ayi += terms[1]
+            dr += terms[2]
+            dei += terms[3]
+            g0 += terms[4]
+            g1 += terms[5]
+            g2 += terms[6]
+            g3 += terms[7]
         out[0, i] = axi
         out[1, i] = ayi
         out[2, i] = rhoi * dr
@@ -186,18 +197,17 @@ def _half_row(i, x, y, vx, vy, rho, m, p, sxx, sxy, syy, c, h, ad, offsets, neig
         sjxx, sjxy, sjyy = (p[j] - sxx[j]) * invj, -sxy[j] * invj, (p[j] - syy[j]) * invj
         fx = (sixx + sjxx + visc) * wx + (sixy + sjxy) * wy
         fy = (sixy + sjxy) * wx + (siyy + sjyy + visc) * wy
-        mj = m[j]
-        vj = mj / rho[j]
         dvw = vxij * wx + vyij * wy
-        axi -= mj * fx
-        ayi -= mj * fy
-        dr += vj * dvw
-        dei += mj * (vxij * (sixx * wx + sixy * wy) + vyij * (sixy * wx + siyy * wy)
-                     + 0.5 * visc * dvw)
-        g0 -= vj * vxij * wx
-        g1 -= vj * vxij * wy
-        g2 -= vj * vyij * wx
-        g3 -= vj * vyij * wy
+        terms = _own_terms(m[j], m[j] / rho[j], fx, fy, dvw, vxij, vyij, wx, wy, visc, sixx,
+                           sixy, siyy)
+        axi += terms[0]
+        ayi += terms[1]
+        dr += terms[2]
+        dei += terms[3]
+        g0 += terms[4]
+        g1 += terms[5]
+        g2 += terms[6]
+        g3 += terms[7]
         # j's share: grad_j W_ji = -grad_i W_ij and v_ji = -v_ij
         share = (mi * fx, mi * fy, vi * dvw,
                  mi * (vxij * (sjxx * wx + sjxy * wy) + vyij * (sjxy * wx + sjyy * wy)
