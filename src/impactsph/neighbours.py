@@ -574,8 +574,9 @@ class NeighbourList:
     @property
     def rank(self) -> np.ndarray:
         """Each particle's sorted position, ``rank[order[p]] = p`` (the inverse of
-        :attr:`order`), made once per build: the particle pass walks the particles in their
-        own order and writes each record to its row (``passes.particle_pass``)."""
+        :attr:`order`), made once per build: a large run's particle pass walks the particles
+        in their own order and writes each record to its row
+        (``passes.own_order_particle_pass``)."""
         known = self.__dict__.get("_rank")  # (the order, its inverse)
         if known is None or known[0] is not self.order:
             rank = np.empty_like(self.order)

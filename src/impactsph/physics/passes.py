@@ -1528,21 +1528,30 @@ def hourglass_particle(p, i, P, L_sorted, offsets, indices, material, table, zet
 
 
 @JIT(parallel=PARALLEL_OPTION, cache=True, error_model=BODY_ERROR_MODEL)
-def particle_pass(rank, x, v, m, rho, e, S, carried, h, body, material, table, P):
-    """Pass 1 over every row (ghosts included), in the particles' own order: particle ``i``'s
-    record goes to its sorted position ``rank[i]`` (the inverse of the list's ``order``,
-    :attr:`impactsph.neighbours.NeighbourList.rank`).  So the state's columns are read in
-    sequence and each record's row is written whole; in the list's order the reads jumped
-    about the state, which took a 2D lattice of 1e5 particles 2.8-3.9 ms a pass against
-    1.0 ms in sequence (benchmarks/README.md, "The particle pass in the particles' order").
-    Each record is the same whatever the order.  From :data:`PREFETCH_ROWS` rows on, the
-    row a few particles ahead is asked of the caches for writing
-    (:func:`impactsph.physics.prefetch.prefetch_row`: a hint, the same bits)."""
+def particle_pass(order, x, v, m, rho, e, S, carried, h, body, material, table, P):
+    """Pass 1 over every row (ghosts included), in the list's order (``order[p]`` is the
+    particle at sorted position ``p``), as the pair pass walks them: each thread writes the
+    records it reads next (below :data:`PREFETCH_ROWS` rows; above,
+    :func:`own_order_particle_pass`)."""
+    for p in nb.prange(order.shape[0]):
+        particle_record(p, order[p], x, v, m, rho, e, S, carried, h, body, material, table, P)
+
+
+@JIT(parallel=PARALLEL_OPTION, cache=True, error_model=BODY_ERROR_MODEL)
+def own_order_particle_pass(rank, x, v, m, rho, e, S, carried, h, body, material, table, P):
+    """:func:`particle_pass` in the particles' own order, for :data:`PREFETCH_ROWS` rows and
+    more: particle ``i``'s record goes to its sorted row ``rank[i]`` (the inverse of the
+    list's ``order``, :attr:`impactsph.neighbours.NeighbourList.rank`), and the row a few
+    particles ahead is asked of the caches (:func:`impactsph.physics.prefetch.prefetch_row`).
+    So the state's columns are read in sequence; in the list's order the reads jump about
+    the state, which took a 2D lattice of 1e5 particles 2.8-3.9 ms a pass against 1.0 ms in
+    sequence.  Below that many rows, walking by rows is the better: on two threads the
+    records a thread writes are then those it reads next, 3-5% of a small run's step
+    (benchmarks/README.md, "The particle pass in the particles' order").  The same records
+    either way."""
     n = rank.shape[0]
-    far = n >= PREFETCH_ROWS
     for i in nb.prange(n):
-        if far:
-            prefetch_row(P, rank[min(i + PREFETCH_AHEAD, n - 1)], RECORD_LINES, True)
+        prefetch_row(P, rank[min(i + PREFETCH_AHEAD, n - 1)], RECORD_LINES, True)
         particle_record(rank[i], i, x, v, m, rho, e, S, carried, h, body, material, table, P)
 
 

@@ -215,8 +215,12 @@ class CpuRates:
         columns = self.record_columns(viscosity)
         if self._packed is None or self._packed.shape != (n, columns):
             self._packed = np.empty((n, columns), self.options.record_dtype)
-        k.particle_pass(nl.rank, x, v, m, rho, e, S, carried, h, body, material, table,
-                        self._packed)
+        if n >= k.PREFETCH_ROWS:  # (the state read in sequence: passes.own_order_particle_pass)
+            k.own_order_particle_pass(nl.rank, x, v, m, rho, e, S, carried, h, body, material,
+                                      table, self._packed)
+        else:
+            k.particle_pass(nl.order, x, v, m, rho, e, S, carried, h, body, material, table,
+                            self._packed)
         if self._chunk is None or self._chunk[0] != n:  # get_num_threads takes a lock
             self._chunk = (n, chunk_size(n))
         chunk = self._chunk[1]
