@@ -306,3 +306,36 @@ def test_a_chunks_rows_are_finite_exactly_where_no_particle_has_a_bad_field(dim)
         a["S"][20, 2, 1] = np.nan
         assert not rows_finite(0, n, *args) and rows_finite(21, n, *args)
         assert not rows_finite(20, 21, *args) and bad_fields(20, 21, *args) == [4]
+
+
+def test_the_survey_in_shares_is_the_survey_in_one(monkeypatch):
+    """The survey on its own (:func:`impactsph.integrate._survey_kernel`, a chunked pass run
+    in shares of its chunks) gives the one share's step, sums and first bad value to the bit
+    in four shares: the chunks' partial sums are folded in chunk order after the shares, and
+    the first bad value is the lowest code of any share, not the first share's."""
+    import impactsph.integrate as integrate
+
+    sim = _pushed_through_the_wall([])
+    s, it = sim.state, sim.integrator
+    assert integrate.survey_chunks(s.n) >= 4
+    s.velocity[:, 0] += np.linspace(-3.0, 5.0, s.n)  # sums with something to add up
+    results = []
+    for bad_rows in ([], [s.n - 7, 900]):  # both bad rows in the last two shares' chunks
+        planted = s.copy()
+        planted.specific_energy[bad_rows] = np.nan
+        for shares in (1, 4):
+            monkeypatch.setattr(integrate, "threads_for",
+                                lambda rows, chunk, threaded, k=shares: k)
+            results.append(it.survey_kernel(
+                planted.n, planted.position, planted.velocity, planted.material_density,
+                planted.specific_energy, planted.deviatoric_stress, planted.mass,
+                planted.added_mass, planted.smoothing_length, planted.material, it.table, 0.3,
+                it.hourglass, *it.planes))
+    (step, sums, bad), four, (_, _, bad_planted), four_planted = results
+    assert bad == 6 * s.n + int(np.flatnonzero(
+        (s.position - sim.walls.points[0]) @ sim.walls.normals[0] < 0)[0])  # behind the wall
+    assert bad_planted == 3 * s.n + 900  # the energy (field 3) before "behind a wall" (6)
+    assert four[0] == step and four[2] == bad
+    np.testing.assert_array_equal(four[1], sums)
+    assert four_planted[2] == bad_planted
+    assert step > 0.0 and sums[0] > 0.0

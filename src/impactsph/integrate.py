@@ -23,8 +23,9 @@ import numpy as np
 from .jitcache import njit_variant
 from .materials import DAMAGE_KIND, STRENGTH_KIND, TableLayout
 from .models import DAMAGE, STRENGTH
+from .physics.borrow import borrowed
 from .physics.chunked import run_chunked, threads_for
-from .physics.options import PassOptions
+from .physics.options import PassOptions, parallel_default
 from .physics.rates import compiled_passes
 from .physics.stress_rate import UPPER, store_upper
 from .physics.survey import (
@@ -32,7 +33,6 @@ from .physics.survey import (
     SURVEY_START,
     SURVEY_WIDTH,
     fold_stage,
-    fold_survey,
     folded_survey,
     rows_finite,
     store_survey,
@@ -50,9 +50,45 @@ def _inertia(state: ParticleState) -> np.ndarray:
 
 @cache
 def _survey_kernel(dim: int):
-    @njit_variant(f"{dim}d", parallel=True)
-    def survey(n_active, x, v, rho, e, S, m, added, h, material, table, courant, hourglass,
-               points, normals):
+    @njit_variant(f"{dim}d", nogil=True, error_model="numpy")
+    def survey_share(first, step, n_active, x, v, rho, e, S, m, added, h, material, table,
+                     hourglass, points, normals, parts, bad_of):  # pragma: no cover (compiled)
+        """Share ``first`` of ``step`` of the survey's chunks (a chunked pass,
+        :mod:`impactsph.physics.chunked`): each chunk's partial survey into its row of
+        ``parts`` and ``bad_of`` (:func:`impactsph.physics.survey.store_survey`).  The
+        "numpy" error model is the one numba gave the body of the ``prange`` loop this was (a
+        zero or negative density gives an infinite or NaN step, not an exception)."""
+        # the arrays without reference counts, as the prange body this was got them
+        # (impactsph.physics.borrow): 3-4x the time with them
+        x = borrowed(x)
+        v = borrowed(v)
+        rho = borrowed(rho)
+        e = borrowed(e)
+        S = borrowed(S)
+        m = borrowed(m)
+        added = borrowed(added)
+        h = borrowed(h)
+        material = borrowed(material)
+        table = borrowed(table)
+        points = borrowed(points)
+        normals = borrowed(normals)
+        parts = borrowed(parts)
+        bad_of = borrowed(bad_of)
+        n_chunks = survey_chunks(n_active)
+        for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
+            acc = SURVEY_START
+            lo, hi = chunk * SURVEY_CHUNK, min((chunk + 1) * SURVEY_CHUNK, n_active)
+            checked = rows_finite(lo, hi, x, v, rho, e, S)
+            for i in range(lo, hi):
+                acc = survey_particle(i, n_active, x, v, rho[i], rho, e, S, m,
+                                      m[i] + added[i], h, material, table, hourglass, points,
+                                      normals, acc, checked)
+            store_survey(acc, parts, bad_of, chunk)
+
+    def survey(n_active: int, x: np.ndarray, v: np.ndarray, rho: np.ndarray, e: np.ndarray,
+               S: np.ndarray, m: np.ndarray, added: np.ndarray, h: np.ndarray,
+               material: np.ndarray, table: np.ndarray, courant: float, hourglass: float,
+               points: np.ndarray, normals: np.ndarray) -> tuple[float, np.ndarray, int]:
         """One pass over the state: the CFL step (eq 26, with the hourglass control's
         signal speed added where ``hourglass`` (zeta) > 0:
         :data:`impactsph.physics.survey.HOURGLASS_SPEED`), kinetic
@@ -62,24 +98,27 @@ def _survey_kernel(dim: int):
         the first particle ``i`` of the first field (0 position, 1 velocity, 2 density, 3
         specific energy, 4 deviatoric stress: non-finite; 5 density: not positive; 6 behind
         one of the planes ``points``, ``normals``: the walls and symmetry planes) that is
-        bad, or -1.  Partial sums per chunk of particles, added in a fixed order
-        (:mod:`impactsph.physics.survey`): the result does not depend on the threads, and
-        is the one the integrator's last stage gives (:meth:`MidpointIntegrator.step`)."""
+        bad, or -1.  Partial sums per chunk of particles, run in shares on numba's threads
+        where the passes are threaded (:func:`impactsph.physics.options.parallel_default`)
+        and added in a fixed order (:mod:`impactsph.physics.survey`): the result does not
+        depend on the threads, and is the one the integrator's last stage gives
+        (:meth:`MidpointIntegrator.step`).  (A ``prange`` kernel until 2026-12-06: numba
+        typed and compiled its loop's body a second time, 2.9 of its 4.9 s to compile; in
+        shares 1.9 s, and some 10 us more a call on a small run, 24 us against 12-16 us on
+        the Taylor bar, where numba types the share's 18 arguments.)"""
         n_chunks = survey_chunks(n_active)
-        part = np.empty((n_chunks + 1, SURVEY_WIDTH))
-        bad_of = np.empty(n_chunks + 1, dtype=np.int64)
-        for chunk in nb.prange(n_chunks):
-            acc = SURVEY_START
-            lo, hi = chunk * SURVEY_CHUNK, min((chunk + 1) * SURVEY_CHUNK, n_active)
-            checked = rows_finite(lo, hi, x, v, rho, e, S)
-            for i in range(lo, hi):
-                acc = survey_particle(i, n_active, x, v, rho[i], rho, e, S, m,
-                                      m[i] + added[i], h, material, table, hourglass, points,
-                                      normals, acc, checked)
-            store_survey(acc, part, bad_of, chunk)
-        fold_survey(part, bad_of, n_chunks)
-        return courant * part[n_chunks, 0], part[n_chunks, 1:].copy(), bad_of[n_chunks]
+        # (NaN: a chunk that no share wrote would show in the sums)
+        parts = np.full((n_chunks + 1, SURVEY_WIDTH), np.nan)
+        bad_of = np.full(n_chunks + 1, -1, dtype=np.int64)
+        run_chunked(survey_share, threads_for(n_active, SURVEY_CHUNK, parallel_default()),
+                    n_active, x, v, rho, e, S, m, added, h, material, table,
+                    float(hourglass), points, normals, parts, bad_of)
+        # the chunks folded in chunk order by the stage's own fold (no walls' rows)
+        fold_stage(n_active, np.zeros((n_chunks + 1, 1 + dim)), True, parts, bad_of)
+        step, sums, bad = folded_survey(parts, bad_of)
+        return courant * step, sums, bad
 
+    survey.share = survey_share
     return survey
 
 
