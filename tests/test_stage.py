@@ -219,27 +219,32 @@ def test_the_stage_names_only_its_runs_models(tmp_path):
     gives the run the stage of every registered model gives it, to the bit."""
     from dataclasses import replace
 
-    from impactsph.models import DAMAGE, STRENGTH
+    from impactsph.models import DAMAGE, EOS, STRENGTH
 
     def names(registry, kinds):
         return [list(registry)[k].name for k in kinds]
 
     bars = Simulation(load_case("bars", ["output.figures=false"])).integrator.stage_options
     assert (bars.strength_kinds, bars.damage_kinds) == ((), ())
+    assert names(EOS, bars.eos_kinds) == ["linear"]
     taylor = Simulation(load_case("taylor", ["output.figures=false"])).integrator.stage_options
     assert names(STRENGTH, taylor.strength_kinds) == ["elastic_plastic"]
     assert taylor.damage_kinds == ()
+    assert names(EOS, taylor.eos_kinds) == ["mie_gruneisen"]
     case = _taylor_of(tmp_path, "ofhc_copper")
     lean, full = Simulation(case), Simulation(case)
     options = lean.integrator.stage_options
     assert names(STRENGTH, options.strength_kinds) == ["johnson_cook"]
     assert names(DAMAGE, options.damage_kinds) == ["johnson_cook_damage"]
     module = compiled_passes(2, options=options)
-    every = compiled_passes(2, options=replace(options, strength_kinds=None, damage_kinds=None))
+    every = compiled_passes(2, options=replace(options, strength_kinds=None, damage_kinds=None,
+                                               eos_kinds=None))
     assert module is not every and module.__name__ != every.__name__
     source = open(module.__file__).read()
     dispatch = source[source.index("def strength_return"):source.index("def damage_update")]
     assert dispatch.count("return _strength_") == 1
+    dispatch = source[source.index("def eos_pressure"):source.index("def strength_return")]
+    assert dispatch.count("return _eos_") == 1
     full.integrator._stage_pass = every.stage
     lean.run()
     full.run()
@@ -249,9 +254,53 @@ def test_the_stage_names_only_its_runs_models(tmp_path):
     assert lean.state.plastic_work.max() > 0.0
 
 
+def test_a_stage_of_two_equations_of_state_gives_each_material_its_own(tmp_path):
+    """The bars as OFHC copper (Johnson-Cook strength and damage, whose damage reads the
+    stage's pressure through the stress triaxiality), the right bar with the linear EOS, the
+    left with Mie-Gruneisen's: the stage's module names those two (``eos_kinds``, the second
+    the dispatch's fallback) and gives the run the state the module of every registered EOS
+    gives it, to the bit, with damage summed in both bars."""
+    from dataclasses import replace
+    from importlib.resources import files
+
+    from impactsph.materials import TableLayout
+    from impactsph.models import EOS
+
+    text = (files("impactsph") / "cases" / "bars.toml").read_text()
+    start = text.index("[materials.steel]")
+    end = text.index("[[bodies]]")
+    text = (text[:start] + '[materials.steel]\nlibrary = "ofhc_copper"\n\n'
+            '[materials.linear_copper]\nlibrary = "ofhc_copper"\neos = "linear"\n\n'
+            + text[end:])
+    text = text.replace('name = "right"\nmaterial = "steel"',
+                        'name = "right"\nmaterial = "linear_copper"')
+    text = text.replace("velocity = [50.0]", "velocity = [400.0]")
+    text = text.replace("velocity = [-50.0]", "velocity = [-400.0]")
+    path = tmp_path / "bars_two_eos.toml"
+    path.write_text(text)
+    case = load_case(path, ["time.max_steps=200", "output.figures=false",
+                            'analysis="none"'])
+    lean, full = Simulation(case), Simulation(case)
+    options = lean.integrator.stage_options
+    assert [list(EOS)[k].name for k in options.eos_kinds] == ["linear", "mie_gruneisen"]
+    every = compiled_passes(1, options=replace(options, eos_kinds=None))
+    full.integrator._stage_pass = every.stage
+    lean.run()
+    full.run()
+    for field in FIELDS:
+        assert np.array_equal(getattr(lean.state, field), getattr(full.state, field)), field
+    # Johnson-Cook's damage sum (its own state, D = 1 once it reaches 1), of each bar
+    layout = TableLayout.registered()
+    damage_sum = lean.state.material_state[:, layout.damage_state]
+    right = lean.state.body == 1
+    assert damage_sum[right].max() > 0.0 and damage_sum[~right].max() > 0.0
+
+
 @pytest.mark.parametrize(("field", "kinds"), [("strength_kinds", (3, 2)),
                                                ("strength_kinds", (99,)),
-                                               ("damage_kinds", (0, 0))])
+                                               ("damage_kinds", (0, 0)),
+                                               ("eos_kinds", ()),
+                                               ("eos_kinds", (1, 0))])
 def test_the_stage_models_are_checked(field, kinds):
     from impactsph.physics.options import PassOptions
 

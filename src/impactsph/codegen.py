@@ -173,6 +173,8 @@ def binding(dim: int, options: PassOptions | str | None = None) -> tuple[str, di
     for k, m in eos:
         inject[f"_eos_{k}"] = m.pressure
         described.append(f"#   eos {k}: {m.name} ({_qualified(m.pressure)})")
+    if options.eos_kinds is not None:  # (the last one named is the dispatch's fallback)
+        eos = [(k, m) for k, m in eos if k in options.eos_kinds]
     strength = [(k, m) for k, m in enumerate(STRENGTH) if m.return_map is not None
                 and (options.strength_kinds is None or k in options.strength_kinds)]
     for k, m in enumerate(STRENGTH):

@@ -21,7 +21,7 @@ import numba as nb
 import numpy as np
 
 from .jitcache import njit_variant
-from .materials import DAMAGE_KIND, STRENGTH_KIND, TableLayout
+from .materials import DAMAGE_KIND, EOS_KIND, STRENGTH_KIND, TableLayout
 from .models import DAMAGE, STRENGTH
 from .physics.borrow import borrowed
 from .physics.chunked import run_chunked, threads_for
@@ -126,16 +126,18 @@ def stage_options(table: np.ndarray, plane_stress: bool = False,
                   axisymmetric: bool = False) -> PassOptions:
     """The options of the passes' module whose stage a run of the material ``table`` and
     2D model runs: the stage depends on no option of the pair passes but the 2D model and
-    the strength models with a return map and the damage models with an update that the
-    table's rows use (``strength_kinds``, ``damage_kinds``: the module names only these), so
-    one module serves every run of that kind."""
+    the strength models with a return map, the damage models with an update and the
+    equations of state that the table's rows use (``strength_kinds``, ``damage_kinds``,
+    ``eos_kinds``: the module names only these), so one module serves every run of that
+    kind."""
     strength, damage = list(STRENGTH), list(DAMAGE)
     return PassOptions(
         plane_stress=plane_stress, axisymmetric=axisymmetric,
         strength_kinds=tuple(sorted({int(k) for k in table[:, STRENGTH_KIND]
                                      if strength[int(k)].return_map is not None})),
         damage_kinds=tuple(sorted({int(k) for k in table[:, DAMAGE_KIND]
-                                   if damage[int(k)].update is not None})))
+                                   if damage[int(k)].update is not None})),
+        eos_kinds=tuple(sorted({int(k) for k in table[:, EOS_KIND]})))
 
 
 def stable_time_step(state: ParticleState, table: np.ndarray, courant: float,

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..models.registry import DAMAGE, STRENGTH, VISCOSITY
+from ..models.registry import DAMAGE, EOS, STRENGTH, VISCOSITY
 
 #: ``gradient_correction`` modes and the file-name tag of their generated modules
 GRADIENT_CORRECTIONS = {"none": "", "velocity_gradient": "_kgc",
@@ -118,6 +118,11 @@ class PassOptions:
       compiled in 3.5-3.8 s against 6.4-6.6 s with all six models (benchmarks/README.md,
       "The stage with its run's models").  Such a module must run only materials whose
       models it names: the dispatch's fallback for any other is the elastic model's;
+    - ``eos_kinds``: likewise the equations of state the module's ``eos_pressure`` names
+      (None: every registered one); the stage's module takes its run's (the elastic bars'
+      stage compiled in 4.4-4.9 s against 5.3-6.3 s with all three, its first command 1.5-2
+      s sooner on a cold cache: benchmarks/README.md, "The stage with its run's equations of
+      state").  The dispatch's fallback for a kind it does not name is the last it names;
     - ``parallel``: the passes are compiled with numba's ``parallel=True`` (their chunks on
       numba's threads) or, False, as plain loops over the same chunks: the same results to
       the bit, quicker to compile, one thread.  Not from the case: from the environment
@@ -141,6 +146,7 @@ class PassOptions:
     record_precision: str = "float64"
     strength_kinds: tuple[int, ...] | None = None
     damage_kinds: tuple[int, ...] | None = None
+    eos_kinds: tuple[int, ...] | None = None
     parallel: bool = field(default_factory=parallel_default)
 
     def __post_init__(self) -> None:
@@ -154,12 +160,15 @@ class PassOptions:
             raise ValueError(f"contact_traction = {self.contact_traction!r}: allowed are "
                              f"{', '.join(map(repr, CONTACT_TRACTIONS))}")
         for name, kinds, registry in (("strength_kinds", self.strength_kinds, STRENGTH),
-                                      ("damage_kinds", self.damage_kinds, DAMAGE)):
+                                      ("damage_kinds", self.damage_kinds, DAMAGE),
+                                      ("eos_kinds", self.eos_kinds, EOS)):
             if kinds is not None and (tuple(sorted(set(kinds))) != tuple(kinds)
-                                      or any(not 0 <= k < len(registry) for k in kinds)):
+                                      or any(not 0 <= k < len(registry) for k in kinds)
+                                      or (name == "eos_kinds" and not kinds)):
                 raise ValueError(f"{name} = {kinds!r}: allowed are None (every registered "
                                  f"model) and a sorted tuple of distinct kind codes in "
-                                 f"0..{len(registry) - 1}")
+                                 f"0..{len(registry) - 1}"
+                                 f"{' (at least one)' if name == 'eos_kinds' else ''}")
         if self.switch_kind != -1:
             switches = [k for k, m in enumerate(VISCOSITY) if m.switch is not None]
             if self.switch_kind not in switches or not self.viscosity_factor:
@@ -235,6 +244,8 @@ class PassOptions:
             tag += "_s" + "-".join(map(str, self.strength_kinds))
         if self.damage_kinds is not None:
             tag += "_d" + "-".join(map(str, self.damage_kinds))
+        if self.eos_kinds is not None:
+            tag += "_e" + "-".join(map(str, self.eos_kinds))
         if not self.parallel:
             tag += "_serial"
         return tag
