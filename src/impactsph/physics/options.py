@@ -120,9 +120,9 @@ class PassOptions:
       models it names: the dispatch's fallback for any other is the elastic model's;
     - ``eos_kinds``: likewise the equations of state the module's ``eos_pressure`` names
       (None: every registered one); the stage's module takes its run's (the elastic bars'
-      stage compiled in 4.4-4.9 s against 5.3-6.3 s with all three, its first command 1.5-2
-      s sooner on a cold cache: benchmarks/README.md, "The stage with its run's equations of
-      state").  The dispatch's fallback for a kind it does not name is the last it names;
+      stage compiled in 4.4-4.9 s against 5.3-6.3 s with all three: benchmarks/README.md, "A
+      cold first command again").  The dispatch's fallback for a kind it does not name is
+      the last it names;
     - ``parallel``: the passes are compiled with numba's ``parallel=True`` (their chunks on
       numba's threads) or, False, as plain loops over the same chunks: the same results to
       the bit, quicker to compile, one thread.  Not from the case: from the environment
