@@ -1733,8 +1733,12 @@ def keep_particle(i, x, v, rho, e, S, plastic_work, state, hg, x0, v0, rho0, e0,
 
 
 # (a prange loop until 2026-12-06: numba typed and compiled its body twice, the function and then
-# the loop's body as a function of its own, 10-12 s on a cold cache; chunked, 6-7 s)
-@JIT(parallel=CHUNKED_OPTION, cache=True, nogil=True, error_model="numpy")
+# the loop's body as a function of its own, 10-12 s on a cold cache; chunked, 6-7 s; and since
+# without numba's parallel passes' simplifications, CHUNKED_OPTION, which the pair pass needs
+# but the stage hardly: the Taylor bar's stage compiled in 4.0-4.1 s against 5.7-6.3 s, and
+# ran 3-5% longer on one thread, about 0.3% of a step: benchmarks/README.md, "A cold first
+# command again")
+@JIT(cache=True, nogil=True, error_model="numpy")
 def stage(first, step, n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv,
           drho, de, dS, dhg, clamped, material, table, h, x, v, rho, e, S, plastic_work, state,
           hg, points, normals, inertia, walls, survey, m, added, hourglass, surveyed, bad_of):
