@@ -20,7 +20,10 @@ stabilisation (the kernel gradient correction of the velocity gradient and the f
 hourglass control); ``taylor``, ``cantilever`` and ``bars`` the built-in cases after 2 us.
 Passes: those of the module of the run's neighbour loops (``CpuRates.neighbour_loops``):
 ``moment_pass``, ``gradient_pass``, ``pair_pass``, ``hourglass_pass`` (a pass the case does not
-run is left out).
+run is left out); and ``stage``, the integrator's stage from the module of the run's stage
+options (``MidpointIntegrator.stage_options``), on the inputs of the run's next predictor
+stage (the start copy made, the update, the return map, the walls), its arrays restored
+before every timed call (a stage writes the state it reads).
 """
 
 from __future__ import annotations
@@ -43,7 +46,7 @@ sys.path.insert(0, str(HERE))
 from _trees import worker_result  # noqa: E402
 
 CASES = ("2d", "3d", "2dstab", "3dstab", "taylor", "cantilever", "bars")
-PASSES = ("moment_pass", "gradient_pass", "pair_pass", "hourglass_pass")
+PASSES = ("moment_pass", "gradient_pass", "pair_pass", "hourglass_pass", "stage")
 STABILISATION = {"gradient_correction": "velocity_gradient_and_forces", "hourglass": 2.0}
 
 
@@ -90,7 +93,12 @@ def worker(case: str, n: int, uniform_h: bool) -> dict[str, Any]:
     sim = build(case, n)
     options = loops_options(sim, uniform_h)
     text, _ = codegen.generate(passes, sim.solver.backend.dim, options)
-    return {"text": text, "tag": options.tag}
+    result = {"text": text, "tag": options.tag}
+    stage = getattr(sim.integrator, "stage_options", None)  # (a tree before 2026-12-06: none)
+    if stage is not None:
+        result["stage_text"], _ = codegen.generate(passes, sim.solver.backend.dim, stage)
+        result["stage_tag"] = stage.tag
+    return result
 
 
 def chunked(function: Any) -> bool:
@@ -142,12 +150,37 @@ def captured_inputs(sim, name: str) -> tuple[Any, list[Any] | None]:
     return module, captured.get("args")
 
 
-def load_other(text: str, sim, uniform_h: bool, directory: Path, tag: str):
-    """The other tree's module text compiled here, with this tree's models injected."""
+def captured_stage(sim) -> tuple[Any, list[Any]]:
+    """The run's stage module and the arguments of its next predictor stage (the step's
+    first, which makes the start copy), without ``first, step``."""
+    from impactsph.physics.rates import compiled_passes
+
+    it = sim.integrator
+    function, captured = it._stage_pass, {}
+
+    def capture(*args):  # (no numba dispatcher: run_chunked calls it for each share)
+        if args[0] == 0 and "args" not in captured:  # (the predictor's, not the corrector's)
+            captured["args"] = [a.copy() if isinstance(a, np.ndarray) else a
+                                for a in args[2:]]
+        return function(*args)
+
+    it._stage_pass = capture
+    try:
+        it.step(sim.state, sim._survey().dt)  # (the run's own step)
+    finally:
+        it._stage_pass = function
+    return compiled_passes(sim.state.dim, options=it.stage_options), captured["args"]
+
+
+def load_other(text: str, sim, uniform_h: bool, directory: Path, tag: str,
+               options: Any = None):
+    """The other tree's module text compiled here, with this tree's models injected (for
+    the run's neighbour loops' options, or ``options``)."""
     from impactsph import codegen
     from impactsph.physics import passes
 
-    _, inject = codegen.generate(passes, sim.solver.backend.dim, loops_options(sim, uniform_h))
+    options = loops_options(sim, uniform_h) if options is None else options
+    _, inject = codegen.generate(passes, sim.solver.backend.dim, options)
     # named as codegen names its modules (whose serial ones' warning it silences)
     key = hashlib.sha256(text.encode()).hexdigest()[:16]
     stem = f"other_passes_{sim.solver.backend.dim}d{tag}_{key}"
@@ -182,18 +215,25 @@ def largest_differences(args: list[Any], here, other, name: str) -> tuple[list[f
 
 
 def best_times(args: list[Any], modules: dict[str, Any], name: str, rounds: int,
-               particles: int) -> dict[str, list[float]]:
-    """Each module's best call of the pass in each round, the modules alternating."""
+               particles: int, restore: bool = False) -> dict[str, list[float]]:
+    """Each module's best call of the pass in each round, the modules alternating (with
+    ``restore``, every array argument set back to its given values before each call,
+    outside the timing)."""
     calls = max(5, int(2e5 // max(particles, 1)))  # some 0.2 s a round at every size
+    given = [(a, a.copy()) for a in args if isinstance(a, np.ndarray)] if restore else []
     times: dict[str, list[float]] = {label: [] for label in modules}
     for _ in range(rounds):
         for label, module in modules.items():
             function, best = caller(module, name), np.inf
             for _ in range(calls):
+                for array, values in given:
+                    np.copyto(array, values)
                 t0 = time.perf_counter()
                 function(*args)
                 best = min(best, time.perf_counter() - t0)
             times[label].append(best)
+    for array, values in given:
+        np.copyto(array, values)
     return times
 
 
@@ -212,13 +252,21 @@ def measure(case: str, tree: Path, names: list[str], n: int, rounds: int,
     result: dict[str, Any] = {"particles": int(sim.state.n), "module": Path(here.__file__).name,
                               "passes": {}}
     for name in names:
-        module, args = captured_inputs(sim, name)
+        if name == "stage":
+            if "stage_text" not in text:
+                continue  # (the other tree has no stage module of its own)
+            module, args = captured_stage(sim)
+            against = load_other(text["stage_text"], sim, uniform_h, directory,
+                                 text["stage_tag"], sim.integrator.stage_options)
+        else:
+            (module, args), against = captured_inputs(sim, name), other
         if args is None:
             continue
-        differences, written = largest_differences(args, module, other, name)
-        times = best_times(args, {"here": module, "other": other}, name, rounds,
-                           sim.state.n)
-        result["passes"][name] = {**times, "differences": differences, "written": written}
+        differences, written = largest_differences(args, module, against, name)
+        times = best_times(args, {"here": module, "other": against}, name, rounds,
+                           sim.state.n, restore=name == "stage")
+        result["passes"][name] = {**times, "differences": differences, "written": written,
+                                  "module": Path(module.__file__).name}
     return result
 
 
@@ -252,7 +300,7 @@ def main() -> int:
                                         Path(tmp))
             for name, t in r["passes"].items():
                 here, other = np.array(t["here"]), np.array(t["other"])
-                print(f"{case} ({r['particles']} particles, {r['module']}) {name}")
+                print(f"{case} ({r['particles']} particles, {t['module']}) {name}")
                 print("  here  " + " ".join(f"{x * 1e3:8.3f}" for x in here))
                 print("  other " + " ".join(f"{x * 1e3:8.3f}" for x in other))
                 print(f"  here / other: best {here.min() / other.min():.3f}, median of the "

@@ -20,3 +20,20 @@ def test_this_tree_against_itself_gives_the_same_bits(benchmark_script, tmp_path
     # the rates it writes: density, acceleration, energy, heating, contact force, stress rate
     assert timed["written"] >= 5
     assert max(timed["differences"]) == 0.0
+
+
+def test_the_stage_against_itself_gives_the_same_bits(benchmark_script, tmp_path):
+    """The integrator's stage (its own module, the run's stage options), on the inputs of
+    the run's next predictor stage, restored before each call: the same bits as the stage
+    compiled from this tree's template again, for every array it writes."""
+    script = benchmark_script("bench_pass_ab")
+    tree = Path(__file__).resolve().parents[1]
+    result = script.measure("bars", tree, ["stage"], 0, 2, tmp_path)
+    timed = result["passes"]["stage"]
+    assert "_serial" in timed["module"] or "_s" in timed["module"]
+    assert len(timed["here"]) == len(timed["other"]) == 2
+    assert min(timed["here"] + timed["other"]) > 0.0
+    # the start copy (position, velocity, density, energy, deviator, plastic work, material
+    # state) and the state itself, advanced
+    assert timed["written"] >= 8
+    assert max(timed["differences"]) == 0.0
