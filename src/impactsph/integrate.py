@@ -118,7 +118,6 @@ def _survey_kernel(dim: int):
         step, sums, bad = folded_survey(parts, bad_of)
         return courant * step, sums, bad
 
-    survey.share = survey_share
     return survey
 
 
