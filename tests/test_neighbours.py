@@ -332,3 +332,59 @@ def test_the_list_in_shares_is_the_list_in_one(dim, monkeypatch):
             assert (a is None) == (b is None) == (field == "splits" and dim == 1), field
             if a is not None:
                 np.testing.assert_array_equal(a, b, err_msg=field)
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_one_sweep_gives_the_list_of_two(dim, monkeypatch):
+    """A list built in one sweep, each share of rows stored in a room sized from the list it
+    replaces (``NeighbourList.build``'s ``like``) and the rooms then moved together, is the
+    list of a count and a store to the bit: in one share and in three (whatever this
+    worker's thread count), with an inner list, a skin (the rows' two parts) and a radius
+    per pair; from a list of other rows (fewer: the ghosts come and go); and a room too
+    small for a share makes the build sweep twice, to the same list."""
+    import impactsph.neighbours as neighbours
+
+    rng = np.random.default_rng(50 + dim)
+    x = rng.random((700, dim)) * [1.0, 0.6, 0.5][:dim]  # 11 chunks of 64 rows
+    h = 0.05 * (1.0 + 0.3 * rng.random(700))
+    for shares in (1, 3):
+        monkeypatch.setattr(neighbours, "threads_for", lambda rows, chunk, threaded, k=shares: k)
+        for per_pair in (None, h):
+            two = NeighbourList.build(x, 0.13, 0.02, inner_reach=0.5, h=per_pair)
+            fewer = NeighbourList.build(x[:-60], 0.13, 0.02, inner_reach=0.5,
+                                        h=None if per_pair is None else per_pair[:-60])
+            short = (two.offsets // 2, two.inner_offsets // 2)
+            assert two.sweeps == 2 and two.indices.size > 5 * len(x)
+            # (from fewer rows the room is an estimate: one sweep or two)
+            for like, sweeps in (((two.offsets, two.inner_offsets), {1}),
+                                 ((fewer.offsets, fewer.inner_offsets), {1, 2}), (short, {2})):
+                one = NeighbourList.build(x, 0.13, 0.02, inner_reach=0.5, h=per_pair,
+                                          like=like)
+                assert one.sweeps in sweeps
+                for field in ("order", "offsets", "indices", "inner_offsets",
+                              "inner_indices", "splits"):
+                    a, b = getattr(two, field), getattr(one, field)
+                    assert (a is None) == (b is None) == (field == "splits" and dim == 1)
+                    if a is not None:
+                        assert a.dtype == b.dtype, field
+                        np.testing.assert_array_equal(a, b, err_msg=field)
+                if one.sweeps == 1:  # its room beyond the list given back, not a view of it
+                    assert one.indices.flags.owndata and one.indices.base is None
+
+
+def test_a_runs_rebuilds_take_one_sweep():
+    """The solver hands each build the list it replaces: a run's rebuilds sweep once (a
+    plane-strain Taylor bar on its wall, whose ghosts come and go)."""
+    from impactsph.loading import load_case
+    from impactsph.simulation import Simulation
+
+    sim = Simulation(load_case("taylor", ["bodies.0.geometry.count=[6, 12]",
+                                          "time.neighbour_skin=0.02"]))
+    assert sim.solver.neighbours.sweeps == 2  # (the first build has no list before it)
+    sweeps = []
+    while sim.solver.neighbours.builds < 6:
+        builds = sim.solver.neighbours.builds
+        sim.run(t_end=sim.time + 2e-7)
+        if sim.solver.neighbours.builds > builds:
+            sweeps.append(sim.solver.neighbours.sweeps)
+    assert sweeps and set(sweeps) == {1}

@@ -202,6 +202,19 @@ def distance2(xp0, xp1, xp2, xs, q, dim):
     return r2
 
 
+@nb.njit(inline="always", cache=True)
+def running_sum(counts):
+    """``counts[p + 1]`` (each row's count, ``counts[0]`` = 0) made running totals in
+    place: the rows' offsets."""
+    for p in range(counts.shape[0] - 1):
+        counts[p + 1] += counts[p]
+
+
+#: the single sweep's room a share: this fraction more than the entries the last list held in
+#: the share's rows (``NeighbourList.build``'s ``like``), and one row's largest count
+ROOM = 1.1
+
+
 @cache
 def _build_functions(dim: int):
     """The cell-list builder for one dimension (``dim`` is a compile-time constant; the
@@ -211,7 +224,11 @@ def _build_functions(dim: int):
     ``build`` is Python that finds the cells (:func:`cell_grid`), sorts the particles by
     cell (:func:`cell_sort`), copies their positions in that order (``sorted_copies``), and
     runs ``sweep_rows`` twice (count, then store) over the rows in shares on numba's threads
-    (:func:`impactsph.physics.chunked.run_chunked`), with ``running_totals`` between them.
+    (:func:`impactsph.physics.chunked.run_chunked`), with ``running_totals`` between them;
+    or, given the offsets of the list it replaces, once (count and store, each share into
+    a room sized from them, ``share_rooms``), then ``compact_shares`` (2026-12-06: the 3D
+    Taylor cylinder's build 0.64-0.71 of its time, the 2D Taylor bar's 0.72 on one thread;
+    benchmarks/README.md, "The list rebuilt in one sweep").
     (One function with ``prange`` loops until 2026-12-06: numba types and compiles a
     ``prange`` loop's body twice, and the 1D builder took 11-16 s to compile on a cold cache,
     the longest compilation of the README's first command; benchmarks/README.md, "A cold
@@ -237,11 +254,19 @@ def _build_functions(dim: int):
     @njit_variant(f"{dim}d", parallel=SIMPLIFICATIONS_ONLY, nogil=True)
     def sweep_rows(first, step, sweep, xs, hs, lo, ncell, cell_start, cell_end, radius,
                    r2max, r2inner, r2front, support_per_h, skin, h_largest, slack,
-                   largest_cell, offsets, indices, inner_offsets, inner_indices, splits):
+                   largest_cell, offsets, indices, inner_offsets, inner_indices, splits,
+                   bases, used):
         """Share ``first`` of ``step`` of the rows' chunks (:data:`CHUNK` rows each) in sweep
         ``sweep``: 0 counts each row's neighbours (and its inner list's) into ``offsets[p +
         1]`` (``inner_offsets[p + 1]``), 1 stores them, the offsets made running totals
-        between the two (``running_totals``)."""
+        between the two (``running_totals``).  Sweep 2 does both at once: each row is stored
+        at the share's next free place in ``indices`` (``inner_indices``), in its region
+        ``bases[0, first]:bases[0, first + 1]`` (``bases[1, ...]``), where there is room for
+        the most a row can hold (``3**dim`` times ``largest_cell``, the largest cell's
+        count), its count to ``offsets[p + 1]`` and its front part's length to
+        ``splits[p]``; ``used[:, first]`` gets the entries the share stored, or -1 in
+        ``used[0, first]`` where the room ran short (the caller then sweeps twice).
+        ``compact_shares`` moves the regions together."""
         n = xs.shape[0]
         per_pair = hs.shape[0] > 0
         inner = inner_offsets.shape[0] > 0
@@ -278,9 +303,16 @@ def _build_functions(dim: int):
         lo1 = lo[1] if dim > 1 else 0.0
         lo2 = lo[2] if dim > 2 else 0.0
         n_chunks = (n + CHUNK - 1) // CHUNK
+        # sweep 2: a row is stored at the share's next free place, as sweep 1 stores it but
+        # with its back part from the most entries a row can have (``row_size``) on, then
+        # moved down behind its front part
+        once = sweep == 2
+        row_size = 3 ** dim * largest_cell if once else 0
+        free = bases[0, first] if once else 0
+        free_inner = bases[1, first] if once and inner else 0
         for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
-            # the 3D store sweep's scratch: a cell's candidates
-            candidates = np.empty(largest_cell if prefilter and sweep == 1 else 0,
+            # the 3D store sweeps' scratch: a cell's candidates
+            candidates = np.empty(largest_cell if prefilter and sweep > 0 else 0,
                                   dtype=np.int64)
             for p in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n)):
                 xp0 = xs[p, 0]
@@ -293,9 +325,13 @@ def _build_functions(dim: int):
                 found = 0
                 found_inner = 0
                 found_back = 0
-                pos = offsets[p]
-                back = offsets[p + 1] - 1  # the row's last entry
-                pos_inner = inner_offsets[p] if inner else 0
+                if once and (free + row_size > bases[0, first + 1]
+                             or (inner and free_inner + row_size > bases[1, first + 1])):
+                    used[0, first] = -1  # (the room was short: the caller sweeps twice)
+                    return
+                pos = free if once else offsets[p]
+                back = free + row_size - 1 if once else offsets[p + 1] - 1  # the row's end
+                pos_inner = free_inner if once else (inner_offsets[p] if inner else 0)
                 # pruning (3D, and 2D with a radius per pair): the particle's distances to
                 # its cell's lower and upper faces on each axis (less the slack; 0 where
                 # negative), the gaps to the stencil's cells, against its reach (with a
@@ -404,28 +440,91 @@ def _build_functions(dim: int):
                     offsets[p + 1] = found
                     if inner:
                         inner_offsets[p + 1] = found_inner
+                elif once:
+                    for k in range(found_back):  # (moved down: a copy forwards)
+                        indices[free + found + k] = indices[back - found_back + 1 + k]
+                    offsets[p + 1] = found + found_back
+                    if inner:
+                        inner_offsets[p + 1] = found_inner
+                    if split:
+                        splits[p] = found  # (made a place by compact_shares)
+                    free += found + found_back
+                    free_inner += found_inner
                 elif split:
                     splits[p] = pos + found
+        if once:
+            used[0, first] = free - bases[0, first]
+            used[1, first] = free_inner - bases[1, first]
 
     @njit_variant(f"{dim}d")
     def running_totals(offsets, inner_offsets):
         """The counts of sweep 0 (``offsets[p + 1]``, ``inner_offsets[p + 1]``) made running
         totals, and the index arrays of sweep 1, of their sizes."""
         n = offsets.shape[0] - 1
-        for p in range(n):
-            offsets[p + 1] += offsets[p]
+        running_sum(offsets)
         inner_indices = np.empty(0, dtype=np.int32)
         if inner_offsets.shape[0] > 0:
-            for p in range(n):
-                inner_offsets[p + 1] += inner_offsets[p]
+            running_sum(inner_offsets)
             inner_indices = np.empty(inner_offsets[n], dtype=np.int32)
         return np.empty(offsets[n], dtype=np.int32), inner_indices
 
-    def build(x, radius, inner_radius, h, support_per_h, skin):
+    @njit_variant(f"{dim}d")
+    def compact_shares(offsets, inner_offsets, splits, indices, inner_indices, bases, used):
+        """Sweep 2's shares made the list sweeps 0 and 1 make: the counts made running
+        totals, each share's region moved down to its rows' place (regions in the shares'
+        order, each at or past its place: a copy forwards), each front part's length made
+        its row's split.  Returns the entries and the inner list's."""
+        n = offsets.shape[0] - 1
+        inner = inner_offsets.shape[0] > 0
+        running_sum(offsets)
+        if inner:
+            running_sum(inner_offsets)
+        n_chunks = (n + CHUNK - 1) // CHUNK
+        step = used.shape[1]
+        for t in range(step):
+            start = min(t * n_chunks // step * CHUNK, n)
+            at, source = offsets[start], bases[0, t]
+            if at < source:  # (the first share's is in place)
+                for k in range(used[0, t]):
+                    indices[at + k] = indices[source + k]
+            at, source = (inner_offsets[start], bases[1, t]) if inner else (0, 0)
+            if at < source:
+                for k in range(used[1, t]):
+                    inner_indices[at + k] = inner_indices[source + k]
+        for p in range(splits.shape[0]):
+            splits[p] += offsets[p]
+        return offsets[n], inner_offsets[n] if inner else 0
+
+    def share_rooms(n, threads, like, row_largest):
+        """The single sweep's regions: ``bases[k, t]`` where share ``t``'s begins (``k`` =
+        0 the list, 1 the inner list), each :data:`ROOM` times what ``like`` (the last
+        list's offsets, and its inner list's or None) held in the share's rows, and
+        ``row_largest``.  If the last list had another count of rows (ghosts come and go,
+        in the cells' order among the rest), in the same fraction of its rows, times the
+        ratio of the counts.  (Python on a few numbers: a share a thread.)"""
+        n_chunks = (n + CHUNK - 1) // CHUNK
+        starts = [min(t * n_chunks // threads * CHUNK, n) for t in range(threads + 1)]
+        bases = np.zeros((2, threads + 1), dtype=np.int64)
+        for k in range(2):
+            old = like[k]
+            if old is None or old.shape[0] < 2:
+                continue
+            rows = old.shape[0] - 1
+            at = 0
+            for t in range(threads):
+                held = (int(old[starts[t + 1] * rows // n]) - int(old[starts[t] * rows // n]))
+                at += math.ceil(ROOM * held * n / rows) + row_largest
+                bases[k, t + 1] = at
+        return bases
+
+    def build(x, radius, inner_radius, h, support_per_h, skin, like=None):
         """The list of the rows ``x`` within ``radius`` (with a radius per pair ``h``:
         ``support_per_h h_ij + skin``, no further), its inner list within ``inner_radius``
         (0: none) and its rows' splits (2D and 3D): ``(order, offsets, indices,
-        inner_offsets, inner_indices, splits)``."""
+        inner_offsets, inner_indices, splits, sweeps)``.  With ``like`` (the offsets of the
+        list this one replaces, and of its inner list or None) in one sweep (``sweeps`` =
+        1), unless a share's rows did not fit the room that gives them; else in two, a
+        count and a store (2)."""
         n = x.shape[0]
         per_pair = h.shape[0] > 0  # a radius per pair: support_per_h h_ij + skin
         lo, ncell = cell_grid(x, radius)
@@ -444,19 +543,37 @@ def _build_functions(dim: int):
         for a in range(dim):
             reach = max(reach, abs(float(lo[a])) + (int(ncell[a]) + 1) * radius)
         slack = 64.0 * EPSILON * reach
-        largest_cell = int((cell_end - cell_start).max()) if dim > 2 and n > 0 else 0
+        once = like is not None and like[0].shape[0] > 1 and like[0][-1] > 0 and n > 0
+        largest_cell = int((cell_end - cell_start).max()) if (dim > 2 or once) and n > 0 else 0
         offsets = np.zeros(n + 1, dtype=np.int64)
         inner_offsets = np.zeros(n + 1 if inner else 0, dtype=np.int64)
         splits = np.zeros(n if dim > 1 else 0, dtype=np.int64)
         threads = threads_for(n, CHUNK, True)
+        arguments = (xs, hs, lo, ncell, cell_start, cell_end, radius, r2max, r2inner, r2front,
+                     support_per_h, skin, h_largest, slack, largest_cell, offsets)
+        if once:
+            bases = share_rooms(n, threads, (like[0], like[1] if inner else None),
+                                3 ** dim * largest_cell)
+            used = np.zeros((2, threads), dtype=np.int64)
+            # (arrays of their own, not numba's: their room beyond the list is given back)
+            indices = np.empty(bases[0, -1], dtype=np.int32)
+            inner_indices = np.empty(bases[1, -1], dtype=np.int32)
+            run_chunked(sweep_rows, threads, 2, *arguments, indices, inner_offsets,
+                        inner_indices, splits, bases, used)
+            if used[0].min() >= 0:
+                entries, inner_entries = compact_shares(offsets, inner_offsets, splits,
+                                                        indices, inner_indices, bases, used)
+                indices.resize(entries, refcheck=False)
+                inner_indices.resize(inner_entries, refcheck=False)
+                return order, offsets, indices, inner_offsets, inner_indices, splits, 1
         indices = inner_indices = np.empty(0, dtype=np.int32)
+        none = np.zeros((2, 1), dtype=np.int64)
         for sweep in range(2):
-            run_chunked(sweep_rows, threads, sweep, xs, hs, lo, ncell, cell_start, cell_end,
-                        radius, r2max, r2inner, r2front, support_per_h, skin, h_largest, slack,
-                        largest_cell, offsets, indices, inner_offsets, inner_indices, splits)
+            run_chunked(sweep_rows, threads, sweep, *arguments, indices, inner_offsets,
+                        inner_indices, splits, none, none)
             if sweep == 0:
                 indices, inner_indices = running_totals(offsets, inner_offsets)
-        return order, offsets, indices, inner_offsets, inner_indices, splits
+        return order, offsets, indices, inner_offsets, inner_indices, splits, 2
 
     @njit_variant(f"{dim}d")
     def max_displacement(x, x_ref, origin):
@@ -505,6 +622,9 @@ class NeighbourList:
     #: splits[p]]`` were within their support (or the inner list's radius) at the build, the
     #: rest of the row was not.  None: no split known (1D, or a list handed in without one)
     splits: np.ndarray | None = None
+    #: how many sweeps over the rows the build took: 1 (``build``'s ``like``), or 2 (a count,
+    #: then a store; 0: a list handed in)
+    sweeps: int = 0
 
     def __post_init__(self) -> None:
         if self.order is None:
@@ -524,13 +644,20 @@ class NeighbourList:
 
     @classmethod
     def build(cls, x: np.ndarray, support: float, skin: float = 0.0,
-              inner_reach: float = 1.0, h: np.ndarray | None = None) -> NeighbourList:
+              inner_reach: float = 1.0, h: np.ndarray | None = None,
+              like: tuple[np.ndarray, np.ndarray | None] | None = None) -> NeighbourList:
         """All pairs closer than ``support + skin`` (``support`` = 2 h_max for eq 20), and
         with ``inner_reach`` < 1 an inner list of those closer than ``inner_reach * support +
         skin``.  With ``h`` (a smoothing length per row), only the pairs closer than their own
         ``2 h_ij + skin`` (``h_ij`` the mean; or than the inner list's radius, so that the
         inner list stays a part of the whole): every pair a pass of support ``2 h_ij`` uses,
-        without the rows' entries out to the largest h's reach."""
+        without the rows' entries out to the largest h's reach.
+
+        With ``like`` (the offsets of the list this one replaces, and of its inner list or
+        None) the rows are swept once, each share of them stored in a room sized from what
+        ``like`` held in the same rows (:data:`ROOM`), then moved together; a share that
+        does not fit makes it sweep twice, counting first, as without ``like``
+        (:attr:`sweeps`).  The list is the same either way."""
         dim = x.shape[1]
         build, _ = _build_functions(dim)
         radius = float(support + skin)
@@ -541,9 +668,9 @@ class NeighbourList:
         per_pair = np.zeros(0) if h is None else np.ascontiguousarray(h, dtype=np.float64)
         if per_pair.shape[0] not in (0, x.shape[0]):
             raise ValueError(f"h has {per_pair.shape[0]} rows for {x.shape[0]} positions")
-        order, offsets, indices, inner_offsets, inner_indices, splits = build(
+        order, offsets, indices, inner_offsets, inner_indices, splits, sweeps = build(
             np.ascontiguousarray(x), radius, inner_radius, per_pair, float(SUPPORT_RADIUS),
-            float(skin))
+            float(skin), like)
         if offsets[-1] < np.iinfo(np.int32).max:  # 4 bytes per particle less
             offsets = offsets.astype(np.int32)
             inner_offsets = inner_offsets.astype(np.int32)
@@ -555,7 +682,7 @@ class NeighbourList:
                    inner_reach=float(inner_reach) if inner else 1.0, inner_radius=inner_radius,
                    inner_offsets=inner_offsets if inner else None,
                    inner_indices=inner_indices if inner else None,
-                   splits=splits if dim > 1 else None)
+                   splits=splits if dim > 1 else None, sweeps=sweeps)
 
     @property
     def filter_starts(self) -> np.ndarray:
@@ -613,13 +740,15 @@ class NeighbourList:
     def update(self, x: np.ndarray, support: float) -> None:
         """Rebuild in place if the list is :meth:`stale`."""
         if self.stale(x, support):
-            new = NeighbourList.build(x, support, self.skin, self.inner_reach)
+            like = (self.offsets, self.inner_offsets)
+            self.indices = self.inner_indices = None  # (freed before the new ones are made)
+            new = NeighbourList.build(x, support, self.skin, self.inner_reach, like=like)
             self.offsets, self.indices, self.order = new.offsets, new.indices, new.order
             self.radius, self.reference_positions = new.radius, new.reference_positions
             self.reference_origin = new.reference_origin
             self.inner_reach, self.inner_radius = new.inner_reach, new.inner_radius
             self.inner_offsets, self.inner_indices = new.inner_offsets, new.inner_indices
-            self.splits = new.splits
+            self.splits, self.sweeps = new.splits, new.sweeps
             self.builds += 1
 
     def particle_pairs(self) -> tuple[np.ndarray, np.ndarray]:

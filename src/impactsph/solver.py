@@ -208,8 +208,12 @@ class Solver:
         else:
             src = wall = np.zeros(0, dtype=np.int64)
         positions = self._allocate(state, src, wall)
-        builds = self.neighbours.builds if self.neighbours is not None else 0
-        self.neighbours = None  # free the old list first: the peak memory is one list
+        old = self.neighbours
+        builds = old.builds if old is not None else 0
+        # the old list's offsets size the new one's room (its build's single sweep); its
+        # indices are freed first: the peak memory is one list (and that room)
+        like = None if old is None else (old.offsets, old.inner_offsets)
+        self.neighbours = old = None
         # an inner list for the CPU's correction and switch passes (the GPU's kernels read the
         # whole list)
         reach = (self.viscosity.inner_reach
@@ -219,7 +223,8 @@ class Solver:
         h = state.smoothing_length
         varied = self.max_stretch > 1.0 or (h.shape[0] > 0 and h.max() > h.min())
         h_rows = self._row_smoothing_lengths(state) if varied else None
-        self.neighbours = NeighbourList.build(positions, support, skin, reach, h_rows)
+        self.neighbours = NeighbourList.build(positions, support, skin, reach, h_rows,
+                                              like)
         self.neighbours.builds += builds
         self._positions = None
 
