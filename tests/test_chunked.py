@@ -134,6 +134,13 @@ def test_a_pass_is_looked_up_once_for_its_arguments_kinds(monkeypatch):
     assert chunked._kinds(((0.3, 0.4), 2)) == chunked._kinds(((0.5, 0.6), 3))
     assert chunked._kinds(((0.3, 0.4), 2)) != chunked._kinds(((0.3, 4), 2))
     assert chunked._kinds(((0.3, 0.4),)) != chunked._kinds(((0.3, 0.4, 0.5),))
+    # the layout as numba reads it: an array of one column (C- and F-contiguous both) is of
+    # the kind of any C-contiguous one, as numba types it; F and strided ones are not
+    shapes = [np.zeros((2, 1)), np.zeros((2, 3)), np.zeros((3, 2)).T, np.zeros((4, 4))[:, ::2],
+              np.zeros((1, 3)), np.zeros((0, 3))]
+    for a in shapes:
+        for b in shapes:
+            assert (chunked._kind(a) == chunked._kind(b)) == (nb.typeof(a) == nb.typeof(b))
     assert chunked._DRIVE_BROKEN is None
     signature = (nb.int64, nb.int64, nb.typeof(chunked._flat((values, out, 16))))
     assert sum(tuple(s) == signature for s in chunked._drive.overloads) == 1

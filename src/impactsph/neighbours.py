@@ -567,10 +567,12 @@ def _build_functions(dim: int):
                 inner_indices.resize(inner_entries, refcheck=False)
                 return order, offsets, indices, inner_offsets, inner_indices, splits, 1
         indices = inner_indices = np.empty(0, dtype=np.int32)
-        none = np.zeros((2, 1), dtype=np.int64)
+        # (unread; of the single sweep's shapes, so that a build of either kind after the
+        # other finds the sweep's compiled code by its arguments' kinds: chunked._address)
+        bases, used = np.zeros((2, threads + 1), np.int64), np.zeros((2, threads), np.int64)
         for sweep in range(2):
             run_chunked(sweep_rows, threads, sweep, *arguments, indices, inner_offsets,
-                        inner_indices, splits, none, none)
+                        inner_indices, splits, bases, used)
             if sweep == 0:
                 indices, inner_indices = running_totals(offsets, inner_offsets)
         return order, offsets, indices, inner_offsets, inner_indices, splits, 2
