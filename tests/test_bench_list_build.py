@@ -7,7 +7,7 @@ from __future__ import annotations
 
 def test_the_list_is_built_both_ways_and_compared(benchmark_script):
     script = benchmark_script("bench_list_build")
-    result = script.measure("bars", threads=1, steps=40, rounds=2)
+    result = script.measure("taylor", threads=1, steps=40, rounds=2)
     assert result["sweeps"] == [2, 1]
     assert result["same"] and result["entries"] > 2 * result["rows"]
     assert result["one sweep"]["min"] > 0.0 and result["two sweeps"]["min"] > 0.0

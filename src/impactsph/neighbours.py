@@ -306,7 +306,7 @@ def _build_functions(dim: int):
         # sweep 2: a row is stored at the share's next free place, as sweep 1 stores it but
         # with its back part from the most entries a row can have (``row_size``) on, then
         # moved down behind its front part
-        once = sweep == 2
+        once = dim > 1 and sweep == 2  # (1D lists are swept twice: ``build``)
         row_size = 3 ** dim * largest_cell if once else 0
         free = bases[0, first] if once else 0
         free_inner = bases[1, first] if once and inner else 0
@@ -523,8 +523,8 @@ def _build_functions(dim: int):
         (0: none) and its rows' splits (2D and 3D): ``(order, offsets, indices,
         inner_offsets, inner_indices, splits, sweeps)``.  With ``like`` (the offsets of the
         list this one replaces, and of its inner list or None) in one sweep (``sweeps`` =
-        1), unless a share's rows did not fit the room that gives them; else in two, a
-        count and a store (2)."""
+        1) in 2D and 3D, unless a share's rows did not fit the room that gives them; else
+        in two, a count and a store (2)."""
         n = x.shape[0]
         per_pair = h.shape[0] > 0  # a radius per pair: support_per_h h_ij + skin
         lo, ncell = cell_grid(x, radius)
@@ -543,7 +543,10 @@ def _build_functions(dim: int):
         for a in range(dim):
             reach = max(reach, abs(float(lo[a])) + (int(ncell[a]) + 1) * radius)
         slack = 64.0 * EPSILON * reach
-        once = like is not None and like[0].shape[0] > 1 and like[0][-1] > 0 and n > 0
+        # (1D rows hold a few entries: there the count is cheap, and the single sweep's code,
+        # pruned from the 1D sweep, would lengthen the README's first command's compiling)
+        once = (dim > 1 and like is not None and like[0].shape[0] > 1 and like[0][-1] > 0
+                and n > 0)
         largest_cell = int((cell_end - cell_start).max()) if (dim > 2 or once) and n > 0 else 0
         offsets = np.zeros(n + 1, dtype=np.int64)
         inner_offsets = np.zeros(n + 1 if inner else 0, dtype=np.int64)
@@ -656,10 +659,10 @@ class NeighbourList:
         without the rows' entries out to the largest h's reach.
 
         With ``like`` (the offsets of the list this one replaces, and of its inner list or
-        None) the rows are swept once, each share of them stored in a room sized from what
-        ``like`` held in the same rows (:data:`ROOM`), then moved together; a share that
-        does not fit makes it sweep twice, counting first, as without ``like``
-        (:attr:`sweeps`).  The list is the same either way."""
+        None) the rows of a 2D or 3D list are swept once, each share of them stored in a
+        room sized from what ``like`` held in the same rows (:data:`ROOM`), then moved
+        together; a share that does not fit makes it sweep twice, counting first, as
+        without ``like`` (:attr:`sweeps`).  The list is the same either way."""
         dim = x.shape[1]
         build, _ = _build_functions(dim)
         radius = float(support + skin)
