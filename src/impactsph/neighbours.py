@@ -210,6 +210,15 @@ def running_sum(counts):
         counts[p + 1] += counts[p]
 
 
+@nb.njit(inline="always", cache=True)
+def share_first_row(share, shares, rows):
+    """The first row of share ``share`` of ``shares`` of ``rows`` rows in chunks of
+    :data:`CHUNK` (``sweep_rows``'s shares: a block of consecutive chunks each; ``rows`` for
+    ``share = shares``)."""
+    n_chunks = (rows + CHUNK - 1) // CHUNK
+    return min(share * n_chunks // shares * CHUNK, rows)
+
+
 #: the single sweep's room a share: this fraction more than the entries the last list held in
 #: the share's rows (``NeighbourList.build``'s ``like``), and one row's largest count
 ROOM = 1.1
@@ -226,9 +235,9 @@ def _build_functions(dim: int):
     runs ``sweep_rows`` twice (count, then store) over the rows in shares on numba's threads
     (:func:`impactsph.physics.chunked.run_chunked`), with ``running_totals`` between them;
     or, given the offsets of the list it replaces, once (count and store, each share into
-    a room sized from them, ``share_rooms``), then ``compact_shares`` (2026-12-06: the 3D
-    Taylor cylinder's build 0.64-0.71 of its time, the 2D Taylor bar's 0.72 on one thread;
-    benchmarks/README.md, "The list rebuilt in one sweep").
+    a room sized from them, ``share_rooms``), then ``compact_shares``, in 2D and 3D
+    (2026-12-06: the 3D Taylor cylinder's build 0.64-0.65 of its time, the 2D Taylor bar's
+    0.70-0.82; benchmarks/README.md, "The list rebuilt in one sweep").
     (One function with ``prange`` loops until 2026-12-06: numba types and compiles a
     ``prange`` loop's body twice, and the 1D builder took 11-16 s to compile on a cold cache,
     the longest compilation of the README's first command; benchmarks/README.md, "A cold
@@ -479,10 +488,9 @@ def _build_functions(dim: int):
         running_sum(offsets)
         if inner:
             running_sum(inner_offsets)
-        n_chunks = (n + CHUNK - 1) // CHUNK
         step = used.shape[1]
         for t in range(step):
-            start = min(t * n_chunks // step * CHUNK, n)
+            start = share_first_row(t, step, n)
             at, source = offsets[start], bases[0, t]
             if at < source:  # (the first share's is in place)
                 for k in range(used[0, t]):
@@ -502,8 +510,7 @@ def _build_functions(dim: int):
         ``row_largest``.  If the last list had another count of rows (ghosts come and go,
         in the cells' order among the rest), in the same fraction of its rows, times the
         ratio of the counts.  (Python on a few numbers: a share a thread.)"""
-        n_chunks = (n + CHUNK - 1) // CHUNK
-        starts = [min(t * n_chunks // threads * CHUNK, n) for t in range(threads + 1)]
+        starts = [share_first_row(t, threads, n) for t in range(threads + 1)]
         bases = np.zeros((2, threads + 1), dtype=np.int64)
         for k in range(2):
             old = like[k]
