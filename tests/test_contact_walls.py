@@ -102,6 +102,81 @@ def layer_table() -> np.ndarray:
     return table
 
 
+def layer_push_as_before(n, x, v, m, material, table, points, normals, layer, dv, de,
+                         per_radian=False):
+    """The layer's push as :func:`layer_push` computed it before its quick test of the
+    distance (2026-12-06): the area's power for every particle, then each wall's test."""
+    dim = x.shape[1]
+    force = np.zeros(dim)
+    for i in range(n):
+        rho0 = table[material[i], RHO0]
+        area = m[i] / (rho0 * max(x[i, 0], 1e-300)) if per_radian else m[i] / rho0
+        dx = area ** (1.0 / dim)
+        r0 = layer * dx
+        for w in range(points.shape[0]):
+            d = 0.0
+            vn = 0.0
+            for a in range(dim):
+                d += (x[i, a] - points[w, a]) * normals[w, a]
+                vn += v[i, a] * normals[w, a]
+            if d >= r0:
+                continue
+            omega = math.sqrt(table[material[i], BULK] / (rho0 * r0 * dx))
+            push = omega * omega * (r0 - d) - 2.0 * LAYER_DAMPING * omega * vn
+            if push <= 0.0:
+                continue
+            for a in range(dim):
+                dv[i, a] += push * normals[w, a]
+                force[a] += m[i] * push * normals[w, a]
+            de[i] -= push * vn
+    return force
+
+
+@pytest.mark.parametrize(("dim", "per_radian"), [(1, False), (2, False), (3, False),
+                                                 (2, True)])
+def test_layers_quick_test_keeps_every_push_to_the_bit(dim, per_radian):
+    """The quick test of the distance (no power of the area for a particle beyond its layer
+    of every wall) takes the same particles as the exact test, those within a unit in the
+    last place of ``r0`` on either side included, and their pushes are the same to the bit:
+    two walls (one near, one at an angle in 2D and 3D), particles of several masses."""
+    rng = np.random.default_rng(7)
+    layer = 0.25
+    n_side = 40
+    table = layer_table()
+    x = rng.uniform(1.0, 3.0, (3 * n_side, dim)) * DX  # off the axis: r > 0 in axisymmetry
+    m = RHO * DX**dim * rng.uniform(0.5, 2.0, 3 * n_side)
+    if per_radian:  # the mass per radian of a ring of radius r
+        m *= x[:, 0]
+    v = rng.normal(0.0, 1.0, (3 * n_side, dim))
+    v[:, -1] = -np.abs(v[:, -1])  # approaching the first wall: the push is not zero
+    points = np.zeros((2, dim))
+    normals = np.zeros((2, dim))
+    normals[0, -1] = 1.0
+    points[1, 0] = 10.0 * DX  # far from every particle ...
+    normals[1, 0] = -1.0
+    if dim > 1:  # ... and at an angle
+        normals[1] = -np.ones(dim) / math.sqrt(dim)
+    for i in range(3 * n_side):  # distances from the first wall at r0, a ulp inside, outside
+        area = m[i] / (RHO * x[i, 0]) if per_radian else m[i] / RHO
+        r0 = layer * area ** (1.0 / dim)
+        x[i, -1] = (r0, np.nextafter(r0, 0.0), np.nextafter(r0, 1.0))[i % 3]
+        if i >= 2 * n_side:  # and some well inside or behind it
+            x[i, -1] = r0 * rng.uniform(-0.5, 0.9)
+    n = x.shape[0]
+    dv, de = np.zeros((n, dim)), np.zeros(n)
+    dv_want, de_want = np.zeros((n, dim)), np.zeros(n)
+    material = np.zeros(n, np.int32)
+    total = layer_push(n, x, v, m, material, table, points, normals, layer, dv, de,
+                       per_radian)
+    want = layer_push_as_before(n, x, v, m, material, table, points, normals, layer,
+                                dv_want, de_want, per_radian)
+    pushed = de_want != 0.0
+    assert 0 < pushed.sum() < n  # the ulp inside is pushed, r0 and the ulp outside are not
+    assert not pushed[:2 * n_side:3].any() and pushed[1:2 * n_side:3].all()
+    assert np.array_equal(dv, dv_want) and np.array_equal(de, de_want)
+    np.testing.assert_allclose(total, want, rtol=1e-13, atol=0.0)
+
+
 @pytest.mark.parametrize("dim", [1, 2, 3])
 def test_layer_pushes_a_particle_inside_it_and_books_the_work(dim):
     n = np.zeros(dim)

@@ -373,6 +373,29 @@ def friction_push(n, x, v, m, material, table, contact_force, points, normals, m
 #: stiffest mode decay by a factor 0.65 a step at Courant 0.3
 LAYER_DAMPING = 0.5
 
+#: :func:`_near_a_wall`'s margin: a particle with ``d^dim`` over this times ``layer^dim``
+#: times its area is beyond ``r0 = layer area^(1/dim)`` whatever the round-off of either
+#: side (each within a few units of 1e-16 of its exact value)
+LAYER_TEST_MARGIN = 1.0 + 1e-9
+
+
+@nb.njit(inline="always", cache=True)
+def _near_a_wall(i, x, points, normals, far):
+    """Whether particle ``i`` may be within its layer of a wall: some wall's distance ``d`` is
+    not positive or has ``d^dim <= far`` (``far`` a bound a little above ``r0^dim``).  The
+    test needs no power of the area, which cost 24 ns a particle of :func:`layer_push`,
+    where most particles are far from the walls (the area's power stands apart from the
+    wall loop: inside it, LLVM hoists it out of that loop and runs it for every particle);
+    the particles it passes are then pushed exactly as before, to the bit."""
+    dim = x.shape[1]
+    for w in range(points.shape[0]):
+        d = 0.0
+        for a in range(dim):
+            d += (x[i, a] - points[w, a]) * normals[w, a]
+        if not (d > 0.0 and d ** dim > far):
+            return True
+    return False
+
 
 @nb.njit(inline="always", cache=True)
 def layer_push_particle(i, x, v, m, material, table, points, normals, layer, dv, de,
@@ -385,6 +408,8 @@ def layer_push_particle(i, x, v, m, material, table, points, normals, layer, dv,
     rho0 = table[k, RHO0]
     # axisymmetry (per_radian): the mass is per radian, the particle's area m / (rho0 r)
     area = m[i] / (rho0 * max(x[i, 0], 1e-300)) if per_radian else m[i] / rho0
+    if not _near_a_wall(i, x, points, normals, LAYER_TEST_MARGIN * layer ** dim * area):
+        return
     dx = area ** (1.0 / dim)
     r0 = layer * dx
     for w in range(points.shape[0]):

@@ -136,8 +136,8 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
     fill_ghost = boundaries.fill_ghost.py_func if simulated else boundaries.fill_ghost
     enforce_particle = (boundaries.enforce_particle.py_func if simulated
                         else boundaries.enforce_particle)
-    layer_push_particle = (boundaries.layer_push_particle.py_func if simulated
-                           else boundaries.layer_push_particle)
+    layer_push_particle = (codegen._python_all_the_way(boundaries.layer_push_particle)
+                           if simulated else boundaries.layer_push_particle)
     # the CPU's survey of one particle (its Python source, and that of what it calls, under
     # the simulator)
     survey_particle = (codegen._python_all_the_way(survey.survey_particle) if simulated
