@@ -1,24 +1,22 @@
-"""What a second thread costs the first on this machine: a step's kernels run alone and two
-at once (issue 16: the small runs' two-thread targets).
+"""What a second thread costs the first on this machine: a step's kernels on numba's two
+threads, one share at a time and both at once (issue 16: the small runs' two-thread targets).
 
 A case is run some steps on two threads; its integrator stage's inputs (a corrector stage,
 which reads the step's start and so gives the same result at every call) and its pair pass's
-inputs are captured.  Each kernel is then timed, best of ``--rounds`` rounds of ``--calls``
-calls:
+inputs are captured.  Each kernel is then timed on numba's threads, as a run calls it
+(:func:`impactsph.physics.chunked.run_chunked`'s drive: a parallel region of two shares),
+best of ``--rounds`` rounds of ``--calls`` calls and the median call:
 
-* *alone*: its first share of two, on one thread, nothing else running;
-* *two at once, own copies*: its two shares on two Python threads at the same time (the
-  passes are compiled ``nogil``), the second share on copies of every array, so that the two
-  threads share no cache line and no array;
-* *two at once, the same arrays*: the same, both shares on the run's own arrays;
-* *numba's threads*: the kernel as a run calls it (``run_chunked`` with two shares), and with
-  one share;
-* the same for a *control*: a loop of divisions and square roots on a few kilobytes of its
-  own, the machine's own figure, with no impactsph code in it.
+* *share 0 alone*: the region runs its first share (on the calling thread) and not the
+  second (the other thread waits at the region's end);
+* *share 1 alone*: the second share only (on numba's worker thread; the caller waits);
+* *both*: the region as a run has it;
+* *one thread*: the whole pass in one share;
 
-``slowdown`` is a share's time two at once over its time alone: 1.0 where the two vCPUs are
-two cores' worth, up to 2.0 where they share one core's units (two hyperthreads of one core on
-the host, which a VM's ``lscpu`` does not show).
+and the same for a *control*, a loop of square roots and divisions on a few kilobytes of its
+own (no impactsph code in it).  Where the two vCPUs are two cores, *both* takes about the
+longer share plus a few microseconds for the region; where they share one core's units,
+about the two shares' sum.
 
     .venv/bin/python benchmarks/bench_concurrency.py taylor cantilever
 """
@@ -27,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import threading
 import time
 from collections.abc import Callable
 from typing import Any
@@ -35,8 +32,11 @@ from typing import Any
 import numba as nb
 import numpy as np
 
+import impactsph  # noqa: F401 (its threading settings before numba's threads start)
+from impactsph.physics.chunked import _call_at
 
-@nb.njit(nogil=True, cache=True)
+
+@nb.njit(nogil=True)  # (not cached: numba caches a script's functions under its name)
 def control_share(first, step, values, out):  # pragma: no cover (compiled)
     """Share ``first`` of ``step``: 200 rounds of a division and a square root per value."""
     n = values.shape[0]
@@ -94,49 +94,52 @@ def best_per_call(call: Callable[[], None], calls: int, rounds: int) -> float:
     return 1e6 * best
 
 
-def two_at_once(kernel: Callable[..., Any], first_args: tuple, second_args: tuple,
-                calls: int, rounds: int) -> float:
-    """The fastest round's microseconds a call of share 0 of 2 (on ``first_args``) while
-    share 1 (on ``second_args``) runs on another Python thread, the two started together."""
-    best = float("inf")
-    for _ in range(rounds):
-        gate = threading.Barrier(2)
-        spent = [0.0, 0.0]
+@nb.njit(parallel=True)
+def drive_some(address, run, flat):  # pragma: no cover (compiled)
+    """The chunked pass at ``address`` for the shares ``t`` of two where ``run[t]``, in one
+    parallel region on numba's threads (as :func:`impactsph.physics.chunked._drive`)."""
+    for t in nb.prange(2):
+        if run[t]:
+            _call_at(address, t, 2, flat)
 
-        def loop(share: int, arguments: tuple, gate: threading.Barrier,
-                 spent: list[float]) -> None:
-            gate.wait()
-            start = time.perf_counter()
-            for _ in range(calls):
-                kernel(share, 2, *arguments)
-            spent[share] = time.perf_counter() - start
 
-        workers = [threading.Thread(target=loop, args=(0, first_args, gate, spent)),
-                   threading.Thread(target=loop, args=(1, second_args, gate, spent))]
-        for w in workers:
-            w.start()
-        for w in workers:
-            w.join()
-        best = min(best, spent[0] / calls)
-    return 1e6 * best
+def median_per_call(call: Callable[[], None], calls: int) -> float:
+    """The median call's microseconds."""
+    spent = np.empty(calls)
+    for k in range(calls):
+        start = time.perf_counter()
+        call()
+        spent[k] = time.perf_counter() - start
+    return 1e6 * float(np.median(spent))
 
 
 def measure_kernel(name: str, kernel: Callable[..., Any], arguments: tuple, calls: int,
                    rounds: int) -> dict[str, Any]:
-    """One kernel's times (us a call) alone, two at once and on numba's threads."""
-    from impactsph.physics.chunked import run_chunked
+    """One kernel's times (us a call, best round's mean and median call) with each share
+    alone, both and one thread, on numba's threads."""
+    from impactsph.physics.chunked import _address, _flat, run_chunked
 
-    own = tuple(a.copy() if isinstance(a, np.ndarray) else a for a in arguments)
-    kernel(0, 2, *arguments)  # (loaded or compiled)
-    alone = best_per_call(lambda: kernel(0, 2, *arguments), calls, rounds)
-    copies = two_at_once(kernel, arguments, own, calls, rounds)
-    same = two_at_once(kernel, arguments, arguments, calls, rounds)
-    numba_two = best_per_call(lambda: run_chunked(kernel, 2, *arguments), calls, rounds)
-    numba_one = best_per_call(lambda: run_chunked(kernel, 1, *arguments), calls, rounds)
-    return {"kernel": name, "alone": alone, "two at once, own copies": copies,
-            "two at once, same arrays": same, "numba, 2 threads": numba_two,
-            "numba, 1 thread": numba_one, "slowdown": copies / alone,
-            "speedup": numba_one / numba_two}
+    nb.set_num_threads(2)
+    address, _, tupled = _address(kernel, arguments)
+    flat = _flat(arguments) if tupled else arguments
+    row: dict[str, Any] = {"kernel": name}
+    for label, run in (("share 0 alone", (True, False)), ("share 1 alone", (False, True)),
+                       ("both", (True, True))):
+        mask = np.array(run)
+        drive_some(address, mask, flat)  # (loaded or compiled)
+        def call(mask: np.ndarray = mask) -> None:
+            drive_some(address, mask, flat)
+
+        row[label] = best_per_call(call, calls, rounds)
+        row[f"{label}, median"] = median_per_call(call, calls)
+    nb.set_num_threads(1)
+    row["one thread"] = best_per_call(lambda: run_chunked(kernel, 1, *arguments), calls,
+                                      rounds)
+    nb.set_num_threads(2)
+    row["speedup"] = row["one thread"] / row["both"]
+    row["both over the longer share"] = row["both"] / max(row["share 0 alone"],
+                                                          row["share 1 alone"])
+    return row
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -148,21 +151,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", help="write every number here")
     args = parser.parse_args(argv)
     rows = []
-    values = np.linspace(0.5, 2.0, 2048)
+    values = np.linspace(0.5, 2.0, 48)  # about 25 us a share: a stage's length
     rows.append({"case": "control", **measure_kernel(
-        "divisions and roots", control_share, (values, np.zeros_like(values)), args.calls,
+        "roots, divisions", control_share, (values, np.zeros_like(values)), args.calls,
         args.rounds)})
     for case_name in args.cases:
         for name, (kernel, arguments) in capture(case_name, args.steps).items():
             rows.append({"case": case_name, **measure_kernel(name, kernel, arguments,
                                                              args.calls, args.rounds)})
-    print(f"{'case':12s} {'kernel':20s} {'alone':>8s} {'own copies':>11s} {'same':>8s} "
-          f"{'slowdown':>9s} {'numba 1':>8s} {'numba 2':>8s} {'speedup':>8s}   (us a call)")
+    print(f"{'case':12s} {'kernel':14s} {'share 0':>9s} {'share 1':>9s} {'both':>9s} "
+          f"{'1 thread':>9s} {'speedup':>8s} {'both/longer':>12s}   (us a call, best round; "
+          f"median call in brackets)")
     for r in rows:
-        print(f"{r['case']:12s} {r['kernel']:20s} {r['alone']:8.1f} "
-              f"{r['two at once, own copies']:11.1f} {r['two at once, same arrays']:8.1f} "
-              f"{r['slowdown']:9.2f} {r['numba, 1 thread']:8.1f} {r['numba, 2 threads']:8.1f} "
-              f"{r['speedup']:8.2f}")
+        print(f"{r['case']:12s} {r['kernel']:14s} "
+              + " ".join(f"{r[k]:6.1f} ({r[k + ', median']:6.1f})"
+                         for k in ("share 0 alone", "share 1 alone", "both"))
+              + f" {r['one thread']:9.1f} {r['speedup']:8.2f} "
+              f"{r['both over the longer share']:12.2f}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"rows": rows, "argv": argv}, f, indent=1)
