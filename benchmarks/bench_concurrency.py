@@ -47,6 +47,12 @@ def control_share(first, step, values, out):  # pragma: no cover (compiled)
         out[i] = acc
 
 
+def two_threads() -> int:
+    """Two, or the one thread numba has (``NUMBA_NUM_THREADS=1``: the regions then run their
+    shares one after the other)."""
+    return min(2, nb.config.NUMBA_NUM_THREADS)
+
+
 def capture(case_name: str, steps: int) -> dict[str, tuple[Callable[..., Any], tuple]]:
     """The case after ``steps`` steps on two threads: its stage's and its pair pass's
     chunked pass and arguments (copies, the shares' ``first, step`` left out)."""
@@ -54,8 +60,9 @@ def capture(case_name: str, steps: int) -> dict[str, tuple[Callable[..., Any], t
     import impactsph.physics.rates as rates_module
     from impactsph import Simulation, load_case
 
-    nb.set_num_threads(2)
-    sim = Simulation(load_case(case_name, ["time.end=1", "compute.threads=2",
+    threads = two_threads()
+    nb.set_num_threads(threads)
+    sim = Simulation(load_case(case_name, ["time.end=1", f"compute.threads={threads}",
                                            "output.figures=false"]))
     for _ in range(steps):
         sim.integrator.step(sim.state, sim._survey().dt)
@@ -119,7 +126,7 @@ def measure_kernel(name: str, kernel: Callable[..., Any], arguments: tuple, call
     alone, both and one thread, on numba's threads."""
     from impactsph.physics.chunked import _address, _flat, run_chunked
 
-    nb.set_num_threads(2)
+    nb.set_num_threads(two_threads())
     address, _, tupled = _address(kernel, arguments)
     flat = _flat(arguments) if tupled else arguments
     row: dict[str, Any] = {"kernel": name}
@@ -135,7 +142,7 @@ def measure_kernel(name: str, kernel: Callable[..., Any], arguments: tuple, call
     nb.set_num_threads(1)
     row["one thread"] = best_per_call(lambda: run_chunked(kernel, 1, *arguments), calls,
                                       rounds)
-    nb.set_num_threads(2)
+    nb.set_num_threads(two_threads())
     row["speedup"] = row["one thread"] / row["both"]
     row["both over the longer share"] = row["both"] / max(row["share 0 alone"],
                                                           row["share 1 alone"])
