@@ -105,30 +105,27 @@ def layer_table() -> np.ndarray:
 def layer_push_as_before(n, x, v, m, material, table, points, normals, layer, dv, de,
                          per_radian=False):
     """The layer's push as :func:`layer_push` computed it before its quick test of the
-    distance (2026-12-06): the area's power for every particle, then each wall's test."""
-    dim = x.shape[1]
-    force = np.zeros(dim)
-    for i in range(n):
-        rho0 = table[material[i], RHO0]
-        area = m[i] / (rho0 * max(x[i, 0], 1e-300)) if per_radian else m[i] / rho0
-        dx = area ** (1.0 / dim)
-        r0 = layer * dx
-        for w in range(points.shape[0]):
-            d = 0.0
-            vn = 0.0
-            for a in range(dim):
-                d += (x[i, a] - points[w, a]) * normals[w, a]
-                vn += v[i, a] * normals[w, a]
-            if d >= r0:
-                continue
-            omega = math.sqrt(table[material[i], BULK] / (rho0 * r0 * dx))
-            push = omega * omega * (r0 - d) - 2.0 * LAYER_DAMPING * omega * vn
-            if push <= 0.0:
-                continue
-            for a in range(dim):
-                dv[i, a] += push * normals[w, a]
-                force[a] += m[i] * push * normals[w, a]
-            de[i] -= push * vn
+    distance (2026-12-06), in numpy over the particles: the area's power for every
+    particle, then each wall's test, wall by wall (the same operations in the same order
+    for each particle)."""
+    rho0 = table[material[:n], RHO0]
+    bulk = table[material[:n], BULK]
+    area = m[:n] / (rho0 * np.maximum(x[:n, 0], 1e-300)) if per_radian else m[:n] / rho0
+    # (the C library's power, as the compiled code calls it: numpy's own vectorised power
+    # may differ in the last place)
+    spacing = np.array([a ** (1.0 / x.shape[1]) for a in area.tolist()])
+    r0 = layer * spacing
+    force = np.zeros(x.shape[1])
+    for point, normal in zip(points, normals, strict=True):
+        d = ((x[:n] - point) * normal).sum(axis=1)
+        vn = (v[:n] * normal).sum(axis=1)
+        inside = d < r0
+        omega = np.sqrt(bulk / (rho0 * r0 * spacing))
+        push = omega * omega * (r0 - d) - 2.0 * LAYER_DAMPING * omega * vn
+        pushed = inside & (push > 0.0)
+        dv[:n][pushed] += push[pushed, None] * normal
+        de[:n][pushed] -= push[pushed] * vn[pushed]
+        force += (m[:n, None][pushed] * push[pushed, None] * normal).sum(axis=0)
     return force
 
 
