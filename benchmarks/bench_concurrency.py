@@ -33,7 +33,7 @@ import numba as nb
 import numpy as np
 
 import impactsph  # noqa: F401 (its threading settings before numba's threads start)
-from impactsph.physics.chunked import _call_at
+from impactsph.physics.chunked import _address, _call_at, _flat, run_chunked
 
 
 @nb.njit(nogil=True)  # (not cached: numba caches a script's functions under its name)
@@ -71,7 +71,7 @@ def capture(case_name: str, steps: int) -> dict[str, tuple[Callable[..., Any], t
     def copied(arguments: tuple) -> tuple:
         return tuple(a.copy() if isinstance(a, np.ndarray) else a for a in arguments)
 
-    run_stage, run_chunked = integrate_module.run_stage, rates_module.run_chunked
+    run_stage = integrate_module.run_stage
 
     def stage(stage_pass, threaded, n_active, *arguments):
         taken["stage"] = (stage_pass, (n_active, *copied(arguments)))  # the last: a corrector
@@ -124,8 +124,6 @@ def measure_kernel(name: str, kernel: Callable[..., Any], arguments: tuple, call
                    rounds: int) -> dict[str, Any]:
     """One kernel's times (us a call, best round's mean and median call) with each share
     alone, both and one thread, on numba's threads."""
-    from impactsph.physics.chunked import _address, _flat, run_chunked
-
     nb.set_num_threads(two_threads())
     address, _, tupled = _address(kernel, arguments)
     flat = _flat(arguments) if tupled else arguments
@@ -133,10 +131,11 @@ def measure_kernel(name: str, kernel: Callable[..., Any], arguments: tuple, call
     for label, run in (("share 0 alone", (True, False)), ("share 1 alone", (False, True)),
                        ("both", (True, True))):
         mask = np.array(run)
-        drive_some(address, mask, flat)  # (loaded or compiled)
+
         def call(mask: np.ndarray = mask) -> None:
             drive_some(address, mask, flat)
 
+        call()  # (compiled)
         row[label] = best_per_call(call, calls, rounds)
         row[f"{label}, median"] = median_per_call(call, calls)
     nb.set_num_threads(1)
