@@ -46,6 +46,8 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+import impactsph  # noqa: F401  (before the first njit below: the vectors' width, impactsph.vectors)
+
 HERE = Path(__file__).resolve().parent
 NAIVE = HERE.parent.parent / "shared" / "bench" / "naive_pairs.py"
 #: impactsph's flags for its pair loops (physics/passes.py, PAIR_FASTMATH)
@@ -279,6 +281,10 @@ def load_naive(path: Path):
     try:
         spec = importlib.util.spec_from_file_location("naive_pairs", path)
         module = importlib.util.module_from_spec(spec)
+        # registered before it runs: numba's cache finds a cached function's module by name
+        # when it loads it (unregistered, a second process's load failed: "No module named
+        # '<dynamic>'")
+        sys.modules[spec.name] = module
         spec.loader.exec_module(module)
     finally:
         sys.argv = argv

@@ -8,11 +8,15 @@ The AC runs' last digits depend on the machine as well as the code: on an AMD Ze
 and the shortened cantilever's momentum drift 1.3e-12 relative away from the values recorded
 on the Zen 4 and Intel machines before it (the AV runs agree to 1e-13).  Not the compiled
 code's target (``NUMBA_CPU_NAME=znver4`` on the Zen 5 gives the Zen 5's digits) nor
-OpenBLAS's kernels (``OPENBLAS_CORETYPE``); the cause was not found.  Since the pair pass
-vectorises and fuses its sums (generation 2), a Zen 4 (``znver4``, 2026-12-06) gives the AC
+OpenBLAS's kernels (``OPENBLAS_CORETYPE``); the cause was not found (its file is of
+generation 0, so it holds no run now; not re-measured since).  Since the pair pass
+vectorises and fuses its sums (generation 2), a Zen 4 (``znver4``, 2026-12-06) gave the AC
 bars' profile oscillation 1.2e-11 relative away from the shared file, recorded on an Intel
-Xeon (34da93d, whose results matched the shared file there, gives the Zen 4 the same digits
-as the commits after it).  So a machine whose CPU has a file of its own,
+Xeon, and had a file of its own.  That cause was the vectors' width: LLVM vectorises with
+512-bit vectors on a Zen 4 and 256-bit ones on the Intel Xeons, so a reassociated sum added
+its lanes in another order.  Since ``import impactsph`` asks for 256-bit vectors on every
+AVX-512 host (:mod:`impactsph.vectors`), the Zen 4 gives every number of the shared file to
+the bit, and its file is gone.  So a machine whose CPU has a file of its own,
 ``tests/data/pinned_results.<cpu>.json`` (``python tests/pinned_runs.py --this-cpu``, from a
 commit whose results match the shared file elsewhere), is held to that file, and every other
 machine to the shared one.

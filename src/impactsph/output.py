@@ -53,6 +53,7 @@ def provenance() -> dict[str, Any]:
 
     from .models import EOS, STRENGTH, VISCOSITY
     from .physics.options import parallel_default
+    from .vectors import cpu_name, vector_width
 
     def where(model: Any) -> str:
         f = getattr(model, "pressure", None) or getattr(model, "return_map", None) or getattr(
@@ -64,6 +65,9 @@ def provenance() -> dict[str, Any]:
             # the passes compiled with numba's threads or serial ($IMPACTSPH_PARALLEL): the
             # same results to the bit (tests/test_parallel_passes.py)
             "parallel_passes": parallel_default(),
+            # the vectors the compiled loops were built for (impactsph.vectors): the last
+            # digits of a vectorised sum depend on their width
+            "cpu": cpu_name(), "vectors": vector_width(),
             "models": {kind: {m.name: where(m) or "impactsph" for m in registry}
                        for kind, registry in (("eos", EOS), ("strength", STRENGTH),
                                               ("viscosity", VISCOSITY))}}

@@ -1,0 +1,145 @@
+"""The compiled loops' vector width (``$IMPACTSPH_VECTORS``, :mod:`impactsph.vectors`): each
+choice in a process of its own (numba fixes the width for a process), alternated round by
+round, with every time divided by a reference timed in the same process.
+
+The reference is ``bench_bare_loop.py``'s bare loop (the naive yardstick's 2D equations as a
+vectorised loop over a list built once), whose time the width does not move (the same to 2%
+on a Zen 4, 2026-12-06): a process that runs in a slower minute of the machine runs its
+reference slower too, so the ratios compare the choices where the raw times, a process
+apart, spread by 10-40% on the project's 2-vCPU machines. Timed in each process, best of
+``--rounds`` after a warm-up: one rate evaluation of ``bench_rates.py``'s 2D and 3D lattices
+(1e5 particles, random velocities), and whole runs of the paper's Taylor bar and of the
+cantilever's first ``--cantilever-end`` seconds.
+
+    .venv/bin/python benchmarks/bench_vectors.py --threads 1 2 --rounds 3 --processes 3
+
+prints, for each thread count, each item's ratio to the reference under each choice (the
+best of the processes) and their quotient (``256 / host`` < 1: the 256-bit vectors faster).
+``--item`` runs one process's measurement and prints it as JSON (what the alternation
+calls)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import impactsph  # noqa: F401  (first: the width is chosen when impactsph is imported)
+
+HERE = Path(__file__).resolve().parent
+CHOICES = ("host", "256")
+ITEMS = ("rates 2D", "rates 3D", "taylor", "cantilever")
+
+
+def _best(function, rounds: int) -> float:
+    function()
+    times = []
+    for _ in range(rounds):
+        start = time.perf_counter()
+        function()
+        times.append(time.perf_counter() - start)
+    return min(times)
+
+
+def measure(threads: int, rounds: int, side: int, cantilever_end: float,
+            items: tuple[str, ...] = ITEMS) -> dict:
+    """One process's measurement: the reference's seconds and each item's time over it."""
+    import numba
+    import numpy as np
+
+    sys.path.insert(0, str(HERE))
+    import bench_bare_loop as bare_loop
+    from bench_rates import make_case
+
+    from impactsph import Simulation, load_case
+    from impactsph.loading import validate_case
+    from impactsph.vectors import cpu_name, vector_width
+
+    numba.set_num_threads(threads)
+    fields, h = bare_loop.lattice(side)
+    columns = tuple(fields[k] for k in ("x", "y", "vx", "vy", "rho", "m", "p", "sxx", "sxy",
+                                        "syy", "c"))
+    offsets, neighbours = bare_loop.build_list(fields["x"], fields["y"], 2.0 * h)
+    out = np.zeros((bare_loop.SUMS, fields["x"].size))
+
+    def reference() -> None:
+        bare_loop.bare(*columns, h, offsets, neighbours, out)
+
+    timed = {}
+    for dim in (2, 3):
+        if f"rates {dim}D" in items:
+            sim = Simulation(validate_case(make_case(side * side, dim)))
+            sim.state.velocity[:] = np.random.default_rng(1).normal(
+                0.0, 1.0, size=sim.state.velocity.shape)
+            timed[f"rates {dim}D"] = (lambda s=sim: s.solver.rates(s.state))
+    runs = {"taylor": [], "cantilever": [f"time.end={cantilever_end!r}"]}
+    for name, overrides in runs.items():
+        if name in items:
+            case = load_case(name, ["output.figures=false", f"compute.threads={threads}",
+                                    *overrides])
+            Simulation(case).run(t_end=1e-2 * case.time.end)  # compiled (or loaded) first
+            timed[name] = (lambda c=case: Simulation(c).run())
+    seconds = _best(reference, 3 * rounds)
+    ratios = {name: _best(function, rounds) / seconds for name, function in timed.items()}
+    return {"vectors": vector_width(), "cpu": cpu_name(), "threads": threads,
+            "reference seconds": seconds, "ratios": ratios}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--rounds", type=int, default=3, help="timings an item, best kept")
+    ap.add_argument("--processes", type=int, default=3, help="processes a choice, alternated")
+    ap.add_argument("--side", type=int, default=316, help="lattice side (316: 1e5 particles)")
+    ap.add_argument("--cantilever-end", type=float, default=4e-4)
+    ap.add_argument("--items", nargs="+", choices=ITEMS, default=list(ITEMS))
+    ap.add_argument("--item", action="store_true", help="one process's measurement, as JSON")
+    ap.add_argument("--json", type=Path, help="write every number here")
+    args = ap.parse_args(argv)
+    if args.item:
+        print(json.dumps(measure(args.threads[0], args.rounds, args.side,
+                                 args.cantilever_end, tuple(args.items))))
+        return 0
+    rows = []
+    for process in range(args.processes):
+        for threads in args.threads:
+            for choice in CHOICES:
+                env = {k: v for k, v in os.environ.items() if k != "NUMBA_CPU_FEATURES"}
+                env["IMPACTSPH_VECTORS"] = choice
+                command = [sys.executable, __file__, "--item", "--threads", str(threads),
+                           "--rounds", str(args.rounds), "--side", str(args.side),
+                           "--cantilever-end", repr(args.cantilever_end),
+                           "--items", *args.items]
+                done = subprocess.run(command, env=env, capture_output=True, text=True)
+                if done.returncode != 0:
+                    sys.stderr.write(done.stderr)
+                    return done.returncode
+                row = json.loads(done.stdout.strip().splitlines()[-1])
+                row.update(choice=choice, process=process)
+                rows.append(row)
+                print(f"process {process}, {threads} thread(s), {choice:4s} "
+                      f"({row['vectors']}): reference {row['reference seconds'] * 1e3:.2f} "
+                      "ms; " + ", ".join(f"{k} {v:.3f}" for k, v in row["ratios"].items()),
+                      flush=True)
+    print(f"\n{platform.processor() or platform.machine()}, {rows[0]['cpu']}: each item's "
+          "time over the reference's in its process, best of the processes")
+    print(f"{'threads':>7s} {'item':12s} {'host':>8s} {'256':>8s} {'256 / host':>10s}")
+    for threads in args.threads:
+        for item in args.items:
+            best = {choice: min(r["ratios"][item] for r in rows
+                                if r["threads"] == threads and r["choice"] == choice)
+                    for choice in CHOICES}
+            print(f"{threads:7d} {item:12s} {best['host']:8.3f} {best['256']:8.3f} "
+                  f"{best['256'] / best['host']:10.3f}")
+    if args.json:
+        args.json.write_text(json.dumps({"rows": rows, "argv": sys.argv[1:]}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
