@@ -1,11 +1,15 @@
-"""The compiled loops' vector width (``$IMPACTSPH_VECTORS``, :mod:`impactsph.vectors`): each
-choice in a process of its own (numba fixes the width for a process), alternated round by
-round, with every time divided by a reference timed in the same process.
+"""How the compiled loops use the vectors (``$IMPACTSPH_VECTORS``, :mod:`impactsph.vectors`):
+each choice in a process of its own (numba fixes its features for a process), alternated
+round by round, with every time divided by a reference timed in the same process. The
+choices: ``host`` (LLVM's own for the CPU), ``256`` (256-bit vectors alone: the host's
+features and ``+prefer-256-bit``) and ``tuned`` (impactsph's default for the CPU).
 
-The reference is ``bench_bare_loop.py``'s bare loop (the naive yardstick's 2D equations as a
-vectorised loop over a list built once), whose time the width does not move (the same to 2%
-on a Zen 4, 2026-12-06): a process that runs in a slower minute of the machine runs its
-reference slower too, so the ratios compare the choices where the raw times, a process
+The reference is the naive yardstick (``../shared/bench/naive_pairs.py``, loaded as
+``bench_bare_loop.py`` loads it: its cell list and 2D rate sums on the same 1e5 lattice),
+whose time neither choice moves (42.9-44.8 ms on two threads of a Zen 4 under each,
+2026-12-06; ``bench_bare_loop.py``'s bare loop, which gathers, is 0.8 of itself without
+gathers there): a process that runs in a slower minute of the machine runs its reference
+slower too, so the ratios compare the choices where the raw times, a process
 apart, spread by 10-40% on the project's 2-vCPU machines. Timed in each process, best of
 ``--rounds`` after a warm-up: one rate evaluation of ``bench_rates.py``'s 2D and 3D lattices
 (1e5 particles, random velocities), and whole runs of the paper's Taylor bar and of the
@@ -14,7 +18,7 @@ cantilever's first ``--cantilever-end`` seconds.
     .venv/bin/python benchmarks/bench_vectors.py --threads 1 2 --rounds 3 --processes 3
 
 prints, for each thread count, each item's ratio to the reference under each choice (the
-best of the processes) and their quotient (``256 / host`` < 1: the 256-bit vectors faster).
+best of the processes) and each choice's quotient by the first (< 1: faster than LLVM's).
 ``--item`` runs one process's measurement and prints it as JSON (what the alternation
 calls)."""
 
@@ -32,7 +36,7 @@ from pathlib import Path
 import impactsph  # noqa: F401  (first: the width is chosen when impactsph is imported)
 
 HERE = Path(__file__).resolve().parent
-CHOICES = ("host", "256")
+CHOICES = ("host", "256", "tuned")
 ITEMS = ("rates 2D", "rates 3D", "taylor", "cantilever")
 
 
@@ -64,11 +68,15 @@ def measure(threads: int, rounds: int, side: int, cantilever_end: float,
     fields, h = bare_loop.lattice(side)
     columns = tuple(fields[k] for k in ("x", "y", "vx", "vy", "rho", "m", "p", "sxx", "sxy",
                                         "syy", "c"))
-    offsets, neighbours = bare_loop.build_list(fields["x"], fields["y"], 2.0 * h)
-    out = np.zeros((bare_loop.SUMS, fields["x"].size))
+    naive = bare_loop.load_naive(bare_loop.NAIVE)
+    reach = 2.0 * h
+    cells = int((1 + 2 * reach) / reach) + 2
+    out = [np.empty(fields["x"].size) for _ in range(bare_loop.SUMS)]
 
     def reference() -> None:
-        bare_loop.bare(*columns, h, offsets, neighbours, out)
+        order, start, cell = naive.build_cells(fields["x"], fields["y"], reach, -reach,
+                                               -reach, cells, cells)
+        naive.rates(*columns, h, order, start, cell, cells, cells, *out)
 
     timed = {}
     for dim in (2, 3):
@@ -98,6 +106,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--side", type=int, default=316, help="lattice side (316: 1e5 particles)")
     ap.add_argument("--cantilever-end", type=float, default=4e-4)
     ap.add_argument("--items", nargs="+", choices=ITEMS, default=list(ITEMS))
+    ap.add_argument("--choices", nargs="+", choices=CHOICES, default=list(CHOICES))
     ap.add_argument("--item", action="store_true", help="one process's measurement, as JSON")
     ap.add_argument("--json", type=Path, help="write every number here")
     args = ap.parse_args(argv)
@@ -105,12 +114,17 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(measure(args.threads[0], args.rounds, args.side,
                                  args.cantilever_end, tuple(args.items))))
         return 0
+    from impactsph.vectors import FEATURES_VARIABLE, PREFER_256, VECTORS_VARIABLE, _host_features
+
     rows = []
     for process in range(args.processes):
         for threads in args.threads:
-            for choice in CHOICES:
-                env = {k: v for k, v in os.environ.items() if k != "NUMBA_CPU_FEATURES"}
-                env["IMPACTSPH_VECTORS"] = choice
+            for choice in args.choices:
+                env = {k: v for k, v in os.environ.items() if k != FEATURES_VARIABLE}
+                if choice == "256":
+                    env[FEATURES_VARIABLE] = f"{_host_features()},{PREFER_256}"
+                else:
+                    env[VECTORS_VARIABLE] = choice
                 command = [sys.executable, __file__, "--item", "--threads", str(threads),
                            "--rounds", str(args.rounds), "--side", str(args.side),
                            "--cantilever-end", repr(args.cantilever_end),
@@ -128,14 +142,16 @@ def main(argv: list[str] | None = None) -> int:
                       flush=True)
     print(f"\n{platform.processor() or platform.machine()}, {rows[0]['cpu']}: each item's "
           "time over the reference's in its process, best of the processes")
-    print(f"{'threads':>7s} {'item':12s} {'host':>8s} {'256':>8s} {'256 / host':>10s}")
+    first = args.choices[0]
+    print(f"{'threads':>7s} {'item':12s} " + " ".join(f"{c:>8s}" for c in args.choices) + " "
+          + " ".join(f"{c + ' / ' + first:>14s}" for c in args.choices[1:]))
     for threads in args.threads:
         for item in args.items:
             best = {choice: min(r["ratios"][item] for r in rows
                                 if r["threads"] == threads and r["choice"] == choice)
-                    for choice in CHOICES}
-            print(f"{threads:7d} {item:12s} {best['host']:8.3f} {best['256']:8.3f} "
-                  f"{best['256'] / best['host']:10.3f}")
+                    for choice in args.choices}
+            print(f"{threads:7d} {item:12s} " + " ".join(f"{best[c]:8.3f}" for c in args.choices)
+                  + " " + " ".join(f"{best[c] / best[first]:14.3f}" for c in args.choices[1:]))
     if args.json:
         args.json.write_text(json.dumps({"rows": rows, "argv": sys.argv[1:]}, indent=1))
     return 0

@@ -1,12 +1,14 @@
-"""The compiled loops' vector width (impactsph.vectors): 256-bit vectors asked for on an
-x86-64 host with AVX-512, numba's own setting and ``IMPACTSPH_VECTORS=host`` respected, a
-bad value refused by name; and in this process, the compiled code itself."""
+"""The compiled loops' vectors (impactsph.vectors): 256-bit vectors asked for on an x86-64
+host with AVX-512 and loads for gathers on a Zen 4, numba's own setting and
+``IMPACTSPH_VECTORS=host`` respected, a bad value refused by name; and in this process, the
+compiled code itself."""
 
 from __future__ import annotations
 
 import json
 import os
 import platform
+import re
 import subprocess
 import sys
 
@@ -18,9 +20,13 @@ import impactsph  # noqa: F401  (the choice is made when impactsph is imported)
 from impactsph.output import provenance
 from impactsph.vectors import (
     FEATURES_VARIABLE,
+    NO_GATHER,
+    NO_GATHER_CPUS,
     PREFER_256,
     VECTORS_VARIABLE,
     choose_vector_width,
+    cpu_name,
+    tuning,
     vector_width,
 )
 
@@ -28,43 +34,58 @@ AVX512 = "+sse2,+avx2,+fma,+avx512f,+avx512vl,-amx-tile"
 NO_AVX512 = "+sse2,+avx2,+fma,-avx512f,-avx512vl"
 
 
-def _choose(environ: dict[str, str], features: str = AVX512, machine: str = "x86_64"):
-    return choose_vector_width(environ, lambda: features, machine)
+def _choose(environ: dict[str, str], features: str = AVX512, machine: str = "x86_64",
+            cpu: str = "emeraldrapids"):
+    return choose_vector_width(environ, lambda: features, machine, lambda: cpu)
 
 
-def test_an_avx512_host_gets_its_features_and_256_bit_vectors():
-    environ: dict[str, str] = {}
-    assert _choose(environ) == "256-bit"
-    assert environ == {FEATURES_VARIABLE: f"{AVX512},{PREFER_256}"}
-    environ = {VECTORS_VARIABLE: " 256 "}
-    assert _choose(environ, machine="AMD64") == "256-bit"
-    assert environ[FEATURES_VARIABLE].endswith(",+prefer-256-bit")
-
-
-@pytest.mark.parametrize("environ, features, machine, said", [
-    ({FEATURES_VARIABLE: "+avx2"}, AVX512, "x86_64", "as set"),
-    ({VECTORS_VARIABLE: "host"}, AVX512, "x86_64", "IMPACTSPH_VECTORS=host"),
-    ({VECTORS_VARIABLE: "HOST"}, AVX512, "x86_64", "IMPACTSPH_VECTORS=host"),
-    ({}, NO_AVX512, "x86_64", "no AVX-512"),
-    ({}, AVX512, "aarch64", "not x86-64"),
+@pytest.mark.parametrize("cpu, features, added", [
+    ("emeraldrapids", AVX512, [PREFER_256]),
+    ("znver5", AVX512, [PREFER_256]),
+    ("znver4", AVX512, [PREFER_256, NO_GATHER]),
+    ("znver4", NO_AVX512, [NO_GATHER]),
 ])
-def test_nothing_is_set_where_numba_or_the_user_decides_or_no_wider_vector_exists(
-        environ, features, machine, said):
+def test_a_host_gets_its_own_features_and_the_measured_choices(cpu, features, added):
+    assert tuning(cpu, features) == added
+    environ: dict[str, str] = {}
+    assert _choose(environ, features, cpu=cpu) == ",".join(added)
+    assert environ == {FEATURES_VARIABLE: ",".join([features, *added])}
+    environ = {VECTORS_VARIABLE: " Tuned "}
+    assert _choose(environ, features, machine="AMD64", cpu=cpu) == ",".join(added)
+    assert environ[FEATURES_VARIABLE].endswith(added[-1])
+
+
+@pytest.mark.parametrize("environ, features, machine, cpu, said", [
+    ({FEATURES_VARIABLE: "+avx2"}, AVX512, "x86_64", "znver4", "as set"),
+    ({VECTORS_VARIABLE: "host"}, AVX512, "x86_64", "znver4", "IMPACTSPH_VECTORS=host"),
+    ({VECTORS_VARIABLE: "HOST"}, AVX512, "x86_64", "znver4", "IMPACTSPH_VECTORS=host"),
+    ({}, NO_AVX512, "x86_64", "znver3", "nothing to change"),
+    ({}, AVX512, "aarch64", "znver4", "not x86-64"),
+])
+def test_nothing_is_set_where_numba_or_the_user_decides_or_nothing_is_to_change(
+        environ, features, machine, cpu, said):
     before = dict(environ)
-    assert said in _choose(environ, features, machine)
+    assert said in _choose(environ, features, machine, cpu)
     assert environ == before
 
 
 def test_a_bad_choice_is_refused_by_name():
-    with pytest.raises(ValueError, match=r"^\$IMPACTSPH_VECTORS = '512': allowed are 256 .* "
+    with pytest.raises(ValueError, match=r"^\$IMPACTSPH_VECTORS = '256': allowed are tuned .* "
                                          r"and host"):
-        _choose({VECTORS_VARIABLE: "512"})
+        _choose({VECTORS_VARIABLE: "256"})
 
 
 def _dot(a, b):
     total = 0.0
     for i in range(a.shape[0]):
         total += a[i] * b[i]
+    return total
+
+
+def _gathered_sum(a, index):
+    total = 0.0
+    for i in range(index.shape[0]):
+        total += a[index[i]]
     return total
 
 
@@ -79,7 +100,8 @@ def _host_has_avx512() -> bool:
 @pytest.mark.skipif(not _host_has_avx512(), reason="not an x86-64 host with AVX-512")
 def test_this_process_compiles_256_bit_vectors_and_says_so():
     """After ``import impactsph``, a vectorised sum compiled in this process uses 256-bit
-    registers and no 512-bit ones, and every output's provenance says 256-bit (unless the
+    registers and no 512-bit ones, a sum over an index gathers except on the CPU models
+    that load the lanes instead, and every output's provenance says so (unless the
     environment set numba's features: then they are as set)."""
     if os.environ.get(FEATURES_VARIABLE, "") and PREFER_256 not in os.environ[FEATURES_VARIABLE]:
         pytest.skip(f"${FEATURES_VARIABLE} was set without {PREFER_256}")
@@ -88,8 +110,13 @@ def test_this_process_compiles_256_bit_vectors_and_says_so():
     assert dot(a, a) == float(a @ a)
     code = dot.inspect_asm(dot.signatures[0])
     assert "ymm" in code and "zmm" not in code
-    assert vector_width() == "256-bit"
-    assert provenance()["vectors"] == "256-bit"
+    gathered = nb.njit(fastmath=True)(_gathered_sum)
+    assert gathered(a, np.arange(64)[::-1].copy()) == float(a.sum())
+    gathers = re.search(r"\sv(p)?gather", gathered.inspect_asm(gathered.signatures[0])) is not None
+    assert gathers == (cpu_name() not in NO_GATHER_CPUS)
+    width = "256-bit" + ("" if gathers else ", no gathers")
+    assert vector_width() == width
+    assert provenance()["vectors"] == width
 
 
 @pytest.mark.skipif(not _host_has_avx512(), reason="not an x86-64 host with AVX-512")

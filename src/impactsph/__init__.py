@@ -17,9 +17,10 @@ import os as _os
 # Set before numba loads libgomp; a value already in the environment wins.
 _os.environ.setdefault("GOMP_SPINCOUNT", "100000")
 
-# 256-bit vectors on an AVX-512 host (AMD's Zen 4 and 5 would get 512-bit ones): the passes'
-# short neighbour loops run faster so on a Zen 4, and their sums give an Intel machine's bits
-# (impactsph.vectors).  Before numba compiles anything; $NUMBA_CPU_FEATURES, if set, wins.
+# 256-bit vectors on an AVX-512 host (AMD's Zen 4 and 5 would get 512-bit ones), and on a Zen 4
+# loads in place of its slow gathers: the passes' short neighbour loops run faster so, and
+# their sums give an Intel machine's bits (impactsph.vectors).  Before numba compiles
+# anything; $NUMBA_CPU_FEATURES, if set, wins, and IMPACTSPH_VECTORS=host leaves it to LLVM.
 from .vectors import choose_vector_width as _choose_vector_width  # noqa: E402
 
 _choose_vector_width()
