@@ -18,8 +18,9 @@ its lanes in another order.  Since ``import impactsph`` asks for 256-bit vectors
 AVX-512 host (:mod:`impactsph.vectors`), the Zen 4 gives every number of the shared file to
 the bit, and its file is gone (and so it does with its lanes loaded one by one instead of
 gathered, ``prefer-no-gather``, which impactsph asks for there too; with
-``IMPACTSPH_VECTORS=host`` it gives its own digits again, and its AC pins fail).  So a machine whose CPU has a file of its own,
-``tests/data/pinned_results.<cpu>.json`` (``python tests/pinned_runs.py --this-cpu``, from a
+``IMPACTSPH_VECTORS=host`` it gives its own digits again, and its AC pins fail).  So a
+machine whose CPU has a file of its own, ``tests/data/pinned_results.<cpu>.json`` (``python
+tests/pinned_runs.py --this-cpu``, from a
 commit whose results match the shared file elsewhere), is held to that file, and every other
 machine to the shared one.
 
