@@ -8,9 +8,10 @@ The reference is the naive yardstick (``../shared/bench/naive_pairs.py``, loaded
 ``bench_bare_loop.py`` loads it: its cell list and 2D rate sums on the same 1e5 lattice),
 whose time neither choice moves (42.9-44.8 ms on two threads of a Zen 4 under each,
 2026-12-06; ``bench_bare_loop.py``'s bare loop, which gathers, is 0.8 of itself without
-gathers there): a process that runs in a slower minute of the machine runs its reference
-slower too, so the ratios compare the choices where the raw times, a process
-apart, spread by 10-40% on the project's 2-vCPU machines. Timed in each process, best of
+gathers there; where that file is missing, a chain of square roots and divisions, scalar):
+a process that runs in a slower minute of the machine runs its reference slower too, so
+the ratios compare the choices where the raw times, a process apart, spread by 10-40% on
+the project's 2-vCPU machines. Timed in each process, best of
 ``--rounds`` after a warm-up: one rate evaluation of ``bench_rates.py``'s 2D and 3D lattices
 (1e5 particles, random velocities), and whole runs of the paper's Taylor bar and of the
 cantilever's first ``--cantilever-end`` seconds.
@@ -26,16 +27,24 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import platform
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+
+import numba
+import numpy as np
 
 import impactsph  # noqa: F401  (first: the width is chosen when impactsph is imported)
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+import bench_bare_loop  # noqa: E402  (a script beside this one)
+
 CHOICES = ("host", "256", "tuned")
 ITEMS = ("rates 2D", "rates 3D", "taylor", "cantilever")
 
@@ -53,11 +62,7 @@ def _best(function, rounds: int) -> float:
 def measure(threads: int, rounds: int, side: int, cantilever_end: float,
             items: tuple[str, ...] = ITEMS) -> dict:
     """One process's measurement: the reference's seconds and each item's time over it."""
-    import numba
-    import numpy as np
-
     sys.path.insert(0, str(HERE))
-    import bench_bare_loop as bare_loop
     from bench_rates import make_case
 
     from impactsph import Simulation, load_case
@@ -65,18 +70,7 @@ def measure(threads: int, rounds: int, side: int, cantilever_end: float,
     from impactsph.vectors import cpu_name, vector_width
 
     numba.set_num_threads(threads)
-    fields, h = bare_loop.lattice(side)
-    columns = tuple(fields[k] for k in ("x", "y", "vx", "vy", "rho", "m", "p", "sxx", "sxy",
-                                        "syy", "c"))
-    naive = bare_loop.load_naive(bare_loop.NAIVE)
-    reach = 2.0 * h
-    cells = int((1 + 2 * reach) / reach) + 2
-    out = [np.empty(fields["x"].size) for _ in range(bare_loop.SUMS)]
-
-    def reference() -> None:
-        order, start, cell = naive.build_cells(fields["x"], fields["y"], reach, -reach,
-                                               -reach, cells, cells)
-        naive.rates(*columns, h, order, start, cell, cells, cells, *out)
+    reference_name, reference = _reference(side)
 
     timed = {}
     for dim in (2, 3):
@@ -95,7 +89,41 @@ def measure(threads: int, rounds: int, side: int, cantilever_end: float,
     seconds = _best(reference, 3 * rounds)
     ratios = {name: _best(function, rounds) / seconds for name, function in timed.items()}
     return {"vectors": vector_width(), "cpu": cpu_name(), "threads": threads,
-            "reference seconds": seconds, "ratios": ratios}
+            "reference": reference_name, "reference seconds": seconds, "ratios": ratios}
+
+
+@numba.njit(parallel=True)  # (not cached: numba caches a script's functions under its name)
+def _chain(values, out):  # pragma: no cover (compiled)
+    """200 rounds of a square root and a division on each value: scalar, no vectors."""
+    for i in numba.prange(values.shape[0]):
+        acc = values[i]
+        for _ in range(200):
+            acc = math.sqrt(acc + 1.0) / (acc + 0.5)
+        out[i] = acc
+
+
+def _reference(side: int) -> tuple[str, Callable[[], None]]:
+    """The reference kernel: the naive yardstick on the ``side``^2 lattice, where its file
+    is (``../shared/bench/naive_pairs.py``), else a chain of roots and divisions on as many
+    values as the lattice has particles, a tenth (scalar code, which no choice moves)."""
+    bare_loop = bench_bare_loop
+    fields, h = bare_loop.lattice(side)
+    if not bare_loop.NAIVE.is_file():
+        values = fields["x"][: max(1, fields["x"].size // 10)].copy()
+        out = np.empty_like(values)
+        return "roots and divisions", lambda: _chain(values, out)
+    columns = tuple(fields[k] for k in ("x", "y", "vx", "vy", "rho", "m", "p", "sxx", "sxy",
+                                        "syy", "c"))
+    naive = bare_loop.load_naive(bare_loop.NAIVE)
+    reach = 2.0 * h
+    cells = int((1 + 2 * reach) / reach) + 2
+    sums = [np.empty(fields["x"].size) for _ in range(bare_loop.SUMS)]
+
+    def run_naive() -> None:
+        order, start, cell = naive.build_cells(fields["x"], fields["y"], reach, -reach,
+                                               -reach, cells, cells)
+        naive.rates(*columns, h, order, start, cell, cells, cells, *sums)
+    return "naive yardstick", run_naive
 
 
 def main(argv: list[str] | None = None) -> int:
