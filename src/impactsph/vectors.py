@@ -6,8 +6,8 @@ project's AMD machines (benchmarks/README.md, "256-bit vectors and no gathers on
 
 - **The width.** For Intel's AVX-512 server cores (Skylake-SP to Emerald Rapids) LLVM prefers
   256-bit vectors (the target feature ``prefer-256-bit``), for AMD's Zen 4 and Zen 5
-  (``znver4``, ``znver5``) 512-bit ones. On a Zen 4 the 2D rate evaluation took 0.91-0.96 of
-  its 512-bit time with 256-bit vectors, the paper's Taylor bar and cantilever 0.90-0.91 on
+  (``znver4``, ``znver5``) 512-bit ones. On a Zen 4 the 2D rate evaluation took 0.89-0.97 of
+  its 512-bit time with 256-bit vectors, the paper's Taylor bar and cantilever 0.90-0.93 on
   one thread. The vectorised sums, which may be reassociated (``PAIR_FASTMATH``), then add
   their lanes in the order they add in on an Intel machine: the Zen 4 gives every pinned
   result of ``tests/pinned_runs.py`` to the bit of the file recorded on an Intel Xeon, where
