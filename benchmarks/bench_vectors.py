@@ -106,18 +106,17 @@ def _reference(side: int) -> tuple[str, Callable[[], None]]:
     """The reference kernel: the naive yardstick on the ``side``^2 lattice, where its file
     is (``../shared/bench/naive_pairs.py``), else a chain of roots and divisions on as many
     values as the lattice has particles, a tenth (scalar code, which no choice moves)."""
-    bare_loop = bench_bare_loop
-    fields, h = bare_loop.lattice(side)
-    if not bare_loop.NAIVE.is_file():
+    fields, h = bench_bare_loop.lattice(side)
+    if not bench_bare_loop.NAIVE.is_file():
         values = fields["x"][: max(1, fields["x"].size // 10)].copy()
         out = np.empty_like(values)
         return "roots and divisions", lambda: _chain(values, out)
     columns = tuple(fields[k] for k in ("x", "y", "vx", "vy", "rho", "m", "p", "sxx", "sxy",
                                         "syy", "c"))
-    naive = bare_loop.load_naive(bare_loop.NAIVE)
+    naive = bench_bare_loop.load_naive(bench_bare_loop.NAIVE)
     reach = 2.0 * h
     cells = int((1 + 2 * reach) / reach) + 2
-    sums = [np.empty(fields["x"].size) for _ in range(bare_loop.SUMS)]
+    sums = [np.empty(fields["x"].size) for _ in range(bench_bare_loop.SUMS)]
 
     def run_naive() -> None:
         order, start, cell = naive.build_cells(fields["x"], fields["y"], reach, -reach,

@@ -24,6 +24,7 @@ from impactsph.vectors import (
     NO_GATHER_CPUS,
     PREFER_256,
     VECTORS_VARIABLE,
+    _host_features,
     choose_vector_width,
     cpu_name,
     tuning,
@@ -90,11 +91,8 @@ def _gathered_sum(a, index):
 
 
 def _host_has_avx512() -> bool:
-    import llvmlite.binding as llvm
-
-    llvm.initialize_native_target()
     return (platform.machine().lower() in ("x86_64", "amd64")
-            and "+avx512f" in llvm.get_host_cpu_features().flatten().split(","))
+            and "+avx512f" in _host_features().split(","))
 
 
 @pytest.mark.skipif(not _host_has_avx512(), reason="not an x86-64 host with AVX-512")

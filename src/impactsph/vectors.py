@@ -47,9 +47,8 @@ from collections.abc import Callable, MutableMapping
 
 #: the environment variable that chooses (``tuned``, the default, or ``host``)
 VECTORS_VARIABLE = "IMPACTSPH_VECTORS"
-#: numba's own variables for the compiled code's CPU features and model
+#: numba's own variable for the compiled code's CPU features
 FEATURES_VARIABLE = "NUMBA_CPU_FEATURES"
-CPU_NAME_VARIABLE = "NUMBA_CPU_NAME"
 #: LLVM's X86 tuning feature that keeps the vectoriser to 256-bit vectors
 PREFER_256 = "+prefer-256-bit"
 #: LLVM's X86 tuning feature that loads a vector's lanes one by one instead of gathering them
@@ -67,14 +66,12 @@ def _host_features() -> str:
 
 
 def _host_cpu() -> str:
-    """The CPU model numba compiles for: ``$NUMBA_CPU_NAME``, else LLVM's name of the host."""
-    name = os.environ.get(CPU_NAME_VARIABLE, "").strip()
-    if name:
-        return name
+    """The CPU model numba compiles for, as its compiler takes it: ``$NUMBA_CPU_NAME``
+    (numba's setting), else LLVM's name of the host."""
     import llvmlite.binding as llvm
+    from numba.core import config
 
-    llvm.initialize_native_target()
-    return llvm.get_host_cpu_name()
+    return config.CPU_NAME or llvm.get_host_cpu_name()
 
 
 def tuning(cpu: str, features: str) -> list[str]:
@@ -144,25 +141,26 @@ def vector_width() -> str:
     ``"512-bit"`` (``prefer-256-bit`` among the features it compiles with, or switched off),
     else ``"LLVM's choice for <cpu>"``; with ``", no gathers"`` where ``prefer-no-gather`` is
     among them."""
-    features = _compiled_features()
+    cpu, features = _compiled_for()
     if PREFER_256 in features:
         width = "256-bit"
     elif "-prefer-256-bit" in features:
         width = "512-bit"
     else:
-        width = f"LLVM's choice for {cpu_name()}"
+        width = f"LLVM's choice for {cpu}"
     return width + (", no gathers" if NO_GATHER in features else "")
-
-
-def _compiled_features() -> list[str]:
-    from numba.core.registry import cpu_target
-
-    return cpu_target.target_context.codegen().magic_tuple()[2].split(",")
 
 
 def cpu_name() -> str:
     """The CPU model numba compiles for (LLVM's name of the host, ``znver4``,
     ``emeraldrapids``, ..., or ``$NUMBA_CPU_NAME``)."""
+    return _compiled_for()[0]
+
+
+def _compiled_for() -> tuple[str, list[str]]:
+    """The CPU model and the features of numba's compiler in this process (its cache key,
+    ``magic_tuple``)."""
     from numba.core.registry import cpu_target
 
-    return cpu_target.target_context.codegen().magic_tuple()[1]
+    _, cpu, features = cpu_target.target_context.codegen().magic_tuple()
+    return cpu, features.split(",")
