@@ -969,6 +969,49 @@ def test_kernels_compile_for_a_gpu(dim, variant, monkeypatch):
         assert ".target sm_90" in ptx
 
 
+#: blocks of 128 threads the pair kernel keeps on an sm_90 multiprocessor (65,536 registers)
+#: with the paper's options: 3D 166 registers a thread, 2D 120, as measured on an H200 at
+#: 7556287 (benchmarks/README.md, "The GPU pair kernel's registers")
+PAIR_KERNEL_BLOCKS = {2: 4, 3: 3}
+
+
+@pytest.mark.skipif(importlib.util.find_spec("numba_cuda") is None
+                    or importlib.util.find_spec("nvidia.cuda_nvcc") is None,
+                    reason="numba-cuda with its CUDA toolkit wheels (the gpu extra) is not "
+                    "installed")
+@pytest.mark.parametrize("dim", [2, 3])
+def test_the_pair_kernel_keeps_its_blocks_a_multiprocessor(dim, monkeypatch,
+                                                          benchmark_script):
+    """ptxas (CUDA 12, sm_90) gives the pair kernel no more registers a thread than keep
+    :data:`PAIR_KERNEL_BLOCKS` blocks of 128 threads on a multiprocessor, and no spills: the
+    kernel waits on its neighbours' records, so its speed follows the threads resident.  A
+    change to the shared pair body that suits the CPU can cost the GPU a block: 4151c80
+    put the viscous push across bodies into the contact loop and took the 3D kernel from
+    166 to 182 registers, 3 blocks to 2, unseen until this count."""
+    import inspect
+    from pathlib import Path
+
+    import nvidia.cuda_nvcc
+    from numba import cuda
+
+    from impactsph.gpu import gpu_kernels, simulator_enabled
+    from impactsph.physics.options import PassOptions
+
+    if simulator_enabled():
+        pytest.skip("the CUDA simulator is on")
+    _as_if_on_sm90(monkeypatch)
+    ptxas = Path(nvidia.cuda_nvcc.__path__[0]) / "bin" / "ptxas"
+    if not ptxas.is_file():
+        pytest.skip(f"no ptxas at {ptxas}")
+    types = _kernel_argument_types(dim)
+    kernel = gpu_kernels(dim, False, -1, PassOptions())[1]
+    names = inspect.signature(kernel.py_func).parameters
+    ptx, _ = cuda.compile_ptx(kernel.py_func, tuple(types[k] for k in names), cc=(9, 0))
+    report = benchmark_script("gpu_registers").ptxas_report(str(ptxas), ptx)
+    assert report["spills"] == 0, report
+    assert 65536 // (128 * report["registers"]) >= PAIR_KERNEL_BLOCKS[dim], report
+
+
 def _step_kernel_types(name: str, dim: int) -> tuple:
     """numba types of the arguments of the step kernel ``name``
     (:func:`impactsph.gpu_step.step_kernels`), as :class:`~impactsph.gpu_step.ResidentStep`

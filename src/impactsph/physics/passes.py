@@ -1121,12 +1121,39 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     # the trace of the velocity gradient's sum (continuity_pair and velocity_gradient_pair
     # are the same products), so the loop does not form it (results move at round-off)
     cont = -(L00 + L11 + L22)
-    # Second loop, only where the particle has neighbours of another body or wall ghosts
-    # within the support (a few particles at a contact surface): compression-only contact,
-    # and where the contact force is tracked, the viscous push across bodies (the first
-    # loop's viscous term of those pairs, again).
-    # (its names carry c_, to keep them apart from the first loop's)
+    # Only where the particle has neighbours of another body or wall ghosts within the
+    # support (a few particles at a contact surface), and the contact force is tracked: the
+    # viscous push across bodies, the first loop's viscous term of those pairs again.  A loop
+    # of its own, not a part of the contact loop below: there its values were live beside
+    # the contact's and the first loop's sums, and the 3D CUDA pair kernel took 182 registers
+    # a thread (2 blocks of 128 a multiprocessor) instead of 166 (3 blocks; ptxas for sm_90,
+    # benchmarks/gpu_registers.py; benchmarks/README.md, "The GPU pair kernel's registers").
+    # (its names carry v_, to keep them apart from the first loop's)
     track_contact = contact_force.shape[0] > 0
+    for v_k in range(offsets[p], offsets[p + 1] if n_other > 0 and track_contact
+                     else offsets[p]):
+        v_Pj = P[indices[v_k]]
+        if v_Pj[BODY] == bi:
+            continue
+        v_d0, v_d1, v_d2, v_r2, v_h_ij, v_inv_h, v_q2 = pair_separation(Pi_, v_Pj)
+        if v_q2 >= 4.0 or v_r2 == 0.0:
+            continue
+        v_fq = cubic_spline_gradient_factor(math.sqrt(v_q2), v_inv_h, DIM)
+        v_u0 = vi0 - v_Pj[V]
+        v_u1 = vi1 - v_Pj[V + 1] if DIM > 1 else 0.0
+        v_u2 = vi2 - v_Pj[V + 2] if DIM > 2 else 0.0
+        v_pi = pair_viscosity(visc_kind, v_u0 * v_d0 + v_u1 * v_d1 + v_u2 * v_d2, v_r2,
+                              v_h_ij, 0.5 * (ci + v_Pj[C]), 0.5 * (rhoi + v_Pj[RHO]),
+                              visc_params)
+        if VISCOSITY_FACTOR:
+            v_pi *= 0.5 * (fi + v_Pj[VF])
+        v_visc = viscous_acceleration_pair(np.float64(v_Pj[M]), v_pi, v_fq)
+        f0 += v_visc * v_d0
+        f1 += v_visc * v_d1
+        f2 += v_visc * v_d2
+    # Second loop, only where the particle has neighbours of another body or wall ghosts
+    # within the support: compression-only contact.
+    # (its names carry c_, to keep them apart from the first loop's)
     for c_k in range(offsets[p], offsets[p + 1] if n_other > 0 else offsets[p]):
         c_Pj = P[indices[c_k]]
         if c_Pj[BODY] == bi:
@@ -1142,16 +1169,6 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
         c_u1 = vi1 - c_Pj[V + 1] if DIM > 1 else 0.0
         c_u2 = vi2 - c_Pj[V + 2] if DIM > 2 else 0.0
         c_vg = c_u0 * c_g0 + c_u1 * c_g1 + c_u2 * c_g2
-        if track_contact:
-            c_pi = pair_viscosity(visc_kind, c_u0 * c_d0 + c_u1 * c_d1 + c_u2 * c_d2, c_r2,
-                                  c_h_ij, 0.5 * (ci + c_Pj[C]),
-                                  0.5 * (rhoi + c_Pj[RHO]), visc_params)
-            if VISCOSITY_FACTOR:
-                c_pi *= 0.5 * (fi + c_Pj[VF])
-            c_visc = viscous_acceleration_pair(np.float64(c_Pj[M]), c_pi, c_fq)
-            f0 += c_visc * c_d0
-            f1 += c_visc * c_d1
-            f2 += c_visc * c_d2
         c_wg = c_vg  # the energy term's: with the work velocity under the compatible update
         if COMPATIBLE_ENERGY:
             c_wg = (wi0 - c_Pj[W]) * c_g0
