@@ -833,9 +833,11 @@ def particle_rates(p, i, P, offsets, indices, visc_kind, visc_params, normal_str
     so the viscous heating is ``-1/2`` the viscous acceleration's coefficient times ``z_ij .
     r_ij``; the weighted gradients ``m_j grad W_ij`` serve the stress, ``G`` and ``T`` sums
     alike; and the viscous push across bodies (a part of the contact force, for the few
-    particles at a contact) is summed in the second loop, not masked in the first.  The
-    results move at round-off (``tests/test_rates_reference.py`` checks the whole against
-    the term functions summed pair by pair).
+    particles at a contact) is summed in a loop of its own over those particles' rows, not
+    masked in the first (nor in the contact loop, where it cost the 3D CUDA kernel a block of
+    threads a multiprocessor: the comment at that loop).  The results move at round-off
+    (``tests/test_rates_reference.py`` checks the whole against the term functions summed
+    pair by pair).
 
     With the artificial stress (``ARTIFICIAL_STRESS`` = epsilon > 0; Monaghan 2000, Gray,
     Monaghan & Swift 2001, section 2) each pair of the same body also adds
