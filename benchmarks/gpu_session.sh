@@ -46,7 +46,8 @@ timeout $((GPU_BUDGET + 40)) python3 benchmarks/bench_gpu.py --devices gpu --dim
   2>&1 | tee "$OUT/bench_gpu.log"
 if [ "${TUNE:-1}" = 1 ]; then
 # the launch settings at 1M 3D particles: threads a block and the pair kernel's register cap
-# (benchmarks/gpu_registers.py: 154 registers free, 128 spills 88 B), a process each
+# (benchmarks/gpu_registers.py, 3D: 166 registers free, 3 blocks of 128 a multiprocessor;
+# capped at 128, 4 blocks with 284 B of spills), a process each
 stamp "tune: threads a block x register cap, 1e6 3D"
 timeout 170 python3 benchmarks/bench_gpu.py --devices gpu --dims 3 --sizes 1e6 --steps 20 \
   --threads-per-block 128 256 --max-registers 0 128 --budget 150 \
