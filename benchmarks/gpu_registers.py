@@ -27,6 +27,19 @@ RATE_KERNELS = {0: "particle_kernel", 1: "pair_kernel", 2: "correction_kernel"}
 STEP_KERNELS = ("advance", "survey", "neighbours", "totals", "displacement")
 
 
+def ptxas_path() -> str:
+    """The ptxas of the ``nvidia-cuda-nvcc-cu12`` wheel (the gpu extra)."""
+    import nvidia.cuda_nvcc
+
+    return str(Path(nvidia.cuda_nvcc.__path__[0]) / "bin" / "ptxas")
+
+
+def blocks_a_multiprocessor(registers: int, threads: int = 128) -> int:
+    """Blocks of ``threads`` threads that an sm_90 multiprocessor (65,536 registers, at most
+    16 blocks) keeps for a kernel of ``registers`` registers a thread."""
+    return min(16, 65536 // (threads * registers))
+
+
 def ptxas_report(ptxas: str, ptx: str, max_registers: int = 0) -> dict:
     """Registers, stack frame and spill stores of the one kernel in ``ptx`` (with
     ``max_registers``, ptxas's ``-maxrregcount``: what ``cuda.jit(max_registers=...)`` asks
@@ -55,7 +68,6 @@ def main(argv: list[str] | None = None) -> int:
                     help="the rate kernels' records (compute.record_precision)")
     args = ap.parse_args(argv)
     import numba.cuda.dispatcher
-    import nvidia.cuda_nvcc
 
     # a function the kernels call without inlining compiles for the current device: none here
     numba.cuda.dispatcher.get_current_device = (
@@ -68,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     from impactsph.gpu import gpu_kernels
     from impactsph.physics.options import PassOptions
 
-    ptxas = str(Path(nvidia.cuda_nvcc.__path__[0]) / "bin" / "ptxas")
+    ptxas = ptxas_path()
     print("| dim | kernel | registers | blocks of 128 a multiprocessor | stack B | spill B |")
     print("|---|---|---|---|---|---|")
     for dim in args.dims:
@@ -88,14 +100,14 @@ def main(argv: list[str] | None = None) -> int:
         for name, function, argtypes in items:
             ptx, _ = cuda.compile_ptx(function, argtypes, cc=(9, 0))
             r = ptxas_report(ptxas, ptx)
-            blocks = min(16, 65536 // (128 * r["registers"]))
+            blocks = blocks_a_multiprocessor(r["registers"])
             print(f"| {dim} | {name} | {r['registers']} | {blocks} | {r['stack']} | "
                   f"{r['spills']} |", flush=True)
             if name != "pair_kernel":
                 continue
             for cap in args.caps:
                 r = ptxas_report(ptxas, ptx, cap)
-                blocks = min(16, 65536 // (128 * r["registers"]))
+                blocks = blocks_a_multiprocessor(r["registers"])
                 print(f"| {dim} | {name}, at most {cap} | {r['registers']} | {blocks} | "
                       f"{r['stack']} | {r['spills']} |", flush=True)
     return 0

@@ -991,9 +991,7 @@ def test_the_pair_kernel_keeps_its_blocks_a_multiprocessor(dim, precision, monke
     166 to 182 registers, 3 blocks to 2, unseen until this count.  The same with the
     records in float32 (3D 167 registers, 2D 116)."""
     import inspect
-    from pathlib import Path
 
-    import nvidia.cuda_nvcc
     from numba import cuda
 
     from impactsph.gpu import gpu_kernels, simulator_enabled
@@ -1002,8 +1000,9 @@ def test_the_pair_kernel_keeps_its_blocks_a_multiprocessor(dim, precision, monke
     if simulator_enabled():
         pytest.skip("the CUDA simulator is on")
     _as_if_on_sm90(monkeypatch)
-    ptxas = Path(nvidia.cuda_nvcc.__path__[0]) / "bin" / "ptxas"
-    if not ptxas.is_file():
+    registers = benchmark_script("gpu_registers")
+    ptxas = registers.ptxas_path()
+    if not Path(ptxas).is_file():
         pytest.skip(f"no ptxas at {ptxas}")
     types = _kernel_argument_types(dim)
     if precision == "float32":
@@ -1013,9 +1012,10 @@ def test_the_pair_kernel_keeps_its_blocks_a_multiprocessor(dim, precision, monke
     kernel = gpu_kernels(dim, False, -1, PassOptions(record_precision=precision))[1]
     names = inspect.signature(kernel.py_func).parameters
     ptx, _ = cuda.compile_ptx(kernel.py_func, tuple(types[k] for k in names), cc=(9, 0))
-    report = benchmark_script("gpu_registers").ptxas_report(str(ptxas), ptx)
+    report = registers.ptxas_report(ptxas, ptx)
     assert report["spills"] == 0, report
-    assert 65536 // (128 * report["registers"]) >= PAIR_KERNEL_BLOCKS[dim], report
+    assert registers.blocks_a_multiprocessor(report["registers"]) >= PAIR_KERNEL_BLOCKS[dim], \
+        report
 
 
 def _step_kernel_types(name: str, dim: int) -> tuple:
