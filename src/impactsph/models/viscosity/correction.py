@@ -164,10 +164,14 @@ pair_viscosity = monaghan_pair_viscosity
 
 
 @nb.njit(inline="always", cache=True)
-def correction_sums(p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, h_ratio):
+def correction_sums(p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, h_ratio, paper):
     """The neighbour sums of eq 34 for the particle at sorted position ``p``, over the
     neighbours ``j != i`` of the same body within ``2 h_c``, ``h_c = h_ratio h_ij``:
-    ``(w_ii, sum_j w_ij, sum_j w_ij u_j (three components), 1/2 sum_j w_ij v_ij . u_j)``."""
+    ``(w_ii, sum_j w_ij, sum_j w_ij u_j (three components), 1/2 sum_j w_ij v_ij . u_j)``,
+    the last (eq 37's) only where ``paper`` is true, else 0: the other energy corrections
+    and the pairwise switch never read it, and on the Taylor bar it was a sixth of the
+    pass's time (benchmarks/README.md, "A small step's fixed cost"); the other sums are
+    the same to the bit."""
     Pi_ = P[p]
     u0 = u1 = u2 = 0.0
     weight_sum = 0.0
@@ -193,8 +197,9 @@ def correction_sums(p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, h_ratio)
             u1 += w * Pj[U + 1]
         if dim > 2:
             u2 += w * Pj[U + 2]
-        for a in range(dim):
-            paper_energy += 0.5 * w * (Pi_[V + a] - Pj[V + a]) * Pj[U + a]
+        if paper:
+            for a in range(dim):
+                paper_energy += 0.5 * w * (Pi_[V + a] - Pj[V + a]) * Pj[U + a]
     return self_weight, weight_sum, u0, u1, u2, paper_energy
 
 
@@ -211,7 +216,8 @@ def correct(p, i, P, offsets, indices, layout, dim, params, dv_corr, de_corr, dv
     energy_mode = int(params[2])
     Pi_ = P[p]
     self_weight, weight_sum, u0, u1, u2, paper_energy = correction_sums(
-        p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, params[0])
+        p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, params[0],
+        energy_mode == ENERGY_PAPER)
     weighted_u = (u0, u1, u2)
     work = 0.0
     for a in range(dim):

@@ -232,7 +232,7 @@ def ac_pairwise_factor(p, i, P, offsets, indices, layout, dim, params, elapsed, 
     memory[i] = 0.0  # nothing kept
     Pi_ = P[p]
     self_weight, weight_sum, s0, s1, s2, _ = correction_sums(
-        p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, params[0])
+        p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, params[0], False)
     variant = int(params[1])
     weighted = (s0, s1, s2)
     uu = 0.0
