@@ -33,7 +33,7 @@ import numba as nb
 import numpy as np
 
 import impactsph  # noqa: F401 (its threading settings before numba's threads start)
-from impactsph.physics.chunked import _address, _call_at, _flat, run_chunked
+from impactsph.physics.chunked import _address, _call_at, run_chunked
 
 
 @nb.njit(nogil=True)  # (not cached: numba caches a script's functions under its name)
@@ -125,8 +125,7 @@ def measure_kernel(name: str, kernel: Callable[..., Any], arguments: tuple, call
     """One kernel's times (us a call, best round's mean and median call) with each share
     alone, both and one thread, on numba's threads."""
     nb.set_num_threads(two_threads())
-    address, _, tupled = _address(kernel, arguments)
-    flat = _flat(arguments) if tupled else arguments
+    address, _, flat = _address(kernel, arguments)
     row: dict[str, Any] = {"kernel": name}
     for label, run in (("share 0 alone", (True, False)), ("share 1 alone", (False, True)),
                        ("both", (True, True))):

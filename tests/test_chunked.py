@@ -28,11 +28,29 @@ def test_each_share_runs_once_and_the_chunks_are_covered_once():
 
 
 def test_threads_for_takes_numbas_count_at_most_one_a_chunk_and_one_serial(monkeypatch):
-    monkeypatch.setattr(nb, "get_num_threads", lambda: 4)
+    from impactsph.physics import chunked
+
+    monkeypatch.setattr(chunked, "numba_threads", lambda: 4)
     assert threads_for(1000, 100, True) == 4
     assert threads_for(250, 100, True) == 3  # three chunks
     assert threads_for(10, 100, True) == 1
     assert threads_for(1000, 100, False) == 1  # the serial passes
+
+
+def test_numba_threads_is_numbas_count_as_it_is_set():
+    """The count without numba's lock is numba's own, before its threads start and after,
+    as ``numba.set_num_threads`` changes it."""
+    from impactsph.physics import chunked
+
+    assert chunked.numba_threads() == nb.get_num_threads()
+    assert chunked._THREADS_STARTED
+    before = nb.get_num_threads()
+    try:
+        for count in sorted({1, nb.config.NUMBA_NUM_THREADS}):
+            nb.set_num_threads(count)
+            assert chunked.numba_threads() == count == nb.get_num_threads()
+    finally:
+        nb.set_num_threads(before)
 
 
 @nb.njit(nogil=True, fastmath={"reassoc", "arcp", "nsz"})
@@ -146,6 +164,55 @@ def test_a_pass_is_looked_up_once_for_its_arguments_kinds(monkeypatch):
     assert sum(tuple(s) == signature for s in chunked._drive.overloads) == 1
 
 
+@nb.njit(nogil=True)
+def _weighted_row_sums(first, step, values, weights, scale, out, chunk_size):
+    n = values.shape[0]
+    n_chunks = (n + chunk_size - 1) // chunk_size
+    for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
+        for i in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
+            total = 0.0
+            for k in range(values.shape[1]):
+                total += weights[k] * values[i, k]
+            out[i] = scale * total
+
+
+def test_a_tupled_pass_splices_its_arguments_again_only_where_one_changed(monkeypatch):
+    """A pass with a tuple among its arguments (the pair pass's viscosity parameters) has
+    them spliced (:func:`impactsph.physics.chunked._flat`) at its first call and again only
+    where an argument is another object or number than the last call's: the same arguments
+    reuse the last splice, and a new number or a new tuple gives its own result at once."""
+    from impactsph.physics import chunked
+
+    spliced = []
+    flat = chunked._flat
+    monkeypatch.setattr(chunked, "_ADDRESSES", {})
+    monkeypatch.setattr(chunked, "_flat", lambda a: spliced.append(1) or flat(a))
+    values = np.random.default_rng(8).normal(size=(301, 3))
+    out = np.empty(301)
+    weights = (1.0, 2.0, 3.0)
+
+    def expected(w, scale):
+        return scale * (values @ np.array(w))
+
+    for _ in range(3):  # the same objects and numbers: one splice
+        out[:] = np.nan
+        run_chunked(_weighted_row_sums, 2, values, weights, 0.5, out, 16)
+        assert np.allclose(out, expected(weights, 0.5), rtol=1e-14, atol=0.0)
+    assert len(spliced) == 1
+    run_chunked(_weighted_row_sums, 2, values, weights, 2.0, out, 16)  # another number
+    assert np.allclose(out, expected(weights, 2.0), rtol=1e-14, atol=0.0)
+    assert len(spliced) == 2
+    run_chunked(_weighted_row_sums, 2, values, weights, 2.0, out, 16)
+    assert len(spliced) == 2
+    other = (3.0, -1.0, 0.25)  # another tuple of the same kind
+    run_chunked(_weighted_row_sums, 2, values, other, 2.0, out, 16)
+    assert np.allclose(out, expected(other, 2.0), rtol=1e-14, atol=0.0)
+    fresh = np.empty(301)  # another array of the same kind
+    run_chunked(_weighted_row_sums, 2, values, other, 2.0, fresh, 16)
+    assert np.allclose(fresh, expected(other, 2.0), rtol=1e-14, atol=0.0)
+    assert len(spliced) == 4
+
+
 def test_a_run_types_its_pass_arguments_once(monkeypatch):
     """A run's chunked pass is typed (``numba.typeof`` of its arguments and the drive's tuple,
     some 0.6 ms) once, not at each evaluation: its arrays keep their kinds from one list
@@ -162,13 +229,19 @@ def test_a_run_types_its_pass_arguments_once(monkeypatch):
     typed, looked_up = [], []
     ready, address = chunked._drive_ready, chunked._address
     monkeypatch.setattr(chunked, "_ADDRESSES", {})
-    monkeypatch.setattr(chunked, "_drive_ready", lambda *a: typed.append(1) or ready(*a))
-    monkeypatch.setattr(chunked, "_address", lambda *a: looked_up.append(1) or address(*a))
+    monkeypatch.setattr(chunked, "_drive_ready",
+                        lambda *a: typed.append(looked_up[-1]) or ready(*a))
+    monkeypatch.setattr(chunked, "_address",
+                        lambda p, a: looked_up.append(p.__name__) or address(p, a))
     monkeypatch.setattr(rates, "threads_for", lambda rows, chunk, threaded: 2)
     shared = Simulation(case)
     shared.run()
     assert shared.solver.neighbours.builds > 1  # new lists came, of the same kinds
-    assert len(looked_up) > 80 and len(typed) == 1, (len(looked_up), len(typed))
+    # (each pass typed once: the pair pass, and the list build's sweep where numba has
+    # threads for it, as with -n 0; pytest-xdist's workers run one thread, one share)
+    assert looked_up.count("pair_pass") > 80 and typed.count("pair_pass") == 1, (
+        looked_up.count("pair_pass"), typed)
+    assert len(typed) == len(set(typed)), typed
     for name, value in alone.state.arrays().items():
         assert np.asarray(value).tobytes() == np.asarray(shared.state.arrays()[name]).tobytes()
 

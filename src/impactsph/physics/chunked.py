@@ -31,6 +31,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from operator import is_
 from typing import Any
 
 import numba as nb
@@ -41,6 +42,7 @@ from numba.core import cgutils
 from numba.core.callconv import excinfo_t
 from numba.core.cpu_options import ParallelOptions
 from numba.extending import intrinsic
+from numba.np.ufunc import parallel as _numba_parallel
 
 #: the ``parallel`` option of the chunked passes (and of the serial passes,
 #: :data:`impactsph.physics.passes.PARALLEL_OPTION`): numba's parallel passes'
@@ -133,9 +135,10 @@ def _drive(address, threads, flat):  # pragma: no cover (compiled)
 #: per chunked pass, the pass and its last call's arguments (held, so that their ids stay
 #: theirs), their ids (:func:`_ids`), the address of its code compiled for their types,
 #: :func:`_drive`'s compiled entry for them or None (:func:`_drive_ready`), their kinds
-#: (:func:`_kinds`) and whether one of them is a tuple (then :func:`_flat` must splice it)
+#: (:func:`_kinds`), whether one of them is a tuple (then :func:`_flat` must splice it) and
+#: the arguments as :func:`_drive` takes them (:func:`_flat`'s, or the arguments themselves)
 _ADDRESSES: dict[int, tuple[Any, tuple[Any, ...], tuple[Any, ...], int, Any,
-                            tuple[Any, ...], bool]] = {}
+                            tuple[Any, ...], bool, tuple[Any, ...]]] = {}
 
 #: the scalar types the passes are handed, whose numba type is their type's (a set lookup,
 #: not an isinstance); a number of another type is taken by its id
@@ -178,21 +181,38 @@ def _kinds(arguments: tuple[Any, ...]) -> tuple[Any, ...]:
     return tuple(_kind(a) for a in arguments)
 
 
-def _address(chunk_pass: Any, arguments: tuple[Any, ...]) -> tuple[int, Any, bool]:
+def _address(chunk_pass: Any, arguments: tuple[Any, ...]) -> tuple[int, Any, tuple[Any, ...]]:
     """The native entry of ``chunk_pass`` compiled for ``(0, 1, *arguments)``'s types
     (compiled, or loaded from numba's cache, on first use), :func:`_drive`'s compiled entry
-    for them or None (:func:`_drive_ready`), and whether an argument is a tuple (which
-    :func:`_flat` splices): looked up again only for arguments of other kinds than the last
-    call's (:func:`_kinds`)."""
-    ids = _ids(arguments)
+    for them or None (:func:`_drive_ready`), and the arguments as :func:`_drive` takes them
+    (:func:`_flat`'s where one is a tuple): looked up again only for arguments of other
+    kinds than the last call's (:func:`_kinds`).  The spliced arguments of the last call are
+    handed out again where the arguments are the same objects and numbers (the pair pass's
+    every call between two list builds: :func:`_flat` took 1-2 us of each)."""
     known = _ADDRESSES.get(id(chunk_pass))
+    if (known is not None and known[0] is chunk_pass and len(arguments) == len(known[1])
+            and all(map(is_, arguments, known[1]))):
+        # the very objects of the last call, numbers too (an int a run keeps, a flag): its
+        # address, drive and splice, without the ids (the pair pass's calls between two
+        # list builds)
+        return known[3], known[4], known[7] if known[6] else arguments
+    ids = _ids(arguments)
     if known is not None and known[0] is chunk_pass:
         if known[2] == ids:
-            return known[3], known[4], known[6]
+            # (the same ids: every argument but the numbers is the one held, which a tuple's
+            # comparison finds by identity before it would ask an array to compare)
+            if not known[6]:
+                return known[3], known[4], arguments
+            if arguments == known[1]:
+                return known[3], known[4], known[7]
+            flat = _flat(arguments)
+            _ADDRESSES[id(chunk_pass)] = (chunk_pass, arguments, ids, *known[3:7], flat)
+            return known[3], known[4], flat
         kinds = _kinds(arguments)
         if known[5] == kinds:
-            _ADDRESSES[id(chunk_pass)] = (chunk_pass, arguments, ids, *known[3:])
-            return known[3], known[4], known[6]
+            flat = _flat(arguments) if known[6] else arguments
+            _ADDRESSES[id(chunk_pass)] = (chunk_pass, arguments, ids, *known[3:7], flat)
+            return known[3], known[4], flat
     else:
         kinds = _kinds(arguments)
     signature = tuple(nb.typeof(a) for a in (0, 1, *arguments))
@@ -201,10 +221,13 @@ def _address(chunk_pass: Any, arguments: tuple[Any, ...]) -> tuple[int, Any, boo
         chunk_pass.compile(signature)
         overload = chunk_pass.overloads[signature]
     at = overload.library.get_pointer_to_function(overload.fndesc.llvm_func_name)
-    drive = _drive_ready(at, _flat(arguments))
+    flat = _flat(arguments)
+    drive = _drive_ready(at, flat)
     tupled = any(type(a) is tuple for a in arguments)
-    _ADDRESSES[id(chunk_pass)] = (chunk_pass, arguments, ids, at, drive, kinds, tupled)
-    return at, drive, tupled
+    if not tupled:
+        flat = arguments
+    _ADDRESSES[id(chunk_pass)] = (chunk_pass, arguments, ids, at, drive, kinds, tupled, flat)
+    return at, drive, flat
 
 
 #: why :func:`_drive` could not be compiled with this numba (its calling convention is not
@@ -255,15 +278,41 @@ def _run_on_pool(chunk_pass: Callable[..., Any], threads: int, args: tuple[Any, 
         future.result()  # (a share's exception raised here)
 
 
+def numba_threads() -> int:
+    """``numba.get_num_threads()``, the calling thread's count, without the lock that numba
+    takes at every call to see whether its threads are started (0.66 us against 0.09 us, and
+    a run asks four times a step): numba's own getter of the count once they are started
+    (``numba.np.ufunc.parallel._get_num_threads``, private: where a numba release has
+    another, the public call)."""
+    raw = getattr(_numba_parallel, "_get_num_threads", None) if _THREADS_STARTED else None
+    if raw is None:
+        return _started_count()
+    count = raw()
+    return count if count > 0 else nb.get_num_threads()  # (numba's own error)
+
+
+def _started_count() -> int:
+    """``numba.get_num_threads()``, which starts numba's threads if they are not yet; after
+    it :func:`numba_threads` reads the count without the lock."""
+    global _THREADS_STARTED
+    count = nb.get_num_threads()
+    _THREADS_STARTED = True
+    return count
+
+
+#: whether numba's threads are started (by :func:`_started_count`)
+_THREADS_STARTED = False
+
+
 def threads_for(rows: int, chunk_size: int, threaded: bool) -> int:
     """How many shares :func:`run_chunked` runs ``rows`` rows in, in chunks of
     ``chunk_size``: numba's current thread count (``numba.set_num_threads``, which
-    ``compute.threads`` sets) where the passes are threaded, at most one a chunk; 1 for the
-    serial passes."""
+    ``compute.threads`` sets; :func:`numba_threads`) where the passes are threaded, at most
+    one a chunk; 1 for the serial passes."""
     if not threaded:
         return 1
     chunks = (rows + chunk_size - 1) // chunk_size
-    return max(1, min(nb.get_num_threads(), chunks))
+    return max(1, min(numba_threads(), chunks))
 
 
 def run_chunked(chunk_pass: Callable[..., Any], threads: int, *args: Any) -> None:
@@ -278,8 +327,8 @@ def run_chunked(chunk_pass: Callable[..., Any], threads: int, *args: Any) -> Non
         for t in range(threads):
             chunk_pass(t, threads, *args)
     else:
-        address, drive, tupled = _address(chunk_pass, args)
+        address, drive, flat = _address(chunk_pass, args)
         if drive is not None:
-            drive(address, threads, _flat(args) if tupled else args)
+            drive(address, threads, flat)
         else:
             _run_on_pool(chunk_pass, threads, args)
