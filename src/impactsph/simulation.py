@@ -94,6 +94,21 @@ class Survey:
     bad: int  #: first bad value, ``field * n + particle``, or -1
 
 
+@dataclass(frozen=True)
+class _RowNames:
+    """A run's history columns after the energies, in the row's order (each tuple empty
+    where the run has none): per axis the momentum and, with walls, clamps or drivers, the
+    external impulse; per driven region its reaction; the walls' push on a single body or
+    the contact force on each of several (by axis, then body); each body's energies."""
+
+    momentum: tuple[str, ...]
+    external: tuple[str, ...]
+    reactions: tuple[tuple[str, tuple[str, ...]], ...]
+    wall_contact: tuple[str, ...]
+    body_contact: tuple[tuple[str, ...], ...]
+    body_energies: tuple[tuple[str, str, str], ...]
+
+
 class Simulation:
     """A case being run.  ``Simulation(case).run()`` runs it to ``case.time.end``."""
 
@@ -175,7 +190,6 @@ class Simulation:
         self.correction_work = 0.0  # J, work of the AC correction force on the particles
         self.correction_heating = 0.0  # J, internal energy the AC energy term added
         self.wall_impulse = np.zeros(self.state.dim)  # N s, time integral of the walls' push
-        self._supported: bool | None = None  # walls or clamped particles (see _record_row)
         self._abs_momentum0 = float(np.sum(self.state.inertial_mass *
                                            np.linalg.norm(self.state.velocity, axis=1)))
         self.solver.rates(self.state.copy())  # compile (or load from cache) before timing
@@ -271,12 +285,13 @@ class Simulation:
         """The integrator's ``k``-th rate evaluation of a step, of weight ``weight`` in the
         step's mean rate: its powers and wall force added to the step's books (a weight of 0
         adds nothing, so the midpoint step books its midpoint evaluation's, exactly)."""
+        n_bodies = self._body_force.shape[0]
         if k == 0:
-            self._step_books = (0.0, 0.0, 0.0, np.zeros(self.state.dim))
-            self._body_force[:] = 0.0
+            self._step_books = (0.0, 0.0, 0.0, np.zeros(self._state.dim))
+            if n_bodies > 1:  # (read for several bodies only)
+                self._body_force[:] = 0.0
         if weight == 0.0:
             return
-        n_bodies = self._body_force.shape[0]
         if n_bodies > 1:
             s = self._state
             force = self.solver.buffers.contact_force[: s.n]
@@ -319,10 +334,35 @@ class Simulation:
         return Survey(dt, float(sums[0]), float(sums[1]), sums[2: 2 + s.dim].copy(),
                       int(bad))
 
+    def _row_names(self) -> _RowNames:
+        """The history row's column names of this run (:class:`_RowNames`), made at its first
+        row: the walls, clamps, drivers, bodies and dimension are fixed for the run."""
+        names = self.__dict__.get("_names")
+        if names is None:
+            s = self._state
+            axes = "xyz"[: s.dim]
+            bodies = self.problem.body_names
+            drivers = self.integrator.drivers
+            # walls, clamps or driven regions: fixed for the run
+            supported = bool(len(self.walls) or s.clamped.any() or drivers is not None)
+            walls_push = len(bodies) == 1 and len(self.walls)  # one body: the walls' push
+            names = self._names = _RowNames(
+                momentum=tuple(f"momentum_{a}" for a in axes),
+                external=tuple(f"external_impulse_{a}" for a in axes) if supported else (),
+                reactions=tuple((r.name, tuple(f"reaction_force_{r.name}_{a}" for a in axes))
+                                for r in drivers.regions) if drivers is not None else (),
+                wall_contact=(tuple(f"contact_force_{bodies[0]}_{a}" for a in axes)
+                              if walls_push else ()),
+                body_contact=(tuple(tuple(f"contact_force_{body}_{a}" for body in bodies)
+                                    for a in axes) if len(bodies) > 1 else ()),
+                body_energies=(tuple((f"kinetic_energy_{body}", f"internal_energy_{body}",
+                                      f"plastic_work_{body}") for body in bodies)
+                               if len(bodies) > 1 else ()))
+        return names
+
     def _record_row(self, dt: float, survey: Survey) -> None:
-        d = {"kinetic": survey.kinetic, "internal": survey.internal,
-             "momentum": survey.momentum}
         s = self._state
+        names = self._row_names()
         n_bodies = len(self.problem.body_names)
         if self._resident is not None:  # the sums on the GPU: no download of the state
             self._fold()
@@ -333,45 +373,51 @@ class Simulation:
         else:
             totals = body_totals(s.body, s.mass, s.added_mass, s.velocity, s.specific_energy,
                                  s.plastic_work, s.position, s.initial_position, n_bodies)
-        row = {"time": s.time, "step": s.step, "dt": dt, "kinetic_energy": d["kinetic"],
-               "internal_energy": d["internal"],
-               "total_energy": d["kinetic"] + d["internal"],
+        row = {"time": s.time, "step": s.step, "dt": dt, "kinetic_energy": survey.kinetic,
+               "internal_energy": survey.internal,
+               "total_energy": survey.kinetic + survey.internal,
                "viscous_dissipation": self.viscous_dissipation,
                "correction_work": self.correction_work,
                "correction_heating": self.correction_heating}
-        external = self.external_impulse()
-        if self._supported is None:  # walls or clamps: fixed for the run
-            self._supported = bool(len(self.walls) or s.clamped.any()
-                                   or self.integrator.drivers is not None)
-        supported = self._supported
-        for a, name in enumerate("xyz"[: s.dim]):
-            row[f"momentum_{name}"] = float(d["momentum"][a])
-            if supported:
-                row[f"external_impulse_{name}"] = float(external[a])
+        momentum = survey.momentum
+        if names.external:  # walls, clamps or drivers: their impulse beside the momentum
+            external = self.external_impulse()
+            for a, (name, impulse_name) in enumerate(zip(names.momentum, names.external,
+                                                         strict=True)):
+                row[name] = float(momentum[a])
+                row[impulse_name] = float(external[a])
+        else:
+            for a, name in enumerate(names.momentum):
+                row[name] = float(momentum[a])
         drivers = self.integrator.drivers
         if drivers is not None:  # the driven regions' reactions and work
             row["external_work"] = drivers.work
-            for r in drivers.regions:
-                force = drivers.reaction.get(r.name, np.zeros(s.dim))
-                for a, name in enumerate("xyz"[: s.dim]):
-                    row[f"reaction_force_{r.name}_{name}"] = float(force[a])
+            for region, keys in names.reactions:
+                force = drivers.reaction.get(region)
+                for a, key in enumerate(keys):
+                    row[key] = float(force[a]) if force is not None else 0.0
         # the contact forces: the step's mean (for the midpoint step, its midpoint
         # evaluation's), as the books (at the start, the start's)
-        if n_bodies == 1 and len(self.walls):  # one body: its force is the walls' push
-            for a, name in enumerate("xyz"[: s.dim]):
-                row[f"contact_force_{self.problem.body_names[0]}_{name}"] = float(
-                    self._step_books[3][a])
-        elif n_bodies > 1:
-            for a, name in enumerate("xyz"[: s.dim]):
-                for b, body in enumerate(self.problem.body_names):
-                    row[f"contact_force_{body}_{name}"] = float(self._body_force[b, a])
-        row["plastic_work"] = float(totals[:, 2].sum())
-        if n_bodies > 1:  # the energies of each body
-            for b, body in enumerate(self.problem.body_names):
-                row[f"kinetic_energy_{body}"] = float(totals[b, 0])
-                row[f"internal_energy_{body}"] = float(totals[b, 1])
-                row[f"plastic_work_{body}"] = float(totals[b, 2])
-        np.maximum(self.max_displacement, np.sqrt(totals[:, 3]), out=self.max_displacement)
+        push = self._step_books[3]
+        for a, key in enumerate(names.wall_contact):  # one body: its force is the walls' push
+            row[key] = float(push[a])
+        for a, keys in enumerate(names.body_contact):
+            for b, key in enumerate(keys):
+                row[key] = float(self._body_force[b, a])
+        # (one body: its own total, to the bit the sum of one)
+        row["plastic_work"] = (float(totals[0, 2]) if n_bodies == 1
+                               else float(totals[:, 2].sum()))
+        for b, (kinetic, internal, plastic) in enumerate(names.body_energies):
+            row[kinetic] = float(totals[b, 0])
+            row[internal] = float(totals[b, 1])
+            row[plastic] = float(totals[b, 2])
+        if n_bodies == 1:  # (np.maximum's: a NaN wins)
+            largest, displacement = self.max_displacement[0], math.sqrt(totals[0, 3])
+            if displacement > largest or displacement != displacement:
+                self.max_displacement[0] = displacement
+        else:
+            np.maximum(self.max_displacement, np.sqrt(totals[:, 3]),
+                       out=self.max_displacement)
         self.record.history.append(row)
 
     def external_impulse(self) -> np.ndarray:
