@@ -12,7 +12,7 @@ Each worker (a process of its own, ``TREE/src`` as its impactsph) runs the small
 0.2 ms (compiling or loading its code), then five pieces of 0.4 ms each, and reports the
 best piece's microseconds a step.  With ``--trees`` the trees alternate round by round, so
 that a slow spell of the machine falls on all of them; the table gives each tree's median
-and range over the rounds.  The same tree measured twice this way agreed within 3%
+and range over the rounds.  The same tree measured twice this way agreed within 5%
 (benchmarks/README.md, "A small step's fixed cost").
 """
 
