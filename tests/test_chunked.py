@@ -53,16 +53,22 @@ def test_numba_threads_is_numbas_count_as_it_is_set():
         nb.set_num_threads(before)
 
 
+@nb.njit(inline="always")
+def _share_rows(first, step, n, chunk_size):
+    """The rows of share ``first`` of ``step``: its block of consecutive chunks."""
+    chunks = (n + chunk_size - 1) // chunk_size
+    return (first * chunks // step) * chunk_size, min(((first + 1) * chunks // step)
+                                                      * chunk_size, n)
+
+
 @nb.njit(nogil=True, fastmath={"reassoc", "arcp", "nsz"})
 def _row_sums(first, step, values, out, chunk_size):
-    n = values.shape[0]
-    chunks = (n + chunk_size - 1) // chunk_size
-    for chunk in range(first * chunks // step, (first + 1) * chunks // step):
-        for i in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
-            s = 0.0
-            for k in range(values.shape[1]):
-                s += values[i, k]
-            out[i] = s
+    lo, hi = _share_rows(first, step, values.shape[0], chunk_size)
+    for i in range(lo, hi):
+        s = 0.0
+        for k in range(values.shape[1]):
+            s += values[i, k]
+        out[i] = s
 
 
 def test_a_compiled_chunked_pass_gives_the_same_bits_in_any_number_of_shares():
@@ -166,14 +172,12 @@ def test_a_pass_is_looked_up_once_for_its_arguments_kinds(monkeypatch):
 
 @nb.njit(nogil=True)
 def _weighted_row_sums(first, step, values, weights, scale, out, chunk_size):
-    n = values.shape[0]
-    n_chunks = (n + chunk_size - 1) // chunk_size
-    for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
-        for i in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
-            total = 0.0
-            for k in range(values.shape[1]):
-                total += weights[k] * values[i, k]
-            out[i] = scale * total
+    lo, hi = _share_rows(first, step, values.shape[0], chunk_size)
+    for i in range(lo, hi):
+        total = 0.0
+        for k in range(values.shape[1]):
+            total += weights[k] * values[i, k]
+        out[i] = scale * total
 
 
 def test_a_tupled_pass_splices_its_arguments_again_only_where_one_changed(monkeypatch):
