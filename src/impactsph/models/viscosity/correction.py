@@ -169,7 +169,7 @@ def correction_sums(p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, h_ratio,
     neighbours ``j != i`` of the same body within ``2 h_c``, ``h_c = h_ratio h_ij``:
     ``(w_ii, sum_j w_ij, sum_j w_ij u_j (three components), 1/2 sum_j w_ij v_ij . u_j)``,
     the last (eq 37's) only where ``paper`` is true, else 0: the other energy corrections
-    and the pairwise switch never read it, and on the Taylor bar it was a sixth of the
+    and the pairwise switch never read it, and on the Taylor bar it was an eighth of the
     pass's time (benchmarks/README.md, "A small step's fixed cost"); the other sums are
     the same to the bit."""
     Pi_ = P[p]
