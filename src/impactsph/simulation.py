@@ -59,6 +59,18 @@ class RunRecord:
     thread_trials: list[dict[str, object]] = field(default_factory=list)
 
 
+@nb.njit(inline="always", cache=True)
+def _speed_and_displacement(i, velocity, position, initial_position):
+    """Particle ``i``'s ``(|v|^2, |x - x0|^2)``."""
+    v2 = 0.0
+    u2 = 0.0
+    for a in range(velocity.shape[1]):
+        v2 += velocity[i, a] * velocity[i, a]
+        d = position[i, a] - initial_position[i, a]
+        u2 += d * d
+    return v2, u2
+
+
 @nb.njit(cache=True)
 def body_totals(body, mass, added_mass, velocity, specific_energy, plastic_work, position,
                 initial_position, n_bodies):  # pragma: no cover (compiled)
@@ -67,15 +79,10 @@ def body_totals(body, mass, added_mass, velocity, specific_energy, plastic_work,
     plastic work (J) and the largest squared displacement ``|x - x0|^2`` (m^2), as the
     columns of an ``(n_bodies, 4)`` array."""
     out = np.zeros((n_bodies, 4))
-    if n_bodies == 1:  # the same sums in scalars: 0.67-0.68 of the time, the same bits
+    if n_bodies == 1:  # the same sums in scalars: 0.67-0.70 of the time, the same bits
         kinetic = internal = plastic = largest = 0.0
         for i in range(body.shape[0]):
-            v2 = 0.0
-            u2 = 0.0
-            for a in range(velocity.shape[1]):
-                v2 += velocity[i, a] * velocity[i, a]
-                d = position[i, a] - initial_position[i, a]
-                u2 += d * d
+            v2, u2 = _speed_and_displacement(i, velocity, position, initial_position)
             kinetic += 0.5 * (mass[i] + added_mass[i]) * v2
             internal += mass[i] * specific_energy[i]
             plastic += mass[i] * plastic_work[i]
@@ -85,12 +92,7 @@ def body_totals(body, mass, added_mass, velocity, specific_energy, plastic_work,
         return out
     for i in range(body.shape[0]):
         b = body[i]
-        v2 = 0.0
-        u2 = 0.0
-        for a in range(velocity.shape[1]):
-            v2 += velocity[i, a] * velocity[i, a]
-            d = position[i, a] - initial_position[i, a]
-            u2 += d * d
+        v2, u2 = _speed_and_displacement(i, velocity, position, initial_position)
         out[b, 0] += 0.5 * (mass[i] + added_mass[i]) * v2
         out[b, 1] += mass[i] * specific_energy[i]
         out[b, 2] += mass[i] * plastic_work[i]
