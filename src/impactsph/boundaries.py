@@ -105,8 +105,11 @@ class Walls:
         d = self.distances(x)[:, rigid] if rigid.size else np.zeros((n, 0))
         src, k = np.nonzero((d >= 0.0) & (d < reach))
         sources, walls = [src.astype(np.int64)], [rigid[k].astype(np.int64)]
+        planes = np.flatnonzero(self.kinds == SYMMETRY)
+        if planes.size == 0:  # (the ghosts' positions are for the planes' search alone)
+            return sources[0], walls[0]
         positions = [x, _mirrored(x[src], self.points[rigid[k]], self.normals[rigid[k]])]
-        for w in np.flatnonzero(self.kinds == SYMMETRY):
+        for w in planes:
             rows = np.concatenate(positions)
             dist = (rows - self.points[w]) @ self.normals[w]
             near = np.flatnonzero((dist >= 0.0) & (dist < reach))
