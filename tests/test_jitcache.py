@@ -245,3 +245,80 @@ def test_compile_log_names_each_compilation(tmp_path):
     lines = [line.split("\t") for line in log.read_text().splitlines()]
     assert [(depth, name) for _, _, depth, name, _ in lines] == [("0", "__main__.doubled")]
     assert int(lines[0][0]) > 0 and float(lines[0][1]) > 0.0
+
+
+# -- a kernel's cache stale when another file of its package changes ---------------------------
+
+PACKAGE_SCRIPT = r"""
+import sys
+sys.path.insert(0, sys.argv[1])
+if sys.argv[2] == "stamped":
+    from impactsph.jitcache import stamp_package_sources
+    stamp_package_sources(sys.argv[1] + "/toy")
+from toy.kernel import twice
+print(twice(1.0), sum(twice.stats.cache_hits.values()))
+"""
+
+
+def _toy_package(root, value: float) -> None:
+    """``toy``: ``kernel.twice`` (cached) returns ``2 * constants.VALUE``."""
+    package = root / "toy"
+    package.mkdir(exist_ok=True)
+    (package / "__init__.py").write_text("")
+    (package / "constants.py").write_text(f"VALUE = {value!r}\n")
+    (package / "kernel.py").write_text(
+        "import numba as nb\nfrom .constants import VALUE\n\n\n"
+        "@nb.njit(cache=True)\ndef twice(x):\n    return 2.0 * VALUE * x\n")
+
+
+def _toy_run(root, cache, how: str) -> tuple[float, int]:
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
+    done = subprocess.run([sys.executable, "-c", PACKAGE_SCRIPT, str(root), how], env=env,
+                          capture_output=True, text=True, check=True)
+    value, hits = done.stdout.split()
+    return float(value), int(hits)
+
+
+def test_a_kernel_sees_its_packages_new_constant_with_the_stamp(tmp_path):
+    """numba keys a cached kernel on its own file: with a constant changed in another file
+    of its package, the kernel loaded from the cache still returns the old value (the
+    plain rows, which show the hazard), unless the package's files are in the stamp
+    (:func:`impactsph.jitcache.stamp_package_sources`); an unchanged package loads its
+    kernel from the cache, stamped or not."""
+    for how in ("plain", "stamped"):
+        root, cache = tmp_path / how, tmp_path / f"{how}-cache"
+        root.mkdir()
+        _toy_package(root, 1.5)
+        assert _toy_run(root, cache, how) == (3.0, 0)  # compiled
+        assert _toy_run(root, cache, how) == (3.0, 1)  # from the cache
+        time.sleep(0.01)
+        _toy_package(root, 2.5)  # constants.py edited, kernel.py not
+        value, hits = _toy_run(root, cache, how)
+        if how == "plain":
+            assert (value, hits) == (3.0, 1)  # numba's own cache: the stale value
+        else:
+            assert (value, hits) == (5.0, 0)  # compiled again with the new value
+            assert _toy_run(root, cache, how) == (5.0, 1)
+
+
+def test_the_packages_own_kernels_carry_its_digest_in_their_stamp():
+    """``import impactsph`` stamps its own files' kernels with the digest of its sources; a
+    function outside the package keeps numba's stamp."""
+    import numba as nb
+    from numba.core.caching import CompileResultCacheImpl
+
+    import impactsph
+    from impactsph.jitcache import package_digest
+    from impactsph.solver import value_range
+
+    folder = os.path.realpath(os.path.dirname(impactsph.__file__))
+    stamp = CompileResultCacheImpl(value_range.py_func).locator.get_source_stamp()
+    assert stamp[1] == package_digest(folder)
+
+    @nb.njit(cache=True)
+    def outside(x):  # pragma: no cover (compiled)
+        return x
+
+    theirs = CompileResultCacheImpl(outside.py_func).locator.get_source_stamp()
+    assert not (isinstance(theirs, tuple) and len(theirs) == 2
+                and theirs[1] == package_digest(folder))

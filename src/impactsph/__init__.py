@@ -50,8 +50,11 @@ _preload_tbb()
 from .jitcache import copy_sets_of_names_shallowly as _copy_sets_of_names_shallowly  # noqa: E402
 from .jitcache import inline_fresh_ir_in_place as _inline_fresh_ir_in_place  # noqa: E402
 from .jitcache import lock_cache_writes as _lock_cache_writes  # noqa: E402
+from .jitcache import stamp_package_sources as _stamp_package_sources  # noqa: E402
 
 _lock_cache_writes()  # numba's cache safe between processes (impactsph.jitcache)
+# the package's own cached kernels stale when any of its files changes (the same)
+_stamp_package_sources(_os.path.dirname(__file__))
 _inline_fresh_ir_in_place()  # numba's inliner without its unread copies (impactsph.jitcache)
 _copy_sets_of_names_shallowly()  # numba's copy propagation without deep copies (the same)
 if _os.environ.get("IMPACTSPH_COMPILE_LOG"):  # what each process compiles, for how long

@@ -30,12 +30,15 @@ from __future__ import annotations
 
 import contextvars
 import copy
+import functools
+import hashlib
 import inspect
 import itertools
 import os
 import re
 import types
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numba as nb
@@ -52,6 +55,66 @@ def njit_variant(variant: str, **options: Any) -> Callable[[Callable], Any]:
         return nb.njit(cache=True, **options)(function)
 
     return decorate
+
+
+def stamp_package_sources(package: str | os.PathLike) -> bool:
+    """Make numba's cache entries of the functions compiled from the files of ``package`` (a
+    folder) stale when any Python file of that folder changes: wrap
+    ``numba.core.caching._SourceFileBackedLocatorMixin.get_source_stamp``, whose stamp (of
+    the function's own file: numba 0.68 hashes its content) numba stores in a cache index and
+    compares when it loads, so that for those files it is ``(numba's stamp,
+    package_digest(package))``.
+
+    numba keys an entry on the function's own file only, but a kernel holds the constants it
+    read from other modules and the compiled functions of other modules it called, as they
+    were when it was compiled: ``integrate.py``'s survey kernels keep
+    ``physics/survey.SURVEY_CHUNK`` and ``survey_particle``.  Edited there alone (by a
+    developer, or by a pull into an editable install), those kernels ran with the old values:
+    runs failed at their first step (2026-12-06).  The passes generated from the template
+    are named by a hash of every source they inline (:mod:`impactsph.codegen`) and live
+    outside the package, so this leaves them alone; the package's own kernels compile again
+    after any edit of it (about 110 s of the test suite's compiling).  Returns whether the
+    stamp is in place: False where numba's locator no longer has the method."""
+    try:
+        from numba.core.caching import _SourceFileBackedLocatorMixin as Locator
+    except ImportError:
+        return False
+    original = getattr(Locator, "get_source_stamp", None)
+    if original is None:
+        return False
+    root = os.path.realpath(package)
+    roots = set(getattr(original, "impactsph_roots", ()))
+    if roots:  # already wrapped: add this folder
+        original.impactsph_roots.add(root)
+        return True
+    inner = original
+
+    def get_source_stamp(self):
+        stamp = inner(self)
+        path = getattr(self, "_py_file", None)
+        if not isinstance(path, str):
+            return stamp
+        path = os.path.realpath(path)
+        for folder in get_source_stamp.impactsph_roots:
+            if path.startswith(folder + os.sep):
+                return stamp, package_digest(folder)
+        return stamp
+
+    get_source_stamp.impactsph_roots = {root}
+    Locator.get_source_stamp = get_source_stamp
+    return True
+
+
+@functools.cache
+def package_digest(folder: str) -> str:
+    """SHA-256 of every Python file below ``folder``, with its path relative to it, in
+    sorted order (read once a process: some 60 files)."""
+    digest = hashlib.sha256()
+    for path in sorted(Path(folder).rglob("*.py")):
+        digest.update(path.relative_to(folder).as_posix().encode())
+        digest.update(b"\0")
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
 
 
 def lock_cache_writes() -> bool:
