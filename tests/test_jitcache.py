@@ -290,15 +290,13 @@ def test_a_kernel_sees_its_packages_new_constant_with_the_stamp(tmp_path):
         root.mkdir()
         _toy_package(root, 1.5)
         assert _toy_run(root, cache, how) == (3.0, 0)  # compiled
-        assert _toy_run(root, cache, how) == (3.0, 1)  # from the cache
-        time.sleep(0.01)
-        _toy_package(root, 2.5)  # constants.py edited, kernel.py not
+        _toy_package(root, 2.5)  # constants.py edited, kernel.py the same
         value, hits = _toy_run(root, cache, how)
         if how == "plain":
             assert (value, hits) == (3.0, 1)  # numba's own cache: the stale value
         else:
             assert (value, hits) == (5.0, 0)  # compiled again with the new value
-            assert _toy_run(root, cache, how) == (5.0, 1)
+            assert _toy_run(root, cache, how) == (5.0, 1)  # and from the cache after
 
 
 def test_the_packages_own_kernels_carry_its_digest_in_their_stamp():
