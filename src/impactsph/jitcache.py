@@ -83,14 +83,13 @@ def stamp_package_sources(package: str | os.PathLike) -> bool:
     if original is None:
         return False
     root = os.path.realpath(package)
-    roots = set(getattr(original, "impactsph_roots", ()))
-    if roots:  # already wrapped: add this folder
-        original.impactsph_roots.add(root)
+    folders = getattr(original, "impactsph_roots", None)
+    if folders is not None:  # already wrapped: this folder too
+        folders.add(root)
         return True
-    inner = original
 
     def get_source_stamp(self):
-        stamp = inner(self)
+        stamp = original(self)
         path = getattr(self, "_py_file", None)
         if not isinstance(path, str):
             return stamp
