@@ -43,7 +43,7 @@ def test_numba_threads_is_numbas_count_as_it_is_set():
     from impactsph.physics import chunked
 
     assert chunked.numba_threads() == nb.get_num_threads()
-    assert chunked._THREADS_STARTED
+    assert chunked._THREAD_COUNT is not None
     before = nb.get_num_threads()
     try:
         for count in sorted({1, nb.config.NUMBA_NUM_THREADS}):

@@ -397,16 +397,12 @@ class Simulation:
                "viscous_dissipation": self.viscous_dissipation,
                "correction_work": self.correction_work,
                "correction_heating": self.correction_heating}
-        momentum = survey.momentum
-        if names.external:  # walls, clamps or drivers: their impulse beside the momentum
-            external = self.external_impulse()
-            for a, (name, impulse_name) in enumerate(zip(names.momentum, names.external,
-                                                         strict=True)):
-                row[name] = float(momentum[a])
-                row[impulse_name] = float(external[a])
-        else:
-            for a, name in enumerate(names.momentum):
-                row[name] = float(momentum[a])
+        # walls, clamps or drivers: their impulse beside the momentum
+        external = self.external_impulse() if names.external else None
+        for a, name in enumerate(names.momentum):
+            row[name] = float(survey.momentum[a])
+            if external is not None:
+                row[names.external[a]] = float(external[a])
         drivers = self.integrator.drivers
         if drivers is not None:  # the driven regions' reactions and work
             row["external_work"] = drivers.work

@@ -187,8 +187,8 @@ def _address(chunk_pass: Any, arguments: tuple[Any, ...]) -> tuple[int, Any, tup
     for them or None (:func:`_drive_ready`), and the arguments as :func:`_drive` takes them
     (:func:`_flat`'s where one is a tuple): looked up again only for arguments of other
     kinds than the last call's (:func:`_kinds`).  The spliced arguments of the last call are
-    handed out again where the arguments are the same objects and numbers (the pair pass's
-    every call between two list builds: :func:`_flat` took 1-2 us of each)."""
+    handed out again where the arguments are its very objects, numbers included (the pair
+    pass's every call between two list builds: :func:`_flat` took 1-2 us of each)."""
     known = _ADDRESSES.get(id(chunk_pass))
     if (known is not None and known[0] is chunk_pass and len(arguments) == len(known[1])
             and all(map(is_, arguments, known[1]))):
@@ -198,18 +198,13 @@ def _address(chunk_pass: Any, arguments: tuple[Any, ...]) -> tuple[int, Any, tup
         return known[3], known[4], known[7] if known[6] else arguments
     ids = _ids(arguments)
     if known is not None and known[0] is chunk_pass:
-        if known[2] == ids:
-            # (the same ids: every argument but the numbers is the one held, which a tuple's
-            # comparison finds by identity before it would ask an array to compare)
+        if known[2] == ids:  # the arrays held, a number new (the stage's step size)
             if not known[6]:
                 return known[3], known[4], arguments
-            if arguments == known[1]:
-                return known[3], known[4], known[7]
-            flat = _flat(arguments)
-            _ADDRESSES[id(chunk_pass)] = (chunk_pass, arguments, ids, *known[3:7], flat)
-            return known[3], known[4], flat
-        kinds = _kinds(arguments)
-        if known[5] == kinds:
+            kinds = known[5]
+        else:
+            kinds = _kinds(arguments)
+        if known[5] == kinds:  # (new arrays of the same kinds: a list build's)
             flat = _flat(arguments) if known[6] else arguments
             _ADDRESSES[id(chunk_pass)] = (chunk_pass, arguments, ids, *known[3:7], flat)
             return known[3], known[4], flat
@@ -281,27 +276,20 @@ def _run_on_pool(chunk_pass: Callable[..., Any], threads: int, args: tuple[Any, 
 def numba_threads() -> int:
     """``numba.get_num_threads()``, the calling thread's count, without the lock that numba
     takes at every call to see whether its threads are started (0.66 us against 0.09 us, and
-    a run asks four times a step): numba's own getter of the count once they are started
-    (``numba.np.ufunc.parallel._get_num_threads``, private: where a numba release has
-    another, the public call)."""
-    raw = getattr(_numba_parallel, "_get_num_threads", None) if _THREADS_STARTED else None
-    if raw is None:
-        return _started_count()
-    count = raw()
+    a run asks four times a step): after the first call, which starts them, numba's own
+    getter of the count (``numba.np.ufunc.parallel._get_num_threads``, private: where a
+    numba release has none, the public call)."""
+    global _THREAD_COUNT
+    if _THREAD_COUNT is None:
+        count = nb.get_num_threads()  # (starts numba's threads)
+        _THREAD_COUNT = getattr(_numba_parallel, "_get_num_threads", nb.get_num_threads)
+        return count
+    count = _THREAD_COUNT()
     return count if count > 0 else nb.get_num_threads()  # (numba's own error)
 
 
-def _started_count() -> int:
-    """``numba.get_num_threads()``, which starts numba's threads if they are not yet; after
-    it :func:`numba_threads` reads the count without the lock."""
-    global _THREADS_STARTED
-    count = nb.get_num_threads()
-    _THREADS_STARTED = True
-    return count
-
-
-#: whether numba's threads are started (by :func:`_started_count`)
-_THREADS_STARTED = False
+#: numba's getter of the thread count once its threads are started (:func:`numba_threads`)
+_THREAD_COUNT: Callable[[], int] | None = None
 
 
 def threads_for(rows: int, chunk_size: int, threaded: bool) -> int:
