@@ -88,6 +88,14 @@ def test_the_whole_step_on_the_device_matches_the_cpu(resident_comparison, name)
         assert info["counts"][2] > RESIDENT[name][2]
     if name == "bars-1d":  # a probe's rows, taken from the device at every step
         assert sum(len(rows) for rows in sim.record.probes.values()) > RESIDENT[name][2]
+    # a gauge's rows, taken from the device at every step (no download): every field
+    assert len(info["gauges"]) == len(sim.record.gauges)
+    if sim.record.gauges:
+        ref, got = np.array(sim.record.gauges), np.array(info["gauges"])
+        scale = np.maximum(np.abs(ref).max(axis=0), 1e-300)  # (each column against its own)
+        assert (np.abs(got - ref) <= tol * scale + 1e-18).all(), (name, ref, got)
+    if name == "taylor-2d":
+        assert len(sim.record.gauges) == RESIDENT[name][2] + 1
     for probe, rows in sim.record.probes.items():
         got = info["probes"][probe]
         assert [t for t, _ in got] == [t for t, _ in rows]

@@ -32,6 +32,7 @@ field                     columns                                         unit
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -119,25 +120,46 @@ class Gauges:
 
     def sample(self, sim: Any) -> np.ndarray:
         """The row of the current state: the time, then every gauge's values."""
+        return self.sample_rows(sim.time, self.rows_of(sim.state), sim.state.initial_position[
+            self.indices], sim.state.material[self.indices], sim.problem.table)
+
+    def rows_of(self, state: Any) -> SimpleNamespace:
+        """The integrated fields of the gauges' particles in ``state`` (a
+        :class:`~impactsph.state.ParticleState`), as :meth:`sample_rows` takes them (the
+        whole step on the GPU takes the same rows from the device:
+        :meth:`impactsph.gpu_step.ResidentStep.gauge_rows`)."""
+        i = self.indices
+        return SimpleNamespace(position=state.position[i], velocity=state.velocity[i],
+                               density=state.density[i],
+                               specific_energy=state.specific_energy[i],
+                               deviatoric_stress=state.deviatoric_stress[i],
+                               plastic_work=state.plastic_work[i],
+                               material_state=state.material_state[i])
+
+    def sample_rows(self, time: float, rows: SimpleNamespace, initial_position: np.ndarray,
+                    material: np.ndarray, table: np.ndarray) -> np.ndarray:
+        """The row at ``time`` from the gauges' particles' fields ``rows`` (:meth:`rows_of`),
+        their ``initial_position`` and ``material`` (one row each) and the materials'
+        ``table``: the time, then every gauge's values."""
+        from .models.columns import THICKNESS_RATIO
         from .models.strength.von_mises import von_mises_stress
         from .physics.rates import pressures
 
-        s, i = sim.state, self.indices
-        k = i.shape[0]
-        x = s.position[i]
-        S = s.deviatoric_stress[i]
-        pressure = (pressures(s.material_density[i], s.specific_energy[i], s.material[i],
-                              sim.problem.table, s.dim) if self.needs_pressure
+        k = self.indices.shape[0]
+        x = rows.position
+        S = rows.deviatoric_stress
+        state = rows.material_state
+        # (the material density as ParticleState.material_density: over the thickness ratio)
+        pressure = (pressures(rows.density / state[:, THICKNESS_RATIO], rows.specific_energy,
+                              material, table, x.shape[1]) if self.needs_pressure
                     else np.zeros(k))
-        damage = s.material_state[i, DAMAGE]
-        pressure = carried_pressure(pressure, damage)
-        table = np.concatenate([
-            x, x - s.initial_position[i], s.velocity[i], s.density[i, None], pressure[:, None],
-            s.specific_energy[i, None],
+        pressure = carried_pressure(pressure, state[:, DAMAGE])
+        values = np.concatenate([
+            x, x - initial_position, rows.velocity, rows.density[:, None], pressure[:, None],
+            rows.specific_energy[:, None],
             np.stack([S[:, a, b] for _, a, b in STRESS_COMPONENTS], axis=1),
-            von_mises_stress(S)[:, None], s.plastic_work[i, None], s.material_state[i]],
-            axis=1)
-        return np.concatenate([[s.time], table.ravel()[self.select]])
+            von_mises_stress(S)[:, None], rows.plastic_work[:, None], state], axis=1)
+        return np.concatenate([[time], values.ravel()[self.select]])
 
 
 def gauge_rows(columns: list[str], rows: list[np.ndarray], start: int = 0

@@ -33,20 +33,26 @@ evaluation the ghosts' rows are filled from their sources
 (:func:`impactsph.boundaries.fill_ghost`), and after each stage the walls' constraint acts
 (:func:`impactsph.boundaries.enforce_particle`), its events and impulse booked as the CPU
 books them; the walls' penalty layer (``contact.wall_layer``) adds its push to the rates
-(:func:`impactsph.boundaries.layer_push_particle`).
+(:func:`impactsph.boundaries.layer_push_particle`).  The hourglass control and the Coulomb
+friction between bodies run their rate kernels on the device state, in the CPU's order
+(pairs, friction, correction, hourglass control, the walls' layer); clamped particles are
+held by the stage (:func:`~impactsph.physics.passes.advance_particle`), and the supports'
+impulse is booked from the step's mean accelerations (``clamp_sums``, ``clamp_finish``).
 
 Which runs keep their state on the device: :func:`resident_unsupported` names what keeps a
 run on the host path (symmetry planes, whose ghosts mirror results on the CPU; walls with
-friction; driven regions, clamps and added mass; the hourglass
-control and friction between bodies; viscosity switches; SSP-RK3 and the compatible energy
-update; plane stress and axisymmetry; gauges).  Such a run still evaluates its rates on
-the GPU, as before, and its log says why its state stays on the host.
+friction; driven regions and added mass; viscosity switches; SSP-RK3 and the compatible
+energy update; plane stress and axisymmetry).  Such a run still evaluates its rates on
+the GPU, as before, and its log says why its state stays on the host.  Gauges take their
+particles' rows from the device at each step (``gauge_rows``), as probes take their
+velocities.
 """
 
 from __future__ import annotations
 
 import math
 from functools import cache
+from types import SimpleNamespace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -69,11 +75,13 @@ SCAN_CHUNK = 256
 SURVEY_WIDTH = 7
 #: The books' columns: the viscous heating, the correction's work and its heating (each the
 #: time integral, J), the pair evaluations, the walls' push's impulse (3, N s), the walls'
-#: constraint's events and impulse (1 + 3), the step's mean push so far (3, N).
+#: constraint's events and impulse (1 + 3), the step's mean push so far (3, N), the supports'
+#: impulse on the clamped particles (3, N s).
 TOTALS = 7
 EVENTS = 7
 LAST_PUSH = 11
-BOOKS_WIDTH = 14
+CLAMP = 14
+BOOKS_WIDTH = 17
 #: The integrated fields of :class:`~impactsph.state.ParticleState`, in the order of the
 #: device arrays.
 INTEGRATED = ("position", "velocity", "density", "specific_energy", "deviatoric_stress",
@@ -87,8 +95,7 @@ BUFFER_MARGIN = 32
 NO_BAD = np.iinfo(np.int64).max
 
 
-def resident_unsupported(case: Case, state: ParticleState, walls: Walls,
-                         gauges: bool) -> str | None:
+def resident_unsupported(case: Case, state: ParticleState, walls: Walls) -> str | None:
     """Why the state of ``case`` cannot stay on the device between steps (None: it can);
     ``walls``: its :class:`~impactsph.boundaries.Walls`."""
     from .models import registry
@@ -109,18 +116,10 @@ def resident_unsupported(case: Case, state: ParticleState, walls: Walls,
         return "a wall has friction, applied on the host"
     if any(body.driven for body in case.bodies):
         return "the case has driven regions, applied on the host"
-    if state.clamped.any():
-        return "the case has clamped particles, held on the host"
     if state.added_mass.any():
         return "the case has added mass, applied on the host"
-    if case.stabilisation.hourglass > 0.0:
-        return "stabilisation.hourglass > 0 runs on the host"
-    if case.contact.friction > 0.0:
-        return "contact.friction > 0 runs on the host"
     if registry.VISCOSITY[case.viscosity.scheme].switch is not None:
         return f"the viscosity switch of {case.viscosity.scheme!r} runs on the host"
-    if gauges:
-        return "gauges sample the state on the host at every step"
     return None
 
 
@@ -179,11 +178,12 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 hg0[i, a] = hg[i, a]
 
     @cuda.jit
-    def survey_kernel(n, x, v, rho, e, S, m, h, material, table, points, normals, part, bad):
+    def survey_kernel(n, x, v, rho, e, S, m, h, material, table, hourglass, points, normals,
+                      part, bad):
         """Per block: min h/(c + |v|), KE, IE, momentum; the first bad value (atomic min of
         its code, which is exact), a particle behind a wall the last kind: each particle's
         part is the CPU's (:func:`impactsph.physics.survey.survey_particle`; the resident
-        step runs no added mass and no hourglass control)."""
+        step runs no added mass; ``hourglass``: the hourglass control's zeta, 0 for none)."""
         sh = cuda.shared.array((6, TPB), float64)
         i = cuda.grid(1)
         t = cuda.threadIdx.x
@@ -192,8 +192,8 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
         sh[0, t] = math.inf
         if i < n:
             first, step, ke, ie, p0, p1, p2 = survey_particle(
-                i, n, x, v, rho[i], rho, e, S, m, m[i], h, material, table, 0.0, points,
-                normals, SURVEY_START, False)
+                i, n, x, v, rho[i], rho, e, S, m, m[i], h, material, table, hourglass,
+                points, normals, SURVEY_START, False)
             if first >= 0:
                 cuda.atomic.min(bad, 0, first)
             sh[0, t] = step
@@ -351,6 +351,36 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
             if share != 0.0:
                 for k in range(1, 4):
                     books[EVENTS + k] += share * sh[k, 0]
+
+    @cuda.jit
+    def clamp_sums(n_rows, rows, m, dv, part):
+        """Per block, over the clamped particles ``rows``: the sum of ``m dv``, the rate of
+        the momentum that the supports take from them."""
+        sh = cuda.shared.array((3, TPB), float64)
+        k = cuda.grid(1)
+        t = cuda.threadIdx.x
+        for a in range(3):
+            sh[a, t] = 0.0
+        if k < n_rows:
+            i = rows[k]
+            for a in range(DIM):
+                sh[a, t] = m[i] * dv[i, a]
+        _block_reduce(sh, 3, 0, 0, t)
+        if t == 0:
+            for a in range(3):
+                part[cuda.blockIdx.x, a] = sh[a, 0]
+
+    @cuda.jit
+    def clamp_finish(n_blocks, part, dt, books):
+        """One block: the supports' impulse over the step, minus ``dt`` times the blocks'
+        sums (:meth:`impactsph.integrate.MidpointIntegrator._clamp_impulse`), into the
+        books."""
+        sh = cuda.shared.array((3, TPB), float64)
+        t = cuda.threadIdx.x
+        _gather_blocks(part, n_blocks, sh, 3, 0, 0, t)
+        if t == 0:
+            for a in range(DIM):
+                books[CLAMP + a] -= dt * sh[a, 0]
 
     @cuda.jit
     def body_kernel(n, b, body, m, v, e, pw, x, x0, force, part):
@@ -594,6 +624,27 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 a[k] += add
 
     @cuda.jit
+    def gauge_kernel(rows, x, v, rho, e, S, pw, st, out):
+        """The integrated fields of the particles ``rows`` (the gauges'), one row of ``out``
+        each: position, velocity, density, specific energy, plastic work, the deviator's nine
+        components, the material state."""
+        k = cuda.grid(1)
+        if k < rows.shape[0]:
+            i = rows[k]
+            for a in range(DIM):
+                out[k, a] = x[i, a]
+                out[k, DIM + a] = v[i, a]
+            c = 2 * DIM
+            out[k, c] = rho[i]
+            out[k, c + 1] = e[i]
+            out[k, c + 2] = pw[i]
+            for a in range(3):
+                for b in range(3):
+                    out[k, c + 3 + 3 * a + b] = S[i, a, b]
+            for j in range(st.shape[1]):
+                out[k, c + 12 + j] = st[i, j]
+
+    @cuda.jit
     def take_rows(rows, v, out):
         k = cuda.grid(1)
         if k < rows.shape[0]:
@@ -605,13 +656,13 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 totals=totals_kernel, totals_finish=totals_finish, layer=layer_kernel,
                 enforce=enforce_kernel,
                 enforce_sums=enforce_sums, enforce_finish=enforce_finish, body=body_kernel,
-                body_finish=body_finish,
+                body_finish=body_finish, clamp_sums=clamp_sums, clamp_finish=clamp_finish,
                 ghost_count=ghost_count_kernel, ghost_list=ghost_list_kernel,
                 ghost_fill=ghost_fill_kernel,
                 displacement=displacement_kernel, bounds=bounds_kernel, cell=cell_kernel,
                 scatter=scatter_kernel, cell_sort=cell_sort_kernel, gather=gather_kernel,
                 neighbours=neighbour_kernel, zero=zero_kernel, scan_chunks=scan_chunks,
-                scan_add=scan_add, take_rows=take_rows)
+                scan_add=scan_add, take_rows=take_rows, gauges=gauge_kernel)
 
 
 def prefix_sum(kernels: dict, a, n: int, tpb: int, stream, buffer, depth: int = 0) -> None:
@@ -666,6 +717,10 @@ class ResidentStep:
         self.n_bodies = solver.n_bodies
         walls = solver.walls
         self.contact = self.n_bodies > 1 or walls is not None
+        #: the hourglass control's zeta (0: none; its pass after the correction's, as on the
+        #: CPU) and the Coulomb friction between bodies (0: none; its pass after the pairs')
+        self.hourglass = float(solver.hourglass)
+        self.friction = float(self.options.contact_friction) if self.n_bodies > 1 else 0.0
         self.support = SUPPORT_RADIUS * float(state.smoothing_length.max())
         self.skin = solver.neighbours.skin
         self.radius = solver.neighbours.radius
@@ -719,8 +774,8 @@ class ResidentStep:
                     "pair_count": empty(n, np.int64), "dS": empty((n, 6), np.float64),
                     "dv_corr": empty((corr_rows, dim), np.float64),
                     "de_corr": empty(corr_rows, np.float64),
-                    "dhg": empty((n, 0), np.float64), "gradients": empty((0, dim, dim),
-                                                                         np.float64)}
+                    "dhg": empty((n, dim if self.hourglass > 0.0 else 0), np.float64),
+                    "gradients": empty((0, dim, dim), np.float64)}
         self.survey_part = empty((self.blocks, 6), np.float64)
         self.survey_out = empty(SURVEY_WIDTH, np.float64)
         self.bad = cuda.to_device(np.array([NO_BAD], dtype=np.int64), stream=s)
@@ -779,10 +834,15 @@ class ResidentStep:
             self.ext[name][:n].copy_to_device(self.const[field], stream=s)
 
     def _packed(self, rows: int) -> None:
-        """The packed records and the reference positions for ``rows`` rows."""
+        """The packed records, the reference positions and, with the hourglass control,
+        the rows' velocity gradients (the pair kernel's, which the hourglass kernel reads) for
+        ``rows`` rows."""
         self.capacity = rows
         self.packed = cuda.device_array((rows, self.record_width), self.options.record_dtype,
                                         order=RECORD_ORDER, stream=self.stream)
+        if self.hourglass > 0.0:
+            self.out["gradients"] = cuda.device_array((rows, self.dim, self.dim), np.float64,
+                                                      stream=self.stream)
         reference = cuda.device_array((rows, self.dim), np.float32, stream=self.stream)
         if getattr(self, "reference", None) is not None:  # the particles' rows kept
             reference[: self.n].copy_to_device(self.reference[: self.n], stream=self.stream)
@@ -846,6 +906,12 @@ class ResidentStep:
                 self.now[f].copy_to_device(np.ascontiguousarray(getattr(state, f)), stream=s)
         for f in CONSTANT:
             self.const[f].copy_to_device(np.ascontiguousarray(getattr(state, f)), stream=s)
+        clamped = np.flatnonzero(state.clamped).astype(np.int64)
+        self.clamped_rows = cuda.device_array(clamped.shape[0], np.int64, stream=s)
+        if clamped.shape[0]:  # (no copy of nothing)
+            self.clamped_rows.copy_to_device(clamped, stream=s)
+        self.clamp_part = cuda.device_array(
+            (max(1, (clamped.shape[0] + self.tpb - 1) // self.tpb), 3), np.float64, stream=s)
         if self.walls is not None and self.capacity:  # the kernels read the extended rows
             self._constant_rows()
         nl = self.solver.neighbours
@@ -918,19 +984,45 @@ class ResidentStep:
             self._launch("take_rows", rows.shape[0], d_rows, self.now["velocity"], out)
         return self._fetch(out)
 
+    def gauge_rows(self, rows: np.ndarray) -> SimpleNamespace:
+        """The integrated fields of the particles ``rows`` (a run's gauges), as
+        :meth:`impactsph.gauges.Gauges.rows_of` takes them from a host state, in one kernel
+        and one copy."""
+        key = b"gauges" + rows.tobytes()
+        now, dim = self.now, self.dim
+        width = 2 * dim + 12 + now["material_state"].shape[1]
+        if key not in self._probes:  # (the gauges' rows, on the device once)
+            self._probes[key] = (
+                cuda.to_device(np.ascontiguousarray(rows, np.int64), stream=self.stream),
+                cuda.device_array((rows.shape[0], width), np.float64, stream=self.stream))
+        d_rows, out = self._probes[key]
+        if rows.shape[0]:
+            self._launch("gauges", rows.shape[0], d_rows, now["position"], now["velocity"],
+                         now["density"], now["specific_energy"], now["deviatoric_stress"],
+                         now["plastic_work"], now["material_state"], out)
+        values = self._fetch(out)
+        c = 2 * dim
+        return SimpleNamespace(position=values[:, :dim], velocity=values[:, dim: c],
+                               density=values[:, c], specific_energy=values[:, c + 1],
+                               plastic_work=values[:, c + 2],
+                               deviatoric_stress=values[:, c + 3: c + 12].reshape(-1, 3, 3),
+                               material_state=values[:, c + 12:])
+
     def books_now(self) -> dict[str, Any]:
         """The run's books as the device holds them (the running totals are kept there, from
         the values :meth:`set_books` gave, so that they add up in the order the CPU adds
         them whenever they are read): ``heating``, ``correction_work``,
         ``correction_heating`` (J), ``pairs``, ``wall_impulse`` (N s), ``events``,
-        ``constraint_impulse`` (N s) and ``push`` (N, the last step's)."""
+        ``constraint_impulse`` (N s), ``push`` (N, the last step's) and ``clamp_impulse``
+        (N s, the supports' on the clamped particles)."""
         books = self._fetch(self.books)
         dim = self.dim
         return {"heating": books[0], "correction_work": books[1],
                 "correction_heating": books[2], "pairs": int(books[3]),
                 "wall_impulse": books[4: 4 + dim].copy(), "events": int(books[EVENTS]),
                 "constraint_impulse": books[EVENTS + 1: EVENTS + 1 + dim].copy(),
-                "push": books[LAST_PUSH: LAST_PUSH + dim].copy()}
+                "push": books[LAST_PUSH: LAST_PUSH + dim].copy(),
+                "clamp_impulse": books[CLAMP: CLAMP + dim].copy()}
 
     def set_books(self, books: dict[str, Any]) -> None:
         """The run's books (as :meth:`books_now` names them) onto the device."""
@@ -944,6 +1036,7 @@ class ResidentStep:
         values[EVENTS] = books["events"]
         values[EVENTS + 1: EVENTS + 1 + dim] = books["constraint_impulse"]
         values[LAST_PUSH: LAST_PUSH + dim] = books["push"]
+        values[CLAMP: CLAMP + dim] = books["clamp_impulse"]
         self.books.copy_to_device(values, stream=self.stream)
 
     def body_totals(self) -> np.ndarray:
@@ -1055,8 +1148,9 @@ class ResidentStep:
             self.build()
         else:
             self._fill()
-        (particle_kernel, pair_kernel, correction_kernel, _, moment_kernel, _, _,
-         gradient_kernel, force_correction, reconstruction, _) = self.rate_kernels
+        (particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
+         friction_kernel, _, gradient_kernel, force_correction, reconstruction,
+         _) = self.rate_kernels
         self.viscosity.check_compiled(reconstruction, self.options.viscosity_factor)
         n, tpb, s = self.n, self.tpb, self.stream
         rows = n + self.n_ghosts
@@ -1075,11 +1169,21 @@ class ResidentStep:
             self.options.normal_stress, ext["S"], ext["material"], self.table,
             out["drho"], out["dv"], out["de"], out["de_visc"], out["contact_force"],
             out["pair_count"], out["dS"], out["gradients"])
+        if self.friction > 0.0:  # (the CPU's order: pairs, friction, correction, hourglass)
+            friction_kernel[blocks, tpb, s](
+                rows, n, order, P, offsets, indices, int(self.viscosity.kind),
+                self.viscosity.pair, self.friction, int(self.n_bodies),
+                self.options.normal_stress, out["dv"], out["de"], out["contact_force"])
         if self.corrected:
             correction_kernel[blocks, tpb, s](
                 rows, n, order, P, offsets, indices, int(self.viscosity.kind),
                 self.viscosity.correction, out["dv_corr"], out["de_corr"], out["dv"],
                 out["de"])
+        if self.hourglass > 0.0:
+            hourglass_kernel[blocks, tpb, s](
+                rows, n, order, P, out["gradients"], offsets, indices, ext["material"],
+                self.table, self.hourglass, self.now["hourglass_acceleration"], out["dv"],
+                out["de"], out["dhg"])
         c = self.const
         if self.layer > 0.0:  # after the pairs and the correction, as the CPU solver
             self._launch("layer", n, n, self.now["position"], self.now["velocity"], c["mass"],
@@ -1127,6 +1231,12 @@ class ResidentStep:
         # x(t + dt) = x(t) + dt v(t + dt/2): each thread reads its particle's midpoint
         # velocity before it overwrites it
         self._stage(dt, self.now["velocity"], 1.0, True)
+        rows = self.clamped_rows.shape[0]
+        if rows:  # the supports' impulse, from the step's mean accelerations (the corrector's)
+            self._launch("clamp_sums", rows, rows, self.clamped_rows, self.const["mass"],
+                         self.out["dv"], self.clamp_part)
+            self._launch("clamp_finish", 1, self.clamp_part.shape[0], self.clamp_part,
+                         float(dt), self.books)
         self.host_current = False
         state.time += dt
         state.step += 1
@@ -1139,8 +1249,8 @@ class ResidentStep:
         now, c = self.now, self.const
         self._launch("survey", n, n, now["position"], now["velocity"], now["density"],
                      now["specific_energy"], now["deviatoric_stress"], c["mass"],
-                     c["smoothing_length"], c["material"], self.table, self.points,
-                     self.normals, self.survey_part, self.bad)
+                     c["smoothing_length"], c["material"], self.table, self.hourglass,
+                     self.points, self.normals, self.survey_part, self.bad)
         self._launch("survey_finish", 1, self.blocks, self.survey_part, float(courant),
                      self.bad, self.survey_out)
         out = self._fetch(self.survey_out)

@@ -253,7 +253,7 @@ class Simulation:
         its rates still run on the GPU)."""
         from .gpu_step import ResidentStep, resident_unsupported
 
-        why = resident_unsupported(self.case, self._state, self.walls, self.gauges is not None)
+        why = resident_unsupported(self.case, self._state, self.walls)
         if why is not None:
             log.info("the state stays on the host between steps (%s): its rates run on the "
                      "GPU, with the state copied up and the rates down at each evaluation", why)
@@ -275,7 +275,7 @@ class Simulation:
                 "pairs": self.solver.pair_evaluations, "wall_impulse": self.wall_impulse,
                 "events": self.integrator.constraint_events,
                 "constraint_impulse": self.integrator.constraint_impulse,
-                "push": self._step_books[3]}
+                "push": self._step_books[3], "clamp_impulse": self.integrator.clamp_impulse}
 
     def _upload(self) -> None:
         """The host state and books onto the GPU (the caller may have changed them)."""
@@ -294,6 +294,7 @@ class Simulation:
         self._step_books = (0.0, 0.0, 0.0, books["push"])  # the last step's push (history)
         self.integrator.constraint_events = books["events"]
         self.integrator.constraint_impulse = books["constraint_impulse"]
+        self.integrator.clamp_impulse = books["clamp_impulse"]
         self.solver.pair_evaluations = books["pairs"]
         self.solver.rate_evaluations += r.rate_evaluations
         self.solver.neighbours.builds += r.builds
@@ -462,8 +463,12 @@ class Simulation:
                         else self._resident.rows(np.atleast_1d(idx)).reshape(
                             self._state.velocity[idx].shape))
             self.record.probes[name].append((t, velocity))
-        if self.gauges is not None:
-            self.record.gauges.append(self.gauges.sample(self))
+        if self.gauges is not None:  # (on the GPU, the gauges' rows alone come back)
+            g, s = self.gauges, self._state
+            rows = (g.rows_of(s) if self._resident is None or self._resident.host_current
+                    else self._resident.gauge_rows(g.indices))
+            self.record.gauges.append(g.sample_rows(t, rows, s.initial_position[g.indices],
+                                                    s.material[g.indices], self.problem.table))
 
     def _next_stop(self, t_end: float) -> float:
         t = self._state.time
