@@ -124,7 +124,9 @@ RESIDENT = {
     # (h = 1.4 dx: the lattice's sqrt(8) dx pairs lie in the skin, so the 3D rows' split at
     # the support, neighbours.py, is in the lists compared)
     "block-3d": ("taylor", [*CASES["block-3d"][1][:-2], "time.neighbour_skin=0.02",
-                            "kernel.h_over_dx=1.4", "output.history_every=1"], 3),
+                            "kernel.h_over_dx=1.4", "output.history_every=1",
+                            # a viscosity switch, as the 3D Taylor bar's (taylor3d.toml)
+                            'viscosity.scheme="ac_pairwise"'], 3),
     # records in float32 (compute.record_precision): the device's records by column, rounded
     # as the CPU's rows are
     "taylor-2d-float32": ("taylor", ["bodies.0.geometry.count=[4, 6]", "time.neighbour_skin=0.02",
@@ -789,7 +791,8 @@ def test_what_keeps_the_state_on_the_host_is_named():
     assert why("bars", ["compute.resident=false"]) == "compute.resident = false"
     assert "ssp_rk3" in why("bars", ['time.integrator="ssp_rk3"'])
     assert "compatible" in why("bars", ['time.energy_update="compatible"'])
-    assert "balsara" in why("bars", ['viscosity.scheme="balsara"'])
+    assert why("bars", ['viscosity.scheme="balsara"']) is None  # a switch, on the device
+    assert why(str(Path(__file__).parents[1] / "examples" / "taylor3d.toml")) is None
 
 
 # -- falling back to the CPU -------------------------------------------------------------------
@@ -1055,7 +1058,7 @@ def _step_kernel_types(name: str, dim: int) -> tuple:
                       "normals scratch contact_force carried force layer_force x0 S0 dS", f2),
                      ("S", f3),
                      ("rho0 e0 pw0 drho de rho e pw h m de_visc de_corr lo hi origin largest "
-                      "books", f1),
+                      "books factor memory", f1),
                      ("pair_count bad ncell key counts ends fill a sums rows offsets src wall",
                       i64),
                      ("material order indices body", i32)):

@@ -38,11 +38,15 @@ friction between bodies run their rate kernels on the device state, in the CPU's
 (pairs, friction, correction, hourglass control, the walls' layer); clamped particles are
 held by the stage (:func:`~impactsph.physics.passes.advance_particle`), and the supports'
 impulse is booked from the step's mean accelerations (``clamp_sums``, ``clamp_finish``).
+A viscosity switch keeps its factors and memories on the device: each evaluation's switch
+kernel sets them for the next (at the evaluation's time, as
+:meth:`impactsph.solver.Solver.rates`), and ``carry`` puts them, with the common material
+state, into the passes' ``carried`` columns before the records are made.
 
 Which runs keep their state on the device: :func:`resident_unsupported` names what keeps a
 run on the host path (symmetry planes, whose ghosts mirror results on the CPU; walls with
-friction; driven regions and added mass; viscosity switches; SSP-RK3 and the compatible
-energy update; plane stress and axisymmetry).  Such a run still evaluates its rates on
+friction; driven regions and added mass; SSP-RK3 and the compatible energy update; plane
+stress and axisymmetry).  Such a run still evaluates its rates on
 the GPU, as before, and its log says why its state stays on the host.  Gauges take their
 particles' rows from the device at each step (``gauge_rows``), as probes take their
 velocities.
@@ -60,6 +64,7 @@ import numpy as np
 from . import boundaries, codegen
 from .gpu import RECORD_ORDER, cuda, gpu_kernels, record_columns, simulator_enabled
 from .kernels import SUPPORT_RADIUS
+from .models.columns import CARRIED, PASS_CARRIED, VISCOSITY_FACTOR, VISCOSITY_MEMORY
 from .physics import stress_rate, survey
 from .physics.rates import compiled_passes
 
@@ -98,8 +103,6 @@ NO_BAD = np.iinfo(np.int64).max
 def resident_unsupported(case: Case, state: ParticleState, walls: Walls) -> str | None:
     """Why the state of ``case`` cannot stay on the device between steps (None: it can);
     ``walls``: its :class:`~impactsph.boundaries.Walls`."""
-    from .models import registry
-
     if not case.compute.resident:
         return "compute.resident = false"
     if case.formulation != "updated_lagrangian":
@@ -118,8 +121,6 @@ def resident_unsupported(case: Case, state: ParticleState, walls: Walls) -> str 
         return "the case has driven regions, applied on the host"
     if state.added_mass.any():
         return "the case has added mass, applied on the host"
-    if registry.VISCOSITY[case.viscosity.scheme].switch is not None:
-        return f"the viscosity switch of {case.viscosity.scheme!r} runs on the host"
     return None
 
 
@@ -624,6 +625,18 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 a[k] += add
 
     @cuda.jit
+    def carry_kernel(n, st, factor, memory, carried):
+        """A scheme with a viscosity switch: each particle's row of the passes' ``carried``
+        (the common material state, then the factor and its memory: as
+        :meth:`impactsph.solver.Solver._fill` makes it on the host)."""
+        i = cuda.grid(1)
+        if i < n:
+            for c in range(CARRIED):
+                carried[i, c] = st[i, c]
+            carried[i, VISCOSITY_FACTOR] = factor[i]
+            carried[i, VISCOSITY_MEMORY] = memory[i]
+
+    @cuda.jit
     def gauge_kernel(rows, x, v, rho, e, S, pw, st, out):
         """The integrated fields of the particles ``rows`` (the gauges'), one row of ``out``
         each: position, velocity, density, specific energy, plastic work, the deviator's nine
@@ -662,7 +675,8 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 displacement=displacement_kernel, bounds=bounds_kernel, cell=cell_kernel,
                 scatter=scatter_kernel, cell_sort=cell_sort_kernel, gather=gather_kernel,
                 neighbours=neighbour_kernel, zero=zero_kernel, scan_chunks=scan_chunks,
-                scan_add=scan_add, take_rows=take_rows, gauges=gauge_kernel)
+                scan_add=scan_add, take_rows=take_rows, gauges=gauge_kernel,
+                carry=carry_kernel)
 
 
 def prefix_sum(kernels: dict, a, n: int, tpb: int, stream, buffer, depth: int = 0) -> None:
@@ -720,6 +734,9 @@ class ResidentStep:
         #: the hourglass control's zeta (0: none; its pass after the correction's, as on the
         #: CPU) and the Coulomb friction between bodies (0: none; its pass after the pairs')
         self.hourglass = float(solver.hourglass)
+        #: a scheme with a viscosity switch: its factors and memories (a state of the rates,
+        #: not integrated) on the device, set by each evaluation's switch kernel for the next
+        self.switched = self.viscosity.switch is not None
         self.friction = float(self.options.contact_friction) if self.n_bodies > 1 else 0.0
         self.support = SUPPORT_RADIUS * float(state.smoothing_length.max())
         self.skin = solver.neighbours.skin
@@ -792,6 +809,9 @@ class ResidentStep:
             self.scratch = empty((n, 4), np.float64)
             self.enforce_part = empty((self.blocks, 4), np.float64)
         self.layer_force = empty((n if self.layer > 0.0 else 0, dim), np.float64)
+        switch_rows = n if self.switched else 0
+        self.switch = {name: empty(switch_rows, np.float64, stream=s)
+                       for name in ("factor", "memory", "next_factor", "next_memory")}
 
     def _rows(self, rows: int) -> None:
         """The arrays of every row (particles, then ghosts) for ``rows`` rows: the state's
@@ -803,7 +823,9 @@ class ResidentStep:
                 self.ext = {"x": self.now["position"], "v": self.now["velocity"],
                             "rho": self.now["density"], "e": self.now["specific_energy"],
                             "S": self.now["deviatoric_stress"],
-                            "carried": self.now["material_state"],
+                            "carried": (cuda.device_array((rows, PASS_CARRIED), np.float64,
+                                                          stream=s) if self.switched
+                                        else self.now["material_state"]),
                             "m": self.const["mass"], "h": self.const["smoothing_length"],
                             "material": self.const["material"], "body": self.const["body"]}
                 self._packed(rows)
@@ -811,7 +833,7 @@ class ResidentStep:
         if rows <= self.capacity:
             return
         capacity = rows + rows // 8 + 16
-        width = self.now["material_state"].shape[1]
+        width = PASS_CARRIED if self.switched else self.now["material_state"].shape[1]
         empty = cuda.device_array
         self.ext = {"x": empty((capacity, self.dim), np.float64, stream=s),
                     "v": empty((capacity, self.dim), np.float64, stream=s),
@@ -851,13 +873,17 @@ class ResidentStep:
     def _fill(self) -> None:
         """The particles' rows of the extended arrays from the state, and the ghosts' from
         their sources (with walls)."""
+        s, n, ext, now = self.stream, self.n, self.ext, self.now
+        if self.switched:  # the common material state and the factors, in the passes' columns
+            self._launch("carry", n, n, now["material_state"], self.switch["factor"],
+                         self.switch["memory"], ext["carried"])
         if self.walls is None:
             return
-        s, n, ext, now = self.stream, self.n, self.ext, self.now
         for name, field in (("x", "position"), ("v", "velocity"), ("rho", "density"),
                             ("e", "specific_energy"), ("S", "deviatoric_stress"),
                             ("carried", "material_state")):
-            ext[name][:n].copy_to_device(now[field], stream=s)
+            if name != "carried" or not self.switched:
+                ext[name][:n].copy_to_device(now[field], stream=s)
         if self.n_ghosts:
             self._launch("ghost_fill", self.n_ghosts, self.n_ghosts, self.ghost_src,
                          self.ghost_wall, self.points, self.normals, self.kinds, n, ext["x"],
@@ -906,6 +932,12 @@ class ResidentStep:
                 self.now[f].copy_to_device(np.ascontiguousarray(getattr(state, f)), stream=s)
         for f in CONSTANT:
             self.const[f].copy_to_device(np.ascontiguousarray(getattr(state, f)), stream=s)
+        if self.switched:
+            for name in ("factor", "memory"):
+                self.switch[name].copy_to_device(
+                    np.ascontiguousarray(getattr(state, f"viscosity_{name}"), np.float64),
+                    stream=s)
+        self.factor_time = float(state.viscosity_factor_time)
         clamped = np.flatnonzero(state.clamped).astype(np.int64)
         self.clamped_rows = cuda.device_array(clamped.shape[0], np.int64, stream=s)
         if clamped.shape[0]:  # (no copy of nothing)
@@ -949,6 +981,10 @@ class ResidentStep:
         for f in INTEGRATED:
             if getattr(state, f).size:
                 self.now[f].copy_to_host(getattr(state, f), stream=s)
+        if self.switched:
+            self.switch["factor"].copy_to_host(state.viscosity_factor, stream=s)
+            self.switch["memory"].copy_to_host(state.viscosity_memory, stream=s)
+        state.viscosity_factor_time = self.factor_time
         if self._list_builds:
             nl = self.solver.neighbours
             rows = self.n + self.n_ghosts
@@ -1140,16 +1176,17 @@ class ResidentStep:
         self._list_builds += 1
 
     # -- one step ------------------------------------------------------------------------------
-    def _evaluate(self, dt: float, weight: float, first: bool) -> None:
-        """The rates at the device state; the powers and the walls' push booked with
-        ``dt`` times ``weight`` (the evaluation's in the step's mean rate); ``first``: the
-        step's first evaluation."""
+    def _evaluate(self, dt: float, weight: float, first: bool, time: float) -> None:
+        """The rates at the device state, of time ``time``; the powers and the walls' push
+        booked with ``dt`` times ``weight`` (the evaluation's in the step's mean rate);
+        ``first``: the step's first evaluation.  With a viscosity switch, the factors for
+        the next evaluation (set at ``time``: :meth:`impactsph.solver.Solver.rates`)."""
         if self._stale():
             self.build()
         else:
             self._fill()
         (particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
-         friction_kernel, _, gradient_kernel, force_correction, reconstruction,
+         friction_kernel, switch_kernel, gradient_kernel, force_correction, reconstruction,
          _) = self.rate_kernels
         self.viscosity.check_compiled(reconstruction, self.options.viscosity_factor)
         n, tpb, s = self.n, self.tpb, self.stream
@@ -1179,6 +1216,15 @@ class ResidentStep:
                 rows, n, order, P, offsets, indices, int(self.viscosity.kind),
                 self.viscosity.correction, out["dv_corr"], out["de_corr"], out["dv"],
                 out["de"])
+        if self.switched:  # (over the whole list, as the correction: the same sums)
+            sw = self.switch
+            switch_kernel[blocks, tpb, s](
+                rows, n, order, P, offsets, indices, int(self.viscosity.kind),
+                self.viscosity.switch, max(time - self.factor_time, 0.0), sw["next_factor"],
+                sw["next_memory"])
+            sw["factor"], sw["next_factor"] = sw["next_factor"], sw["factor"]
+            sw["memory"], sw["next_memory"] = sw["next_memory"], sw["memory"]
+            self.factor_time = time
         if self.hourglass > 0.0:
             hourglass_kernel[blocks, tpb, s](
                 rows, n, order, P, out["gradients"], offsets, indices, ext["material"],
@@ -1225,9 +1271,9 @@ class ResidentStep:
         now, st = self.now, self.start
         self._launch("start", self.n, self.n, *(now[f] for f in INTEGRATED),
                      *(st[f] for f in INTEGRATED))
-        self._evaluate(dt, 0.0, True)
+        self._evaluate(dt, 0.0, True, state.time)
         self._stage(0.5 * dt, self.start["velocity"], 0.0, False)
-        self._evaluate(dt, 1.0, False)
+        self._evaluate(dt, 1.0, False, state.time + 0.5 * dt)
         # x(t + dt) = x(t) + dt v(t + dt/2): each thread reads its particle's midpoint
         # velocity before it overwrites it
         self._stage(dt, self.now["velocity"], 1.0, True)
