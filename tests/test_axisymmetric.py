@@ -219,7 +219,7 @@ def test_the_set_ups_log_lines_are_in_the_run_log(tmp_path):
 
 
 def test_gpu_device_runs_axisymmetry_on_the_cpu_with_a_warning(caplog):
-    """The axis is a symmetry plane, which the GPU passes do not mirror: with
+    """Axisymmetry (whose axis is a symmetry plane) has not been checked on a GPU: with
     ``compute.device = "gpu"`` the run goes to the CPU and says why, before any work (on any
     machine, with a GPU or not)."""
     from impactsph.devices import select_backend

@@ -127,20 +127,45 @@ RESIDENT = {
                             "kernel.h_over_dx=1.4", "output.history_every=1",
                             # a viscosity switch, as the 3D Taylor bar's (taylor3d.toml)
                             'viscosity.scheme="ac_pairwise"'], 3),
+    # a quarter model: two symmetry planes and a wall, corner images of corner images
+    "quarter-3d": ("taylor", [*CASES["block-3d"][1][:-2], "time.neighbour_skin=0.02",
+                              "bodies.0.geometry.origin=[0.0, 0.0, 0.0]",
+                              "bodies.0.geometry.size=[0.0015, 0.0015, 0.00375]",
+                              "bodies.0.geometry.count=[2, 2, 5]",
+                              'boundaries=[{type="wall", point=[0.0, 0.0, 0.0], '
+                              'normal=[0.0, 0.0, 1.0]}, {type="symmetry", '
+                              'point=[0.0, 0.0, 0.0], normal=[1.0, 0.0, 0.0]}, '
+                              '{type="symmetry", point=[0.0, 0.0, 0.0], '
+                              'normal=[0.0, 1.0, 0.0]}]',
+                              "output.history_every=1"], 3),
     # records in float32 (compute.record_precision): the device's records by column, rounded
     # as the CPU's rows are
     "taylor-2d-float32": ("taylor", ["bodies.0.geometry.count=[4, 6]", "time.neighbour_skin=0.02",
                                      'compute.record_precision="float32"',
                                      "output.history_every=1"], 5),
-    # the walls that hold: the penalty layer and the normal-stress traction
-    "taylor-2d-layer": ("taylor", ["bodies.0.geometry.count=[4, 6]", "contact.wall_layer=0.25",
+    # the walls that hold: the penalty layer and the normal-stress traction; a half model,
+    # with a symmetry plane (its ghosts' and their corner images' results mirrored on the
+    # device: the AC's u, the correction matrices and the hourglass control's gradients)
+    "taylor-2d-layer": ("taylor", ["bodies.0.geometry.count=[2, 6]",
+                                   "bodies.0.geometry.origin=[0.0, 0.0]",
+                                   "bodies.0.geometry.size=[0.0038, 0.0254]",
+                                   'boundaries=[{type="wall", point=[0.0, 0.0], '
+                                   'normal=[0.0, 1.0]}, {type="symmetry", point=[0.0, 0.0], '
+                                   'normal=[1.0, 0.0]}]',
+                                   "contact.wall_layer=0.25",
                                    'contact.traction="normal_stress"',
+                                   'stabilisation.gradient_correction='
+                                   '"velocity_gradient_and_forces"',
+                                   "stabilisation.hourglass=2.0",
+                                   # its top held (clamped: the supports' impulse booked)
+                                   "bodies.0.clamped={origin=[0.0, 0.02], size=[0.004, 0.01]}",
                                    "output.history_every=1"], 4),
-    # clamped particles (the supports' impulse in the books) and AC: the cantilever, coarse
-    "cantilever-2d": ("cantilever", ["bodies.0.geometry.count=[26, 2]",
-                                     "bodies.0.clamped.size=[0.03, 0.008]",
-                                     "output.history_every=1"], 3),
 }
+#: A run with the state on the host and the rates on the device (``compute.resident =
+#: false``): the half bar above, its symmetry plane's mirror on the host.
+HOST_PATH = {"taylor-2d-half-host": (RESIDENT["taylor-2d-layer"][0],
+                                     [*RESIDENT["taylor-2d-layer"][1],
+                                      "compute.resident=false"], 2)}
 
 
 def _halve(sim) -> None:
@@ -252,7 +277,7 @@ def _resident_run(name: str, on_gpu: bool, stop_after: int | None = None):
     import impactsph.simulation as simulation
     from impactsph.loading import load_case
 
-    case, overrides, steps = RESIDENT[name]
+    case, overrides, steps = {**RESIDENT, **HOST_PATH}[name]
     if on_gpu:
         from impactsph.gpu import GpuRates
 
@@ -451,6 +476,10 @@ def _worker(task: str, folder: Path) -> int:
                                        sim.solver.rate_evaluations,
                                        summary["neighbour_list_builds"]]}
             report["seconds"][name] = time.perf_counter() - t0
+        for name in HOST_PATH:  # the rates on the device, the state on the host
+            sim, resident, _ = _resident_run(name, on_gpu=True)
+            np.savez(folder / f"{name}.npz", **sim.state.arrays())
+            report[name] = {"resident": resident, "device": sim.summary()["device"]}
         report["enforce"] = _device_enforce()
         report["survey"] = _device_survey()
         # a restart: 2 steps, a checkpoint, the rest from it, against the run above
@@ -771,9 +800,9 @@ def test_what_keeps_the_state_on_the_host_is_named():
     assert why("rings") is None
     assert why("taylor") is None  # a rigid wall: its ghosts on the device
     assert why("taylor", ["contact.wall_layer=0.25"]) is None  # the walls that hold too
-    assert "symmetry" in why("taylor", [
+    assert why("taylor", [  # a symmetry plane: its ghosts' results mirrored on the device
         'boundaries=[{type="wall", point=[0.0, 0.0], normal=[0.0, 1.0]}, '
-        '{type="symmetry", point=[0.0, 0.0], normal=[1.0, 0.0]}]'])
+        '{type="symmetry", point=[0.0, 0.0], normal=[1.0, 0.0]}]']) is None
     assert "friction" in why("taylor", [
         'boundaries=[{type="wall", point=[0.0, 0.0], normal=[0.0, 1.0], friction=0.1}]'])
     assert "axisymmetric" in why("taylor_axisymmetric")
@@ -1049,8 +1078,8 @@ def _step_kernel_types(name: str, dim: int) -> tuple:
     f1, f2, f3 = nb.float64[::1], nb.float64[:, ::1], nb.float64[:, :, ::1]
     i64, i32 = nb.int64[::1], nb.int32[::1]
     types = {}
-    for names, t in (("n n_blocks n_cells chunk n_ghosts n_real ghost_body0 b slot n_rows",
-                      nb.int64),
+    for names, t in (("n n_blocks n_cells chunk n_ghosts n_real ghost_body0 b slot n_rows "
+                      "start stop w u_column c0", nb.int64),
                      ("dt courant scale radius front weight share reach layer hourglass",
                       nb.float64),
                      ("corrected store first count_events walls", nb.boolean),
@@ -1059,11 +1088,12 @@ def _step_kernel_types(name: str, dim: int) -> tuple:
                      ("S", f3),
                      ("rho0 e0 pw0 drho de rho e pw h m de_visc de_corr lo hi origin largest "
                       "books factor memory", f1),
-                     ("pair_count bad ncell key counts ends fill a sums rows offsets src wall",
-                      i64),
+                     ("pair_count bad ncell key counts ends fill a sums rows offsets src wall "
+                      "position", i64),
                      ("material order indices body", i32)):
         types.update(dict.fromkeys(names.split(), t))
-    types.update(clamped=nb.boolean[::1], reference=nb.float32[:, ::1], kinds=nb.int8[::1])
+    types.update(clamped=nb.boolean[::1], reference=nb.float32[:, ::1], kinds=nb.int8[::1],
+                 P=nb.float64[::1, :], gradients=f3)  # (the records by column on the device)
     kernel = step_kernels(dim, False, -1, PassOptions(), 128)[name]
     special = {("survey_finish", "out"): f1, ("take_rows", "out"): f2,
                ("body_finish", "out"): f2, ("gauges", "out"): f2}

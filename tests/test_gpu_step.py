@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from test_gpu import (
+    HOST_PATH,
     MODES,
     RESIDENT,
     TOL,
@@ -35,7 +36,7 @@ def resident_comparison(request, tmp_path_factory):
     _skip_without_gpu(mode)
     folder = tmp_path_factory.mktemp(f"resident-{mode}")
     report = _run_worker(mode, "resident", folder)
-    cpu = {name: _resident_run(name, on_gpu=False) for name in RESIDENT}
+    cpu = {name: _resident_run(name, on_gpu=False) for name in (*RESIDENT, *HOST_PATH)}
     return mode, report, cpu, folder
 
 
@@ -96,11 +97,26 @@ def test_the_whole_step_on_the_device_matches_the_cpu(resident_comparison, name)
         assert (np.abs(got - ref) <= tol * scale + 1e-18).all(), (name, ref, got)
     if name == "taylor-2d":
         assert len(sim.record.gauges) == RESIDENT[name][2] + 1
+    if name == "taylor-2d-layer":  # a symmetry plane's corner images; clamped particles
+        assert sim.state.clamped.any() and np.any(sim.integrator.clamp_impulse != 0.0)
     for probe, rows in sim.record.probes.items():
         got = info["probes"][probe]
         assert [t for t, _ in got] == [t for t, _ in rows]
         np.testing.assert_allclose([v for _, v in got], [v for _, v in rows], rtol=1e-10,
                                    atol=1e-12)
+
+
+def test_a_symmetry_plane_on_the_host_path_matches_the_cpu(resident_comparison):
+    """With the state on the host (``compute.resident = false``) and the rates on the
+    device, a symmetry plane's ghosts take their sources' results mirrored on the host, on the
+    records copied down and back up: the half Taylor bar's final state is the CPU's."""
+    mode, report, cpu, folder = resident_comparison
+    name = "taylor-2d-half-host"
+    sim = cpu[name][0]
+    assert report[name] == {"resident": False, "device": "gpu"}
+    with np.load(folder / f"{name}.npz") as z:
+        errors = _relative_errors(sim.state.arrays(), {k: z[k] for k in z.files})
+    assert not {k: e for k, e in errors.items() if not e <= TOL}, (mode, errors)
 
 
 def test_a_device_run_restarts_bitwise(resident_comparison):

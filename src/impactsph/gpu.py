@@ -192,6 +192,8 @@ class GpuRates:
         self.options = PassOptions.coerce(options)
         self._kernels = gpu_kernels(dim, simulated, registry.version(), self.options,
                                     self.max_registers)
+        #: the passes' module (its record columns: a symmetry plane's mirror reads them)
+        self._passes = compiled_passes(dim, simulated, self.options)
         self._stream = cuda.stream()
         self._device: dict[str, object] = {}  # name -> device array, reused while it fits
         self._uploaded: dict[str, np.ndarray] = {}  # name -> host array last uploaded
@@ -220,6 +222,23 @@ class GpuRates:
             self._uploaded[name] = host
         return d
 
+    def _on_host(self, callback, packed, gradients, column: int) -> None:
+        """``callback(records, [gradients,] column)`` on the host, on copies of the device's
+        records (and the velocity gradients, where given) that go back up after it."""
+        s = self._stream
+        records = packed.copy_to_host(stream=s)
+        matrices = (gradients.copy_to_host(stream=s)
+                    if gradients is not None and gradients.size else None)
+        s.synchronize()
+        if gradients is None:
+            callback(records, column)
+        else:
+            callback(records, matrices if matrices is not None
+                     else np.zeros(gradients.shape), column)
+        packed.copy_to_device(records, stream=s)
+        if matrices is not None:
+            gradients.copy_to_device(matrices, stream=s)
+
     def release(self) -> None:
         """Let go of the device arrays of the host path (the state's copies, the neighbour
         list, the packed records, the outputs). A run whose state went to the device
@@ -241,16 +260,16 @@ class GpuRates:
     def evaluate(self, n_active: int, arrays: tuple, table: np.ndarray, neighbours,
                  viscosity, b, hourglass: float = 0.0,
                  hourglass_acceleration: np.ndarray | None = None,
-                 after_pairs=None, n_bodies: int = 1, switch_elapsed: float = 0.0,
-                 uniform_h: bool | None = None) -> None:
+                 after_pairs=None, after_moments=None, n_bodies: int = 1,
+                 switch_elapsed: float = 0.0, uniform_h: bool | None = None) -> None:
         """As :meth:`impactsph.physics.rates.CpuRates.evaluate`: the rates of the first
         ``n_active`` rows of ``arrays = (x, v, rho, e, S, m, h, material, body, carried)`` into the
         host buffers ``b``; rows the CPU backend leaves alone are left alone.  ``uniform_h``
         is ignored: the device's kernels are those of the run's own options, which read each
-        pair's h (the same results)."""
-        if after_pairs is not None:
-            raise NotImplementedError("symmetry planes run on the CPU only (--device cpu): the "
-                                      "GPU passes do not mirror the pair results onto ghosts")
+        pair's h (the same results).  ``after_pairs`` and ``after_moments`` (a symmetry
+        plane's ghosts' mirror, :class:`~impactsph.solver.Solver`'s) run on the host, on the
+        records copied down and back up (:meth:`_on_host`): the whole step on the device
+        mirrors them there (:mod:`impactsph.gpu_step`)."""
         x, v, rho, e, S, m, h, material, body, carried = arrays
         (particle_kernel, pair_kernel, correction_kernel, hourglass_kernel, moment_kernel,
          friction_kernel, switch_kernel, gradient_kernel, force_correction, reconstruction,
@@ -294,8 +313,12 @@ class GpuRates:
                 packed)
             if force_correction:
                 moment_kernel[blocks, tpb, stream](n_rows, packed, doff, dind)
+                if after_moments is not None:
+                    self._on_host(after_moments, packed, None, self._passes.CM0)
             if reconstruction:
                 gradient_kernel[blocks, tpb, stream](n_rows, packed, doff, dind)
+                if after_moments is not None:
+                    self._on_host(after_moments, packed, None, self._passes.LV0)
             if n_active:
                 pair_kernel[blocks, tpb, stream](
                     n_rows, n_active, dorder, packed, doff, dind, int(viscosity.kind),
@@ -303,6 +326,8 @@ class GpuRates:
                     out["drho"], out["dv"], out["de"],
                     out["de_visc"], out["contact_force"], out["pair_count"], out["dS"],
                     gradients)
+                if after_pairs is not None:
+                    self._on_host(after_pairs, packed, gradients, self._passes.U)
                 if self.options.contact_friction > 0.0:
                     friction_kernel[blocks, tpb, stream](
                         n_rows, n_active, dorder, packed, doff, dind, int(viscosity.kind),

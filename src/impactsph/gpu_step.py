@@ -43,10 +43,19 @@ kernel sets them for the next (at the evaluation's time, as
 :meth:`impactsph.solver.Solver.rates`), and ``carry`` puts them, with the common material
 state, into the passes' ``carried`` columns before the records are made.
 
+Symmetry planes too: their ghosts are chosen after the rigid walls', plane by plane, each
+plane's from every row so far (``plane_count``, a prefix sum, ``plane_list``, and the new
+ghosts' positions for the next plane's search, ``ghost_position``): the stages of
+:meth:`impactsph.boundaries.Walls.select`, in its order.  They are filled stage by stage (a
+corner image after its source ghost), and after the pair kernel (and the correction
+matrices' or a reconstructing viscosity's kernel) each stage's ghosts take their sources'
+results mirrored (``mirror_results``, ``mirror_matrices``: the CPU's
+:func:`impactsph.boundaries.mirror_ghost_results` and ``mirror_ghost_matrices``, a ghost a
+thread).
+
 Which runs keep their state on the device: :func:`resident_unsupported` names what keeps a
-run on the host path (symmetry planes, whose ghosts mirror results on the CPU; walls with
-friction; driven regions and added mass; SSP-RK3 and the compatible energy update; plane
-stress and axisymmetry).  Such a run still evaluates its rates on
+run on the host path (walls with friction; driven regions and added mass; SSP-RK3 and the
+compatible energy update; plane stress and axisymmetry).  Such a run still evaluates its rates on
 the GPU, as before, and its log says why its state stays on the host.  Gauges take their
 particles' rows from the device at each step (``gauge_rows``), as probes take their
 velocities.
@@ -113,8 +122,6 @@ def resident_unsupported(case: Case, state: ParticleState, walls: Walls) -> str 
         return f"time.energy_update = {case.time.energy_update!r} runs on the host"
     if case.dimension == 2 and case.two_dimensional != "plane_strain":
         return f"two_dimensional = {case.two_dimensional!r} runs on the host"
-    if len(walls) and (walls.kinds == boundaries.SYMMETRY).any():
-        return "the case has symmetry planes, whose ghosts are mirrored on the host"
     if len(walls) and (walls.friction > 0.0).any():
         return "a wall has friction, applied on the host"
     if any(body.driven for body in case.bodies):
@@ -134,6 +141,10 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
     advance_particle = passes.advance_particle
     # the walls' functions as the CPU runs them (their Python source under the simulator)
     fill_ghost = boundaries.fill_ghost.py_func if simulated else boundaries.fill_ghost
+    mirrors_a_symmetric_row = (boundaries.mirrors_a_symmetric_row.py_func if simulated
+                               else boundaries.mirrors_a_symmetric_row)
+    reflect = boundaries.reflect.py_func if simulated else boundaries.reflect
+    SYMMETRY = boundaries.SYMMETRY  # noqa: N806 - a compile-time constant of the kernels
     enforce_particle = (boundaries.enforce_particle.py_func if simulated
                         else boundaries.enforce_particle)
     layer_push_particle = (codegen._python_all_the_way(boundaries.layer_push_particle)
@@ -422,9 +433,9 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 out[b, k] = sh[k, 0]
 
     @cuda.jit
-    def ghost_count_kernel(n, x, points, normals, reach, counts):
-        """How many walls' ghosts particle ``i`` has (``0 <= d < reach``, as
-        :meth:`impactsph.boundaries.Walls.select`)."""
+    def ghost_count_kernel(n, x, points, normals, kinds, reach, counts):
+        """How many rigid walls' ghosts particle ``i`` has (``0 <= d < reach``, as
+        :meth:`impactsph.boundaries.Walls.select`; the symmetry planes' come after)."""
         i = cuda.grid(1)
         if i < n:
             c = 0
@@ -432,14 +443,14 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 d = 0.0
                 for a in range(DIM):
                     d += (x[i, a] - points[w, a]) * normals[w, a]
-                if d >= 0.0 and d < reach:
+                if d >= 0.0 and d < reach and kinds[w] != SYMMETRY:
                     c += 1
             counts[i] = c
 
     @cuda.jit
-    def ghost_list_kernel(n, x, points, normals, reach, counts, ends, src, wall):
-        """The ghosts' sources and walls, particle by particle, wall by wall: the order of
-        :meth:`~impactsph.boundaries.Walls.select`."""
+    def ghost_list_kernel(n, x, points, normals, kinds, reach, counts, ends, src, wall):
+        """The rigid walls' ghosts' sources and walls, particle by particle, wall by wall:
+        the order of :meth:`~impactsph.boundaries.Walls.select`."""
         i = cuda.grid(1)
         if i < n:
             k = ends[i] - counts[i]
@@ -447,16 +458,104 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 d = 0.0
                 for a in range(DIM):
                     d += (x[i, a] - points[w, a]) * normals[w, a]
-                if d >= 0.0 and d < reach:
+                if d >= 0.0 and d < reach and kinds[w] != SYMMETRY:
                     src[k] = i
                     wall[k] = w
                     k += 1
 
     @cuda.jit
-    def ghost_fill_kernel(n_ghosts, src, wall, points, normals, kinds, n_real, x, v, rho, e, S,
-                          carried, m, h, material, body, ghost_body0):
-        k = cuda.grid(1)
-        if k < n_ghosts:
+    def plane_count_kernel(n_rows, x, points, normals, w, reach, counts):
+        """Whether row ``r`` (a particle, or a ghost selected before) is within ``reach``
+        of the symmetry plane ``w`` (``0 <= d < reach``): its image is a ghost."""
+        r = cuda.grid(1)
+        if r < n_rows:
+            d = 0.0
+            for a in range(DIM):
+                d += (x[r, a] - points[w, a]) * normals[w, a]
+            counts[r] = 1 if d >= 0.0 and d < reach else 0
+
+    @cuda.jit
+    def plane_list_kernel(n_rows, x, points, normals, w, reach, ends, start, src, wall):
+        """The symmetry plane ``w``'s ghosts, row by row, from ghost ``start`` on (``ends``:
+        the inclusive prefix sum of :func:`plane_count_kernel`'s counts)."""
+        r = cuda.grid(1)
+        if r < n_rows:
+            d = 0.0
+            for a in range(DIM):
+                d += (x[r, a] - points[w, a]) * normals[w, a]
+            if d >= 0.0 and d < reach:
+                k = start + ends[r] - 1
+                src[k] = r
+                wall[k] = w
+
+    @cuda.jit
+    def ghost_position_kernel(start, stop, src, wall, points, normals, n_real, x):
+        """The positions of ghosts ``start`` to ``stop``: their sources' mirrored (as
+        :func:`impactsph.boundaries.fill_ghost` places them), for the next plane's search."""
+        k = start + cuda.grid(1)
+        if k < stop:
+            i = src[k]
+            w = wall[k]
+            d = 0.0
+            for a in range(DIM):
+                d += (x[i, a] - points[w, a]) * normals[w, a]
+            for a in range(DIM):
+                x[n_real + k, a] = x[i, a] - 2.0 * d * normals[w, a]
+
+    @cuda.jit
+    def inverse_kernel(n, order, position):
+        """Each row's place in the packed records (the inverse of the list's order)."""
+        p = cuda.grid(1)
+        if p < n:
+            position[order[p]] = p
+
+    @cuda.jit
+    def mirror_results_kernel(start, stop, src, wall, normals, kinds, n_real, position, P,
+                              u_column, gradients):
+        """After the pair kernel, for ghosts ``start`` to ``stop`` (one stage of the
+        selection: a corner image's source ghost is of an earlier stage, mirrored before):
+        :func:`impactsph.boundaries.mirror_ghost_results`, a ghost a thread."""
+        k = start + cuda.grid(1)
+        if k < stop and mirrors_a_symmetric_row(src, wall, kinds, n_real, k):
+            i = src[k]
+            w = wall[k]
+            pg = position[n_real + k]
+            pi = position[i]
+            if P.shape[1] > u_column:
+                un = 0.0
+                for a in range(DIM):
+                    un += P[pi, u_column + a] * normals[w, a]
+                for a in range(DIM):
+                    P[pg, u_column + a] = P[pi, u_column + a] - 2.0 * un * normals[w, a]
+            if gradients.shape[0] > 0:
+                reflect(gradients[pi], normals[w], DIM, gradients[pg])
+
+    @cuda.jit
+    def mirror_matrices_kernel(start, stop, src, wall, normals, kinds, n_real, position, P,
+                               c0):
+        """After the correction matrices (or a reconstructing viscosity's gradients), for
+        ghosts ``start`` to ``stop``: :func:`impactsph.boundaries.mirror_ghost_matrices`."""
+        k = start + cuda.grid(1)
+        if k < stop and mirrors_a_symmetric_row(src, wall, kinds, n_real, k):
+            source = cuda.local.array((DIM, DIM), float64)
+            mirrored = cuda.local.array((DIM, DIM), float64)
+            pg = position[n_real + k]
+            pi = position[src[k]]
+            for a in range(DIM):
+                for b in range(DIM):
+                    source[a, b] = P[pi, c0 + a * DIM + b]
+            reflect(source, normals[wall[k]], DIM, mirrored)
+            for a in range(DIM):
+                for b in range(DIM):
+                    P[pg, c0 + a * DIM + b] = mirrored[a, b]
+
+    @cuda.jit
+    def ghost_fill_kernel(start, stop, src, wall, points, normals, kinds, n_real, x, v, rho, e,
+                          S, carried, m, h, material, body, ghost_body0):
+        """Ghosts ``start`` to ``stop`` (one stage of the selection: their sources are
+        filled already) from their sources (:func:`impactsph.boundaries.fill_ghost`)."""
+        k = start + cuda.grid(1)
+        if k < stop:
             fill_ghost(k, src, wall, points, normals, kinds, n_real, x, v, rho, e, S, carried,
                        m, h, material, body, ghost_body0)
 
@@ -671,6 +770,9 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 enforce_sums=enforce_sums, enforce_finish=enforce_finish, body=body_kernel,
                 body_finish=body_finish, clamp_sums=clamp_sums, clamp_finish=clamp_finish,
                 ghost_count=ghost_count_kernel, ghost_list=ghost_list_kernel,
+                plane_count=plane_count_kernel, plane_list=plane_list_kernel,
+                ghost_position=ghost_position_kernel, inverse=inverse_kernel,
+                mirror_results=mirror_results_kernel, mirror_matrices=mirror_matrices_kernel,
                 ghost_fill=ghost_fill_kernel,
                 displacement=displacement_kernel, bounds=bounds_kernel, cell=cell_kernel,
                 scatter=scatter_kernel, cell_sort=cell_sort_kernel, gather=gather_kernel,
@@ -744,15 +846,30 @@ class ResidentStep:
         self.blocks = max(1, (self.n + self.tpb - 1) // self.tpb)
         s = self.stream
         dim = self.dim
+        #: the symmetry planes (their wall numbers), whose ghosts are chosen after the rigid
+        #: walls', plane by plane, and take their sources' per-particle results mirrored
+        self.planes = (np.flatnonzero(walls.kinds == boundaries.SYMMETRY) if walls is not None
+                       else np.zeros(0, np.int64))
         if walls is not None:
             self.points = cuda.to_device(np.ascontiguousarray(walls.points), stream=s)
             self.normals = cuda.to_device(np.ascontiguousarray(walls.normals), stream=s)
             self.kinds = cuda.to_device(np.ascontiguousarray(walls.kinds), stream=s)
+            rigid = np.flatnonzero(walls.kinds != boundaries.SYMMETRY)  # (the penalty layer's)
+            self.rigid_points = cuda.to_device(np.ascontiguousarray(walls.points[rigid]),
+                                               stream=s)
+            self.rigid_normals = cuda.to_device(np.ascontiguousarray(walls.normals[rigid]),
+                                                stream=s)
         else:
             self.points = cuda.device_array((0, dim), np.float64, stream=s)
             self.normals = cuda.device_array((0, dim), np.float64, stream=s)
             self.kinds = None
+            self.rigid_points, self.rigid_normals = self.points, self.normals
         self.walls = walls
+        #: the passes' record columns (the viscous acceleration's, the matrices')
+        self.columns = compiled_passes(dim, simulated, self.options)
+        #: the ghosts' stages, ``(first, last)`` each: the rigid walls', then each symmetry
+        #: plane's (a ghost's source is a particle or a ghost of an earlier stage)
+        self.stages: list[tuple[int, int]] = []
         #: the walls' penalty layer (spacings), 0 for none
         self.layer = solver.wall_layer if walls is not None else 0.0
         #: rate evaluations and rebuilds done on the device since :meth:`Simulation._fold`
@@ -884,11 +1001,32 @@ class ResidentStep:
                             ("carried", "material_state")):
             if name != "carried" or not self.switched:
                 ext[name][:n].copy_to_device(now[field], stream=s)
-        if self.n_ghosts:
-            self._launch("ghost_fill", self.n_ghosts, self.n_ghosts, self.ghost_src,
+        for first, last in self.stages:  # (in order: a corner image's source filled first)
+            self._launch("ghost_fill", last - first, first, last, self.ghost_src,
                          self.ghost_wall, self.points, self.normals, self.kinds, n, ext["x"],
                          ext["v"], ext["rho"], ext["e"], ext["S"], ext["carried"], ext["m"],
                          ext["h"], ext["material"], ext["body"], self.n_bodies)
+
+    def _stages_of(self, wall: np.ndarray) -> list[tuple[int, int]]:
+        """The stages of the ghosts of walls ``wall`` (in the order of
+        :meth:`impactsph.boundaries.Walls.select`): the rigid walls' ghosts, then each
+        symmetry plane's."""
+        if wall.shape[0] == 0:
+            return []
+        if self.planes.shape[0] == 0:
+            return [(0, int(wall.shape[0]))]
+        stage = np.zeros(wall.shape[0], np.int64)
+        for s, w in enumerate(self.planes):
+            stage[wall == w] = s + 1
+        cuts = np.flatnonzero(np.diff(stage)) + 1
+        edges = [0, *cuts.tolist(), int(wall.shape[0])]
+        return list(zip(edges[:-1], edges[1:], strict=True))
+
+    def _inverse(self) -> None:
+        """Each row's place in the packed records (a symmetry plane's ghosts' mirror)."""
+        rows = self.n + self.n_ghosts
+        self.position = self._buffer("position", rows, np.int64)
+        self._launch("inverse", rows, rows, self.order, self.position)
 
     def _buffer(self, name: str, rows: int, dtype, width: int | None = None):
         """The first ``rows`` rows of a device array kept between rebuilds (grown by
@@ -956,6 +1094,7 @@ class ResidentStep:
             if self.n_ghosts:  # (no copy of nothing)
                 self.ghost_src.copy_to_device(src, stream=s)
                 self.ghost_wall.copy_to_device(wall, stream=s)
+            self.stages = self._stages_of(wall)
             rows = self.n + self.n_ghosts
             self.capacity = 0  # new arrays: the constants' rows are copied in
             self._rows(rows)
@@ -966,6 +1105,8 @@ class ResidentStep:
                 nl.reference_positions[:rows]), stream=s)
             self.origin.copy_to_device(np.ascontiguousarray(nl.reference_origin, np.float64),
                                        stream=s)
+            if self.planes.shape[0]:
+                self._inverse()
             self._host_list = nl
             self._list_builds = 0
         s.synchronize()
@@ -1107,9 +1248,19 @@ class ResidentStep:
         prefix_sum(self.k, a, n, self.tpb, self.stream,
                    lambda level, size: self._buffer(f"scan{level}", size, a.dtype), depth)
 
+    def _grown(self, name: str, rows: int, keep: int, dtype, width: int | None = None):
+        """:meth:`_buffer` with its first ``keep`` rows kept where it has to grow."""
+        old = self._buffers.get(name)
+        buf = self._buffer(name, rows, dtype, width)
+        if old is not None and keep and self._buffers[name] is not old:
+            buf[:keep].copy_to_device(old[:keep], stream=self.stream)
+        return buf
+
     def _select_ghosts(self) -> None:
-        """The walls' ghosts of the particles within reach of them (as
-        :meth:`impactsph.boundaries.Walls.select`: particle by particle, wall by wall)."""
+        """The walls' ghosts of the particles within reach of them, in the order of
+        :meth:`impactsph.boundaries.Walls.select`: the rigid walls' (particle by particle,
+        wall by wall), then for each symmetry plane in turn the images of every row so far
+        (particles and the ghosts before) within reach of it, row by row: a stage each."""
         n, s = self.n, self.stream
         if self.walls is None:
             self._rows(n)
@@ -1117,16 +1268,47 @@ class ResidentStep:
         x = self.now["position"]
         reach = self.support + self.skin
         counts = self._buffer("ghost_counts", n, np.int64)
-        self._launch("ghost_count", n, n, x, self.points, self.normals, reach, counts)
+        self._launch("ghost_count", n, n, x, self.points, self.normals, self.kinds, reach,
+                     counts)
         ends = self._buffer("ghost_ends", n, np.int64)
         ends.copy_to_device(counts, stream=s)
         self._scan(ends, n)
-        self.n_ghosts = int(self._fetch(ends[n - 1:])[0]) if n else 0
-        self.ghost_src = self._buffer("ghost_src", self.n_ghosts, np.int64)
-        self.ghost_wall = self._buffer("ghost_wall", self.n_ghosts, np.int64)
-        self._launch("ghost_list", n, n, x, self.points, self.normals, reach, counts, ends,
-                     self.ghost_src, self.ghost_wall)
-        self._rows(n + self.n_ghosts)
+        total = int(self._fetch(ends[n - 1:])[0]) if n else 0
+        src = self._grown("ghost_src", total, 0, np.int64)
+        wall = self._grown("ghost_wall", total, 0, np.int64)
+        self._launch("ghost_list", n, n, x, self.points, self.normals, self.kinds, reach,
+                     counts, ends, src, wall)
+        stages = [(0, total)] if total else []
+        if self.planes.shape[0] and n:
+            # every row's position so far, for the next plane's search (the ghosts' as the
+            # fill will place them)
+            xs = self._grown("ghost_x", n + total, 0, np.float64, self.dim)
+            xs[:n].copy_to_device(x, stream=s)
+            if total:
+                self._launch("ghost_position", total, 0, total, src, wall, self.points,
+                             self.normals, n, xs)
+            for w in self.planes:
+                rows = n + total
+                near = self._buffer("plane_ends", rows, np.int64)
+                self._launch("plane_count", rows, rows, xs, self.points, self.normals, int(w),
+                             reach, near)
+                self._scan(near, rows)
+                added = int(self._fetch(near[rows - 1:])[0])
+                if not added:
+                    continue
+                src = self._grown("ghost_src", total + added, total, np.int64)
+                wall = self._grown("ghost_wall", total + added, total, np.int64)
+                self._launch("plane_list", rows, rows, xs, self.points, self.normals, int(w),
+                             reach, near, total, src, wall)
+                xs = self._grown("ghost_x", rows + added, rows, np.float64, self.dim)
+                self._launch("ghost_position", added, total, total + added, src, wall,
+                             self.points, self.normals, n, xs)
+                stages.append((total, total + added))
+                total += added
+        self.n_ghosts = total
+        self.ghost_src, self.ghost_wall = src[:total], wall[:total]
+        self.stages = stages
+        self._rows(n + total)
 
     def build(self) -> None:
         """Choose the ghosts and rebuild the neighbour list on the device (the module's
@@ -1171,6 +1353,8 @@ class ResidentStep:
         self._launch("neighbours", n, n, xs, lo, radius, front, d_ncell, counts, ends, offsets,
                      indices, True)
         self.order, self.offsets, self.indices = order, offsets, indices
+        if self.planes.shape[0]:
+            self._inverse()
         self.origin.copy_to_device(lo_h, stream=s)
         self.builds += 1
         self._list_builds += 1
@@ -1197,15 +1381,23 @@ class ResidentStep:
         particle_kernel[blocks, tpb, s](
             rows, order, ext["x"], ext["v"], ext["m"], ext["rho"], ext["e"], ext["S"],
             ext["carried"], ext["h"], ext["body"], ext["material"], self.table, P)
+        mirror = self.planes.shape[0] > 0 and self.n_ghosts > 0  # (the CPU's after_*)
+        cols = self.columns
         if force_correction:
             moment_kernel[blocks, tpb, s](rows, P, offsets, indices)
+            if mirror:
+                self._mirror("mirror_matrices", P, cols.CM0)
         if reconstruction:
             gradient_kernel[blocks, tpb, s](rows, P, offsets, indices)
+            if mirror:
+                self._mirror("mirror_matrices", P, cols.LV0)
         pair_kernel[blocks, tpb, s](
             rows, n, order, P, offsets, indices, int(self.viscosity.kind), self.viscosity.pair,
             self.options.normal_stress, ext["S"], ext["material"], self.table,
             out["drho"], out["dv"], out["de"], out["de_visc"], out["contact_force"],
             out["pair_count"], out["dS"], out["gradients"])
+        if mirror:
+            self._mirror("mirror_results", P, cols.U, out["gradients"])
         if self.friction > 0.0:  # (the CPU's order: pairs, friction, correction, hourglass)
             friction_kernel[blocks, tpb, s](
                 rows, n, order, P, offsets, indices, int(self.viscosity.kind),
@@ -1233,7 +1425,7 @@ class ResidentStep:
         c = self.const
         if self.layer > 0.0:  # after the pairs and the correction, as the CPU solver
             self._launch("layer", n, n, self.now["position"], self.now["velocity"], c["mass"],
-                         c["material"], self.table, self.points, self.normals,
+                         c["material"], self.table, self.rigid_points, self.rigid_normals,
                          float(self.layer), out["dv"], out["de"], self.layer_force)
         self._launch("totals", n, n, c["mass"], self.now["velocity"], out["de_visc"],
                      out["dv_corr"], out["de_corr"], out["pair_count"], out["contact_force"],
@@ -1242,6 +1434,16 @@ class ResidentStep:
         self._launch("totals_finish", 1, self.blocks, self.totals_part, float(dt),
                      float(weight), bool(first), self.books)
         self.rate_evaluations += 1
+
+    def _mirror(self, kernel: str, *columns) -> None:
+        """A symmetry plane's ghosts take their sources' results mirrored, stage by stage
+        (a corner image after its source ghost): the kernel ``mirror_results`` or
+        ``mirror_matrices`` with ``columns`` (the records, then the column and the
+        gradients)."""
+        P, *rest = columns
+        for first, last in self.stages:
+            self._launch(kernel, last - first, first, last, self.ghost_src, self.ghost_wall,
+                         self.normals, self.kinds, self.n, self.position, P, *rest)
 
     def _stage(self, dt: float, v_rate, share: float, last: bool) -> None:
         """One forward-Euler stage from the step's start, then the walls' constraint (its
