@@ -195,13 +195,16 @@ def test_the_set_ups_log_lines_are_in_the_run_log(tmp_path):
 
     from impactsph.runner import run_case
 
-    case = validate_case(axisymmetric_case([0.003, 0.01], 0.001, [0.0, -1.0], [], 2e-8,
-                                           compute={"device": "gpu"}))
+    # (the compatible energy update runs on the CPU only: a warning on any machine)
+    spec = axisymmetric_case([0.003, 0.01], 0.001, [0.0, -1.0], [], 2e-8,
+                             compute={"device": "gpu"})
+    spec["time"]["energy_update"] = "compatible"
+    case = validate_case(spec)
     out = tmp_path / "run"
     run_case(case, out, figures=False)
     lines = (out / "run.log").read_text().splitlines()
     warned = [n for n, line in enumerate(lines) if "WARNING impactsph.devices: compute.device "
-              "= 'gpu' but the axis of axisymmetry" in line]
+              "= 'gpu' but time.energy_update = 'compatible'" in line]
     assert warned == [0], lines[:3]
     # a checkpoint of an older version (no checksum): told on restart, and in run.log
     from impactsph.checkpoint import write_checkpoint
@@ -218,22 +221,16 @@ def test_the_set_ups_log_lines_are_in_the_run_log(tmp_path):
     assert any("compute.device = 'gpu' but" in line for line in lines[1:3])
 
 
-def test_gpu_device_runs_axisymmetry_on_the_cpu_with_a_warning(caplog):
-    """Axisymmetry (whose axis is a symmetry plane) has not been checked on a GPU: with
-    ``compute.device = "gpu"`` the run goes to the CPU and says why, before any work (on any
-    machine, with a GPU or not)."""
-    from impactsph.devices import select_backend
-    from impactsph.physics.rates import CpuRates
+def test_gpu_device_runs_axisymmetry_on_the_gpu():
+    """Axisymmetry (whose axis is a symmetry plane) runs on the GPU since 2026-12-07 (its
+    whole step there: ``tests/test_gpu_step.py``'s axisymmetric bar); what still runs on the
+    CPU only is told before any work, on any machine."""
     from impactsph.simulation import _cpu_only
 
     case = validate_case(axisymmetric_case([0.003, 0.01], 0.001, [0.0, -1.0], [], 1e-6,
                                            compute={"device": "gpu"}))
-    reason = _cpu_only(case)
-    assert reason == "the axis of axisymmetry is a symmetry plane, which runs on the CPU only"
-    with caplog.at_level("WARNING"):
-        backend = select_backend("gpu", 2, cpu_only=reason)
-    assert isinstance(backend, CpuRates)
-    assert "running on the CPU" in caplog.text and "axis of axisymmetry" in caplog.text
-    assert _cpu_only(validate_case(axisymmetric_case(
-        [0.003, 0.01], 0.001, [0.0, -1.0], [], 1e-6) | {"two_dimensional": "plane_strain",
-                                                        "boundaries": []})) is None
+    assert _cpu_only(case) is None
+    spec = axisymmetric_case([0.003, 0.01], 0.001, [0.0, -1.0], [], 1e-6)
+    spec["time"]["energy_update"] = "compatible"
+    assert _cpu_only(validate_case(spec)) == ("time.energy_update = 'compatible' runs on "
+                                              "the CPU only")

@@ -55,10 +55,12 @@ thread).
 
 Which runs keep their state on the device: :func:`resident_unsupported` names what keeps a
 run on the host path (walls with friction; driven regions and added mass; SSP-RK3 and the
-compatible energy update; plane stress and axisymmetry).  Such a run still evaluates its rates on
-the GPU, as before, and its log says why its state stays on the host.  Gauges take their
-particles' rows from the device at each step (``gauge_rows``), as probes take their
-velocities.
+compatible energy update; plane stress).  Such a run still evaluates its rates on the GPU,
+as before, and its log says why its state stays on the host.  Axisymmetry runs on the
+device: its axis is a symmetry plane, the stage's hoop terms are the CPU's, and the survey
+and the walls' layer take each particle's material density and area per radian as the CPU's
+do.  Gauges take their particles' rows from the device at each step (``gauge_rows``), as
+probes take their velocities.
 """
 
 from __future__ import annotations
@@ -73,7 +75,13 @@ import numpy as np
 from . import boundaries, codegen
 from .gpu import RECORD_ORDER, cuda, gpu_kernels, record_columns, simulator_enabled
 from .kernels import SUPPORT_RADIUS
-from .models.columns import CARRIED, PASS_CARRIED, VISCOSITY_FACTOR, VISCOSITY_MEMORY
+from .models.columns import (
+    CARRIED,
+    PASS_CARRIED,
+    THICKNESS_RATIO,
+    VISCOSITY_FACTOR,
+    VISCOSITY_MEMORY,
+)
 from .physics import stress_rate, survey
 from .physics.rates import compiled_passes
 
@@ -120,7 +128,7 @@ def resident_unsupported(case: Case, state: ParticleState, walls: Walls) -> str 
         return f"time.integrator = {case.time.integrator!r} runs on the host"
     if case.time.energy_update != "rate":
         return f"time.energy_update = {case.time.energy_update!r} runs on the host"
-    if case.dimension == 2 and case.two_dimensional != "plane_strain":
+    if case.dimension == 2 and case.two_dimensional == "plane_stress":
         return f"two_dimensional = {case.two_dimensional!r} runs on the host"
     if len(walls) and (walls.friction > 0.0).any():
         return "a wall has friction, applied on the host"
@@ -190,8 +198,8 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 hg0[i, a] = hg[i, a]
 
     @cuda.jit
-    def survey_kernel(n, x, v, rho, e, S, m, h, material, table, hourglass, points, normals,
-                      part, bad):
+    def survey_kernel(n, x, v, rho, e, S, st, m, h, material, table, hourglass, points,
+                      normals, part, bad):
         """Per block: min h/(c + |v|), KE, IE, momentum; the first bad value (atomic min of
         its code, which is exact), a particle behind a wall the last kind: each particle's
         part is the CPU's (:func:`impactsph.physics.survey.survey_particle`; the resident
@@ -204,8 +212,8 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
         sh[0, t] = math.inf
         if i < n:
             first, step, ke, ie, p0, p1, p2 = survey_particle(
-                i, n, x, v, rho[i], rho, e, S, m, m[i], h, material, table, hourglass,
-                points, normals, SURVEY_START, False)
+                i, n, x, v, rho[i] / st[i, THICKNESS_RATIO], rho, e, S, m, m[i], h, material,
+                table, hourglass, points, normals, SURVEY_START, False)
             if first >= 0:
                 cuda.atomic.min(bad, 0, first)
             sh[0, t] = step
@@ -268,7 +276,8 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
             bad[0] = NO_BAD
 
     @cuda.jit
-    def layer_kernel(n, x, v, m, material, table, points, normals, layer, dv, de, force):
+    def layer_kernel(n, x, v, m, material, table, points, normals, layer, per_radian, dv, de,
+                     force):
         """The walls' penalty layer on each particle (:func:`impactsph.boundaries.
         layer_push_particle`): added to its rates, its force into ``force`` for the books."""
         i = cuda.grid(1)
@@ -276,7 +285,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
             for a in range(DIM):
                 force[i, a] = 0.0
             layer_push_particle(i, x, v, m, material, table, points, normals, layer, dv, de,
-                                False, force[i])
+                                per_radian, force[i])
 
     @cuda.jit
     def totals_kernel(n, m, v, de_visc, dv_corr, de_corr, pair_count, contact_force,
@@ -870,8 +879,10 @@ class ResidentStep:
         #: the ghosts' stages, ``(first, last)`` each: the rigid walls', then each symmetry
         #: plane's (a ghost's source is a particle or a ghost of an earlier stage)
         self.stages: list[tuple[int, int]] = []
-        #: the walls' penalty layer (spacings), 0 for none
+        #: the walls' penalty layer (spacings), 0 for none, and whether its push is per radian
+        #: (axisymmetry: the solver's)
         self.layer = solver.wall_layer if walls is not None else 0.0
+        self.per_radian = bool(solver._axisymmetric)
         #: rate evaluations and rebuilds done on the device since :meth:`Simulation._fold`
         #: took them (the pair evaluations are in the books)
         self.rate_evaluations = 0
@@ -1426,7 +1437,8 @@ class ResidentStep:
         if self.layer > 0.0:  # after the pairs and the correction, as the CPU solver
             self._launch("layer", n, n, self.now["position"], self.now["velocity"], c["mass"],
                          c["material"], self.table, self.rigid_points, self.rigid_normals,
-                         float(self.layer), out["dv"], out["de"], self.layer_force)
+                         float(self.layer), self.per_radian, out["dv"], out["de"],
+                         self.layer_force)
         self._launch("totals", n, n, c["mass"], self.now["velocity"], out["de_visc"],
                      out["dv_corr"], out["de_corr"], out["pair_count"], out["contact_force"],
                      self.layer_force, self.corrected, self.walls is not None,
@@ -1496,9 +1508,10 @@ class ResidentStep:
         n = self.n
         now, c = self.now, self.const
         self._launch("survey", n, n, now["position"], now["velocity"], now["density"],
-                     now["specific_energy"], now["deviatoric_stress"], c["mass"],
-                     c["smoothing_length"], c["material"], self.table, self.hourglass,
-                     self.points, self.normals, self.survey_part, self.bad)
+                     now["specific_energy"], now["deviatoric_stress"],
+                     now["material_state"], c["mass"], c["smoothing_length"], c["material"],
+                     self.table, self.hourglass, self.points, self.normals, self.survey_part,
+                     self.bad)
         self._launch("survey_finish", 1, self.blocks, self.survey_part, float(courant),
                      self.bad, self.survey_out)
         out = self._fetch(self.survey_out)

@@ -696,11 +696,9 @@ class Simulation:
 
 
 def _cpu_only(case: Case) -> str | None:
-    """What in ``case`` runs on the CPU only, or None.  (Symmetry planes run on the GPU
-    since 2026-12-07: the whole step mirrors their ghosts' results there, the host path on
-    the host; axisymmetry, whose axis is one, has not been checked on a GPU.)"""
-    if case.two_dimensional == "axisymmetric":
-        return "the axis of axisymmetry is a symmetry plane, which runs on the CPU only"
+    """What in ``case`` runs on the CPU only, or None.  (Symmetry planes, axisymmetry's
+    axis among them, run on the GPU since 2026-12-07: the whole step mirrors their ghosts'
+    results there, the host path on the host.)"""
     if case.time.energy_update == "compatible":
         return "time.energy_update = 'compatible' runs on the CPU only"
     if case.kernel.max_stretch > 1.0:
