@@ -338,37 +338,47 @@ def friction_push(n, x, v, m, material, table, contact_force, points, normals, m
     regularising speed (``c_l`` the longitudinal wave speed at rho0): Coulomb's law
     ``|f_t| = mu f_n`` while it slides faster than ``v_r``.  The heat keeps the total
     energy."""
-    dim = x.shape[1]
-    total = np.zeros(dim)
+    total = np.zeros(x.shape[1])
     for w in range(points.shape[0]):
         if mu[w] <= 0.0:
             continue
         for i in range(n):
-            d = 0.0
-            fn = 0.0
-            vn = 0.0
-            for a in range(dim):
-                d += (x[i, a] - points[w, a]) * normals[w, a]
-                fn += contact_force[i, a] * normals[w, a]
-                vn += v[i, a] * normals[w, a]
-            if d < 0.0 or d >= reach or fn <= 0.0:
-                continue
-            k = material[i]
-            v_reg = FRICTION_REGULARISATION * math.sqrt(
-                (table[k, BULK] + 4.0 / 3.0 * table[k, SHEAR]) / table[k, RHO0])
-            vt2 = 0.0
-            for a in range(dim):
-                vt = v[i, a] - vn * normals[w, a]
-                vt2 += vt * vt
-            scale = mu[w] * fn / (m[i] * math.sqrt(vt2 + v_reg * v_reg))
-            power = 0.0
-            for a in range(dim):
-                acc = -scale * (v[i, a] - vn * normals[w, a])
-                dv[i, a] += acc
-                total[a] += m[i] * acc
-                power += v[i, a] * acc
-            de[i] -= power
+            friction_particle(i, w, x, v, m, material, table, contact_force, points, normals,
+                              mu, reach, dv, de, total)
     return total
+
+
+@nb.njit(inline="always", cache=True)
+def friction_particle(i, w, x, v, m, material, table, contact_force, points, normals, mu,
+                      reach, dv, de, force):
+    """Wall ``w``'s Coulomb friction on particle ``i`` (:func:`friction_push`'s law), added
+    to ``dv[i]`` and ``de[i]``, its force (N) to ``force`` (the CPU loop and the kernel of
+    :mod:`impactsph.gpu_step` call this)."""
+    dim = x.shape[1]
+    d = 0.0
+    fn = 0.0
+    vn = 0.0
+    for a in range(dim):
+        d += (x[i, a] - points[w, a]) * normals[w, a]
+        fn += contact_force[i, a] * normals[w, a]
+        vn += v[i, a] * normals[w, a]
+    if d < 0.0 or d >= reach or fn <= 0.0:
+        return
+    k = material[i]
+    v_reg = FRICTION_REGULARISATION * math.sqrt(
+        (table[k, BULK] + 4.0 / 3.0 * table[k, SHEAR]) / table[k, RHO0])
+    vt2 = 0.0
+    for a in range(dim):
+        vt = v[i, a] - vn * normals[w, a]
+        vt2 += vt * vt
+    scale = mu[w] * fn / (m[i] * math.sqrt(vt2 + v_reg * v_reg))
+    power = 0.0
+    for a in range(dim):
+        acc = -scale * (v[i, a] - vn * normals[w, a])
+        dv[i, a] += acc
+        force[a] += m[i] * acc
+        power += v[i, a] * acc
+    de[i] -= power
 
 
 #: damping ratio of the wall layer's dashpot: the midpoint integrator amplifies an undamped

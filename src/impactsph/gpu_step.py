@@ -35,7 +35,9 @@ evaluation the ghosts' rows are filled from their sources
 books them; the walls' penalty layer (``contact.wall_layer``) adds its push to the rates
 (:func:`impactsph.boundaries.layer_push_particle`).  The hourglass control and the Coulomb
 friction between bodies run their rate kernels on the device state, in the CPU's order
-(pairs, friction, correction, hourglass control, the walls' layer); clamped particles are
+(pairs, friction, correction, hourglass control, the walls' friction and then their
+layer, each particle's own: :func:`impactsph.boundaries.friction_particle`,
+``layer_push_particle``); clamped particles are
 held by the stage (:func:`~impactsph.physics.passes.advance_particle`), and the supports'
 impulse is booked from the step's mean accelerations (``clamp_sums``, ``clamp_finish``).
 A viscosity switch keeps its factors and memories on the device: each evaluation's switch
@@ -54,8 +56,8 @@ results mirrored (``mirror_results``, ``mirror_matrices``: the CPU's
 thread).
 
 Which runs keep their state on the device: :func:`resident_unsupported` names what keeps a
-run on the host path (walls with friction; driven regions and added mass; SSP-RK3 and the
-compatible energy update; plane stress).  Such a run still evaluates its rates on the GPU,
+run on the host path (driven regions and added mass; SSP-RK3 and the compatible energy
+update; plane stress).  Such a run still evaluates its rates on the GPU,
 as before, and its log says why its state stays on the host.  Axisymmetry runs on the
 device: its axis is a symmetry plane, the stage's hoop terms are the CPU's, and the survey
 and the walls' layer take each particle's material density and area per radian as the CPU's
@@ -130,8 +132,6 @@ def resident_unsupported(case: Case, state: ParticleState, walls: Walls) -> str 
         return f"time.energy_update = {case.time.energy_update!r} runs on the host"
     if case.dimension == 2 and case.two_dimensional == "plane_stress":
         return f"two_dimensional = {case.two_dimensional!r} runs on the host"
-    if len(walls) and (walls.friction > 0.0).any():
-        return "a wall has friction, applied on the host"
     if any(body.driven for body in case.bodies):
         return "the case has driven regions, applied on the host"
     if state.added_mass.any():
@@ -157,6 +157,8 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                         else boundaries.enforce_particle)
     layer_push_particle = (codegen._python_all_the_way(boundaries.layer_push_particle)
                            if simulated else boundaries.layer_push_particle)
+    friction_particle = (codegen._python_all_the_way(boundaries.friction_particle)
+                         if simulated else boundaries.friction_particle)
     # the CPU's survey of one particle (its Python source, and that of what it calls, under
     # the simulator)
     survey_particle = (codegen._python_all_the_way(survey.survey_particle) if simulated
@@ -288,8 +290,24 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                                 per_radian, force[i])
 
     @cuda.jit
+    def wall_friction_kernel(n, x, v, m, material, table, contact_force, points, normals, mu,
+                             reach, dv, de, force):
+        """The walls' Coulomb friction on each particle, wall by wall
+        (:func:`impactsph.boundaries.friction_particle`, as the CPU's
+        :func:`~impactsph.boundaries.friction_push`): added to its rates, its force into
+        ``force`` for the books."""
+        i = cuda.grid(1)
+        if i < n:
+            for a in range(DIM):
+                force[i, a] = 0.0
+            for w in range(points.shape[0]):
+                if mu[w] > 0.0:
+                    friction_particle(i, w, x, v, m, material, table, contact_force, points,
+                                      normals, mu, reach, dv, de, force[i])
+
+    @cuda.jit
     def totals_kernel(n, m, v, de_visc, dv_corr, de_corr, pair_count, contact_force,
-                      layer_force, corrected, walls, part):
+                      layer_force, friction_force, corrected, walls, part):
         """Per block: sum m de_visc, sum m v . dv_corr, sum m de_corr, the pairs and (walls)
         the walls' push: the contact forces' sum and the penalty layer's."""
         sh = cuda.shared.array((TOTALS, TPB), float64)
@@ -309,6 +327,9 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
             if walls:  # the contact forces' sum is the walls' push (bodies' cancel)
                 for a in range(DIM):
                     sh[4 + a, t] = contact_force[i, a]
+            if friction_force.shape[0] > 0:
+                for a in range(DIM):
+                    sh[4 + a, t] += friction_force[i, a]
             if layer_force.shape[0] > 0:
                 for a in range(DIM):
                     sh[4 + a, t] += layer_force[i, a]
@@ -775,6 +796,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
     return dict(advance=advance_kernel, start=start_kernel, survey=survey_kernel,
                 survey_finish=survey_finish,
                 totals=totals_kernel, totals_finish=totals_finish, layer=layer_kernel,
+                wall_friction=wall_friction_kernel,
                 enforce=enforce_kernel,
                 enforce_sums=enforce_sums, enforce_finish=enforce_finish, body=body_kernel,
                 body_finish=body_finish, clamp_sums=clamp_sums, clamp_finish=clamp_finish,
@@ -883,6 +905,9 @@ class ResidentStep:
         #: (axisymmetry: the solver's)
         self.layer = solver.wall_layer if walls is not None else 0.0
         self.per_radian = bool(solver._axisymmetric)
+        #: the walls' Coulomb friction (their coefficients, on the device), or None
+        self.mu = (cuda.to_device(np.ascontiguousarray(walls.friction, np.float64), stream=s)
+                   if walls is not None and (walls.friction > 0.0).any() else None)
         #: rate evaluations and rebuilds done on the device since :meth:`Simulation._fold`
         #: took them (the pair evaluations are in the books)
         self.rate_evaluations = 0
@@ -937,6 +962,7 @@ class ResidentStep:
             self.scratch = empty((n, 4), np.float64)
             self.enforce_part = empty((self.blocks, 4), np.float64)
         self.layer_force = empty((n if self.layer > 0.0 else 0, dim), np.float64)
+        self.friction_force = empty((n if self.mu is not None else 0, dim), np.float64)
         switch_rows = n if self.switched else 0
         self.switch = {name: empty(switch_rows, np.float64, stream=s)
                        for name in ("factor", "memory", "next_factor", "next_memory")}
@@ -1434,6 +1460,11 @@ class ResidentStep:
                 self.table, self.hourglass, self.now["hourglass_acceleration"], out["dv"],
                 out["de"], out["dhg"])
         c = self.const
+        if self.mu is not None:  # the walls' friction, then their layer, as the CPU solver
+            self._launch("wall_friction", n, n, self.now["position"], self.now["velocity"],
+                         c["mass"], c["material"], self.table, out["contact_force"],
+                         self.points, self.normals, self.mu, self.support, out["dv"],
+                         out["de"], self.friction_force)
         if self.layer > 0.0:  # after the pairs and the correction, as the CPU solver
             self._launch("layer", n, n, self.now["position"], self.now["velocity"], c["mass"],
                          c["material"], self.table, self.rigid_points, self.rigid_normals,
@@ -1441,7 +1472,8 @@ class ResidentStep:
                          self.layer_force)
         self._launch("totals", n, n, c["mass"], self.now["velocity"], out["de_visc"],
                      out["dv_corr"], out["de_corr"], out["pair_count"], out["contact_force"],
-                     self.layer_force, self.corrected, self.walls is not None,
+                     self.layer_force, self.friction_force, self.corrected,
+                     self.walls is not None,
                      self.totals_part)
         self._launch("totals_finish", 1, self.blocks, self.totals_part, float(dt),
                      float(weight), bool(first), self.books)
