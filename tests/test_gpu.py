@@ -101,7 +101,11 @@ STEPS = 100
 #: state downloaded, changed on the host and uploaded again).
 _RING = "bodies.{b}.geometry.inner_radius=0.005 bodies.{b}.geometry.outer_radius=0.009"
 RESIDENT = {
-    "bars-1d": ("bars", [*CASES["bars-1d"][1], "output.history_every=2"], 6),
+    # (the left bar's far end carries a tip mass as added inertia: its accelerations, the
+    # momentum and the kinetic energy take it)
+    "bars-1d": ("bars", [*CASES["bars-1d"][1], "output.history_every=2",
+                         "bodies.0.tip_mass={mass=0.002, velocity=[80.0], "
+                         "region={origin=[-0.0202], size=[0.004]}}"], 6),
     "rings-2d": ("rings", [*_RING.format(b=0).split(), *_RING.format(b=1).split(),
                            "bodies.0.geometry.centre=[-0.0095, 0.0]",
                            "bodies.1.geometry.centre=[0.0095, 0.0]",
@@ -268,7 +272,7 @@ def _device_survey() -> dict:
         record = cuda.device_array(7)
         # (a material state of thickness ratio 1: the material density is the density)
         st = np.ones((n, CARRIED))
-        device = [cuda.to_device(a) for a in (x, v, rho, e, S, st, m, h, material, table)]
+        device = [cuda.to_device(a) for a in (x, v, rho, e, S, st, m, m, h, material, table)]
         k["survey"][blocks, tpb](n, *device, 0.0, cuda.to_device(walls.points),
                                  cuda.to_device(walls.normals), part, bad)
         k["survey_finish"][1, tpb](blocks, part, 0.3, bad, record)
@@ -822,6 +826,7 @@ def test_what_keeps_the_state_on_the_host_is_named():
         is None
     assert why(str(Path(__file__).parent / "data" / "friction_pair.toml")) is None
     assert why("cantilever") is None
+    assert why("cantilever", ['bodies.0.tip_mass.carried_as="added_inertia"']) is None
     assert "plane_stress" in why("taylor", ['two_dimensional="plane_stress"'])
     assert "driven" in why("taylor", ['bodies.0.driven=[{name="top", origin=[-0.004, 0.02], '
                                       'size=[0.008, 0.01], velocity=[0.0, -10.0]}]'])
@@ -1098,7 +1103,7 @@ def _step_kernel_types(name: str, dim: int) -> tuple:
                       "friction_force", f2),
                      ("S", f3),
                      ("rho0 e0 pw0 drho de rho e pw h m de_visc de_corr lo hi origin largest "
-                      "books factor memory mu", f1),
+                      "books factor memory mu inertia fraction", f1),
                      ("pair_count bad ncell key counts ends fill a sums rows offsets src wall "
                       "position", i64),
                      ("material order indices body", i32)):

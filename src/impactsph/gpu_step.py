@@ -56,8 +56,11 @@ results mirrored (``mirror_results``, ``mirror_matrices``: the CPU's
 thread).
 
 Which runs keep their state on the device: :func:`resident_unsupported` names what keeps a
-run on the host path (driven regions and added mass; SSP-RK3 and the compatible energy
-update; plane stress).  Such a run still evaluates its rates on the GPU,
+run on the host path (driven regions; SSP-RK3 and the compatible energy update; plane
+stress).  Added mass (a tip mass carried as added inertia) runs on the device: the
+accelerations are scaled by ``m / (m + added)`` after the rates (``scale``), and the
+survey, the books' impulses and the bodies' kinetic energy take the inertia ``m +
+added``, as on the CPU.  Such a run still evaluates its rates on the GPU,
 as before, and its log says why its state stays on the host.  Axisymmetry runs on the
 device: its axis is a symmetry plane, the stage's hoop terms are the CPU's, and the survey
 and the walls' layer take each particle's material density and area per radian as the CPU's
@@ -111,7 +114,8 @@ BOOKS_WIDTH = 17
 INTEGRATED = ("position", "velocity", "density", "specific_energy", "deviatoric_stress",
               "plastic_work", "material_state", "hourglass_acceleration")
 #: The constant fields the kernels read.
-CONSTANT = ("mass", "smoothing_length", "material", "body", "clamped", "initial_position")
+CONSTANT = ("mass", "smoothing_length", "material", "body", "clamped", "initial_position",
+            "added_mass")
 #: The builds' kept arrays grow by 1/BUFFER_MARGIN more than they need (the list's indices
 #: are most of them: about 290 B a particle in 3D, 1/8 of it was 37 B).
 BUFFER_MARGIN = 32
@@ -134,8 +138,6 @@ def resident_unsupported(case: Case, state: ParticleState, walls: Walls) -> str 
         return f"two_dimensional = {case.two_dimensional!r} runs on the host"
     if any(body.driven for body in case.bodies):
         return "the case has driven regions, applied on the host"
-    if state.added_mass.any():
-        return "the case has added mass, applied on the host"
     return None
 
 
@@ -200,12 +202,13 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 hg0[i, a] = hg[i, a]
 
     @cuda.jit
-    def survey_kernel(n, x, v, rho, e, S, st, m, h, material, table, hourglass, points,
-                      normals, part, bad):
+    def survey_kernel(n, x, v, rho, e, S, st, m, inertia, h, material, table, hourglass,
+                      points, normals, part, bad):
         """Per block: min h/(c + |v|), KE, IE, momentum; the first bad value (atomic min of
         its code, which is exact), a particle behind a wall the last kind: each particle's
         part is the CPU's (:func:`impactsph.physics.survey.survey_particle`; the resident
-        step runs no added mass; ``hourglass``: the hourglass control's zeta, 0 for none)."""
+        ``inertia``: the masses with the added masses, the inertia of the kinetic energy and
+        the momentum; ``hourglass``: the hourglass control's zeta, 0 for none)."""
         sh = cuda.shared.array((6, TPB), float64)
         i = cuda.grid(1)
         t = cuda.threadIdx.x
@@ -214,8 +217,8 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
         sh[0, t] = math.inf
         if i < n:
             first, step, ke, ie, p0, p1, p2 = survey_particle(
-                i, n, x, v, rho[i] / st[i, THICKNESS_RATIO], rho, e, S, m, m[i], h, material,
-                table, hourglass, points, normals, SURVEY_START, False)
+                i, n, x, v, rho[i] / st[i, THICKNESS_RATIO], rho, e, S, m, inertia[i], h,
+                material, table, hourglass, points, normals, SURVEY_START, False)
             if first >= 0:
                 cuda.atomic.min(bad, 0, first)
             sh[0, t] = step
@@ -425,7 +428,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 books[CLAMP + a] -= dt * sh[a, 0]
 
     @cuda.jit
-    def body_kernel(n, b, body, m, v, e, pw, x, x0, force, part):
+    def body_kernel(n, b, body, m, inertia, v, e, pw, x, x0, force, part):
         """Per block, over body ``b``'s particles (:func:`impactsph.simulation.body_totals`):
         kinetic and internal energy, plastic work, the contact force (``force``, where it has
         rows), then the largest squared displacement."""
@@ -441,7 +444,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 v2 += v[i, a] * v[i, a]
                 d = x[i, a] - x0[i, a]
                 u2 += d * d
-            sh[0, t] = 0.5 * m[i] * v2
+            sh[0, t] = 0.5 * inertia[i] * v2  # (the mass and the added mass)
             sh[1, t] = m[i] * e[i]
             sh[2, t] = m[i] * pw[i]
             if force.shape[0] > 0:
@@ -754,6 +757,15 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 a[k] += add
 
     @cuda.jit
+    def scale_kernel(n, fraction, dv):
+        """Added mass: each particle's force per own mass into its acceleration, ``dv *= m /
+        (m + added)`` (:meth:`impactsph.solver.Solver.rates`)."""
+        i = cuda.grid(1)
+        if i < n:
+            for a in range(DIM):
+                dv[i, a] *= fraction[i]
+
+    @cuda.jit
     def carry_kernel(n, st, factor, memory, carried):
         """A scheme with a viscosity switch: each particle's row of the passes' ``carried``
         (the common material state, then the factor and its memory: as
@@ -809,7 +821,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 scatter=scatter_kernel, cell_sort=cell_sort_kernel, gather=gather_kernel,
                 neighbours=neighbour_kernel, zero=zero_kernel, scan_chunks=scan_chunks,
                 scan_add=scan_add, take_rows=take_rows, gauges=gauge_kernel,
-                carry=carry_kernel)
+                carry=carry_kernel, scale=scale_kernel)
 
 
 def prefix_sum(kernels: dict, a, n: int, tpb: int, stream, buffer, depth: int = 0) -> None:
@@ -1113,6 +1125,13 @@ class ResidentStep:
                     np.ascontiguousarray(getattr(state, f"viscosity_{name}"), np.float64),
                     stream=s)
         self.factor_time = float(state.viscosity_factor_time)
+        # the inertia of the books' impulses and the kinetic energy (mass and added mass), and
+        # with added mass the fraction that turns forces per own mass into accelerations
+        self.inertia = cuda.to_device(np.ascontiguousarray(state.mass + state.added_mass),
+                                      stream=s)
+        fraction = state.inertia_fraction()
+        self.fraction = (None if fraction is None
+                         else cuda.to_device(np.ascontiguousarray(fraction), stream=s))
         clamped = np.flatnonzero(state.clamped).astype(np.int64)
         self.clamped_rows = cuda.device_array(clamped.shape[0], np.int64, stream=s)
         if clamped.shape[0]:  # (no copy of nothing)
@@ -1261,7 +1280,7 @@ class ResidentStep:
         now, c, n, dim = self.now, self.const, self.n, self.dim
         force = self.out["contact_force"] if self.n_bodies > 1 else self.out["dv"][:0]
         for b in range(self.n_bodies):
-            self._launch("body", n, n, b, c["body"], c["mass"], now["velocity"],
+            self._launch("body", n, n, b, c["body"], c["mass"], self.inertia, now["velocity"],
                          now["specific_energy"], now["plastic_work"], now["position"],
                          c["initial_position"], force, self.body_part)
             self._launch("body_finish", 1, self.blocks, self.body_part, b, self.body_out)
@@ -1477,6 +1496,8 @@ class ResidentStep:
                      self.totals_part)
         self._launch("totals_finish", 1, self.blocks, self.totals_part, float(dt),
                      float(weight), bool(first), self.books)
+        if self.fraction is not None:  # added mass: forces per own mass -> accelerations
+            self._launch("scale", n, n, self.fraction, out["dv"])
         self.rate_evaluations += 1
 
     def _mirror(self, kernel: str, *columns) -> None:
@@ -1503,7 +1524,7 @@ class ResidentStep:
                      now["hourglass_acceleration"])
         if self.walls is not None:
             n = self.n
-            self._launch("enforce", n, n, now["position"], now["velocity"], c["mass"],
+            self._launch("enforce", n, n, now["position"], now["velocity"], self.inertia,
                          self.points, self.normals, self.scratch)
             self._launch("enforce_sums", n, n, self.scratch, self.enforce_part)
             self._launch("enforce_finish", 1, self.blocks, self.enforce_part, bool(last),
@@ -1525,7 +1546,7 @@ class ResidentStep:
         self._stage(dt, self.now["velocity"], 1.0, True)
         rows = self.clamped_rows.shape[0]
         if rows:  # the supports' impulse, from the step's mean accelerations (the corrector's)
-            self._launch("clamp_sums", rows, rows, self.clamped_rows, self.const["mass"],
+            self._launch("clamp_sums", rows, rows, self.clamped_rows, self.inertia,
                          self.out["dv"], self.clamp_part)
             self._launch("clamp_finish", 1, self.clamp_part.shape[0], self.clamp_part,
                          float(dt), self.books)
@@ -1541,9 +1562,9 @@ class ResidentStep:
         now, c = self.now, self.const
         self._launch("survey", n, n, now["position"], now["velocity"], now["density"],
                      now["specific_energy"], now["deviatoric_stress"],
-                     now["material_state"], c["mass"], c["smoothing_length"], c["material"],
-                     self.table, self.hourglass, self.points, self.normals, self.survey_part,
-                     self.bad)
+                     now["material_state"], c["mass"], self.inertia, c["smoothing_length"],
+                     c["material"], self.table, self.hourglass, self.points, self.normals,
+                     self.survey_part, self.bad)
         self._launch("survey_finish", 1, self.blocks, self.survey_part, float(courant),
                      self.bad, self.survey_out)
         out = self._fetch(self.survey_out)
