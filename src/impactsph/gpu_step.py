@@ -56,11 +56,14 @@ results mirrored (``mirror_results``, ``mirror_matrices``: the CPU's
 thread).
 
 Which runs keep their state on the device: :func:`resident_unsupported` names what keeps a
-run on the host path (driven regions; SSP-RK3 and the compatible energy update; plane
-stress).  Added mass (a tip mass carried as added inertia) runs on the device: the
-accelerations are scaled by ``m / (m + added)`` after the rates (``scale``), and the
-survey, the books' impulses and the bodies' kinetic energy take the inertia ``m +
-added``, as on the CPU.  Such a run still evaluates its rates on the GPU,
+run on the host path (SSP-RK3 and the compatible energy update; plane stress).  Driven
+regions run on the device: after each stage their particles take the prescribed velocity
+(``drive``, the host evaluating its expression of t), and each step's reactions and work
+are booked there (``clamp_sums`` over the region, ``drive_finish``), their impulse on the
+host (the prescribed momentum change).  Added mass (a tip mass carried as added inertia)
+runs on the device: the accelerations are scaled by ``m / (m + added)`` after the rates
+(``scale``), and the survey, the books' impulses and the bodies' kinetic energy take the
+inertia ``m + added``, as on the CPU.  Such a run still evaluates its rates on the GPU,
 as before, and its log says why its state stays on the host.  Axisymmetry runs on the
 device: its axis is a symmetry plane, the stage's hoop terms are the CPU's, and the survey
 and the walls' layer take each particle's material density and area per radian as the CPU's
@@ -136,8 +139,6 @@ def resident_unsupported(case: Case, state: ParticleState, walls: Walls) -> str 
         return f"time.energy_update = {case.time.energy_update!r} runs on the host"
     if case.dimension == 2 and case.two_dimensional == "plane_stress":
         return f"two_dimensional = {case.two_dimensional!r} runs on the host"
-    if any(body.driven for body in case.bodies):
-        return "the case has driven regions, applied on the host"
     return None
 
 
@@ -757,6 +758,39 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 a[k] += add
 
     @cuda.jit
+    def drive_kernel(n_rows, rows, vx, vy, vz, v):
+        """A driven region's particles ``rows`` at the prescribed velocity ``(vx, vy, vz)``
+        (:meth:`impactsph.driven.Drivers.apply`)."""
+        k = cuda.grid(1)
+        if k < n_rows:
+            i = rows[k]
+            v[i, 0] = vx
+            if DIM > 1:
+                v[i, 1] = vy
+            if DIM > 2:
+                v[i, 2] = vz
+
+    @cuda.jit
+    def drive_finish(n_blocks, part, region, rate_x, rate_y, rate_z, vel_x, vel_y, vel_z, dt,
+                     reactions, work):
+        """One block: driven region ``region``'s reaction over the step, its prescribed
+        momentum change over ``dt`` (``rate_*``) less the blocks' sums of ``m dv``
+        (``clamp_sums`` over its rows), and its work at the velocity ``vel_*`` added to
+        ``work[0]`` (:meth:`impactsph.driven.Drivers.account`)."""
+        sh = cuda.shared.array((3, TPB), float64)
+        t = cuda.threadIdx.x
+        _gather_blocks(part, n_blocks, sh, 3, 0, 0, t)
+        if t == 0:
+            change = (rate_x, rate_y, rate_z)
+            velocity = (vel_x, vel_y, vel_z)
+            power = 0.0
+            for a in range(DIM):
+                force = change[a] - sh[a, 0]
+                reactions[region, a] = force
+                power += force * velocity[a]
+            work[0] += power * dt
+
+    @cuda.jit
     def scale_kernel(n, fraction, dv):
         """Added mass: each particle's force per own mass into its acceleration, ``dv *= m /
         (m + added)`` (:meth:`impactsph.solver.Solver.rates`)."""
@@ -821,7 +855,8 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 scatter=scatter_kernel, cell_sort=cell_sort_kernel, gather=gather_kernel,
                 neighbours=neighbour_kernel, zero=zero_kernel, scan_chunks=scan_chunks,
                 scan_add=scan_add, take_rows=take_rows, gauges=gauge_kernel,
-                carry=carry_kernel, scale=scale_kernel)
+                carry=carry_kernel, scale=scale_kernel, drive=drive_kernel,
+                drive_finish=drive_finish)
 
 
 def prefix_sum(kernels: dict, a, n: int, tpb: int, stream, buffer, depth: int = 0) -> None:
@@ -852,7 +887,8 @@ class ResidentStep:
     walls' constraint applied on the device.
     """
 
-    def __init__(self, solver: Any, state: ParticleState, table: np.ndarray):
+    def __init__(self, solver: Any, state: ParticleState, table: np.ndarray,
+                 drivers: Any = None):
         from .models import registry
 
         backend = solver.backend
@@ -882,6 +918,9 @@ class ResidentStep:
         #: a scheme with a viscosity switch: its factors and memories (a state of the rates,
         #: not integrated) on the device, set by each evaluation's switch kernel for the next
         self.switched = self.viscosity.switch is not None
+        #: the driven regions (:class:`impactsph.driven.Drivers`, whose prescribed velocities
+        #: the host evaluates), or None; their reactions and work are kept on the device
+        self.drivers = drivers
         self.friction = float(self.options.contact_friction) if self.n_bodies > 1 else 0.0
         self.support = SUPPORT_RADIUS * float(state.smoothing_length.max())
         self.skin = solver.neighbours.skin
@@ -978,6 +1017,13 @@ class ResidentStep:
         switch_rows = n if self.switched else 0
         self.switch = {name: empty(switch_rows, np.float64, stream=s)
                        for name in ("factor", "memory", "next_factor", "next_memory")}
+        regions = self.drivers.regions if self.drivers is not None else []
+        self.driven = [(cuda.to_device(np.ascontiguousarray(r.rows, np.int64), stream=s),
+                        empty((max(1, (r.rows.shape[0] + self.tpb - 1) // self.tpb), 3),
+                              np.float64, stream=s)) for r in regions]
+        self.reactions = cuda.to_device(np.zeros((max(len(regions), 1), 3)), stream=s)
+        self.drive_work = cuda.to_device(np.zeros(1), stream=s)
+        self._accounted = False  # whether a step has booked the regions' reactions
 
     def _rows(self, rows: int) -> None:
         """The arrays of every row (particles, then ghosts) for ``rows`` rows: the state's
@@ -1538,12 +1584,16 @@ class ResidentStep:
         now, st = self.now, self.start
         self._launch("start", self.n, self.n, *(now[f] for f in INTEGRATED),
                      *(st[f] for f in INTEGRATED))
-        self._evaluate(dt, 0.0, True, state.time)
+        t = state.time
+        self._evaluate(dt, 0.0, True, t)
         self._stage(0.5 * dt, self.start["velocity"], 0.0, False)
-        self._evaluate(dt, 1.0, False, state.time + 0.5 * dt)
+        self._drive(t + 0.5 * dt)
+        self._evaluate(dt, 1.0, False, t + 0.5 * dt)
         # x(t + dt) = x(t) + dt v(t + dt/2): each thread reads its particle's midpoint
         # velocity before it overwrites it
         self._stage(dt, self.now["velocity"], 1.0, True)
+        self._drive(t + dt)
+        self._account(t, dt)
         rows = self.clamped_rows.shape[0]
         if rows:  # the supports' impulse, from the step's mean accelerations (the corrector's)
             self._launch("clamp_sums", rows, rows, self.clamped_rows, self.inertia,
@@ -1553,6 +1603,58 @@ class ResidentStep:
         self.host_current = False
         state.time += dt
         state.step += 1
+
+    def _drive(self, t: float) -> None:
+        """The driven particles at their prescribed velocities at ``t``."""
+        if self.drivers is None:
+            return
+        for r, (rows, _) in zip(self.drivers.regions, self.driven, strict=True):
+            if rows.shape[0]:
+                velocity = [*r.velocity(t).tolist(), 0.0, 0.0][:3]
+                self._launch("drive", rows.shape[0], rows.shape[0], rows, *velocity,
+                             self.now["velocity"])
+
+    def _account(self, t: float, dt: float) -> None:
+        """The driven regions' reactions and work over the step from ``t`` on (on the
+        device, from the corrector's accelerations) and their impulse (on the host: the
+        prescribed momentum change), as :meth:`impactsph.driven.Drivers.account`."""
+        if self.drivers is None:
+            return
+        for k, (r, (rows, part)) in enumerate(zip(self.drivers.regions, self.driven,
+                                                   strict=True)):
+            v0, v1 = r.velocity(t), r.velocity(t + dt)
+            change = r.mass * (v1 - v0)
+            rate = [*(change / dt).tolist(), 0.0, 0.0][:3]
+            middle = [*r.velocity(t + 0.5 * dt).tolist(), 0.0, 0.0][:3]
+            n_rows = rows.shape[0]
+            self._launch("clamp_sums", n_rows, n_rows, rows, self.inertia, self.out["dv"],
+                         part)
+            self._launch("drive_finish", 1, part.shape[0], part, k, *rate, *middle,
+                         float(dt), self.reactions, self.drive_work)
+            self.drivers.impulse += change
+        self._accounted = True
+
+    def fold_drivers(self) -> None:
+        """The driven regions' reactions (the last step's) and work, as the device holds
+        them, into the host's :class:`~impactsph.driven.Drivers`."""
+        if self.drivers is None:
+            return
+        reactions, work = self._fetch(self.reactions), self._fetch(self.drive_work)
+        for k, r in enumerate(self.drivers.regions):  # (none before a step's account)
+            if r.name in self.drivers.reaction or self._accounted:
+                self.drivers.reaction[r.name] = reactions[k, : self.dim].copy()
+        self.drivers.work = float(work[0])
+
+    def set_drivers(self) -> None:
+        """The host's driven regions' reactions and work onto the device."""
+        if self.drivers is None:
+            return
+        reactions = np.zeros(self.reactions.shape)
+        for k, r in enumerate(self.drivers.regions):
+            if r.name in self.drivers.reaction:
+                reactions[k, : self.dim] = self.drivers.reaction[r.name]
+        self.reactions.copy_to_device(reactions, stream=self.stream)
+        self.drive_work.copy_to_device(np.array([self.drivers.work]), stream=self.stream)
 
     def survey(self, courant: float) -> tuple[float, np.ndarray, int]:
         """The CFL step (eq 26), ``(KE, IE, p_x, p_y, p_z)`` and the first bad value's code

@@ -258,8 +258,10 @@ class Simulation:
             log.info("the state stays on the host between steps (%s): its rates run on the "
                      "GPU, with the state copied up and the rates down at each evaluation", why)
             return
-        self._resident = ResidentStep(self.solver, self._state, self.problem.table)
+        self._resident = ResidentStep(self.solver, self._state, self.problem.table,
+                                      self.integrator.drivers)
         self._resident.set_books(self._books())
+        self._resident.set_drivers()
         self.solver.backend.release()  # the host path's copies, from the first evaluation
         log.info("the whole step runs on the GPU: the state stays there between steps")
 
@@ -281,6 +283,7 @@ class Simulation:
         """The host state and books onto the GPU (the caller may have changed them)."""
         self._resident.upload(self._state)
         self._resident.set_books(self._books())
+        self._resident.set_drivers()
 
     def _fold(self) -> None:
         """The books as the GPU holds them (its running totals, added in the CPU's order:
@@ -295,6 +298,7 @@ class Simulation:
         self.integrator.constraint_events = books["events"]
         self.integrator.constraint_impulse = books["constraint_impulse"]
         self.integrator.clamp_impulse = books["clamp_impulse"]
+        r.fold_drivers()
         self.solver.pair_evaluations = books["pairs"]
         self.solver.rate_evaluations += r.rate_evaluations
         self.solver.neighbours.builds += r.builds
