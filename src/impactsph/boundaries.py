@@ -277,20 +277,28 @@ def mirror_ghost_results(src, wall, normals, kinds, n_real, position, P, u_colum
     planes) mirrors its source ghost's results, mirrored before it (the ghosts are in order):
     the composition of the two reflections, as the whole model has it."""
     for k in range(src.shape[0]):
-        i = src[k]
-        w = wall[k]
-        if not mirrors_a_symmetric_row(src, wall, kinds, n_real, k):
-            continue
-        pg = position[n_real + k]
-        pi = position[i]
-        if P.shape[1] > u_column:  # the records carry u (a correction or switch reads it)
-            un = 0.0
-            for a in range(dim):
-                un += P[pi, u_column + a] * normals[w, a]
-            for a in range(dim):
-                P[pg, u_column + a] = P[pi, u_column + a] - 2.0 * un * normals[w, a]
-        if gradients.shape[0] > 0:
-            reflect(gradients[pi], normals[w], dim, gradients[pg])
+        mirror_ghost_result(k, src, wall, normals, kinds, n_real, position, P, u_column, dim,
+                            gradients)
+
+
+@nb.njit(inline="always", cache=True)
+def mirror_ghost_result(k, src, wall, normals, kinds, n_real, position, P, u_column, dim,
+                        gradients):
+    """:func:`mirror_ghost_results` for ghost ``k`` (the CPU loop and the kernel of
+    :mod:`impactsph.gpu_step` call this)."""
+    if not mirrors_a_symmetric_row(src, wall, kinds, n_real, k):
+        return
+    w = wall[k]
+    pg = position[n_real + k]
+    pi = position[src[k]]
+    if P.shape[1] > u_column:  # the records carry u (a correction or switch reads it)
+        un = 0.0
+        for a in range(dim):
+            un += P[pi, u_column + a] * normals[w, a]
+        for a in range(dim):
+            P[pg, u_column + a] = P[pi, u_column + a] - 2.0 * un * normals[w, a]
+    if gradients.shape[0] > 0:
+        reflect(gradients[pi], normals[w], dim, gradients[pg])
 
 
 @nb.njit(cache=True)
@@ -304,19 +312,27 @@ def mirror_ghost_matrices(src, wall, normals, kinds, n_real, position, P, c0, di
     source = np.empty((dim, dim))
     mirrored = np.empty((dim, dim))
     for k in range(src.shape[0]):
-        i = src[k]
-        w = wall[k]
-        if not mirrors_a_symmetric_row(src, wall, kinds, n_real, k):
-            continue
-        pg = position[n_real + k]
-        pi = position[i]
-        for a in range(dim):
-            for b in range(dim):
-                source[a, b] = P[pi, c0 + a * dim + b]
-        reflect(source, normals[w], dim, mirrored)
-        for a in range(dim):
-            for b in range(dim):
-                P[pg, c0 + a * dim + b] = mirrored[a, b]
+        mirror_ghost_matrix(k, src, wall, normals, kinds, n_real, position, P, c0, dim,
+                            source, mirrored)
+
+
+@nb.njit(inline="always", cache=True)
+def mirror_ghost_matrix(k, src, wall, normals, kinds, n_real, position, P, c0, dim, source,
+                        mirrored):
+    """:func:`mirror_ghost_matrices` for ghost ``k``, ``source`` and ``mirrored`` its
+    ``dim x dim`` scratch (the CPU loop and the kernel of :mod:`impactsph.gpu_step` call
+    this)."""
+    if not mirrors_a_symmetric_row(src, wall, kinds, n_real, k):
+        return
+    pg = position[n_real + k]
+    pi = position[src[k]]
+    for a in range(dim):
+        for b in range(dim):
+            source[a, b] = P[pi, c0 + a * dim + b]
+    reflect(source, normals[wall[k]], dim, mirrored)
+    for a in range(dim):
+        for b in range(dim):
+            P[pg, c0 + a * dim + b] = mirrored[a, b]
 
 
 

@@ -152,9 +152,10 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
     advance_particle = passes.advance_particle
     # the walls' functions as the CPU runs them (their Python source under the simulator)
     fill_ghost = boundaries.fill_ghost.py_func if simulated else boundaries.fill_ghost
-    mirrors_a_symmetric_row = (boundaries.mirrors_a_symmetric_row.py_func if simulated
-                               else boundaries.mirrors_a_symmetric_row)
-    reflect = boundaries.reflect.py_func if simulated else boundaries.reflect
+    mirror_ghost_result = (codegen._python_all_the_way(boundaries.mirror_ghost_result)
+                           if simulated else boundaries.mirror_ghost_result)
+    mirror_ghost_matrix = (codegen._python_all_the_way(boundaries.mirror_ghost_matrix)
+                           if simulated else boundaries.mirror_ghost_matrix)
     SYMMETRY = boundaries.SYMMETRY  # noqa: N806 - a compile-time constant of the kernels
     enforce_particle = (boundaries.enforce_particle.py_func if simulated
                         else boundaries.enforce_particle)
@@ -550,19 +551,9 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
         selection: a corner image's source ghost is of an earlier stage, mirrored before):
         :func:`impactsph.boundaries.mirror_ghost_results`, a ghost a thread."""
         k = start + cuda.grid(1)
-        if k < stop and mirrors_a_symmetric_row(src, wall, kinds, n_real, k):
-            i = src[k]
-            w = wall[k]
-            pg = position[n_real + k]
-            pi = position[i]
-            if P.shape[1] > u_column:
-                un = 0.0
-                for a in range(DIM):
-                    un += P[pi, u_column + a] * normals[w, a]
-                for a in range(DIM):
-                    P[pg, u_column + a] = P[pi, u_column + a] - 2.0 * un * normals[w, a]
-            if gradients.shape[0] > 0:
-                reflect(gradients[pi], normals[w], DIM, gradients[pg])
+        if k < stop:
+            mirror_ghost_result(k, src, wall, normals, kinds, n_real, position, P, u_column,
+                                DIM, gradients)
 
     @cuda.jit
     def mirror_matrices_kernel(start, stop, src, wall, normals, kinds, n_real, position, P,
@@ -570,18 +561,11 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
         """After the correction matrices (or a reconstructing viscosity's gradients), for
         ghosts ``start`` to ``stop``: :func:`impactsph.boundaries.mirror_ghost_matrices`."""
         k = start + cuda.grid(1)
-        if k < stop and mirrors_a_symmetric_row(src, wall, kinds, n_real, k):
+        if k < stop:
             source = cuda.local.array((DIM, DIM), float64)
             mirrored = cuda.local.array((DIM, DIM), float64)
-            pg = position[n_real + k]
-            pi = position[src[k]]
-            for a in range(DIM):
-                for b in range(DIM):
-                    source[a, b] = P[pi, c0 + a * DIM + b]
-            reflect(source, normals[wall[k]], DIM, mirrored)
-            for a in range(DIM):
-                for b in range(DIM):
-                    P[pg, c0 + a * DIM + b] = mirrored[a, b]
+            mirror_ghost_matrix(k, src, wall, normals, kinds, n_real, position, P, c0, DIM,
+                                source, mirrored)
 
     @cuda.jit
     def ghost_fill_kernel(start, stop, src, wall, points, normals, kinds, n_real, x, v, rho, e,
