@@ -115,13 +115,16 @@ RESIDENT = {
                            # the hourglass control) and Coulomb friction between the bodies
                            'stabilisation.gradient_correction="velocity_gradient_and_forces"',
                            "stabilisation.hourglass=2.0", "contact.friction=0.3",
-                           "output.history_every=3"], 5),
+                           "output.history_every=3"], 4),
     # rigid walls: ghosts chosen, filled and the constraint applied on the device, the wall's
     # Coulomb friction; a gauge's every field, its rows taken from the device at every step
     "taylor-2d": ("taylor", ["bodies.0.geometry.count=[4, 6]", "time.neighbour_skin=0.02",
                              "output.history_every=1",
                              'boundaries=[{type="wall", point=[0.0, 0.0], normal=[0.0, 1.0], '
                              'friction=0.3}]',
+                             # a viscosity switch (the variant of taylor-2d-balsara above: its
+                             # factors kept on the device, restarted bitwise below)
+                             'viscosity.scheme="balsara"',
                              'output.gauges=[{name="foot", body="bar", '
                              'position=[0.001, 0.001], fields=["position", "displacement", '
                              '"velocity", "density", "pressure", "specific_energy", '
@@ -130,9 +133,7 @@ RESIDENT = {
     # (h = 1.4 dx: the lattice's sqrt(8) dx pairs lie in the skin, so the 3D rows' split at
     # the support, neighbours.py, is in the lists compared)
     "block-3d": ("taylor", [*CASES["block-3d"][1][:-2], "time.neighbour_skin=0.02",
-                            "kernel.h_over_dx=1.4", "output.history_every=1",
-                            # a viscosity switch, as the 3D Taylor bar's (taylor3d.toml)
-                            'viscosity.scheme="ac_pairwise"'], 3),
+                            "kernel.h_over_dx=1.4", "output.history_every=1"], 3),
     # a quarter model: two symmetry planes and a wall, corner images of corner images
     "quarter-3d": ("taylor", [*CASES["block-3d"][1][:-2], "time.neighbour_skin=0.02",
                               "bodies.0.geometry.origin=[0.0, 0.0, 0.0]",
@@ -174,7 +175,7 @@ RESIDENT = {
 # density (over the thickness ratio) and the walls' layer per radian, on the device
 RESIDENT["taylor-axisymmetric"] = ("taylor_axisymmetric", [
     "bodies.0.geometry.count=[3, 8]", "bodies.0.geometry.origin=[0.0, -0.0014]",
-    "contact.wall_layer=0.25", "output.history_every=1"], 4)  # (its first row in the layer)
+    "contact.wall_layer=0.25", "output.history_every=1"], 3)  # (its first row in the layer)
 #: A run with the state on the host and the rates on the device (``compute.resident =
 #: false``): the half bar above, its symmetry plane's mirror on the host.
 HOST_PATH = {"taylor-2d-half-host": (RESIDENT["taylor-2d-layer"][0],
