@@ -70,7 +70,8 @@ def field_columns(field: str, dim: int, state_names: tuple[str, ...] = ()) -> li
 
 @dataclass
 class Gauges:
-    """The gauges of a run: their particles and columns, and :meth:`sample`, one row."""
+    """The gauges of a run: their particles and columns, and :meth:`sample_rows`, one row
+    (of :meth:`rows_of` a host state, or of the device's rows)."""
 
     names: list[str]
     indices: np.ndarray  #: (k,) the particle of each gauge
@@ -117,11 +118,6 @@ class Gauges:
                 needs_pressure |= field == "pressure"
         return cls(names, np.array([problem.gauges[n] for n in names], dtype=np.int64),
                    columns, np.array(select, dtype=np.int64), needs_pressure, at)
-
-    def sample(self, sim: Any) -> np.ndarray:
-        """The row of the current state: the time, then every gauge's values."""
-        return self.sample_rows(sim.time, self.rows_of(sim.state), sim.state.initial_position[
-            self.indices], sim.state.material[self.indices], sim.problem.table)
 
     def rows_of(self, state: Any) -> SimpleNamespace:
         """The integrated fields of the gauges' particles in ``state`` (a

@@ -227,16 +227,15 @@ class GpuRates:
         records (and the velocity gradients, where given) that go back up after it."""
         s = self._stream
         records = packed.copy_to_host(stream=s)
-        matrices = (gradients.copy_to_host(stream=s)
-                    if gradients is not None and gradients.size else None)
+        matrices = (None if gradients is None else gradients.copy_to_host(stream=s)
+                    if gradients.size else np.zeros(gradients.shape))
         s.synchronize()
-        if gradients is None:
+        if matrices is None:
             callback(records, column)
         else:
-            callback(records, matrices if matrices is not None
-                     else np.zeros(gradients.shape), column)
+            callback(records, matrices, column)
         packed.copy_to_device(records, stream=s)
-        if matrices is not None:
+        if matrices is not None and matrices.size:
             gradients.copy_to_device(matrices, stream=s)
 
     def release(self) -> None:

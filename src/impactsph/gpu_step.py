@@ -55,20 +55,21 @@ results mirrored (``mirror_results``, ``mirror_matrices``: the CPU's
 :func:`impactsph.boundaries.mirror_ghost_results` and ``mirror_ghost_matrices``, a ghost a
 thread).
 
-Which runs keep their state on the device: :func:`resident_unsupported` names what keeps a
-run on the host path (SSP-RK3 and the compatible energy update; plane stress).  Driven
-regions run on the device: after each stage their particles take the prescribed velocity
-(``drive``, the host evaluating its expression of t), and each step's reactions and work
-are booked there (``clamp_sums`` over the region, ``drive_finish``), their impulse on the
-host (the prescribed momentum change).  Added mass (a tip mass carried as added inertia)
-runs on the device: the accelerations are scaled by ``m / (m + added)`` after the rates
+Axisymmetry too: its axis is a symmetry plane, the stage's hoop terms are the CPU's, and
+the survey and the walls' layer take each particle's material density and area per radian
+as the CPU's do.  Driven regions: after each stage their particles take the prescribed
+velocity (``drive``, the host evaluating its expression of t), and each step's reactions and
+work are booked on the device (``clamp_sums`` over the region, ``drive_finish``), their
+impulse on the host (the prescribed momentum change).  Added mass (a tip mass carried as
+added inertia): the accelerations are scaled by ``m / (m + added)`` after the rates
 (``scale``), and the survey, the books' impulses and the bodies' kinetic energy take the
-inertia ``m + added``, as on the CPU.  Such a run still evaluates its rates on the GPU,
-as before, and its log says why its state stays on the host.  Axisymmetry runs on the
-device: its axis is a symmetry plane, the stage's hoop terms are the CPU's, and the survey
-and the walls' layer take each particle's material density and area per radian as the CPU's
-do.  Gauges take their particles' rows from the device at each step (``gauge_rows``), as
-probes take their velocities.
+inertia ``m + added``, as on the CPU.  Gauges take their particles' rows from the device at
+each step (``gauge_rows``), as probes take their velocities.
+
+Which runs keep their state on the device: :func:`resident_unsupported` names what keeps a
+run on the host path (SSP-RK3 and the compatible energy update; plane stress; the
+total-Lagrangian formulation).  Such a run still evaluates its rates on the GPU, as before,
+and its log says why its state stays on the host.
 """
 
 from __future__ import annotations
@@ -899,13 +900,13 @@ class ResidentStep:
         #: the hourglass control's zeta (0: none; its pass after the correction's, as on the
         #: CPU) and the Coulomb friction between bodies (0: none; its pass after the pairs')
         self.hourglass = float(solver.hourglass)
+        self.friction = float(self.options.contact_friction) if self.n_bodies > 1 else 0.0
         #: a scheme with a viscosity switch: its factors and memories (a state of the rates,
         #: not integrated) on the device, set by each evaluation's switch kernel for the next
         self.switched = self.viscosity.switch is not None
         #: the driven regions (:class:`impactsph.driven.Drivers`, whose prescribed velocities
         #: the host evaluates), or None; their reactions and work are kept on the device
         self.drivers = drivers
-        self.friction = float(self.options.contact_friction) if self.n_bodies > 1 else 0.0
         self.support = SUPPORT_RADIUS * float(state.smoothing_length.max())
         self.skin = solver.neighbours.skin
         self.radius = solver.neighbours.radius
@@ -1301,6 +1302,7 @@ class ResidentStep:
         values[LAST_PUSH: LAST_PUSH + dim] = books["push"]
         values[CLAMP: CLAMP + dim] = books["clamp_impulse"]
         self.books.copy_to_device(values, stream=self.stream)
+        self._set_drivers()
 
     def body_totals(self) -> np.ndarray:
         """Per body, from the device state, the columns of
@@ -1629,8 +1631,9 @@ class ResidentStep:
                 self.drivers.reaction[r.name] = reactions[k, : self.dim].copy()
         self.drivers.work = float(work[0])
 
-    def set_drivers(self) -> None:
-        """The host's driven regions' reactions and work onto the device."""
+    def _set_drivers(self) -> None:
+        """The host's driven regions' reactions and work onto the device (with the
+        books)."""
         if self.drivers is None:
             return
         reactions = np.zeros(self.reactions.shape)

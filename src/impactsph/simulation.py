@@ -261,7 +261,6 @@ class Simulation:
         self._resident = ResidentStep(self.solver, self._state, self.problem.table,
                                       self.integrator.drivers)
         self._resident.set_books(self._books())
-        self._resident.set_drivers()
         self.solver.backend.release()  # the host path's copies, from the first evaluation
         log.info("the whole step runs on the GPU: the state stays there between steps")
 
@@ -283,7 +282,6 @@ class Simulation:
         """The host state and books onto the GPU (the caller may have changed them)."""
         self._resident.upload(self._state)
         self._resident.set_books(self._books())
-        self._resident.set_drivers()
 
     def _fold(self) -> None:
         """The books as the GPU holds them (its running totals, added in the CPU's order:
