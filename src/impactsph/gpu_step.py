@@ -66,10 +66,19 @@ added inertia): the accelerations are scaled by ``m / (m + added)`` after the ra
 inertia ``m + added``, as on the CPU.  Gauges take their particles' rows from the device at
 each step (``gauge_rows``), as probes take their velocities.
 
-Which runs keep their state on the device: :func:`resident_unsupported` names what keeps a
-run on the host path (SSP-RK3 and the compatible energy update; plane stress; the
-total-Lagrangian formulation).  Such a run still evaluates its rates on the GPU, as before,
-and its log says why its state stays on the host.
+The time integrators: Table 1's midpoint step and SSP-RK3 (the second and third stages
+from their own start copy, ``kept``; the convex combinations by ``combine``, a particle of
+the CPU's :func:`impactsph.integrate.combine_kept`; the step's mean acceleration and, with
+several bodies, its mean contact force by ``weigh``).  Plane stress: the stage's secant
+iteration on the thickness is the CPU's (:func:`~impactsph.physics.passes.advance_particle`
+compiled with the case's options), and the survey reads the material density over the
+thickness ratio.
+
+Which runs keep their state on the device: every updated-Lagrangian run that the GPU
+backend takes (the compatible energy update, a stretching smoothing length and the
+total-Lagrangian formulation run on the CPU), unless ``compute.resident = false``:
+:func:`resident_unsupported` names what would keep a run on the host path, where it
+evaluates its rates on the GPU with the state on the host, and its log says why.
 """
 
 from __future__ import annotations
@@ -81,7 +90,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from . import boundaries, codegen
+from . import boundaries, codegen, integrate
 from .gpu import RECORD_ORDER, cuda, gpu_kernels, record_columns, simulator_enabled
 from .kernels import SUPPORT_RADIUS
 from .models.columns import (
@@ -123,6 +132,9 @@ CONSTANT = ("mass", "smoothing_length", "material", "body", "clamped", "initial_
 #: The builds' kept arrays grow by 1/BUFFER_MARGIN more than they need (the list's indices
 #: are most of them: about 290 B a particle in 3D, 1/8 of it was 37 B).
 BUFFER_MARGIN = 32
+#: The time integrators (``time.integrator``) whose steps :class:`ResidentStep` takes on the
+#: device: Table 1's midpoint step and SSP-RK3 (:mod:`impactsph.integrate`).
+DEVICE_INTEGRATORS = ("midpoint", "ssp_rk3")
 #: A code above any bad-value code: none found.
 NO_BAD = np.iinfo(np.int64).max
 
@@ -134,12 +146,10 @@ def resident_unsupported(case: Case, state: ParticleState, walls: Walls) -> str 
         return "compute.resident = false"
     if case.formulation != "updated_lagrangian":
         return f"formulation = {case.formulation!r} runs on the host"
-    if case.time.integrator != "midpoint":
+    if case.time.integrator not in DEVICE_INTEGRATORS:
         return f"time.integrator = {case.time.integrator!r} runs on the host"
     if case.time.energy_update != "rate":
         return f"time.energy_update = {case.time.energy_update!r} runs on the host"
-    if case.dimension == 2 and case.two_dimensional == "plane_stress":
-        return f"two_dimensional = {case.two_dimensional!r} runs on the host"
     return None
 
 
@@ -170,6 +180,8 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                        else survey.survey_particle)
     SURVEY_START = survey.SURVEY_START  # noqa: N806 - a compile-time constant of the kernels
     store_upper = stress_rate.store_upper.py_func if simulated else stress_rate.store_upper
+    combine_particle = (integrate.combine_particle.py_func if simulated
+                        else integrate.combine_particle)
     DIM = dim  # noqa: N806 - a compile-time constant of the kernels
     TPB = tpb  # noqa: N806
     STENCIL = 3**dim  # noqa: N806
@@ -203,6 +215,31 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 st0[i, a] = st[i, a]
             for a in range(hg.shape[1]):
                 hg0[i, a] = hg[i, a]
+
+    @cuda.jit
+    def combine_kernel(n, keep, weight, x, v, rho, e, S, pw, st, hg, x0, v0, rho0, e0, S0, pw0,
+                       st0, hg0):
+        """SSP-RK3's convex combination ``y = keep y + weight y0`` of every integrated field
+        (:func:`impactsph.integrate.combine_particle`, the CPU's ``combine_kept`` a
+        particle)."""
+        i = cuda.grid(1)
+        if i < n:
+            combine_particle(i, keep, weight, x, v, rho, e, S, pw, st, hg, x0, v0, rho0, e0,
+                             S0, pw0, st0, hg0)
+
+    @cuda.jit
+    def weigh_kernel(n, weight, first, rate, mean):
+        """A step's mean of a per-particle vector over its rate evaluations: ``mean =
+        weight rate`` at the ``first``, ``mean += weight rate`` after (SSP-RK3's mean
+        acceleration, as :meth:`impactsph.integrate.SspRk3Integrator.step` sums it, and its
+        mean contact force)."""
+        i = cuda.grid(1)
+        if i < n:
+            for a in range(DIM):
+                if first:
+                    mean[i, a] = weight * rate[i, a]
+                else:
+                    mean[i, a] += weight * rate[i, a]
 
     @cuda.jit
     def survey_kernel(n, x, v, rho, e, S, st, m, inertia, h, material, table, hourglass,
@@ -824,7 +861,8 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
             for a in range(DIM):
                 out[k, a] = v[rows[k], a]
 
-    return dict(advance=advance_kernel, start=start_kernel, survey=survey_kernel,
+    return dict(advance=advance_kernel, start=start_kernel, combine=combine_kernel,
+                weigh=weigh_kernel, survey=survey_kernel,
                 survey_finish=survey_finish,
                 totals=totals_kernel, totals_finish=totals_finish, layer=layer_kernel,
                 wall_friction=wall_friction_kernel,
@@ -861,7 +899,8 @@ def prefix_sum(kernels: dict, a, n: int, tpb: int, stream, buffer, depth: int = 
 
 
 class ResidentStep:
-    """A run's state on the GPU, advanced by Table 1's midpoint step on the device.
+    """A run's state on the GPU, advanced on the device by Table 1's midpoint step or by
+    SSP-RK3 (``integrator``, the case's ``time.integrator``).
 
     ``solver``: the run's :class:`~impactsph.solver.Solver`, whose backend is a
     :class:`~impactsph.gpu.GpuRates` (its rate kernels, stream and block size are used) and
@@ -873,8 +912,14 @@ class ResidentStep:
     """
 
     def __init__(self, solver: Any, state: ParticleState, table: np.ndarray,
-                 drivers: Any = None):
+                 drivers: Any = None, integrator: str = "midpoint"):
         from .models import registry
+
+        if integrator not in DEVICE_INTEGRATORS:
+            raise ValueError(f"integrator = {integrator!r}: the device steps "
+                             f"{', '.join(DEVICE_INTEGRATORS)}")
+        #: ``time.integrator``: the midpoint step or SSP-RK3 (:meth:`step`)
+        self.integrator = integrator
 
         backend = solver.backend
         self.solver = solver
@@ -967,8 +1012,19 @@ class ResidentStep:
         self.now = {f: empty(getattr(state, f).shape, getattr(state, f).dtype, stream=s)
                     for f in INTEGRATED}
         # the deviator's start copy: its six components (the advance's S0)
-        self.start = {f: empty((n, 6) if f == "deviatoric_stress" else getattr(state, f).shape,
-                               getattr(state, f).dtype, stream=s) for f in INTEGRATED}
+        def integrated_copy() -> dict:
+            return {f: empty((n, 6) if f == "deviatoric_stress" else getattr(state, f).shape,
+                             getattr(state, f).dtype, stream=s) for f in INTEGRATED}
+
+        self.start = integrated_copy()
+        ssp = self.integrator == "ssp_rk3"
+        #: SSP-RK3: the second and third stages' start (``y1``, then ``y2`` in its buffers),
+        #: the step's mean acceleration (the supports' impulse, the driven regions' books)
+        #: and, with several bodies, its mean contact force (their history columns)
+        self.kept = integrated_copy() if ssp else None
+        self.mean_dv = empty((n if ssp else 0, dim), np.float64, stream=s)
+        self.mean_force = empty((n if ssp and self.n_bodies > 1 else 0, dim), np.float64,
+                                stream=s)
         self.const = {f: empty(getattr(state, f).shape, getattr(state, f).dtype, stream=s)
                       for f in CONSTANT}
         self.table = cuda.to_device(np.ascontiguousarray(table), stream=s)
@@ -1308,9 +1364,11 @@ class ResidentStep:
         """Per body, from the device state, the columns of
         :func:`impactsph.simulation.body_totals` (kinetic and internal energy, plastic work,
         the largest squared displacement) and then the body's contact force (the last
-        evaluation's)."""
+        evaluation's: the midpoint step's mean; SSP-RK3's is its own)."""
         now, c, n, dim = self.now, self.const, self.n, self.dim
-        force = self.out["contact_force"] if self.n_bodies > 1 else self.out["dv"][:0]
+        force = self.out["dv"][:0]
+        if self.n_bodies > 1:
+            force = self.mean_force if self.integrator == "ssp_rk3" else self.out["contact_force"]
         for b in range(self.n_bodies):
             self._launch("body", n, n, b, c["body"], c["mass"], self.inertia, now["velocity"],
                          now["specific_energy"], now["plastic_work"], now["position"],
@@ -1452,7 +1510,8 @@ class ResidentStep:
         """The rates at the device state, of time ``time``; the powers and the walls' push
         booked with ``dt`` times ``weight`` (the evaluation's in the step's mean rate);
         ``first``: the step's first evaluation.  With a viscosity switch, the factors for
-        the next evaluation (set at ``time``: :meth:`impactsph.solver.Solver.rates`)."""
+        the next evaluation (set at ``time``: :meth:`impactsph.solver.Solver.rates`; None:
+        the switches' clock does not move)."""
         if self._stale():
             self.build()
         else:
@@ -1500,11 +1559,13 @@ class ResidentStep:
             sw = self.switch
             switch_kernel[blocks, tpb, s](
                 rows, n, order, P, offsets, indices, int(self.viscosity.kind),
-                self.viscosity.switch, max(time - self.factor_time, 0.0), sw["next_factor"],
-                sw["next_memory"])
+                self.viscosity.switch,
+                0.0 if time is None else max(time - self.factor_time, 0.0),
+                sw["next_factor"], sw["next_memory"])
             sw["factor"], sw["next_factor"] = sw["next_factor"], sw["factor"]
             sw["memory"], sw["next_memory"] = sw["next_memory"], sw["memory"]
-            self.factor_time = time
+            if time is not None:
+                self.factor_time = time
         if self.hourglass > 0.0:
             hourglass_kernel[blocks, tpb, s](
                 rows, n, order, P, out["gradients"], offsets, indices, ext["material"],
@@ -1542,10 +1603,12 @@ class ResidentStep:
             self._launch(kernel, last - first, first, last, self.ghost_src, self.ghost_wall,
                          self.normals, self.kinds, self.n, self.position, P, *rest)
 
-    def _stage(self, dt: float, v_rate, share: float, last: bool) -> None:
-        """One forward-Euler stage from the step's start, then the walls' constraint (its
-        impulse with ``share`` in the books, its events counted at the ``last`` stage)."""
-        st, now, c, out = self.start, self.now, self.const, self.out
+    def _stage(self, dt: float, v_rate, share: float, last: bool, start=None) -> None:
+        """One forward-Euler stage from ``start`` (the step's start copy by default), then
+        the walls' constraint (its impulse with ``share`` in the books, its events counted at
+        the ``last`` stage)."""
+        st = self.start if start is None else start
+        now, c, out = self.now, self.const, self.out
         self._launch("advance", self.n, self.n, dt, st["position"], st["velocity"],
                      st["density"], st["specific_energy"], st["deviatoric_stress"],
                      st["plastic_work"], st["material_state"], st["hourglass_acceleration"],
@@ -1554,23 +1617,59 @@ class ResidentStep:
                      now["position"], now["velocity"], now["density"], now["specific_energy"],
                      now["deviatoric_stress"], now["plastic_work"], now["material_state"],
                      now["hourglass_acceleration"])
-        if self.walls is not None:
-            n = self.n
-            self._launch("enforce", n, n, now["position"], now["velocity"], self.inertia,
-                         self.points, self.normals, self.scratch)
-            self._launch("enforce_sums", n, n, self.scratch, self.enforce_part)
-            self._launch("enforce_finish", 1, self.blocks, self.enforce_part, bool(last),
-                         float(share), self.books)
+        self._constrain(share, last)
+
+    def _constrain(self, share: float, count_events: bool) -> None:
+        """The walls' constraint on the device state: ``share`` times its impulse into the
+        books, its events if ``count_events``."""
+        if self.walls is None:
+            return
+        n, now = self.n, self.now
+        self._launch("enforce", n, n, now["position"], now["velocity"], self.inertia,
+                     self.points, self.normals, self.scratch)
+        self._launch("enforce_sums", n, n, self.scratch, self.enforce_part)
+        self._launch("enforce_finish", 1, self.blocks, self.enforce_part, bool(count_events),
+                     float(share), self.books)
+
+    def _keep(self, into: dict) -> None:
+        """The integrated fields of the device state copied into ``into`` (the deviator as
+        its six components)."""
+        self._launch("start", self.n, self.n, *(self.now[f] for f in INTEGRATED),
+                     *(into[f] for f in INTEGRATED))
+
+    def _combine(self, weight: float, share: float) -> None:
+        """SSP-RK3's ``y = (1 - weight) y + weight y(t)``, then the walls' constraint with
+        the share ``share`` (:meth:`impactsph.integrate.SspRk3Integrator._combine`)."""
+        self._launch("combine", self.n, self.n, 1.0 - weight, weight,
+                     *(self.now[f] for f in INTEGRATED), *(self.start[f] for f in INTEGRATED))
+        self._constrain(share, False)
+
+    def _weigh(self, weight: float, first: bool) -> None:
+        """SSP-RK3: the evaluation's accelerations (and, with several bodies, its contact
+        force) into the step's means with ``weight``."""
+        n = self.n
+        self._launch("weigh", n, n, float(weight), bool(first), self.out["dv"], self.mean_dv)
+        if self.mean_force.shape[0]:
+            self._launch("weigh", n, n, float(weight), bool(first), self.out["contact_force"],
+                         self.mean_force)
 
     def step(self, state: ParticleState, dt: float) -> None:
+        """Advance the device state by ``dt`` with the run's integrator (:meth:`_midpoint`
+        or :meth:`_ssp_rk3`).  ``state``'s time and step move; its arrays are left as they
+        were (:meth:`download`)."""
+        if self.integrator == "ssp_rk3":
+            self._ssp_rk3(state.time, dt)
+        else:
+            self._midpoint(state.time, dt)
+        self.host_current = False
+        state.time += dt
+        state.step += 1
+
+    def _midpoint(self, t: float, dt: float) -> None:
         """Table 1's predictor-corrector on the device (as
         :meth:`impactsph.integrate.MidpointIntegrator.step`): rates at t, the half step, rates
-        at t + dt/2 (the step's books: the weights (0, 1)), the whole step.  ``state``'s time
-        and step move; its arrays are left as they were (:meth:`download`)."""
-        now, st = self.now, self.start
-        self._launch("start", self.n, self.n, *(now[f] for f in INTEGRATED),
-                     *(st[f] for f in INTEGRATED))
-        t = state.time
+        at t + dt/2 (the step's books: the weights (0, 1)), the whole step."""
+        self._keep(self.start)
         self._evaluate(dt, 0.0, True, t)
         self._stage(0.5 * dt, self.start["velocity"], 0.0, False)
         self._drive(t + 0.5 * dt)
@@ -1579,16 +1678,45 @@ class ResidentStep:
         # velocity before it overwrites it
         self._stage(dt, self.now["velocity"], 1.0, True)
         self._drive(t + dt)
-        self._account(t, dt)
+        self._finish(t, dt, self.out["dv"])  # (the corrector's accelerations: the mean)
+
+    def _ssp_rk3(self, t: float, dt: float) -> None:
+        """SSP-RK3 on the device, as :meth:`impactsph.integrate.SspRk3Integrator.step`: three
+        forward-Euler stages, each from the state it starts from, and two convex
+        combinations with the step's start; the books take the evaluations with the weights
+        (1/6, 1/6, 2/3), and the walls' impulse each stage's state with its share in the
+        result."""
+        weights = integrate.SspRk3Integrator.WEIGHTS
+        kept = self.kept
+        self._keep(self.start)
+        self._evaluate(dt, weights[0], True, t)
+        self._weigh(weights[0], True)
+        self._stage(dt, self.start["velocity"], 1.0 / 6.0, False)
+        self._drive(t + dt)
+        self._evaluate(dt, weights[1], False, t + dt)
+        self._weigh(weights[1], False)
+        self._keep(kept)  # y1
+        self._stage(dt, kept["velocity"], 1.0 / 6.0, False, kept)
+        self._combine(0.75, 2.0 / 3.0)
+        self._drive(t + 0.5 * dt)
+        self._evaluate(dt, weights[2], False, None)  # (the clock moved at y1's evaluation)
+        self._weigh(weights[2], False)
+        self._keep(kept)  # y2, in y1's buffers
+        self._stage(dt, kept["velocity"], 2.0 / 3.0, True, kept)
+        self._combine(1.0 / 3.0, 1.0)
+        self._drive(t + dt)
+        self._finish(t, dt, self.mean_dv)
+
+    def _finish(self, t: float, dt: float, mean_dv) -> None:
+        """The step's books from its mean accelerations ``mean_dv``: the driven regions'
+        reactions and work, the supports' impulse on the clamped particles."""
+        self._account(t, dt, mean_dv)
         rows = self.clamped_rows.shape[0]
-        if rows:  # the supports' impulse, from the step's mean accelerations (the corrector's)
-            self._launch("clamp_sums", rows, rows, self.clamped_rows, self.inertia,
-                         self.out["dv"], self.clamp_part)
+        if rows:  # the supports' impulse, from the step's mean accelerations
+            self._launch("clamp_sums", rows, rows, self.clamped_rows, self.inertia, mean_dv,
+                         self.clamp_part)
             self._launch("clamp_finish", 1, self.clamp_part.shape[0], self.clamp_part,
                          float(dt), self.books)
-        self.host_current = False
-        state.time += dt
-        state.step += 1
 
     def _drive(self, t: float) -> None:
         """The driven particles at their prescribed velocities at ``t``."""
@@ -1600,10 +1728,10 @@ class ResidentStep:
                 self._launch("drive", rows.shape[0], rows.shape[0], rows, *velocity,
                              self.now["velocity"])
 
-    def _account(self, t: float, dt: float) -> None:
+    def _account(self, t: float, dt: float, mean_dv) -> None:
         """The driven regions' reactions and work over the step from ``t`` on (on the
-        device, from the corrector's accelerations) and their impulse (on the host: the
-        prescribed momentum change), as :meth:`impactsph.driven.Drivers.account`."""
+        device, from the step's mean accelerations ``mean_dv``) and their impulse (on the
+        host: the prescribed momentum change), as :meth:`impactsph.driven.Drivers.account`."""
         if self.drivers is None:
             return
         for k, (r, (rows, part)) in enumerate(zip(self.drivers.regions, self.driven,
@@ -1613,8 +1741,7 @@ class ResidentStep:
             rate = [*(change / dt).tolist(), 0.0, 0.0][:3]
             middle = [*r.velocity(t + 0.5 * dt).tolist(), 0.0, 0.0][:3]
             n_rows = rows.shape[0]
-            self._launch("clamp_sums", n_rows, n_rows, rows, self.inertia, self.out["dv"],
-                         part)
+            self._launch("clamp_sums", n_rows, n_rows, rows, self.inertia, mean_dv, part)
             self._launch("drive_finish", 1, part.shape[0], part, k, *rate, *middle,
                          float(dt), self.reactions, self.drive_work)
             self.drivers.impulse += change

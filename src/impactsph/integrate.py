@@ -163,31 +163,42 @@ def keep_upper(S, out) -> None:
         store_upper(S, out, i)
 
 
+@nb.njit(inline="always", cache=True)
+def combine_particle(i, keep, weight, x, v, rho, e, S, plastic_work, state, hg, x0, v0, rho0,
+                     e0, S0, pw0, state0, hg0) -> None:
+    """``y = keep y + weight y0`` for every integrated field of particle ``i`` (``keep = 1 -
+    weight``), ``y0`` the kept copy (its deviator ``S0`` as six components,
+    :data:`~impactsph.physics.stress_rate.UPPER`): one particle of :func:`combine_kept`, and
+    of the device's SSP-RK3 step (:mod:`impactsph.gpu_step`)."""
+    for a in range(x.shape[1]):
+        x[i, a] = x[i, a] * keep + weight * x0[i, a]
+        v[i, a] = v[i, a] * keep + weight * v0[i, a]
+    rho[i] = rho[i] * keep + weight * rho0[i]
+    e[i] = e[i] * keep + weight * e0[i]
+    for a in range(3):
+        for b in range(3):
+            S[i, a, b] = S[i, a, b] * keep + weight * S0[i, UPPER[a][b]]
+    plastic_work[i] = plastic_work[i] * keep + weight * pw0[i]
+    for c in range(state.shape[1]):
+        state[i, c] = state[i, c] * keep + weight * state0[i, c]
+    for a in range(hg.shape[1]):
+        hg[i, a] = hg[i, a] * keep + weight * hg0[i, a]
+
+
 @nb.njit(cache=True)
 def combine_kept(weight, x, v, rho, e, S, plastic_work, state, hg, x0, v0, rho0, e0, S0, pw0,
                  state0, hg0) -> None:
     """``y = (1 - weight) y + weight y0`` for every integrated field of every particle, ``y0``
     the kept copy (its deviator ``S0`` as six components,
     :data:`~impactsph.physics.stress_rate.UPPER`): the SSP-RK3 step's
-    convex combinations, in one loop, with numpy's roundings (``y *= 1 - weight; y +=
-    weight * y0``: two products and a sum, not fused), so the same bits as the three numpy
-    operations a field it replaces, without their temporaries (about 190 us a step of the
-    Taylor bar's 2.3 ms, in two calls)."""
+    convex combinations, in one loop (:func:`combine_particle` a particle), with numpy's
+    roundings (``y *= 1 - weight; y += weight * y0``: two products and a sum, not fused), so
+    the same bits as the three numpy operations a field it replaces, without their
+    temporaries (about 190 us a step of the Taylor bar's 2.3 ms, in two calls)."""
     keep = 1.0 - weight
     for i in range(x.shape[0]):
-        for a in range(x.shape[1]):
-            x[i, a] = x[i, a] * keep + weight * x0[i, a]
-            v[i, a] = v[i, a] * keep + weight * v0[i, a]
-        rho[i] = rho[i] * keep + weight * rho0[i]
-        e[i] = e[i] * keep + weight * e0[i]
-        for a in range(3):
-            for b in range(3):
-                S[i, a, b] = S[i, a, b] * keep + weight * S0[i, UPPER[a][b]]
-        plastic_work[i] = plastic_work[i] * keep + weight * pw0[i]
-        for c in range(state.shape[1]):
-            state[i, c] = state[i, c] * keep + weight * state0[i, c]
-        for a in range(hg.shape[1]):
-            hg[i, a] = hg[i, a] * keep + weight * hg0[i, a]
+        combine_particle(i, keep, weight, x, v, rho, e, S, plastic_work, state, hg, x0, v0,
+                         rho0, e0, S0, pw0, state0, hg0)
 
 
 def run_stage(stage_pass: Any, threaded: bool, n_active: int, *arguments: Any) -> None:

@@ -259,7 +259,7 @@ class Simulation:
                      "GPU, with the state copied up and the rates down at each evaluation", why)
             return
         self._resident = ResidentStep(self.solver, self._state, self.problem.table,
-                                      self.integrator.drivers)
+                                      self.integrator.drivers, self.case.time.integrator)
         self._resident.set_books(self._books())
         self.solver.backend.release()  # the host path's copies, from the first evaluation
         log.info("the whole step runs on the GPU: the state stays there between steps")
@@ -389,7 +389,7 @@ class Simulation:
             self._fold()
             device = self._resident.body_totals()
             totals = device[:, :4]
-            if n_bodies > 1 and s.step > 0:  # the last step's (its weights are (0, 1))
+            if n_bodies > 1 and s.step > 0:  # the last step's mean (the device keeps it)
                 self._body_force[:] = device[:, 4: 4 + s.dim]
         else:
             totals = body_totals(s.body, s.mass, s.added_mass, s.velocity, s.specific_energy,
