@@ -1115,11 +1115,11 @@ def _step_kernel_types(name: str, dim: int) -> tuple:
     for names, t in (("n n_blocks n_cells chunk n_ghosts n_real ghost_body0 b slot n_rows "
                       "start stop w u_column c0 region", nb.int64),
                      ("dt courant scale radius front weight share reach layer hourglass "
-                      "vx vy vz rate_x rate_y rate_z vel_x vel_y vel_z", nb.float64),
+                      "vx vy vz rate_x rate_y rate_z vel_x vel_y vel_z keep", nb.float64),
                      ("corrected store first count_events walls per_radian", nb.boolean),
                      ("x0 v0 x v dv xs v_rate hg0 hg dhg part st0 st dv_corr table points "
                       "normals scratch contact_force carried force layer_force x0 S0 dS "
-                      "friction_force reactions", f2),
+                      "friction_force reactions rate mean", f2),
                      ("S", f3),
                      ("rho0 e0 pw0 drho de rho e pw h m de_visc de_corr lo hi origin largest "
                       "books factor memory mu inertia fraction work", f1),
