@@ -126,9 +126,9 @@ BOOKS_WIDTH = 17
 #: device arrays.
 INTEGRATED = ("position", "velocity", "density", "specific_energy", "deviatoric_stress",
               "plastic_work", "material_state", "hourglass_acceleration")
-#: The constant fields the kernels read.
-CONSTANT = ("mass", "smoothing_length", "material", "body", "clamped", "initial_position",
-            "added_mass")
+#: The constant fields the kernels read (the added masses only through the inertia,
+#: :meth:`ResidentStep.upload`).
+CONSTANT = ("mass", "smoothing_length", "material", "body", "clamped", "initial_position")
 #: The builds' kept arrays grow by 1/BUFFER_MARGIN more than they need (the list's indices
 #: are most of them: about 290 B a particle in 3D, 1/8 of it was 37 B).
 BUFFER_MARGIN = 32
@@ -1212,10 +1212,12 @@ class ResidentStep:
                     np.ascontiguousarray(getattr(state, f"viscosity_{name}"), np.float64),
                     stream=s)
         self.factor_time = float(state.viscosity_factor_time)
-        # the inertia of the books' impulses and the kinetic energy (mass and added mass), and
-        # with added mass the fraction that turns forces per own mass into accelerations
-        self.inertia = cuda.to_device(np.ascontiguousarray(state.mass + state.added_mass),
-                                      stream=s)
+        # the inertia of the books' impulses and the kinetic energy (mass and added mass: the
+        # masses themselves where nothing is added, 8 B a particle less), and with added mass
+        # the fraction that turns forces per own mass into accelerations
+        self.inertia = (cuda.to_device(np.ascontiguousarray(state.mass + state.added_mass),
+                                       stream=s) if state.added_mass.any()
+                        else self.const["mass"])
         fraction = state.inertia_fraction()
         self.fraction = (None if fraction is None
                          else cuda.to_device(np.ascontiguousarray(fraction), stream=s))
