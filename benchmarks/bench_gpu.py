@@ -26,6 +26,14 @@ within ``--budget`` seconds plus 20 s.
     python benchmarks/bench_gpu.py                        # GPU and CPU, 2D and 3D, 1e5-1e7
     python benchmarks/bench_gpu.py --devices cpu --sizes 1e4 1e5 --budget 60
     python benchmarks/bench_gpu.py --devices gpu --record-precision float32 --compare-cpu
+    python benchmarks/bench_gpu.py --devices gpu cpu --dims 3 --sizes 1e5 1e6 --model quarter
+
+``--model quarter`` (2026-12-07) times what an impact user's model adds to the lattice's
+step: the block as a quarter model (in 2D a half) on a rigid wall, with the symmetry planes
+through its sides (their ghosts chosen, filled and mirrored stage by stage), moving onto the
+wall at 50 m/s, with an elastic case's stabilisation (the kernel gradient correction and the
+hourglass control, ``"auto"``): the launches and the host's waits that those features add
+to a step, which the plain lattice does not show.
 """
 
 from __future__ import annotations
@@ -41,6 +49,25 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 #: the children's ``compute.record_precision`` (``--record-precision``), through the environment
 PRECISION_ENV = "IMPACTSPH_BENCH_RECORD_PRECISION"
+#: the children's model (``--model``: ``lattice`` or ``quarter``), through the environment
+MODEL_ENV = "IMPACTSPH_BENCH_MODEL"
+#: ``--model quarter``'s speed onto its wall (m/s)
+QUARTER_SPEED = 50.0
+
+
+def quarter_model(data: dict, dim: int) -> dict:
+    """``data`` (:func:`bench_rates.make_case`'s lattice, its origin at 0) as a quarter
+    model (a half in 2D, a bar in 1D) on a rigid wall under it: a symmetry plane through
+    each side at the origin but the last axis's, which the wall holds, the block moving onto
+    it at :data:`QUARTER_SPEED`, with an elastic case's stabilisation (``"auto"``)."""
+    unit = [[1.0 if a == b else 0.0 for a in range(dim)] for b in range(dim)]
+    zero = [0.0] * dim
+    body = {**data["bodies"][0], "velocity": [0.0] * (dim - 1) + [-QUARTER_SPEED]}
+    return {**data, "bodies": [body],
+            "boundaries": [{"type": "wall", "point": zero, "normal": unit[dim - 1]},
+                           *({"type": "symmetry", "point": zero, "normal": unit[a]}
+                             for a in range(dim - 1))],
+            "stabilisation": {"gradient_correction": "auto", "hourglass": "auto"}}
 
 
 def run_items(dim: int, sizes: list[int], device: str, steps: int, budget: float,
@@ -61,6 +88,8 @@ def run_items(dim: int, sizes: list[int], device: str, steps: int, budget: float
 
     def case(size: int) -> dict:
         data = make_case(size, dim)
+        if os.environ.get(MODEL_ENV, "lattice") == "quarter":
+            data = quarter_model(data, dim)
         data["compute"] = {"device": "cpu" if device == "cpu" else "gpu",
                            "resident": device != "gpu-host",
                            "record_precision": os.environ.get(PRECISION_ENV, "float64")}
@@ -222,17 +251,18 @@ def _text(output: bytes | str | None) -> str:
 
 def child(dim: int, sizes: list[int], device: str, steps: int, timeout: float,
           compare_cpu: bool = False, launch: tuple[int, int] | None = None,
-          precision: str = "float64") -> list[dict]:
+          precision: str = "float64", model: str = "lattice") -> list[dict]:
     """Run one (device, dimension) in a fresh process; a row a size, or the reason it has
     none. ``launch``: the GPU's ``(threads_per_block, max_registers)``
-    (:func:`impactsph.gpu.launch_settings`), set in the child's environment, as is the
-    records' ``precision`` (:data:`PRECISION_ENV`)."""
+    (:func:`impactsph.gpu.launch_settings`), set in the child's environment, as are the
+    records' ``precision`` (:data:`PRECISION_ENV`) and the ``model`` (:data:`MODEL_ENV`)."""
     from impactsph.gpu import REGISTERS_ENV, THREADS_ENV
 
     command = [sys.executable, __file__, "--child", str(dim), device, str(steps),
                f"{timeout:.0f}", "compare" if compare_cpu else "-", *(str(n) for n in sizes)]
     env = dict(os.environ)
     env[PRECISION_ENV] = precision
+    env[MODEL_ENV] = model
     if launch is not None:
         env[THREADS_ENV], env[REGISTERS_ENV] = str(launch[0]), str(launch[1])
     try:
@@ -298,6 +328,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--record-precision", choices=("float64", "float32"), default="float64",
                     help="compute.record_precision of every run (docs/gpu.md, 'Records in "
                     "float32'); --compare-cpu then compares with the CPU's run in the same")
+    ap.add_argument("--model", choices=("lattice", "quarter"), default="lattice",
+                    help="lattice: the block at rest with random velocities (default); "
+                    "quarter: the block as a quarter model on a wall, with the symmetry "
+                    "planes and an elastic case's stabilisation (the module's docstring)")
     args = ap.parse_args(argv)
     if args.child:
         dim, device, steps, budget, compare, *sizes = args.child
@@ -321,7 +355,8 @@ def main(argv: list[str] | None = None) -> int:
                         for n in sizes)
             continue
         for row in child(dim, sizes, device, args.steps, share, args.compare_cpu, launch,
-                         args.record_precision):
+                         args.record_precision, args.model):
+            row["model"] = args.model
             rows.append(row)
             print(json.dumps(row), file=sys.stderr, flush=True)
         write_json(args, rows, time.perf_counter() - start)  # what has run, kept as it goes

@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # One call on a lent machine with an NVIDIA GPU (issue 16): what it has, the GPU tests
 # against the CPU on the real device, and bench_gpu.py's tables: the whole step on the GPU
-# (1e5-1e7), the launch settings at 1M 3D particles (TUNE), each kernel's time with ncu
-# (KERNELS), the rates-only path and the CPU (HOST_STAGES); about 10 minutes with every stage:
-# set the toggles to 0 to fit a shorter call (a command there may run 10 minutes at most).
+# (1e5-1e7), an impact model's step (a quarter model on a wall with its symmetry planes and
+# an elastic case's stabilisation, FEATURES), each kernel's time with ncu (KERNELS), the
+# rates-only path and the CPU (HOST_STAGES), the launch settings at 1M 3D particles (TUNE=1:
+# off by default since 2026-12-07, measured at the second lease); about 10 minutes with the
+# default stages: set the toggles to 0 to fit a shorter call (a command there may run 10
+# minutes at most).
 #
 #   bash benchmarks/gpu_session.sh            # writes under $OUT (or runs/gpu_session)
 #
@@ -44,7 +47,15 @@ GPU_BUDGET=${GPU_BUDGET:-240}
 timeout $((GPU_BUDGET + 40)) python3 benchmarks/bench_gpu.py --devices gpu --dims 3 2 \
   --sizes 1e5 1e6 1e7 --steps 20 --compare-cpu --budget "$GPU_BUDGET" --json "$OUT/bench_gpu.json" \
   2>&1 | tee "$OUT/bench_gpu.log"
-if [ "${TUNE:-1}" = 1 ]; then
+if [ "${FEATURES:-1}" = 1 ]; then
+# what a user's impact model adds to a step: the ghosts' stages, their mirror, the walls'
+# constraint, the hourglass control (bench_gpu.py --model quarter), on the GPU and the CPU
+stamp "bench: a quarter model on a wall, 1e5 and 1e6 3D, GPU and CPU"
+timeout 140 python3 benchmarks/bench_gpu.py --devices gpu cpu --dims 3 --sizes 1e5 1e6 \
+  --steps 20 --model quarter --budget 110 --json "$OUT/bench_gpu_quarter.json" \
+  2>&1 | tee "$OUT/bench_gpu_quarter.log"
+fi
+if [ "${TUNE:-0}" = 1 ]; then
 # the launch settings at 1M 3D particles: threads a block and the pair kernel's register cap
 # (benchmarks/gpu_registers.py, 3D: 166 registers free, 3 blocks of 128 a multiprocessor;
 # capped at 128, 4 blocks with 284 B of spills), a process each

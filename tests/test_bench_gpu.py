@@ -65,13 +65,40 @@ def test_a_child_keeps_the_rows_it_wrote(benchmark_script, monkeypatch, timed_ou
 
     monkeypatch.setattr(bench.subprocess, "run", fake_run)
     rows = bench.child(3, [100, 1000], "gpu", 5, 30.0, compare_cpu=True, launch=(256, 128),
-                       precision="float32")
+                       precision="float32", model="quarter")
     # the launch settings reach the child, and each row says which it ran with
     assert (seen["IMPACTSPH_CUDA_THREADS_PER_BLOCK"], seen["IMPACTSPH_CUDA_MAX_REGISTERS"]) \
         == ("256", "128")
     assert seen[bench.PRECISION_ENV] == "float32"
+    assert seen[bench.MODEL_ENV] == "quarter"
     assert all((r["threads_per_block"], r["max_registers"]) == (256, 128) for r in rows)
     assert [r["n_target"] for r in rows] == [100, 1000]
     assert rows[0]["ms_per_step"] == 1.0
     assert rows[0]["relative_difference_to_cpu"] == {"velocity": 1e-13}
     assert rows[1]["error"] == ("timed out after 50 s" if timed_out else "exit 1: MemoryError: big")
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_the_quarter_model_is_the_block_on_a_wall_between_its_planes(benchmark_script, dim):
+    """``--model quarter``: the lattice moving onto a rigid wall under it, a symmetry plane
+    through each other side at the origin (where the lattice starts), an elastic case's
+    stabilisation; a case whose state stays on the device."""
+    from bench_rates import make_case
+
+    from impactsph.gpu_step import resident_unsupported
+    from impactsph.loading import validate_case
+
+    bench = benchmark_script("bench_gpu")
+    lattice = make_case(400, dim)
+    case = validate_case(bench.quarter_model(lattice, dim))
+    kinds = [b.type for b in case.boundaries]
+    assert kinds == ["wall"] + ["symmetry"] * (dim - 1)
+    normals = np.array([b.normal for b in case.boundaries])
+    assert np.array_equal(np.abs(normals), np.eye(dim)[[dim - 1, *range(dim - 1)]])
+    assert all(np.array_equal(b.point, np.zeros(dim)) for b in case.boundaries)
+    assert lattice["bodies"][0]["geometry"]["origin"] == [0.0] * dim  # (inside every plane)
+    assert case.bodies[0].velocity[-1] == -bench.QUARTER_SPEED
+    # "auto", resolved for an elastic case: the kernel gradient correction and the hourglass
+    # control
+    assert case.stabilisation.gradient_correction != "none" and case.stabilisation.hourglass > 0
+    assert resident_unsupported(case, None, None) is None
