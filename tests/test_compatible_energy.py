@@ -119,10 +119,15 @@ def test_what_the_update_refuses(case, extra, needs):
     assert "\n" not in str(err.value)
 
 
-def test_the_update_runs_on_the_cpu():
-    """A case asking for the GPU with the update runs on the CPU, and the log says why."""
-    case = load_case("bars", ['time.energy_update="compatible"', 'compute.device="gpu"'])
-    assert "energy_update = 'compatible'" in _cpu_only(case)
+def test_the_update_runs_on_the_gpu_with_the_state_there_only():
+    """A case asking for the GPU with the update runs there with its state on the device
+    (the work pass on the device: tests/test_gpu_step.py), but on the CPU with the state on
+    the host (``compute.resident = false``: the host path has no work pass), and the log
+    then says why."""
+    compatible = ['time.energy_update="compatible"', 'compute.device="gpu"']
+    assert _cpu_only(load_case("bars", compatible)) is None
+    why = _cpu_only(load_case("bars", [*compatible, "compute.resident=false"]))
+    assert "energy_update = 'compatible'" in why and "resident = false" in why
     assert _cpu_only(load_case("bars", [])) is None
 
 

@@ -191,6 +191,17 @@ _SWITCH = ['viscosity.scheme="cullen_dehnen"', "viscosity.alpha1=1.0", "viscosit
 for _name, _more in (("taylor-2d-layer", []), ("bars-1d", _SWITCH)):
     RESIDENT[f"{_name}-ssp"] = (RESIDENT[_name][0], [*RESIDENT[_name][1], *_more,
                                                      'time.integrator="ssp_rk3"'], 3)
+# the compatible energy update: the work pass after each step (the mean velocity in the
+# records' work columns, mirrored into the ghosts: the axisymmetric bar's axis and wall), its
+# heating booked instead of the corrector's, a driven region's work at the step's mean
+# velocity (a speed quadratic in t, where that mean is not the midpoint's)
+_COMPATIBLE = 'time.energy_update="compatible"'
+RESIDENT["bars-1d-compatible"] = ("bars", [
+    *RESIDENT["bars-1d"][1], _COMPATIBLE,
+    'bodies.1.driven=[{name="grip", origin=[0.016], size=[0.0042], '
+    'velocity=["-50.0 + 4e13 * t * t"]}]'], 4)
+RESIDENT["taylor-axisymmetric-compatible"] = (
+    "taylor_axisymmetric", [*RESIDENT["taylor-axisymmetric"][1], _COMPATIBLE], 3)
 #: A run with the state on the host and the rates on the device (``compute.resident =
 #: false``): the half bar above, its symmetry plane's mirror on the host.
 HOST_PATH = {"taylor-2d-half-host": (RESIDENT["taylor-2d-layer"][0],
@@ -853,7 +864,7 @@ def test_what_keeps_the_state_on_the_host_is_named():
     assert why("bars", ['output.gauges=[{name="g", body="left", position=[0.0]}]']) is None
     assert why("bars", ["compute.resident=false"]) == "compute.resident = false"
     assert why("bars", ['time.integrator="ssp_rk3"']) is None  # SSP-RK3 on the device too
-    assert "compatible" in why("bars", ['time.energy_update="compatible"'])
+    assert why("bars", ['time.energy_update="compatible"']) is None  # its work pass too
     assert why("bars", ['viscosity.scheme="balsara"']) is None  # a switch, on the device
     assert why(str(Path(__file__).parents[1] / "examples" / "taylor3d.toml")) is None
 
@@ -1016,14 +1027,16 @@ def _as_if_on_sm90(monkeypatch) -> None:
 
 @pytest.mark.skipif(importlib.util.find_spec("numba_cuda") is None,
                     reason="numba-cuda (the gpu extra) is not installed")
-@pytest.mark.parametrize("variant", ["plain", "artificial_stress", "reconstruction", "float32"])
+@pytest.mark.parametrize("variant", ["plain", "artificial_stress", "reconstruction", "float32",
+                                     "compatible"])
 @pytest.mark.parametrize("dim", [1, 2, 3])
 def test_kernels_compile_for_a_gpu(dim, variant, monkeypatch):
     """With numba-cuda, every kernel compiles to PTX for an H100 (sm_90), no GPU needed:
     the term functions called from the kernels are accepted as device functions (with the
     artificial stress too: its principal-stress decompositions are scalars only; the
     reconstructing viscosity's gradient kernel and pair term; and float32 records, their
-    positions in two parts widened with ``np.float64``)."""
+    positions in two parts widened with ``np.float64``; the compatible energy update's
+    records, with their work velocity columns)."""
     import inspect
 
     from numba import cuda
@@ -1037,7 +1050,8 @@ def test_kernels_compile_for_a_gpu(dim, variant, monkeypatch):
     types = _kernel_argument_types(dim)
     options = {"plain": PassOptions(), "artificial_stress": PassOptions(artificial_stress=0.3),
                "reconstruction": PassOptions(velocity_reconstruction=True),
-               "float32": PassOptions(record_precision="float32")}[variant]
+               "float32": PassOptions(record_precision="float32"),
+               "compatible": PassOptions(compatible_energy=True)}[variant]
     if variant == "float32":
         import numba as nb
 
@@ -1113,16 +1127,17 @@ def _step_kernel_types(name: str, dim: int) -> tuple:
     i64, i32 = nb.int64[::1], nb.int32[::1]
     types = {}
     for names, t in (("n n_blocks n_cells chunk n_ghosts n_real ghost_body0 b slot n_rows "
-                      "start stop w u_column c0 region", nb.int64),
+                      "start stop w u_column c0 region w_column", nb.int64),
                      ("dt courant scale radius front weight share reach layer hourglass "
                       "vx vy vz rate_x rate_y rate_z vel_x vel_y vel_z keep", nb.float64),
-                     ("corrected store first count_events walls per_radian", nb.boolean),
+                     ("corrected store first count_events walls per_radian heating",
+                      nb.boolean),
                      ("x0 v0 x v dv xs v_rate hg0 hg dhg part st0 st dv_corr table points "
                       "normals scratch contact_force carried force layer_force x0 S0 dS "
                       "friction_force reactions rate mean", f2),
                      ("S", f3),
                      ("rho0 e0 pw0 drho de rho e pw h m de_visc de_corr lo hi origin largest "
-                      "books factor memory mu inertia fraction work", f1),
+                      "books factor memory mu inertia fraction work de_work de_pairs", f1),
                      ("pair_count bad ncell key counts ends fill a sums rows offsets src wall "
                       "position", i64),
                      ("material order indices body", i32)):
@@ -1131,7 +1146,8 @@ def _step_kernel_types(name: str, dim: int) -> tuple:
                  P=nb.float64[::1, :], gradients=f3)  # (the records by column on the device)
     kernel = step_kernels(dim, False, -1, PassOptions(), 128)[name]
     special = {("survey_finish", "out"): f1, ("take_rows", "out"): f2,
-               ("body_finish", "out"): f2, ("gauges", "out"): f2}
+               ("body_finish", "out"): f2, ("gauges", "out"): f2,
+               ("mean_velocity", "work"): f2, ("work_columns", "work"): f2}
     return kernel, tuple(special.get((name, k), types.get(k))
                          for k in inspect.signature(kernel.py_func).parameters)
 

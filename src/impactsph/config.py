@@ -628,7 +628,7 @@ class Time(_Model):
         "step's evaluation (eq 28, the paper's), or 'compatible', with the pair forces' work at "
         "each particle's mean velocity over the step (Owen 2014), which keeps kinetic plus "
         "internal energy exactly against those forces; one more pair pass a step, midpoint "
-        "integrator and CPU only")
+        "integrator; on the GPU with the state on the device only")
     wave_speed: Literal["bar", "p_wave"] = Field(
         "bar", description="wave speed of eq 26 and of the viscosity: 'bar' sqrt(E/rho) as in "
         "the paper, or 'p_wave' sqrt((K + 4/3 mu)/rho)"

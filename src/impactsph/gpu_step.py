@@ -74,9 +74,14 @@ iteration on the thickness is the CPU's (:func:`~impactsph.physics.passes.advanc
 compiled with the case's options), and the survey reads the material density over the
 thickness ratio.
 
+The compatible energy update: after the corrector's stage, the work pass (``mean_velocity``,
+the ghosts' mirror of it, ``work_columns`` into the corrector's records, the pair kernel into
+outputs of its own, ``work_energy``), its heating booked instead of the corrector's, as
+:meth:`impactsph.solver.Solver.work_rates` and the CPU's midpoint step.
+
 Which runs keep their state on the device: every updated-Lagrangian run that the GPU
-backend takes (the compatible energy update, a stretching smoothing length and the
-total-Lagrangian formulation run on the CPU), unless ``compute.resident = false``:
+backend takes (a stretching smoothing length and the total-Lagrangian formulation run on
+the CPU), unless ``compute.resident = false``:
 :func:`resident_unsupported` names what would keep a run on the host path, where it
 evaluates its rates on the GPU with the state on the host, and its log says why.
 """
@@ -148,8 +153,6 @@ def resident_unsupported(case: Case, state: ParticleState, walls: Walls) -> str 
         return f"formulation = {case.formulation!r} runs on the host"
     if case.time.integrator not in DEVICE_INTEGRATORS:
         return f"time.integrator = {case.time.integrator!r} runs on the host"
-    if case.time.energy_update != "rate":
-        return f"time.energy_update = {case.time.energy_update!r} runs on the host"
     return None
 
 
@@ -240,6 +243,35 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                     mean[i, a] = weight * rate[i, a]
                 else:
                     mean[i, a] += weight * rate[i, a]
+
+    @cuda.jit
+    def mean_velocity_kernel(n, v0, v, work):
+        """The compatible energy update's work velocity: each particle's mean velocity over
+        the step, ``(v(t) + v(t + dt)) / 2`` (:meth:`impactsph.integrate.MidpointIntegrator.
+        _compatible_energy`)."""
+        i = cuda.grid(1)
+        if i < n:
+            for a in range(DIM):
+                work[i, a] = (v0[i, a] + v[i, a]) * 0.5
+
+    @cuda.jit
+    def work_columns_kernel(n_rows, order, work, P, w_column):
+        """The records' work velocity columns from ``work`` (a row per particle and ghost),
+        in the list's order (:meth:`impactsph.physics.rates.CpuRates.work_energy`)."""
+        p = cuda.grid(1)
+        if p < n_rows:
+            i = order[p]
+            for a in range(DIM):
+                P[p, w_column + a] = work[i, a]
+
+    @cuda.jit
+    def work_energy_kernel(n, dt, de_work, de_pairs, e):
+        """The compatible energy update: ``e += dt (de_work - de_pairs)``, the pair forces'
+        energy terms at the step's mean velocity in place of the evaluation's
+        (:meth:`impactsph.solver.Solver.work_rates`)."""
+        i = cuda.grid(1)
+        if i < n:
+            e[i] += dt * (de_work[i] - de_pairs[i])
 
     @cuda.jit
     def survey_kernel(n, x, v, rho, e, S, st, m, inertia, h, material, table, hourglass,
@@ -382,10 +414,12 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 part[cuda.blockIdx.x, k] = sh[k, 0]
 
     @cuda.jit
-    def totals_finish(n_blocks, part, dt, weight, first, books):
+    def totals_finish(n_blocks, part, dt, weight, first, heating, books):
         """One block: the blocks' totals (:func:`_gather_blocks`) into the books: the powers
-        and the walls' push times ``dt weight`` (nothing at weight 0, as the CPU's books),
-        the pairs, and the step's mean push so far (set back at its ``first`` evaluation)."""
+        and the walls' push times ``dt weight`` (nothing at weight 0, as the CPU's books;
+        the viscous heating only if ``heating``: the compatible energy update books its work
+        pass's instead of its corrector's), the pairs, and the step's mean push so far (set
+        back at its ``first`` evaluation)."""
         sh = cuda.shared.array((TOTALS, TPB), float64)
         t = cuda.threadIdx.x
         _gather_blocks(part, n_blocks, sh, TOTALS, 0, 0, t)
@@ -396,7 +430,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
             books[3] += sh[3, 0]
             if weight != 0.0:
                 for k in range(TOTALS):
-                    if k != 3:
+                    if k != 3 and (k != 0 or heating):
                         books[k] += dt * weight * sh[k, 0]
                     if k >= 4:
                         books[LAST_PUSH + k - 4] += weight * sh[k, 0]
@@ -862,7 +896,9 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 out[k, a] = v[rows[k], a]
 
     return dict(advance=advance_kernel, start=start_kernel, combine=combine_kernel,
-                weigh=weigh_kernel, survey=survey_kernel,
+                weigh=weigh_kernel, mean_velocity=mean_velocity_kernel,
+                work_columns=work_columns_kernel, work_energy=work_energy_kernel,
+                survey=survey_kernel,
                 survey_finish=survey_finish,
                 totals=totals_kernel, totals_finish=totals_finish, layer=layer_kernel,
                 wall_friction=wall_friction_kernel,
@@ -949,6 +985,9 @@ class ResidentStep:
         #: a scheme with a viscosity switch: its factors and memories (a state of the rates,
         #: not integrated) on the device, set by each evaluation's switch kernel for the next
         self.switched = self.viscosity.switch is not None
+        #: the compatible energy update (``time.energy_update = "compatible"``: the passes
+        #: compiled with the records' work velocity): a work pass after each step
+        self.compatible = bool(self.options.compatible_energy)
         #: the driven regions (:class:`impactsph.driven.Drivers`, whose prescribed velocities
         #: the host evaluates), or None; their reactions and work are kept on the device
         self.drivers = drivers
@@ -1025,6 +1064,18 @@ class ResidentStep:
         self.mean_dv = empty((n if ssp else 0, dim), np.float64, stream=s)
         self.mean_force = empty((n if ssp and self.n_bodies > 1 else 0, dim), np.float64,
                                 stream=s)
+        #: the compatible energy update: the corrector's pair energy rates, and the work
+        #: pass's outputs (its specific-energy rates, heating and pairs are read)
+        self.de_pairs = empty(n if self.compatible else 0, np.float64, stream=s)
+        if self.compatible:
+            self.work_out = {"drho": empty(n, np.float64, stream=s),
+                             "dv": empty((n, dim), np.float64, stream=s),
+                             "de": empty(n, np.float64, stream=s),
+                             "de_visc": empty(n, np.float64, stream=s),
+                             "contact_force": empty((0, dim), np.float64, stream=s),
+                             "pair_count": empty(n, np.int64, stream=s),
+                             "dS": empty((n, 6), np.float64, stream=s),
+                             "gradients": empty((0, dim, dim), np.float64, stream=s)}
         self.const = {f: empty(getattr(state, f).shape, getattr(state, f).dtype, stream=s)
                       for f in CONSTANT}
         self.table = cuda.to_device(np.ascontiguousarray(table), stream=s)
@@ -1508,12 +1559,14 @@ class ResidentStep:
         self._list_builds += 1
 
     # -- one step ------------------------------------------------------------------------------
-    def _evaluate(self, dt: float, weight: float, first: bool, time: float) -> None:
+    def _evaluate(self, dt: float, weight: float, first: bool, time: float | None,
+                  heating: bool = True) -> None:
         """The rates at the device state, of time ``time``; the powers and the walls' push
         booked with ``dt`` times ``weight`` (the evaluation's in the step's mean rate);
         ``first``: the step's first evaluation.  With a viscosity switch, the factors for
         the next evaluation (set at ``time``: :meth:`impactsph.solver.Solver.rates`; None:
-        the switches' clock does not move)."""
+        the switches' clock does not move).  ``heating`` False: its viscous heating is not
+        booked (the compatible energy update's corrector: its work pass books its own)."""
         if self._stale():
             self.build()
         else:
@@ -1545,6 +1598,8 @@ class ResidentStep:
             self.options.normal_stress, ext["S"], ext["material"], self.table,
             out["drho"], out["dv"], out["de"], out["de_visc"], out["contact_force"],
             out["pair_count"], out["dS"], out["gradients"])
+        if self.compatible:  # the pair forces' energy rates alone (the work pass's baseline)
+            self.de_pairs.copy_to_device(out["de"], stream=s)
         if mirror:
             self._mirror("mirror_results", P, cols.U, out["gradients"])
         if self.friction > 0.0:  # (the CPU's order: pairs, friction, correction, hourglass)
@@ -1590,7 +1645,7 @@ class ResidentStep:
                      self.walls is not None,
                      self.totals_part)
         self._launch("totals_finish", 1, self.blocks, self.totals_part, float(dt),
-                     float(weight), bool(first), self.books)
+                     float(weight), bool(first), bool(heating), self.books)
         if self.fraction is not None:  # added mass: forces per own mass -> accelerations
             self._launch("scale", n, n, self.fraction, out["dv"])
         self.rate_evaluations += 1
@@ -1675,12 +1730,48 @@ class ResidentStep:
         self._evaluate(dt, 0.0, True, t)
         self._stage(0.5 * dt, self.start["velocity"], 0.0, False)
         self._drive(t + 0.5 * dt)
-        self._evaluate(dt, 1.0, False, t + 0.5 * dt)
+        self._evaluate(dt, 1.0, False, t + 0.5 * dt, heating=not self.compatible)
         # x(t + dt) = x(t) + dt v(t + dt/2): each thread reads its particle's midpoint
         # velocity before it overwrites it
         self._stage(dt, self.now["velocity"], 1.0, True)
         self._drive(t + dt)
+        if self.compatible:
+            self._work_pass(dt)
         self._finish(t, dt, self.out["dv"])  # (the corrector's accelerations: the mean)
+
+    def _work_pass(self, dt: float) -> None:
+        """The compatible energy update (:meth:`impactsph.solver.Solver.work_rates`, as the
+        CPU's midpoint step calls it): the corrector's records with each particle's mean
+        velocity over the step in their work velocity columns (a ghost's its source's,
+        mirrored as its velocity is), the pair kernel again into the work pass's outputs,
+        and ``e += dt (de_work - de_pairs)``; the books take the work pass's viscous heating
+        (the corrector's was not booked) and its pairs."""
+        n, rows, s, tpb = self.n, self.n + self.n_ghosts, self.stream, self.tpb
+        ext, out, wo, c = self.ext, self.out, self.work_out, self.const
+        work = self._buffer("work", rows, np.float64, self.dim)
+        self._launch("mean_velocity", n, n, self.start["velocity"], self.now["velocity"],
+                     work)
+        for first, last in self.stages:  # (the ghosts' other fields: the same values again)
+            self._launch("ghost_fill", last - first, first, last, self.ghost_src,
+                         self.ghost_wall, self.points, self.normals, self.kinds, n, ext["x"],
+                         work, ext["rho"], ext["e"], ext["S"], ext["carried"], ext["m"],
+                         ext["h"], ext["material"], ext["body"], self.n_bodies)
+        self._launch("work_columns", rows, rows, self.order, work, self.packed,
+                     int(self.columns.W))
+        pair_kernel = self.rate_kernels[1]
+        pair_kernel[max(1, (rows + tpb - 1) // tpb), tpb, s](
+            rows, n, self.order, self.packed, self.offsets, self.indices,
+            int(self.viscosity.kind), self.viscosity.pair, self.options.normal_stress,
+            ext["S"], ext["material"], self.table, wo["drho"], wo["dv"], wo["de"],
+            wo["de_visc"], wo["contact_force"], wo["pair_count"], wo["dS"], wo["gradients"])
+        self._launch("work_energy", n, n, float(dt), wo["de"], self.de_pairs,
+                     self.now["specific_energy"])
+        none = out["dv"][:0]  # (no walls' push, no correction: their columns stay zero)
+        self._launch("totals", n, n, c["mass"], self.now["velocity"], wo["de_visc"],
+                     out["dv_corr"], out["de_corr"], wo["pair_count"], wo["contact_force"],
+                     none, none, False, False, self.totals_part)
+        self._launch("totals_finish", 1, self.blocks, self.totals_part, float(dt), 1.0, False,
+                     True, self.books)
 
     def _ssp_rk3(self, t: float, dt: float) -> None:
         """SSP-RK3 on the device, as :meth:`impactsph.integrate.SspRk3Integrator.step`: three
@@ -1741,7 +1832,10 @@ class ResidentStep:
             v0, v1 = r.velocity(t), r.velocity(t + dt)
             change = r.mass * (v1 - v0)
             rate = [*(change / dt).tolist(), 0.0, 0.0][:3]
-            middle = [*r.velocity(t + 0.5 * dt).tolist(), 0.0, 0.0][:3]
+            # the work at the prescribed velocity at t + dt/2, or with the compatible energy
+            # update at the step's mean (Drivers.account's mean_velocity)
+            middle = 0.5 * (v0 + v1) if self.compatible else r.velocity(t + 0.5 * dt)
+            middle = [*middle.tolist(), 0.0, 0.0][:3]
             n_rows = rows.shape[0]
             self._launch("clamp_sums", n_rows, n_rows, rows, self.inertia, mean_dv, part)
             self._launch("drive_finish", 1, part.shape[0], part, k, *rate, *middle,

@@ -701,8 +701,9 @@ def _cpu_only(case: Case) -> str | None:
     """What in ``case`` runs on the CPU only, or None.  (Symmetry planes, axisymmetry's
     axis among them, run on the GPU since 2026-12-07: the whole step mirrors their ghosts'
     results there, the host path on the host.)"""
-    if case.time.energy_update == "compatible":
-        return "time.energy_update = 'compatible' runs on the CPU only"
+    if case.time.energy_update == "compatible" and not case.compute.resident:
+        return ("time.energy_update = 'compatible' with compute.resident = false runs on the "
+                "CPU only (the rates on the GPU with the state on the host have no work pass)")
     if case.kernel.max_stretch > 1.0:
         return "kernel.max_stretch > 1 (a smoothing length set at each list build) runs on " \
                "the CPU only"
