@@ -176,6 +176,12 @@ RESIDENT = {
 RESIDENT["taylor-axisymmetric"] = ("taylor_axisymmetric", [
     "bodies.0.geometry.count=[3, 8]", "bodies.0.geometry.origin=[0.0, -0.0014]",
     "contact.wall_layer=0.25", "output.history_every=1"], 3)  # (its first row in the layer)
+# two smoothing lengths (a body of its own h_over_dx; the artificial stress, whose reference
+# spacing is one for the run, off): the device's list with a radius per pair, as the CPU's
+# (with the largest h's radius for every pair it held 1,336 entries against the CPU's 1,096)
+RESIDENT["rings-2d-widths"] = ("rings", [*RESIDENT["rings-2d"][1],
+                                         "stabilisation.artificial_stress=0.0",
+                                         "bodies.1.h_over_dx=1.7"], 3)
 # plane stress: the stage's thickness found by the secant iteration, the survey's material
 # density over the thickness ratio
 RESIDENT["taylor-2d-plane-stress"] = ("taylor", [
@@ -1129,8 +1135,9 @@ def _step_kernel_types(name: str, dim: int) -> tuple:
     for names, t in (("n n_blocks n_cells chunk n_ghosts n_real ghost_body0 b slot n_rows "
                       "start stop w u_column c0 region w_column", nb.int64),
                      ("dt courant scale radius front weight share reach layer hourglass "
-                      "vx vy vz rate_x rate_y rate_z vel_x vel_y vel_z keep", nb.float64),
-                     ("corrected store first count_events walls per_radian heating",
+                      "vx vy vz rate_x rate_y rate_z vel_x vel_y vel_z keep support_per_h skin",
+                      nb.float64),
+                     ("corrected store first count_events walls per_radian heating per_pair",
                       nb.boolean),
                      ("x0 v0 x v dv xs v_rate hg0 hg dhg part st0 st dv_corr table points "
                       "normals scratch contact_force carried force layer_force x0 S0 dS "

@@ -12,7 +12,9 @@ and the rates stay on the device, and a step is a sequence of kernel launches:
   depend on the threads' scheduling), then the same two sweeps as the CPU builder (count,
   prefix sum, store).  The stencil and the particles within a cell come in the CPU builder's
   order, and a 2D or 3D row is split at the support as the CPU's is, so each particle's neighbours
-  are listed in the same order on both;
+  are listed in the same order on both; where the smoothing lengths differ (a body of its own
+  ``h_over_dx``) each pair is kept within its own radius and split at its own support, as
+  the CPU's list with a radius per pair;
 - the rate passes of :func:`impactsph.physics.passes.cuda_kernels` on the device records;
 - the integrator's stages with :func:`~impactsph.physics.passes.advance_particle` (the
   strength model's return map, damage and the plastic work included), the CPU stage's body;
@@ -738,12 +740,16 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
 
     @cuda.jit
     def neighbour_kernel(n, xs, lo, radius, front, ncell, counts, ends, offsets, indices,
-                         store):
+                         store, order, h, per_pair, support_per_h, skin):
         """The CPU builder's sweep for sorted position ``p``: its neighbours within
         ``radius`` in the 3^dim cells around its own, counted (``store`` False: into
         ``offsets[p + 1]``) or stored from ``offsets[p]``; in 2D and 3D those at or beyond
         ``front`` (the support) from the row's end back, as the CPU builder splits its rows
-        (the device's kernels read whole rows: the order only keeps the two lists the same)."""
+        (the device's kernels read whole rows: the order only keeps the two lists the same).
+        ``per_pair`` (smoothing lengths that differ: ``h`` of each row, ``order`` the sorted
+        positions' rows): each pair within its own ``support_per_h h_ij + skin`` and split
+        at its own support, as the CPU's list with a radius per pair
+        (:func:`impactsph.neighbours.kept_within2`)."""
         p = cuda.grid(1)
         if p >= n:
             return
@@ -775,8 +781,15 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 for a in range(DIM):
                     d = xs[p, a] - xs[q, a]
                     r2 += d * d
-                if r2 < r2max:
-                    if store and DIM > 1 and r2 >= r2front:
+                limit = r2max
+                front_limit = r2front
+                if per_pair:  # (no inner list on the device: the CPU's r2inner is 0)
+                    reach = 0.5 * support_per_h * (h[order[p]] + h[order[q]]) + skin
+                    limit = min(r2max, reach * reach)
+                    support_pq = reach - skin
+                    front_limit = min(limit, support_pq * support_pq)
+                if r2 < limit:
+                    if store and DIM > 1 and r2 >= front_limit:
                         indices[back - found_back] = q
                         found_back += 1
                         continue
@@ -1263,6 +1276,9 @@ class ResidentStep:
                     np.ascontiguousarray(getattr(state, f"viscosity_{name}"), np.float64),
                     stream=s)
         self.factor_time = float(state.viscosity_factor_time)
+        # smoothing lengths that differ: the list's radius per pair (Solver._build's test)
+        h = state.smoothing_length
+        self.per_pair = bool(h.shape[0] > 0 and h.max() > h.min())
         # the inertia of the books' impulses and the kinetic energy (mass and added mass: the
         # masses themselves where nothing is added, 8 B a particle less), and with added mass
         # the fraction that turns forces per own mass into accelerations
@@ -1544,13 +1560,16 @@ class ResidentStep:
         offsets = self._buffer("offsets", n + 1, np.int64)
         self._launch("zero", n + 1, offsets)
         front = radius - self.skin  # the support (2D and 3D rows split there, as the CPU's)
+        # smoothing lengths that differ (bodies of their own h_over_dx): a radius per pair,
+        # as the CPU's list (Solver._build)
+        per_pair = (self.per_pair, float(SUPPORT_RADIUS), float(self.skin))
         self._launch("neighbours", n, n, xs, lo, radius, front, d_ncell, counts, ends, offsets,
-                     offsets, False)
+                     offsets, False, order, self.ext["h"], *per_pair)
         self._scan(offsets[1:], n)
         total = int(self._fetch(offsets[n:])[0])
         indices = self._buffer("indices", total, np.int32)
         self._launch("neighbours", n, n, xs, lo, radius, front, d_ncell, counts, ends, offsets,
-                     indices, True)
+                     indices, True, order, self.ext["h"], *per_pair)
         self.order, self.offsets, self.indices = order, offsets, indices
         if self.planes.shape[0]:
             self._inverse()
