@@ -97,6 +97,9 @@ def test_the_whole_step_on_the_device_matches_the_cpu(resident_comparison, name)
         assert (np.abs(got - ref) <= tol * scale + 1e-18).all(), (name, ref, got)
     if name == "taylor-2d":
         assert len(sim.record.gauges) == RESIDENT[name][2] + 1
+    if name == "taylor-2d-half-stretch":  # h set on the device at its rebuilds
+        assert info["counts"][2] > 2 and sim.state.smoothing_length.max() > 1.1 * float(
+            sim.solver._h_reference.max())
     if name == "taylor-2d-layer":  # a symmetry plane's corner images; clamped particles
         assert sim.state.clamped.any() and np.any(sim.integrator.clamp_impulse != 0.0)
     for probe, rows in sim.record.probes.items():

@@ -185,9 +185,12 @@ def test_what_the_stretch_refuses(extra, field):
     assert "\n" not in message.strip()
 
 
-def test_the_stretch_runs_on_the_cpu():
-    why = _cpu_only(load_case("taylor", ["kernel.max_stretch=1.2"]))
-    assert why is not None and "kernel.max_stretch" in why
+def test_the_stretch_runs_on_the_gpu_with_the_state_there_only():
+    """The stretch is set on the device at its rebuilds (tests/test_gpu_step.py), but with
+    the state on the host (``compute.resident = false``) the run goes to the CPU."""
+    assert _cpu_only(load_case("taylor", ["kernel.max_stretch=1.2"])) is None
+    why = _cpu_only(load_case("taylor", ["kernel.max_stretch=1.2", "compute.resident=false"]))
+    assert why is not None and "kernel.max_stretch" in why and "resident = false" in why
     assert _cpu_only(load_case("taylor", [])) is None
 
 
@@ -228,14 +231,16 @@ JC_DAMAGE = ['materials.iron.damage="johnson_cook_damage"',
     ("taylor", [*DEFAULTS, "bodies.0.h_over_dx=1.25"], 1.0),   # one body is enough
     ("taylor", [*DEFAULTS, *JC_DAMAGE], 1.0),                  # cracks not measured
     ("taylor", [*DEFAULTS, "stabilisation.artificial_stress=0.3"], 1.0),
-    ("taylor", [*DEFAULTS, 'compute.device="gpu"'], 1.0),      # the GPU step has no stretch
+    ("taylor", [*DEFAULTS, 'compute.device="gpu"'], AUTO_MAX_STRETCH),  # the device's step
+    ("taylor", [*DEFAULTS, 'compute.device="gpu"', "compute.resident=false"], 1.0),  # host path
     ("taylor_axisymmetric", ['kernel.max_stretch="auto"'], 1.0),
 ])
 def test_auto_gives_the_stretch_where_it_was_measured(source, extra, expected):
     """``kernel.max_stretch = "auto"`` (the default) resolves, when the case is validated, to
     1.23 where it was measured to make the answers converge (a plastic body, updated-
     Lagrangian, plane strain or 3D, at least 1.3 dx, no damage, no artificial stress, on the
-    CPU), to 1 everywhere else; the case recorded with a run holds the number."""
+    CPU or on the GPU with the state there), to 1 everywhere else; the case recorded with a
+    run holds the number."""
     case = load_case(source, extra)
     assert case.kernel.max_stretch == expected
     assert case.model_dump()["kernel"]["max_stretch"] == expected

@@ -480,8 +480,8 @@ class Kernel(_Model):
         f"{AUTO_MAX_STRETCH} (1.6 / 1.3, measured on the Taylor bar and the cantilever, "
         "docs/stabilisation.md) where a material yields, none has a damage model, every "
         f"body's h_over_dx is at least {AUTO_STRETCH_MIN_H_OVER_DX}, the formulation is "
-        "updated-Lagrangian in plane strain or 3D, without the artificial stress, on the CPU; "
-        "else 1")
+        "updated-Lagrangian in plane strain or 3D, without the artificial stress, on the CPU "
+        "or on the GPU with the state there (compute.resident); else 1")
 
 
 #: the hourglass coefficient zeta that ``"auto"`` gives a case whose materials do not yield
@@ -1032,7 +1032,9 @@ class Case(_Model):
                    for b in range(len(self.bodies)))
         on = (yields and not damage and wide and self.formulation != "total_lagrangian"
               and self.two_dimensional != "axisymmetric"
-              and self.stabilisation.artificial_stress == 0.0 and self.compute.device == "cpu")
+              and self.stabilisation.artificial_stress == 0.0
+              # (the GPU with its state on the device sets it too, since 2026-12-07)
+              and (self.compute.device == "cpu" or self.compute.resident))
         kernel.max_stretch = AUTO_MAX_STRETCH if on else 1.0
 
 

@@ -81,9 +81,13 @@ the ghosts' mirror of it, ``work_columns`` into the corrector's records, the pai
 outputs of its own, ``work_energy``), its heating booked instead of the corrector's, as
 :meth:`impactsph.solver.Solver.work_rates` and the CPU's midpoint step.
 
-Which runs keep their state on the device: every updated-Lagrangian run that the GPU
-backend takes (a stretching smoothing length and the total-Lagrangian formulation run on
-the CPU), unless ``compute.resident = false``:
+A smoothing length that follows the stretch: at each rebuild, before the ghosts are chosen,
+the CPU's neighbourhood fit over the old list (``stretch_rows``, the old ghosts' rows
+mirrored stage by stage by ``stretch_mirror``, ``stretch``), then the support, skin and
+radius from the largest h (``largest``), as :meth:`impactsph.solver.Solver._build`.
+
+Which runs keep their state on the device: every updated-Lagrangian run (the
+total-Lagrangian formulation runs on the CPU), unless ``compute.resident = false``:
 :func:`resident_unsupported` names what would keep a run on the host path, where it
 evaluates its rates on the GPU with the state on the host, and its log says why.
 """
@@ -107,7 +111,7 @@ from .models.columns import (
     VISCOSITY_FACTOR,
     VISCOSITY_MEMORY,
 )
-from .physics import stress_rate, survey
+from .physics import stress_rate, stretch, survey
 from .physics.rates import compiled_passes
 
 if TYPE_CHECKING:
@@ -187,6 +191,12 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
     store_upper = stress_rate.store_upper.py_func if simulated else stress_rate.store_upper
     combine_particle = (integrate.combine_particle.py_func if simulated
                         else integrate.combine_particle)
+    # a smoothing length that follows the stretch: the CPU's row of (ST-2, ST-3) and its
+    # ghosts' mirrored rows
+    stretch_row = (codegen._python_all_the_way(stretch.stretch_row(dim)) if simulated
+                   else stretch.stretch_row(dim))
+    mirror_row = (codegen._python_all_the_way(stretch.mirror_row) if simulated
+                  else stretch.mirror_row)
     DIM = dim  # noqa: N806 - a compile-time constant of the kernels
     TPB = tpb  # noqa: N806
     STENCIL = 3**dim  # noqa: N806
@@ -245,6 +255,61 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                     mean[i, a] = weight * rate[i, a]
                 else:
                     mean[i, a] += weight * rate[i, a]
+
+    @cuda.jit
+    def stretch_rows_kernel(n, x, x0, body, h, sx, sx0, sb, sh):
+        """The stretch's rows of the particles (:func:`impactsph.physics.stretch.
+        mirrored_rows`): their positions now and at t = 0, bodies and smoothing lengths."""
+        i = cuda.grid(1)
+        if i < n:
+            for a in range(DIM):
+                sx[i, a] = x[i, a]
+                sx0[i, a] = x0[i, a]
+            sb[i] = body[i]
+            sh[i] = h[i]
+
+    @cuda.jit
+    def stretch_mirror_kernel(start, stop, n_real, sx, sx0, sb, sh, src, wall, points,
+                              normals, kinds):
+        """The stretch's rows of the ghosts ``start .. stop - 1`` (a stage: their sources
+        are particles or ghosts of earlier stages), mirrored from their sources'
+        (:func:`impactsph.physics.stretch.mirror_row`)."""
+        k = start + cuda.grid(1)
+        if k < stop:
+            mirror_row(k, n_real, sx, sx0, sb, sh, src, wall, points, normals, kinds)
+
+    @cuda.jit
+    def largest_kernel(n, a, out):
+        """The largest of ``a[:n]`` into ``out[0]`` (set to -inf before): the block's, then
+        one atomic max a block (a maximum, exact in any order)."""
+        sh = cuda.shared.array((1, TPB), float64)
+        i = cuda.grid(1)
+        t = cuda.threadIdx.x
+        sh[0, t] = a[i] if i < n else -math.inf
+        _block_reduce(sh, 1, 0, 1, t)
+        if t == 0:
+            cuda.atomic.max(out, 0, sh[0, 0])
+
+    @cuda.jit
+    def stretch_kernel(n_rows, n_real, order, offsets, indices, sx, sx0, sb, sh, h0,
+                       max_stretch, h):
+        """(ST-1) for the particle at sorted position ``p``: ``h = h0 clamp(lambda, 1,
+        max_stretch)`` with ``lambda`` its neighbourhood's largest principal stretch over the
+        old list (:func:`impactsph.physics.stretch.stretch_row`; ``h0`` where its moment is
+        singular), as :func:`impactsph.physics.stretch.stretched_smoothing_length`."""
+        p = cuda.grid(1)
+        if p < n_rows:
+            i = order[p]
+            if i < n_real:
+                A = cuda.local.array((DIM, DIM), float64)
+                B = cuda.local.array((DIM, DIM), float64)
+                inv = cuda.local.array((3, 3), float64)
+                F = cuda.local.array((3, 3), float64)
+                C = cuda.local.array((3, 3), float64)
+                lam = stretch_row(p, order, offsets, indices, sx, sx0, sb, sh, A, B, inv, F,
+                                  C)
+                factor = min(max(lam, 1.0), max_stretch) if lam > 0.0 else 1.0
+                h[i] = h0[i] * factor
 
     @cuda.jit
     def mean_velocity_kernel(n, v0, v, work):
@@ -910,6 +975,8 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
 
     return dict(advance=advance_kernel, start=start_kernel, combine=combine_kernel,
                 weigh=weigh_kernel, mean_velocity=mean_velocity_kernel,
+                stretch_rows=stretch_rows_kernel, stretch_mirror=stretch_mirror_kernel,
+                stretch=stretch_kernel, largest=largest_kernel,
                 work_columns=work_columns_kernel, work_energy=work_energy_kernel,
                 survey=survey_kernel,
                 survey_finish=survey_finish,
@@ -1007,6 +1074,14 @@ class ResidentStep:
         self.support = SUPPORT_RADIUS * float(state.smoothing_length.max())
         self.skin = solver.neighbours.skin
         self.radius = solver.neighbours.radius
+        #: a smoothing length that follows the stretch (``kernel.max_stretch`` > 1): set at
+        #: each rebuild from the old list, the support, skin and radius with it (as
+        #: :meth:`impactsph.solver.Solver._build`), from the smoothing lengths at t = 0
+        self.max_stretch = float(solver.max_stretch)
+        self.skin_fraction = float(solver.skin_fraction)
+        self.h_reference = (cuda.to_device(np.ascontiguousarray(solver._h_reference,
+                                                                np.float64), stream=backend._stream)
+                            if self.max_stretch > 1.0 else None)
         self.blocks = max(1, (self.n + self.tpb - 1) // self.tpb)
         s = self.stream
         dim = self.dim
@@ -1278,7 +1353,7 @@ class ResidentStep:
         self.factor_time = float(state.viscosity_factor_time)
         # smoothing lengths that differ: the list's radius per pair (Solver._build's test)
         h = state.smoothing_length
-        self.per_pair = bool(h.shape[0] > 0 and h.max() > h.min())
+        self.per_pair = bool(self.max_stretch > 1.0 or (h.shape[0] > 0 and h.max() > h.min()))
         # the inertia of the books' impulses and the kinetic energy (mass and added mass: the
         # masses themselves where nothing is added, 8 B a particle less), and with added mass
         # the fraction that turns forces per own mass into accelerations
@@ -1338,6 +1413,8 @@ class ResidentStep:
             self.switch["factor"].copy_to_host(state.viscosity_factor, stream=s)
             self.switch["memory"].copy_to_host(state.viscosity_memory, stream=s)
         state.viscosity_factor_time = self.factor_time
+        if self.max_stretch > 1.0:  # (set at the device's rebuilds)
+            self.const["smoothing_length"].copy_to_host(state.smoothing_length, stream=s)
         if self._list_builds:
             nl = self.solver.neighbours
             rows = self.n + self.n_ghosts
@@ -1346,6 +1423,7 @@ class ResidentStep:
             nl.indices = self._fetch(self.indices)
             nl.reference_positions = self._fetch(self.reference[:rows])
             nl.reference_origin = self._fetch(self.origin)
+            nl.radius, nl.skin = self.radius, self.skin  # (the stretch moves them)
             # the device builds no inner list (its correction kernel reads the whole list, to
             # the same sums): the host's, of an older build, goes
             nl.inner_reach, nl.inner_radius = 1.0, 0.0
@@ -1528,6 +1606,8 @@ class ResidentStep:
     def build(self) -> None:
         """Choose the ghosts and rebuild the neighbour list on the device (the module's
         docstring)."""
+        if self.max_stretch > 1.0:
+            self._stretch()
         self._select_ghosts()
         self._fill()
         n, dim, s = self.n + self.n_ghosts, self.dim, self.stream
@@ -1576,6 +1656,36 @@ class ResidentStep:
         self.origin.copy_to_device(lo_h, stream=s)
         self.builds += 1
         self._list_builds += 1
+
+    def _stretch(self) -> None:
+        """(ST-1) on the device before a rebuild, over the old list and its ghosts (their
+        rows mirrored stage by stage from the positions now), as
+        :meth:`impactsph.solver.Solver._build`: the smoothing lengths, then the support,
+        skin and radius of the list to come."""
+        n, dim = self.n, self.dim
+        rows = n + self.n_ghosts
+        sx = self._buffer("stretch_x", rows, np.float64, dim)
+        sx0 = self._buffer("stretch_x0", rows, np.float64, dim)
+        sb = self._buffer("stretch_body", rows, np.int64)
+        sh = self._buffer("stretch_h", rows, np.float64)
+        c = self.const
+        self._launch("stretch_rows", n, n, self.now["position"], c["initial_position"],
+                     c["body"], c["smoothing_length"], sx, sx0, sb, sh)
+        for first, last in self.stages:  # (a corner image after its source ghost)
+            self._launch("stretch_mirror", last - first, first, last, n, sx, sx0, sb, sh,
+                         self.ghost_src, self.ghost_wall, self.points, self.normals,
+                         self.kinds)
+        h = c["smoothing_length"]
+        self._launch("stretch", rows, rows, n, self.order, self.offsets, self.indices, sx,
+                     sx0, sb, sh, self.h_reference, self.max_stretch, h)
+        largest = self._buffer("h_largest", 1, np.float64)
+        largest.copy_to_device(np.array([-np.inf]), stream=self.stream)
+        self._launch("largest", n, n, h, largest)
+        self.support = SUPPORT_RADIUS * float(self._fetch(largest)[0])
+        self.skin = self.skin_fraction * self.support
+        self.radius = float(self.support + self.skin)
+        if self.walls is not None:  # the particles' rows of the extended arrays
+            self.ext["h"][:n].copy_to_device(h, stream=self.stream)
 
     # -- one step ------------------------------------------------------------------------------
     def _evaluate(self, dt: float, weight: float, first: bool, time: float | None,

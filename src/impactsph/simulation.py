@@ -704,9 +704,9 @@ def _cpu_only(case: Case) -> str | None:
     if case.time.energy_update == "compatible" and not case.compute.resident:
         return ("time.energy_update = 'compatible' with compute.resident = false runs on the "
                 "CPU only (the rates on the GPU with the state on the host have no work pass)")
-    if case.kernel.max_stretch > 1.0:
-        return "kernel.max_stretch > 1 (a smoothing length set at each list build) runs on " \
-               "the CPU only"
+    if case.kernel.max_stretch > 1.0 and not case.compute.resident:
+        return ("kernel.max_stretch > 1 (a smoothing length set at each list build) with "
+                "compute.resident = false runs on the CPU only")
     return None
 
 

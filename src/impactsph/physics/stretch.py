@@ -69,9 +69,10 @@ def _largest_eigenvalue_sym3(a00, a01, a02, a11, a12, a22):
 
 
 @nb.njit(inline="always", cache=True)
-def _principal_stretch(A, B, dim):
+def _principal_stretch(A, B, dim, inv, F, C):
     """Largest principal stretch of ``F = A B^-1`` (``A``, ``B``: ``dim x dim``; ``B``
-    symmetric), or -1 where ``B`` is singular."""
+    symmetric), or -1 where ``B`` is singular; ``inv``, ``F``, ``C``: 3 x 3 scratch (the
+    caller's: arrays on the CPU, a GPU thread's local arrays)."""
     if dim == 1:
         if B[0, 0] <= 0.0:
             return -1.0
@@ -99,7 +100,6 @@ def _principal_stretch(A, B, dim):
     det = B[0, 0] * c00 + B[1, 0] * c01 + B[2, 0] * c02
     if not det > SINGULAR * (trace / 3.0) ** 3:
         return -1.0
-    inv = np.empty((3, 3))
     inv[0, 0], inv[0, 1], inv[0, 2] = c00 / det, c01 / det, c02 / det
     inv[1, 0] = (B[1, 2] * B[2, 0] - B[1, 0] * B[2, 2]) / det
     inv[1, 1] = (B[0, 0] * B[2, 2] - B[0, 2] * B[2, 0]) / det
@@ -109,14 +109,14 @@ def _principal_stretch(A, B, dim):
     inv[2, 2] = (B[0, 0] * B[1, 1] - B[0, 1] * B[1, 0]) / det
     # F = A B^-1 and C = F F^T written out: numba's matrix product needs SciPy's BLAS,
     # which is not a dependency
-    F = np.zeros((3, 3))
     for a in range(3):
         for b in range(3):
+            F[a, b] = 0.0
             for c in range(3):
                 F[a, b] += A[a, c] * inv[c, b]
-    C = np.zeros((3, 3))
     for a in range(3):
         for b in range(a, 3):
+            C[a, b] = 0.0
             for c in range(3):
                 C[a, b] += F[a, c] * F[b, c]
     return math.sqrt(max(_largest_eigenvalue_sym3(C[0, 0], C[0, 1], C[0, 2], C[1, 1],
@@ -137,11 +137,84 @@ def principal_stretches(order, offsets, indices, x, x0, body, h, n_real) -> np.n
 
 
 @cache
+def stretch_row(dim: int):
+    """(ST-2, ST-3) of the real particle at sorted position ``p`` of a neighbour list, for one
+    dimension (a compile-time constant: the sums of (ST-2) in scalars): ``row(p, order,
+    offsets, indices, x, x0, body, h, A, B, inv, F, C)``, ``A``, ``B`` the ``dim x dim`` and
+    ``inv``, ``F``, ``C`` the 3 x 3 scratch of :func:`_principal_stretch` (arrays on the CPU,
+    a GPU thread's local arrays: :mod:`impactsph.gpu_step` calls it too)."""
+
+    @nb.njit(inline="always")
+    def row(p, order, offsets, indices, x, x0, body, h, A, B, inv, F, C):
+        i = order[p]
+        xi0 = x[i, 0]
+        xi1 = x[i, 1] if dim > 1 else 0.0
+        xi2 = x[i, 2] if dim > 2 else 0.0
+        Xi0 = x0[i, 0]
+        Xi1 = x0[i, 1] if dim > 1 else 0.0
+        Xi2 = x0[i, 2] if dim > 2 else 0.0
+        a00 = a01 = a02 = a10 = a11 = a12 = a20 = a21 = a22 = 0.0
+        b00 = b01 = b02 = b10 = b11 = b12 = b20 = b21 = b22 = 0.0
+        for k in range(offsets[p], offsets[p + 1]):
+            j = order[indices[k]]
+            if body[j] != body[i]:
+                continue
+            dx0 = x[j, 0] - xi0
+            r2 = dx0 ** 2
+            dx1 = dx2 = 0.0
+            if dim > 1:
+                dx1 = x[j, 1] - xi1
+                r2 += dx1 ** 2
+            if dim > 2:
+                dx2 = x[j, 2] - xi2
+                r2 += dx2 ** 2
+            w = cubic_spline(math.sqrt(r2), 0.5 * (h[i] + h[j]), dim)
+            if w == 0.0:
+                continue
+            dX0 = x0[j, 0] - Xi0
+            dX1 = x0[j, 1] - Xi1 if dim > 1 else 0.0
+            dX2 = x0[j, 2] - Xi2 if dim > 2 else 0.0
+            a00 += w * dx0 * dX0
+            b00 += w * dX0 * dX0
+            if dim > 1:
+                a01 += w * dx0 * dX1
+                b01 += w * dX0 * dX1
+                a10 += w * dx1 * dX0
+                b10 += w * dX1 * dX0
+                a11 += w * dx1 * dX1
+                b11 += w * dX1 * dX1
+            if dim > 2:
+                a02 += w * dx0 * dX2
+                b02 += w * dX0 * dX2
+                a12 += w * dx1 * dX2
+                b12 += w * dX1 * dX2
+                a20 += w * dx2 * dX0
+                b20 += w * dX2 * dX0
+                a21 += w * dx2 * dX1
+                b21 += w * dX2 * dX1
+                a22 += w * dx2 * dX2
+                b22 += w * dX2 * dX2
+        A[0, 0] = a00
+        B[0, 0] = b00
+        if dim > 1:
+            A[0, 1], A[1, 0], A[1, 1] = a01, a10, a11
+            B[0, 1], B[1, 0], B[1, 1] = b01, b10, b11
+        if dim > 2:
+            A[0, 2], A[1, 2], A[2, 0], A[2, 1], A[2, 2] = a02, a12, a20, a21, a22
+            B[0, 2], B[1, 2], B[2, 0], B[2, 1], B[2, 2] = b02, b12, b20, b21, b22
+        return _principal_stretch(A, B, dim, inv, F, C)
+
+    return row
+
+
+@cache
 def _stretch_kernel(dim: int):
     """:func:`principal_stretches` compiled for one dimension (a compile-time constant): the
     sums of (ST-2) in scalars, not in ``dim x dim`` arrays indexed in loops of a run-time
     length.  The same arithmetic in the same order, so the same bits; 1.4 times as fast (the
     3D Taylor cylinder's 2.1 million list entries: 19-20 ms against 28 ms on two threads)."""
+
+    row = stretch_row(dim)
 
     @njit_variant(f"{dim}d", parallel=True)
     def stretches(order, offsets, indices, x, x0, body, h, n_real):
@@ -150,64 +223,11 @@ def _stretch_kernel(dim: int):
             i = order[p]
             if i >= n_real:
                 continue
-            xi0 = x[i, 0]
-            xi1 = x[i, 1] if dim > 1 else 0.0
-            xi2 = x[i, 2] if dim > 2 else 0.0
-            Xi0 = x0[i, 0]
-            Xi1 = x0[i, 1] if dim > 1 else 0.0
-            Xi2 = x0[i, 2] if dim > 2 else 0.0
-            a00 = a01 = a02 = a10 = a11 = a12 = a20 = a21 = a22 = 0.0
-            b00 = b01 = b02 = b10 = b11 = b12 = b20 = b21 = b22 = 0.0
-            for k in range(offsets[p], offsets[p + 1]):
-                j = order[indices[k]]
-                if body[j] != body[i]:
-                    continue
-                dx0 = x[j, 0] - xi0
-                r2 = dx0 ** 2
-                dx1 = dx2 = 0.0
-                if dim > 1:
-                    dx1 = x[j, 1] - xi1
-                    r2 += dx1 ** 2
-                if dim > 2:
-                    dx2 = x[j, 2] - xi2
-                    r2 += dx2 ** 2
-                w = cubic_spline(math.sqrt(r2), 0.5 * (h[i] + h[j]), dim)
-                if w == 0.0:
-                    continue
-                dX0 = x0[j, 0] - Xi0
-                dX1 = x0[j, 1] - Xi1 if dim > 1 else 0.0
-                dX2 = x0[j, 2] - Xi2 if dim > 2 else 0.0
-                a00 += w * dx0 * dX0
-                b00 += w * dX0 * dX0
-                if dim > 1:
-                    a01 += w * dx0 * dX1
-                    b01 += w * dX0 * dX1
-                    a10 += w * dx1 * dX0
-                    b10 += w * dX1 * dX0
-                    a11 += w * dx1 * dX1
-                    b11 += w * dX1 * dX1
-                if dim > 2:
-                    a02 += w * dx0 * dX2
-                    b02 += w * dX0 * dX2
-                    a12 += w * dx1 * dX2
-                    b12 += w * dX1 * dX2
-                    a20 += w * dx2 * dX0
-                    b20 += w * dX2 * dX0
-                    a21 += w * dx2 * dX1
-                    b21 += w * dX2 * dX1
-                    a22 += w * dx2 * dX2
-                    b22 += w * dX2 * dX2
             A = np.empty((dim, dim))
             B = np.empty((dim, dim))
-            A[0, 0] = a00
-            B[0, 0] = b00
-            if dim > 1:
-                A[0, 1], A[1, 0], A[1, 1] = a01, a10, a11
-                B[0, 1], B[1, 0], B[1, 1] = b01, b10, b11
-            if dim > 2:
-                A[0, 2], A[1, 2], A[2, 0], A[2, 1], A[2, 2] = a02, a12, a20, a21, a22
-                B[0, 2], B[1, 2], B[2, 0], B[2, 1], B[2, 2] = b02, b12, b20, b21, b22
-            out[i] = _principal_stretch(A, B, dim)
+            big = 3 if dim == 3 else 0  # (the 3 x 3 scratch: 3D only)
+            out[i] = row(p, order, offsets, indices, x, x0, body, h, A, B,
+                         np.empty((big, big)), np.empty((big, big)), np.empty((big, big)))
         return out
 
     return stretches
@@ -226,18 +246,27 @@ def mirrored_rows(x, x0, body, h, src, wall, points, normals, kinds):
     be, he = np.empty(rows, np.int64), np.empty(rows)
     xe[:n], x0e[:n], be[:n], he[:n] = x, x0, body, h
     for k in range(src.shape[0]):
-        i, w, g = src[k], wall[k], n + k
-        d = 0.0
-        d0 = 0.0
-        for a in range(dim):
-            d += (xe[i, a] - points[w, a]) * normals[w, a]
-            d0 += (x0e[i, a] - points[w, a]) * normals[w, a]
-        for a in range(dim):
-            xe[g, a] = xe[i, a] - 2.0 * d * normals[w, a]
-            x0e[g, a] = x0e[i, a] - 2.0 * d0 * normals[w, a]
-        be[g] = be[i] if kinds[w] == SYMMETRY else -1
-        he[g] = he[i]
+        mirror_row(k, n, xe, x0e, be, he, src, wall, points, normals, kinds)
     return xe, x0e, be, he
+
+
+@nb.njit(inline="always", cache=True)
+def mirror_row(k, n, xe, x0e, be, he, src, wall, points, normals, kinds):
+    """Ghost ``k``'s row of :func:`mirrored_rows` (row ``n + k``), from its source's row
+    (a particle's, or an earlier ghost's): one ghost of the CPU's loop, and of the device's
+    (:mod:`impactsph.gpu_step`, stage by stage)."""
+    dim = xe.shape[1]
+    i, w, g = src[k], wall[k], n + k
+    d = 0.0
+    d0 = 0.0
+    for a in range(dim):
+        d += (xe[i, a] - points[w, a]) * normals[w, a]
+        d0 += (x0e[i, a] - points[w, a]) * normals[w, a]
+    for a in range(dim):
+        xe[g, a] = xe[i, a] - 2.0 * d * normals[w, a]
+        x0e[g, a] = x0e[i, a] - 2.0 * d0 * normals[w, a]
+    be[g] = be[i] if kinds[w] == SYMMETRY else -1
+    he[g] = he[i]
 
 
 def stretched_smoothing_length(neighbours, x: np.ndarray, x0: np.ndarray, body: np.ndarray,
