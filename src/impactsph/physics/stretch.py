@@ -225,9 +225,11 @@ def _stretch_kernel(dim: int):
                 continue
             A = np.empty((dim, dim))
             B = np.empty((dim, dim))
-            big = 3 if dim == 3 else 0  # (the 3 x 3 scratch: 3D only)
-            out[i] = row(p, order, offsets, indices, x, x0, body, h, A, B,
-                         np.empty((big, big)), np.empty((big, big)), np.empty((big, big)))
+            if dim == 3:  # the 3 x 3 scratch, read in 3D only (A stands in elsewhere)
+                inv, F, C = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+            else:
+                inv = F = C = A
+            out[i] = row(p, order, offsets, indices, x, x0, body, h, A, B, inv, F, C)
         return out
 
     return stretches
