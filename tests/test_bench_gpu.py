@@ -101,4 +101,4 @@ def test_the_quarter_model_is_the_block_on_a_wall_between_its_planes(benchmark_s
     # "auto", resolved for an elastic case: the kernel gradient correction and the hourglass
     # control
     assert case.stabilisation.gradient_correction != "none" and case.stabilisation.hourglass > 0
-    assert resident_unsupported(case, None, None) is None
+    assert resident_unsupported(case) is None

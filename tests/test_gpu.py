@@ -849,15 +849,11 @@ def test_the_simulator_polls_without_holding_the_interpreter(run_comparison):
 def test_what_keeps_the_state_on_the_host_is_named():
     """:func:`impactsph.gpu_step.resident_unsupported` says why a case's state cannot stay on
     the device, and lets the cases without such a feature through."""
-    from impactsph.boundaries import walls_of
     from impactsph.gpu_step import resident_unsupported
     from impactsph.loading import load_case
-    from impactsph.problem import build_problem
 
     def why(name: str, overrides: list[str] = ()) -> str | None:
-        case = load_case(name, list(overrides))
-        state = build_problem(case).state
-        return resident_unsupported(case, state, walls_of(case.boundaries, case.dimension))
+        return resident_unsupported(load_case(name, list(overrides)))
 
     assert why("bars") is None
     assert why("rings") is None

@@ -115,7 +115,6 @@ from .physics import stress_rate, stretch, survey
 from .physics.rates import compiled_passes
 
 if TYPE_CHECKING:
-    from .boundaries import Walls
     from .config import Case
     from .state import ParticleState
 
@@ -150,9 +149,8 @@ DEVICE_INTEGRATORS = ("midpoint", "ssp_rk3")
 NO_BAD = np.iinfo(np.int64).max
 
 
-def resident_unsupported(case: Case, state: ParticleState, walls: Walls) -> str | None:
-    """Why the state of ``case`` cannot stay on the device between steps (None: it can);
-    ``walls``: its :class:`~impactsph.boundaries.Walls`."""
+def resident_unsupported(case: Case) -> str | None:
+    """Why the state of ``case`` cannot stay on the device between steps (None: it can)."""
     if not case.compute.resident:
         return "compute.resident = false"
     if case.formulation != "updated_lagrangian":
@@ -1149,7 +1147,8 @@ class ResidentStep:
         #: the step's mean acceleration (the supports' impulse, the driven regions' books)
         #: and, with several bodies, its mean contact force (their history columns)
         self.kept = integrated_copy() if ssp else None
-        self.mean_dv = empty((n if ssp else 0, dim), np.float64, stream=s)
+        books = self.drivers is not None or bool(state.clamped.any())  # (the CPU's test)
+        self.mean_dv = empty((n if ssp and books else 0, dim), np.float64, stream=s)
         self.mean_force = empty((n if ssp and self.n_bodies > 1 else 0, dim), np.float64,
                                 stream=s)
         #: the compatible energy update: the corrector's pair energy rates, and the work
@@ -1727,8 +1726,8 @@ class ResidentStep:
             self.options.normal_stress, ext["S"], ext["material"], self.table,
             out["drho"], out["dv"], out["de"], out["de_visc"], out["contact_force"],
             out["pair_count"], out["dS"], out["gradients"])
-        if self.compatible:  # the pair forces' energy rates alone (the work pass's baseline)
-            self.de_pairs.copy_to_device(out["de"], stream=s)
+        if self.compatible and not first:  # the corrector's pair energy rates alone (the
+            self.de_pairs.copy_to_device(out["de"], stream=s)  # work pass's baseline)
         if mirror:
             self._mirror("mirror_results", P, cols.U, out["gradients"])
         if self.friction > 0.0:  # (the CPU's order: pairs, friction, correction, hourglass)
@@ -1834,7 +1833,9 @@ class ResidentStep:
         """SSP-RK3: the evaluation's accelerations (and, with several bodies, its contact
         force) into the step's means with ``weight``."""
         n = self.n
-        self._launch("weigh", n, n, float(weight), bool(first), self.out["dv"], self.mean_dv)
+        if self.mean_dv.shape[0]:  # (read by the clamps' and the driven regions' books)
+            self._launch("weigh", n, n, float(weight), bool(first), self.out["dv"],
+                         self.mean_dv)
         if self.mean_force.shape[0]:
             self._launch("weigh", n, n, float(weight), bool(first), self.out["contact_force"],
                          self.mean_force)

@@ -253,7 +253,7 @@ class Simulation:
         its rates still run on the GPU)."""
         from .gpu_step import ResidentStep, resident_unsupported
 
-        why = resident_unsupported(self.case, self._state, self.walls)
+        why = resident_unsupported(self.case)
         if why is not None:
             log.info("the state stays on the host between steps (%s): its rates run on the "
                      "GPU, with the state copied up and the rates down at each evaluation", why)
