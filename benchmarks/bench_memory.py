@@ -24,73 +24,20 @@ import json
 import os
 import platform
 import sys
-import types
 from pathlib import Path
 
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-#: objects whose insides are not the run's arrays
-SKIPPED = (str, bytes, int, float, complex, bool, type, types.ModuleType, types.FunctionType,
-           types.BuiltinFunctionType, types.MethodType)
-
-
-def _base(array: np.ndarray) -> np.ndarray:
-    while isinstance(array.base, np.ndarray):
-        array = array.base
-    return array
-
-
-def _device_allocation(array: object) -> tuple[int, int] | None:
-    """``(key, bytes)`` of the device allocation a CUDA array (or a view of one) lives in:
-    a GPU's memory pointer's owner, or the simulator's numpy base; None for other objects."""
-    name = type(array).__name__
-    if name == "FakeCUDAArray":  # numba's CUDA simulator: a numpy array inside
-        base = _base(array._ary)
-        return id(base), base.nbytes
-    if name in ("DeviceNDArray", "DeviceRecord", "MappedNDArray"):
-        pointer = array.gpu_data
-        owner = getattr(pointer, "owner", None) or pointer
-        return id(owner), int(owner.size)
-    return None
 
 
 def arrays_of(root: object, name: str = "sim", depth: int = 14,
               device: bool = False) -> dict[int, tuple[int, str]]:
-    """``{id(base): (bytes, path)}`` for every array reachable from ``root`` through
-    attributes, dict values and list or tuple items (the first path that reaches it): the
-    host's numpy arrays, or with ``device`` the CUDA arrays (a GPU's or the simulator's)."""
-    found: dict[int, tuple[int, str]] = {}
-    seen: set[int] = set()
-    stack = [(root, name, 0)]
-    while stack:
-        obj, path, level = stack.pop()
-        if id(obj) in seen or level > depth or isinstance(obj, SKIPPED):
-            continue
-        seen.add(id(obj))
-        allocation = _device_allocation(obj)
-        if allocation is not None:
-            if device:
-                found.setdefault(allocation[0], (allocation[1], path))
-            continue
-        if isinstance(obj, np.ndarray):
-            if device:
-                continue
-            base = _base(obj)
-            found.setdefault(id(base), (base.nbytes, path))
-            continue
-        if type(obj) is dict:
-            stack.extend((v, f"{path}[{k!r}]", level + 1) for k, v in obj.items())
-        elif type(obj) in (list, tuple):
-            stack.extend((v, f"{path}[{k}]", level + 1) for k, v in enumerate(obj))
-        else:
-            attributes = getattr(obj, "__dict__", None)
-            if type(attributes) is dict:
-                stack.extend((v, f"{path}.{k}", level + 1) for k, v in attributes.items())
-            for slot in getattr(type(obj), "__slots__", ()):
-                if hasattr(obj, slot):
-                    stack.append((getattr(obj, slot), f"{path}.{slot}", level + 1))
-    return found
+    """:func:`impactsph.gpu_memory.arrays_of` (imported at the call: ``--simulator`` sets
+    numba's environment before impactsph imports numba)."""
+    from impactsph.gpu_memory import arrays_of as walk
+
+    return walk(root, name, depth, device)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -473,6 +473,27 @@ def _simulator_polls() -> int:
     return int(getattr(getattr(kernel, "BlockThread", None), "_polls", 0))
 
 
+def _device_memory(sim) -> dict:
+    """A device run's allocations (each once) against :mod:`impactsph.gpu_memory`'s count
+    of them from the run's sizes, and the layouts that count reads from the run and from its
+    case (:meth:`~impactsph.gpu_memory.DeviceLayout.of_case`, what the preflight reads)."""
+    from impactsph.gpu_memory import DeviceLayout
+
+    step = sim._resident
+    regions = step.drivers.regions if step.drivers is not None else []
+    layout = step.layout()
+    parts = layout.parts(step.n, step.n_ghosts, len(sim.solver.neighbours.indices),
+                         step.n_cells, table_bytes=int(sim.problem.table.nbytes),
+                         clamped=int(sim.state.clamped.sum()),
+                         driven=sum(r.rows.shape[0] for r in regions), regions=len(regions),
+                         probes=len(sim.problem.probes), gauges=len(sim.case.output.gauges),
+                         built=step.n_cells > 0, capacity=step.capacity)
+    return {"allocated": sorted(step.allocated().values(), reverse=True),
+            "summary": sim.summary()["device_memory_bytes"], "parts": parts,
+            "layout": layout.as_dict(),
+            "case_layout": DeviceLayout.of_case(sim.case, step.tpb).as_dict()}
+
+
 def _worker(task: str, folder: Path) -> int:
     try:
         from numba import cuda  # noqa: F401
@@ -537,7 +558,8 @@ def _worker(task: str, folder: Path) -> int:
                             "host_path_arrays": sorted(sim.solver.backend._device),
                             "counts": [summary["pair_evaluations"],
                                        sim.solver.rate_evaluations,
-                                       summary["neighbour_list_builds"]]}
+                                       summary["neighbour_list_builds"]],
+                            "memory": _device_memory(sim)}
             report["seconds"][name] = time.perf_counter() - t0
         for name in HOST_PATH:  # the rates on the device, the state on the host
             sim, resident, _ = _resident_run(name, on_gpu=True)

@@ -109,6 +109,23 @@ def test_the_whole_step_on_the_device_matches_the_cpu(resident_comparison, name)
                                    atol=1e-12)
 
 
+@pytest.mark.parametrize("name", list(RESIDENT))
+def test_the_device_memory_is_counted_from_the_runs_sizes(resident_comparison, name):
+    """:mod:`impactsph.gpu_memory` counts a device run's arrays from its sizes (particles,
+    ghosts, list entries, cells) to within 1% of what the run holds (each allocation once,
+    the summary's ``device_memory_bytes``), and reads the layout it counts from the case as
+    the run has it: what the preflight's GPU memory estimate stands on.  (The 1%: a kept
+    buffer holds the largest size an earlier build asked for.)"""
+    mode, report, cpu, folder = resident_comparison
+    memory = report[name]["memory"]
+    held = sum(size for size, _ in memory["allocated"])
+    counted = sum(memory["parts"].values())
+    assert memory["summary"] == held
+    assert memory["case_layout"] == memory["layout"]
+    assert abs(counted / held - 1.0) < 0.01, (name, held, counted, memory["parts"],
+                                               memory["allocated"][:16])
+
+
 def test_a_symmetry_plane_on_the_host_path_matches_the_cpu(resident_comparison):
     """With the state on the host (``compute.resident = false``) and the rates on the
     device, a symmetry plane's ghosts take their sources' results mirrored on the host, on the

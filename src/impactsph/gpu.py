@@ -133,6 +133,22 @@ def record_columns(columns: int, dim: int, viscosity) -> int:
 RECORD_ORDER = "F"
 
 
+def free_memory() -> tuple[int | None, str]:
+    """``(free bytes, name)`` of the GPU this process uses (its CUDA context made if it has
+    none yet: a run then reuses it); ``(None, what)`` under numba's CUDA simulator (whose
+    memory is the host's) or where the driver does not say."""
+    if simulator_enabled():
+        return None, "numba's CUDA simulator: not checked"
+    try:
+        free, _total = cuda.current_context().get_memory_info()
+        name = cuda.get_current_device().name
+    except Exception as exc:  # noqa: BLE001 - a driver that cannot say: nothing is checked
+        return None, f"GPU memory unknown: {exc}"
+    if isinstance(name, bytes):
+        name = name.decode(errors="replace")
+    return int(free), str(name)
+
+
 #: the launch settings' environment variables (for tuning on a given GPU, benchmarks/bench_gpu.py)
 THREADS_ENV = "IMPACTSPH_CUDA_THREADS_PER_BLOCK"
 REGISTERS_ENV = "IMPACTSPH_CUDA_MAX_REGISTERS"

@@ -103,6 +103,7 @@ import numpy as np
 
 from . import boundaries, codegen, integrate
 from .gpu import RECORD_ORDER, cuda, gpu_kernels, record_columns, simulator_enabled
+from .gpu_memory import BUFFER_MARGIN, SCAN_CHUNK, DeviceLayout, arrays_of
 from .kernels import SUPPORT_RADIUS
 from .models.columns import (
     CARRIED,
@@ -118,9 +119,10 @@ if TYPE_CHECKING:
     from .config import Case
     from .state import ParticleState
 
-#: Entries of a prefix sum that one thread adds serially (the sums of the chunks are summed
-#: the same way, recursively).
-SCAN_CHUNK = 256
+# SCAN_CHUNK: entries of a prefix sum that one thread adds serially (the sums of the chunks
+# are summed the same way, recursively); BUFFER_MARGIN: the builds' kept arrays grow by
+# 1/BUFFER_MARGIN more than they need (the list's indices are most of them: about 290 B a
+# particle in 3D, 1/8 of it was 37 B).  Both from impactsph.gpu_memory, which counts them.
 #: The survey's record: dt, KE, IE, p_x, p_y, p_z, bad (as a float).
 SURVEY_WIDTH = 7
 #: The books' columns: the viscous heating, the correction's work and its heating (each the
@@ -139,9 +141,6 @@ INTEGRATED = ("position", "velocity", "density", "specific_energy", "deviatoric_
 #: The constant fields the kernels read (the added masses only through the inertia,
 #: :meth:`ResidentStep.upload`).
 CONSTANT = ("mass", "smoothing_length", "material", "body", "clamped", "initial_position")
-#: The builds' kept arrays grow by 1/BUFFER_MARGIN more than they need (the list's indices
-#: are most of them: about 290 B a particle in 3D, 1/8 of it was 37 B).
-BUFFER_MARGIN = 32
 #: The time integrators (``time.integrator``) whose steps :class:`ResidentStep` takes on the
 #: device: Table 1's midpoint step and SSP-RK3 (:mod:`impactsph.integrate`).
 DEVICE_INTEGRATORS = ("midpoint", "ssp_rk3")
@@ -1125,12 +1124,38 @@ class ResidentStep:
         self._buffers: dict[str, Any] = {}  # the builds' arrays, kept and grown
         self._probes: dict[bytes, tuple] = {}  # each probe's rows and output on the device
         self.n_ghosts = 0
+        self.n_cells = 0  #: the cells of the last device build's grid (0: none yet)
         #: whether the host state holds the latest values (after a download or an upload)
         self.host_current = True
         self._allocate(state, table)
         self.upload(state)
 
     # -- device memory -----------------------------------------------------------------------
+    def layout(self) -> DeviceLayout:
+        """What sets the sizes of this run's device arrays (:mod:`impactsph.gpu_memory`,
+        whose :meth:`~impactsph.gpu_memory.DeviceLayout.of_case` gives the same for its
+        case before the run)."""
+        walls = self.walls
+        return DeviceLayout(
+            dim=self.dim, strength_width=int(self.now["material_state"].shape[1]),
+            record_columns=int(self.record_width),
+            record_bytes=int(np.dtype(self.options.record_dtype).itemsize),
+            carried=PASS_CARRIED if self.switched else 0,
+            walls=walls is not None, planes=bool(self.planes.shape[0]),
+            n_walls=0 if walls is None else len(walls), layer=self.layer > 0.0,
+            wall_friction=self.mu is not None, contact=self.contact, bodies=self.n_bodies,
+            corrected=self.corrected, switched=self.switched, hourglass=self.hourglass > 0.0,
+            ssp=self.integrator == "ssp_rk3",
+            step_means=self.drivers is not None or self.clamped_rows.shape[0] > 0,
+            compatible=self.compatible, stretch=self.max_stretch > 1.0,
+            added_inertia=self.fraction is not None, threads_per_block=self.tpb)
+
+    def allocated(self) -> dict[int, tuple[int, str]]:
+        """Every device allocation this run holds (the rate backend's too), each once:
+        ``{key: (bytes, path)}`` (:func:`impactsph.gpu_memory.arrays_of`)."""
+        return arrays_of(SimpleNamespace(step=self, rates=self.solver.backend), "device",
+                         depth=6, device=True)
+
     def _allocate(self, state: ParticleState, table: np.ndarray) -> None:
         n, dim, s = self.n, self.dim, self.stream
         empty = cuda.device_array
@@ -1622,6 +1647,7 @@ class ResidentStep:
         ncell = np.array([max(1, int((hi_h[a] - lo_h[a]) / radius) + 1) for a in range(dim)],
                          dtype=np.int64)
         n_cells = int(np.prod(ncell))
+        self.n_cells = n_cells
         d_ncell = self._buffer("ncell", dim, np.int64)
         d_ncell.copy_to_device(ncell, stream=s)
         counts = self._buffer("cell_counts", n_cells, np.int64)

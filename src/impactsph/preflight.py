@@ -12,7 +12,8 @@ it starts) and returns a :class:`Report`:
   time** (the steps from the CFL condition, eq 26, times the pair evaluations per step, over a
   pair rate measured on this machine by earlier runs, or :data:`DEFAULT_PAIR_RATE`);
 - **errors** (the case is refused, exit code 2): a memory estimate above the memory this
-  machine has available; particles behind a wall at t = 0 (the run would stop at its first
+  machine has available, and for a run whose state will stay on a GPU a GPU memory estimate
+  (:func:`device_memory`, :mod:`impactsph.gpu_memory`) above the GPU's free memory; particles behind a wall at t = 0 (the run would stop at its first
   step with "particle crossed a wall");
 - **warnings** (the run goes on): bodies that overlap, duplicate particle positions, too few
   neighbours for the kernel, isolated particles, a body of one particle, and magnitudes that
@@ -79,6 +80,17 @@ BASE_MEMORY = 400e6
 #: Factor on the arrays counted by :func:`memory_estimate` to reach the measured peak
 #: (allocator slack, temporaries of the neighbour build and of the outputs).
 MEMORY_SAFETY = 1.25
+#: Factor on the GPU arrays of a run with its state on the device
+#: (:class:`impactsph.gpu_memory.DeviceLayout`, which counts them to within 1% of what the
+#: device runs of ``tests/test_gpu_step.py`` hold in numba's CUDA simulator) for what they
+#: may grow to during the run: the neighbour list as the bodies are compressed, the walls'
+#: ghosts as more particles come near them.  (The list's radius already takes the stretch's
+#: largest h, and the list's indices are counted twice: :func:`device_memory`.)
+GPU_MEMORY_SAFETY = 1.1
+#: Device memory of a run's GPU kernels and of what numba-cuda keeps beside its arrays
+#: (bytes): the whole step's kernels took no measurable share of the 1,080 B a particle
+#: measured at 1M and at 1e7 particles in 3D on an H200 (benchmarks/README.md).
+GPU_BASE_MEMORY = 100e6
 #: Bytes per value of a history row: held in memory (a dict of floats), written as CSV at the
 #: end and read back for the figures.
 HISTORY_VALUE_BYTES = 180
@@ -87,6 +99,10 @@ HISTORY_VALUE_BYTES = 180
 #: particles, on one numba thread with other jobs running (1.15e7 to 1.3e7 with AC and a
 #: wall; benchmarks/calibrate_preflight.py; docs/case-files.md).
 DEFAULT_PAIR_RATE = 1e7
+#: The same for a run on a GPU: a conservative figure (the whole step on an H200 reached
+#: 7.4e9 pair evaluations a second with 1e5 particles in 3D and 1.4e10-1.6e10 with 1e6-1e7,
+#: benchmarks/README.md; a smaller GPU, or the rates alone on the GPU, less).
+DEFAULT_GPU_PAIR_RATE = 1e9
 #: Fixed cost of a step (s): the Python of the step loop, the survey, the history row;
 #: measured 100-150 us a step for 50-200 particles in 1D (the bars, calibrate_preflight.py).
 STEP_SECONDS = 1e-4
@@ -136,6 +152,11 @@ class Estimate:
     seconds: float  #: wall time of the steps (compilation excluded)
     runs: int = 1  #: 2 with a reference run (output.reference_viscosity)
     dt_source: str = "eq 26"  #: what set ``dt``
+    #: bytes of GPU memory, peak, of a run with its state on a GPU; None for another run
+    device_memory: float | None = None
+    #: free bytes of the GPU the run will use, None where unknown (numba's CUDA simulator)
+    device_available: int | None = None
+    device_name: str = ""  #: the GPU's name
 
     @property
     def total(self) -> int:
@@ -151,6 +172,10 @@ class Estimate:
             f"particles: {parts}; total {self.total:,}"
             + (f" (+ {self.ghosts:,} wall ghosts)" if self.ghosts else ""),
             f"estimated memory: {_bytes(self.memory)}{avail}",
+            *([f"estimated GPU memory: {_bytes(self.device_memory)}"
+               + (f" of {_bytes(self.device_available)} free on the {self.device_name}"
+                  if self.device_available is not None else f" ({self.device_name})")]
+              if self.device_memory is not None else []),
             f"estimated run time: {_duration(self.seconds)} ("
             + ("two runs, the case's and its reference_viscosity's, each " if self.runs > 1
                else "")
@@ -351,7 +376,8 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
                     hourglass: bool = False,
                     force_correction: bool = False, strength_width: int = 1,
                     snapshots: int = 0, history_values: int = 0,
-                    compatible: bool = False, switched: bool = False) -> float:
+                    compatible: bool = False, switched: bool = False,
+                    gpu_state: bool = False) -> float:
     """Peak bytes of a run of ``n`` particles (``ghosts`` more in the sums) with ``neighbours``
     stored neighbour-list entries per particle:
 
@@ -378,13 +404,18 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
       deviatoric stress, and without a switch the material state (whose width the extended
       carried array then takes);
 
-    times :data:`MEMORY_SAFETY`, plus :data:`BASE_MEMORY` for the process itself."""
+    times :data:`MEMORY_SAFETY`, plus :data:`BASE_MEMORY` for the process itself.  With
+    ``gpu_state`` (a run whose state stays on a GPU: :func:`runs_on_gpu`) the host holds
+    neither the integrator's copy nor the packed records (the device's are counted by
+    :func:`device_memory`)."""
     d = dim
     state = state_bytes(d, strength_width, hourglass)
     # x, v, rho, e, the deviator's six components, plastic work, material state
     integrator = 16 * d + 72 + 8 * strength_width + (8 * d if hourglass else 0)
     snapshot = state + 8
     # without a switch the state's viscosity factor and memory are views of one number
+    if gpu_state:  # (the step and the records are the device's)
+        integrator = 0
     per_particle = state - (0 if switched else 16) + integrator + snapshots * snapshot
     # drho, de, de_visc, the deviator's rate (six components), pair count; dv
     buffers = 76 + 8 * d + (8 * d if contact else 0) + (8 * d + 8 if corrected else 0) \
@@ -393,7 +424,7 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     # (a correction or a switch: CpuRates.record_columns)
     layout = record_columns(d, correction_matrix=force_correction and d > 1,
                             work_velocity=compatible, viscosity_factor=switched)
-    records = 8 * layout["columns" if corrected or switched else "u"]
+    records = 0 if gpu_state else 8 * layout["columns" if corrected or switched else "u"]
     ghost_arrays = (16 * d + 112) if walls else 0  # x, v, rho, e, S, m, h, material, body
     # the passes' copy of the common material state and a switch's factor and memory: the
     # extended rows' with walls, the particles' with a switch (else they read the state's own)
@@ -461,7 +492,8 @@ def pair_rate(device: str, dim: int, stretch: bool = False) -> tuple[float, str]
     else that of a run with the other kernel times or over :data:`STRETCH_COST`; else, for a
     2D or 3D case whose dimension has no rate yet, the other dimension's (a pair costs about
     the same in the two: the lattices' 1.15e8 and 1.14e8 pairs/s of 2026-12-06,
-    benchmarks/README.md); else :data:`DEFAULT_PAIR_RATE`; and where it comes from."""
+    benchmarks/README.md); else :data:`DEFAULT_PAIR_RATE` (:data:`DEFAULT_GPU_PAIR_RATE` on
+    a GPU); and where it comes from."""
     try:
         stored = json.loads(_pair_rate_path().read_text())
     except (OSError, ValueError):
@@ -485,7 +517,8 @@ def pair_rate(device: str, dim: int, stretch: bool = False) -> tuple[float, str]
                                   f"{where}, {entry['date']}{other}{none})")
             except (KeyError, ValueError, TypeError):
                 pass
-    return DEFAULT_PAIR_RATE, "(a conservative default: no run on this machine has measured one)"
+    return (DEFAULT_GPU_PAIR_RATE if device == "gpu" else DEFAULT_PAIR_RATE,
+            "(a conservative default: no run on this machine has measured one)")
 
 
 def record_pair_rate(summary: dict[str, Any], name: str, stretch: bool = False) -> None:
@@ -575,10 +608,13 @@ def state_width(case: Case) -> int:
 
 
 def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None = None,
-             ghosts: int = 0) -> Estimate:
+             ghosts: int = 0, cells: float = 0.0, table_bytes: int = 0) -> Estimate:
     """Memory and run time of the case with ``counts`` particles per body; the pair
     evaluations per particle measured at t = 0 (:func:`particle_checks`) if given, else those
-    of a full lattice."""
+    of a full lattice; the pair rate of the device the run will use (:func:`run_device`).
+    A run whose state will stay on a GPU gets its GPU memory too
+    (:func:`device_memory`; ``cells``: its neighbour build's grid, ``table_bytes``: its
+    material table, both known once the particles are placed)."""
     from .models import VISCOSITY
     from .physics.options import PassOptions
 
@@ -610,23 +646,94 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
         compatible=case.time.energy_update == "compatible",
         switched=VISCOSITY[case.viscosity.scheme].switch is not None,
         snapshots=len(case.output.snapshot_times),
-        history_values=history_values(case, steps))
+        history_values=history_values(case, steps), gpu_state=runs_on_gpu(case))
     ref = case.output.reference_viscosity
     runs = 2 if case.output.figures and ref is not None and ref != case.viscosity else 1
     # the reference run's arrays are allocated while the run's are still held
     memory = BASE_MEMORY + runs * (memory - BASE_MEMORY)
-    rate, source = pair_rate(case.compute.device, dim, stretch=_stretches(case))
+    rate, source = pair_rate(run_device(case), dim, stretch=_stretches(case))
     # the integrator's rate evaluations per step (and the compatible energy update's work
     # pass), and the fixed cost of a step
     passes = len(INTEGRATORS[case.time.integrator].WEIGHTS) + (
         1 if case.time.energy_update == "compatible" else 0)
     seconds = runs * steps * (passes * n * pairs_per_particle / rate + STEP_SECONDS)
+    device = device_memory(case, n, ghosts, neighbours, cells, table_bytes)
     return Estimate(particles={b.name: k for b, k in zip(case.bodies, counts, strict=True)},
                     neighbours=neighbours, pairs_per_particle=pairs_per_particle,
                     ghosts=ghosts, memory=memory, available=available_memory(), dt=dt,
                     steps=steps, pair_rate=rate, pair_rate_source=source, seconds=seconds,
                     runs=runs, dt_source="eq 26" if dt >= initial_time_step(case, cfl_only=True)
-                    else "the hourglass penalty's limit")
+                    else "the hourglass penalty's limit",
+                    **({} if device is None else {"device_memory": device[0],
+                                                  "device_available": device[1],
+                                                  "device_name": device[2]}))
+
+
+def grid_cells(case: Case, position: np.ndarray) -> float:
+    """Cells of a neighbour build's grid over ``position``: the bounding box in cells of the
+    list's radius (the largest support, with the skin and the stretch's largest h)."""
+    if position.shape[0] == 0:
+        return 0.0
+    spacings = np.array([body_spacing(b.geometry) for b in case.bodies])
+    support = SUPPORT_RADIUS * np.array([case.h_over_dx_of(b) for b in range(len(spacings))])
+    radius = (float((support * spacings).max()) * (1.0 + case.time.neighbour_skin)
+              * float(case.kernel.max_stretch))
+    extent = position.max(axis=0) - position.min(axis=0)
+    return float(np.prod(np.floor(extent / radius) + 1.0))
+
+
+def run_device(case: Case) -> str:
+    """The device a run of ``case`` will evaluate its rates on: ``"gpu"`` where it asks for
+    one, one is usable here and nothing in it runs on the CPU only; else ``"cpu"`` (where
+    :func:`impactsph.devices.select_backend` falls back)."""
+    if case.compute.device != "gpu":
+        return "cpu"
+    from . import gpu
+    from .simulation import _cpu_only
+
+    return "gpu" if gpu.unavailable_reason() is None and _cpu_only(case) is None else "cpu"
+
+
+def runs_on_gpu(case: Case) -> bool:
+    """Whether a run of ``case`` will keep its state on a GPU: ``compute.device = "gpu"``,
+    a GPU usable here (or numba's CUDA simulator), and nothing in the case that keeps the
+    state on the host or the run on the CPU (:func:`impactsph.gpu_step.resident_unsupported`,
+    :func:`impactsph.simulation._cpu_only`)."""
+    if case.compute.device != "gpu":
+        return False
+    from . import gpu
+
+    if gpu.unavailable_reason() is not None and not gpu.simulator_enabled():
+        return False
+    from .gpu_step import resident_unsupported
+    from .simulation import _cpu_only
+
+    return resident_unsupported(case) is None and _cpu_only(case) is None
+
+
+def device_memory(case: Case, n: int, ghosts: int, neighbours: float, cells: float = 0.0,
+                  table_bytes: int = 0) -> tuple[float, int | None, str] | None:
+    """``(bytes, free, name)``: the peak GPU memory of the run of ``n`` particles,
+    ``ghosts`` wall ghosts and ``neighbours`` stored list entries a row with its state on the
+    GPU (:class:`impactsph.gpu_memory.DeviceLayout`'s arrays, plus the list's indices once
+    more, since a rebuild that outgrows them allocates the new before it frees the old,
+    times :data:`GPU_MEMORY_SAFETY`, plus :data:`GPU_BASE_MEMORY`), the GPU's free memory
+    (None under numba's CUDA simulator) and its name; None for a run that will not keep its
+    state on a GPU (:func:`runs_on_gpu`)."""
+    if not runs_on_gpu(case):
+        return None
+    from . import gpu
+    from .gpu_memory import DeviceLayout
+
+    threads = gpu.launch_settings()[0] if not gpu.simulator_enabled() else \
+        gpu.SIMULATOR_THREADS_PER_BLOCK
+    layout = DeviceLayout.of_case(case, threads_per_block=threads)
+    entries = (n + ghosts) * neighbours
+    arrays = layout.bytes(n, ghosts, entries, cells, table_bytes=table_bytes,
+                          probes=len(case.output.probes),
+                          gauges=len(case.output.gauges)) + 4 * entries
+    free, name = gpu.free_memory()
+    return GPU_BASE_MEMORY + GPU_MEMORY_SAFETY * arrays, free, name
 
 
 def memory_check(case: Case, est: Estimate) -> Finding | None:
@@ -651,6 +758,26 @@ def memory_check(case: Case, est: Estimate) -> Finding | None:
     return Finding("error", where, (
         f"{where} = {value!r}: the run needs about {_bytes(est.memory)} of memory (an "
         f"estimate: {cause}); this machine has {_bytes(est.available)} available"))
+
+
+def device_memory_check(case: Case, est: Estimate) -> Finding | None:
+    """The error for a GPU memory estimate above the GPU's free memory (None if it fits, if
+    the run keeps no state on a GPU, if the free memory is unknown, or if
+    ``IMPACTSPH_SKIP_MEMORY_CHECK`` is set as for :func:`memory_check`), naming the field that
+    sets the largest body's particle count."""
+    if est.device_memory is None or est.device_available is None \
+            or est.device_memory <= est.device_available:
+        return None
+    if os.environ.get("IMPACTSPH_SKIP_MEMORY_CHECK", "") not in ("", "0"):
+        return None
+    b = int(np.argmax(list(est.particles.values())))
+    where = _size_field(case, b)
+    value = _field_value(case, where)
+    return Finding("error", where, (
+        f"{where} = {value!r}: the run needs about {_bytes(est.device_memory)} of GPU memory "
+        f"(an estimate: {est.total:,} particles with their state on the GPU); the "
+        f"{est.device_name} has {_bytes(est.device_available)} free; compute.device = "
+        f"\"cpu\" runs it on the CPU"))
 
 
 # -- checks of the case's numbers --------------------------------------------------------------
@@ -950,7 +1077,7 @@ def preflight(case: Case) -> Report:
 
     counts = count_particles(case)
     est = estimate(case, counts)
-    refusal = memory_check(case, est)
+    refusal = memory_check(case, est) or device_memory_check(case, est)
     if refusal is not None:
         return Report(est, [refusal])
     findings = magnitude_checks(case)
@@ -958,8 +1085,9 @@ def preflight(case: Case) -> Report:
     particle_findings, pairs, ghosts = particle_checks(case, problem)
     n = problem.state.n
     est = estimate(case, counts, pairs_per_particle=float(pairs.sum()) / max(n, 1),
-                   ghosts=ghosts)
-    refusal = memory_check(case, est)
+                   ghosts=ghosts, cells=grid_cells(case, problem.state.position),
+                   table_bytes=int(problem.table.nbytes))
+    refusal = memory_check(case, est) or device_memory_check(case, est)
     findings = [*([refusal] if refusal else []), *particle_findings, *findings,
                 *_steps_check(case, est)]
     findings.sort(key=lambda f: f.level != "error")

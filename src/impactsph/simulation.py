@@ -666,6 +666,9 @@ class Simulation:
             "pair_evaluations_per_second": self.solver.pair_evaluations / wall if wall else 0.0,
             "neighbour_list_builds": self.solver.neighbours.builds,
             "device": self.solver.backend.device,
+            # the GPU memory of a run with its state there (its arrays, each once)
+            "device_memory_bytes": (sum(size for size, _ in self._resident.allocated().values())
+                                    if self._resident is not None else None),
             "thread_changes": [list(c) for c in self.record.thread_changes],
             "thread_trials": list(self.record.thread_trials),
             "wall_constraint_events": self.integrator.constraint_events,

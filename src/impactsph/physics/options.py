@@ -286,6 +286,20 @@ class PassOptions:
             f"PARALLEL = {bool(self.parallel)}",
         ]
 
+    def record_layout(self, dim: int) -> dict[str, int]:
+        """The packed records' columns of the passes compiled with these options in ``dim``
+        dimensions (:func:`impactsph.physics.records.record_columns` with the flags that the
+        binding's :meth:`constants` give the template), without compiling them."""
+        from .records import record_columns
+
+        return record_columns(
+            dim, correction_matrix=self.gradient_correction == "velocity_gradient_and_forces",
+            artificial_stress=self.artificial_stress > 0.0,
+            viscosity_factor=bool(self.viscosity_factor), axisymmetric=bool(self.axisymmetric),
+            velocity_gradient=bool(self.velocity_reconstruction),
+            work_velocity=bool(self.compatible_energy),
+            split_positions=self.record_precision == "float32")
+
     @property
     def switch_vectorised(self) -> bool:
         """The module's one switch has a neighbour loop written for the vectoriser

@@ -1,0 +1,144 @@
+"""The GPU memory estimate before a run (:mod:`impactsph.gpu_memory`, the preflight's GPU
+line and refusal), without a GPU: the GPU's free memory and the device choice are stood in
+for.  The count itself is held to a device run's allocations in numba's CUDA simulator by
+``tests/test_gpu_step.py`` (``test_the_device_memory_is_counted_from_the_runs_sizes``)."""
+
+from __future__ import annotations
+
+import pytest
+from test_preflight import _toml
+from typer.testing import CliRunner
+
+from impactsph import gpu
+from impactsph import preflight as pf
+from impactsph.cli import app
+from impactsph.gpu_memory import DeviceLayout
+from impactsph.loading import load_case, validate_case
+from impactsph.physics.options import PassOptions
+from impactsph.physics.rates import compiled_passes
+
+runner = CliRunner()
+
+
+def lattice(count: list[int], **compute) -> dict:
+    """A steel block of ``count`` particles (2D or 3D, 1 mm apart), falling at 100 m/s."""
+    dim = len(count)
+    return {"name": "lattice", "dimension": dim,
+            "materials": {"steel": {"model": "elastic", "density": 7850.0,
+                                    "youngs_modulus": 2e11}},
+            "bodies": [{"name": "block", "material": "steel",
+                        "velocity": [0.0] * (dim - 1) + [-100.0],
+                        "geometry": {"origin": [0.0] * dim,
+                                     "size": [1e-3 * c for c in count], "count": count}}],
+            "time": {"end": 1e-6}, "compute": {"device": "gpu", **compute}}
+
+
+@pytest.fixture
+def a_gpu(monkeypatch):
+    """A GPU with ``free[0]`` bytes free, that the case's run would keep its state on."""
+    free = [80e9]
+    monkeypatch.setattr(pf, "runs_on_gpu", lambda case: case.compute.device == "gpu"
+                        and case.compute.resident)
+    monkeypatch.setattr(gpu, "free_memory", lambda: (int(free[0]), "Test GPU"))
+    monkeypatch.setattr(gpu, "launch_settings", lambda environ=None: (128, 0))
+    monkeypatch.setattr(gpu, "simulator_enabled", lambda: False)
+    return free
+
+
+@pytest.mark.parametrize("options", [
+    PassOptions(), PassOptions(gradient_correction="velocity_gradient_and_forces",
+                               viscosity_factor=True),
+    PassOptions(axisymmetric=True, compatible_energy=True, record_precision="float32"),
+    PassOptions(artificial_stress=0.3, velocity_reconstruction=True)])
+def test_the_record_layout_is_the_compiled_passes(options):
+    """``PassOptions.record_layout`` gives the columns of the module compiled with the
+    options (the module is generated and imported; nothing is compiled)."""
+    for dim in (2,) if options.axisymmetric else (1, 2, 3):
+        passes = compiled_passes(dim, False, options)
+        layout = options.record_layout(dim)
+        assert (layout["columns"], layout["u"]) == (passes.RECORD_COLUMNS, passes.U), dim
+
+
+def test_a_gpu_run_that_does_not_fit_is_refused_before_its_particles_are_placed(
+        a_gpu, tmp_path, monkeypatch):
+    """``impactsph check`` and ``impactsph run`` refuse it with one line that names the field
+    that sets the particle count, the estimate, the GPU and its free memory, before any
+    particle is placed (4e7 particles: placing them would take minutes)."""
+    a_gpu[0] = 2e9
+    monkeypatch.setattr(pf, "available_memory", lambda: int(1e12))  # (the host's is enough)
+    path = tmp_path / "big.toml"
+    path.write_text(_toml(lattice([400, 400, 250])))
+    for command in (["check", str(path)], ["run", str(path), "--quiet", "--out",
+                                           str(tmp_path / "out")]):
+        res = runner.invoke(app, command)
+        assert res.exit_code == 2, res.output
+        lines = res.output.strip().splitlines()
+        assert len(lines) == 1, res.output
+        assert lines[0].startswith("error: bodies.0.geometry.count = [400, 400, 250]: the run "
+                                   "needs about "), lines[0]
+        assert "of GPU memory (an estimate: 40,000,000 particles" in lines[0], lines[0]
+        assert "the Test GPU has 2 GB free" in lines[0], lines[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_gpu_run_that_fits_says_its_estimate_and_the_gpus_free_memory(a_gpu):
+    case = validate_case(lattice([20, 20, 10]))
+    report = pf.preflight(case)
+    assert report.errors == []
+    est = report.estimate
+    line = next(x for x in report.lines() if x.startswith("estimated GPU memory: "))
+    assert line.endswith("of 80 GB free on the Test GPU"), line
+    # what it stands on: the layout's arrays for the placed particles and their list, the
+    # list's indices once more (a rebuild that outgrows them), the margin and the base
+    layout = DeviceLayout.of_case(case)
+    n = est.total
+    entries = n * est.neighbours
+    arrays = layout.bytes(n, 0, entries, 0) + 4 * entries
+    assert pf.GPU_BASE_MEMORY + arrays < est.device_memory
+    assert est.device_memory < pf.GPU_BASE_MEMORY + 1.5 * arrays
+    # the host holds neither the step's start copy nor the records of a run on the GPU
+    cpu = lattice([20, 20, 10])
+    cpu["compute"] = {"device": "cpu"}
+    assert est.memory < pf.preflight(validate_case(cpu)).estimate.memory
+
+
+def test_the_gpu_estimate_grows_with_what_the_case_switches_on(a_gpu):
+    """Per particle, the estimate's arrays grow with the dimension, a wall's ghosts, SSP-RK3
+    (a second start copy), the compatible update (the work pass's outputs) and float32
+    records shrink it: each where the device run allocates for it."""
+    def per_particle(case: dict) -> float:
+        c = validate_case(case)
+        est = pf.estimate(c, pf.count_particles(c))
+        return (est.device_memory - pf.GPU_BASE_MEMORY) / est.total
+
+    base = lattice([40, 40, 40])
+    flat = per_particle(lattice([200, 200]))
+    plain = per_particle(base)
+    walled = per_particle({**base, "boundaries": [{"type": "wall", "point": [0.0, 0.0, 0.0],
+                                                   "normal": [0.0, 0.0, 1.0]}]})
+    ssp = per_particle({**base, "time": {"end": 1e-6, "integrator": "ssp_rk3"}})
+    compatible = per_particle({**base, "time": {"end": 1e-6, "energy_update": "compatible"}})
+    float32 = per_particle(lattice([40, 40, 40], record_precision="float32"))
+    assert flat < plain < walled
+    assert plain < ssp and plain < compatible
+    assert float32 < plain
+
+
+def test_runs_that_keep_no_state_on_a_gpu_have_no_gpu_estimate(a_gpu):
+    assert pf.preflight(validate_case(lattice([10, 10], resident=False))
+                        ).estimate.device_memory is None
+    cpu = lattice([10, 10])
+    cpu["compute"] = {"device": "cpu"}
+    report = pf.preflight(validate_case(cpu))
+    assert report.estimate.device_memory is None
+    assert not any("GPU" in x for x in report.lines())
+
+
+def test_without_a_gpu_the_case_is_not_counted_on_one():
+    """Here (no GPU, no simulator): a GPU case runs on the CPU, so nothing is estimated for
+    a GPU and nothing is refused for one."""
+    if gpu.unavailable_reason() is None or gpu.simulator_enabled():
+        pytest.skip("a GPU (or the simulator) is here")
+    case = load_case("taylor", ['compute.device="gpu"'])
+    assert not pf.runs_on_gpu(case)
+    assert pf.preflight(case).estimate.device_memory is None
