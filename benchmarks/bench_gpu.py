@@ -168,6 +168,16 @@ def run_items(dim: int, sizes: list[int], device: str, steps: int, budget: float
             row["gpu_name"] = cuda.get_current_device().name
             if isinstance(row["gpu_name"], bytes):
                 row["gpu_name"] = row["gpu_name"].decode()
+        if resident:  # the arrays it holds, and the preflight's estimate of its peak
+            from impactsph import preflight
+
+            held = sum(size for size, _ in sim._resident.allocated().values())
+            row["gpu_held_bytes_per_particle"] = held / state.n
+            checked = validate_case(data)
+            estimate = preflight.estimate(checked, preflight.count_particles(checked))
+            if estimate.device_memory is not None:
+                row["gpu_estimate_bytes_per_particle"] = (
+                    estimate.device_memory - preflight.GPU_BASE_MEMORY) / state.n
         last = (n, time.perf_counter() - item_start)
         if compare_cpu and ran_on != "cpu" and n == min(sizes):  # compared after the sizes
             kept = (n, dt, {k: np.array(a) for k, a in sim.state.arrays().items()})
@@ -362,7 +372,7 @@ def main(argv: list[str] | None = None) -> int:
         write_json(args, rows, time.perf_counter() - start)  # what has run, kept as it goes
     write_json(args, rows, time.perf_counter() - start)
     print("| device | dim | particles | ms / step | pairs / s | host B / particle | "
-          "GPU B / particle | compile s | to the CPU | note |")
+          "GPU B / particle (held; estimated) | compile s | to the CPU | note |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         if "error" in r:
@@ -370,6 +380,11 @@ def main(argv: list[str] | None = None) -> int:
                   f"{r['error']} |")
             continue
         gpu = r.get("gpu_bytes_per_particle")
+        gpu = "" if gpu is None else f"{gpu:.0f}"
+        counted = [r.get(k) for k in ("gpu_held_bytes_per_particle",
+                                      "gpu_estimate_bytes_per_particle")]
+        if any(c is not None for c in counted):
+            gpu += " (" + "; ".join("" if c is None else f"{c:.0f}" for c in counted) + ")"
         difference = r.get("relative_difference_to_cpu")
         to_cpu = f"{max(difference.values()):.1e}" if difference else ""
         ran = r["device"] + ("" if r["device"] == "cpu" else
@@ -384,7 +399,7 @@ def main(argv: list[str] | None = None) -> int:
                     f"{r['max_registers'] or 'free'}; {note}").rstrip("; ")
         print(f"| {ran} | {r['dimension']} | {r['n_particles']:,} | "
               f"{r['ms_per_step']:.2f} | {r['pair_evaluations_per_second']:.3g} | "
-              f"{r['host_bytes_per_particle']:.0f} | {'' if gpu is None else f'{gpu:.0f}'} | "
+              f"{r['host_bytes_per_particle']:.0f} | {gpu} | "
               f"{r['compile_seconds']:.1f} | {to_cpu} | {note} |")
     return 0
 

@@ -473,6 +473,49 @@ def _simulator_polls() -> int:
     return int(getattr(getattr(kernel, "BlockThread", None), "_polls", 0))
 
 
+class CudaAPIError(Exception):
+    """numba-cuda's driver error, as its refusal of an allocation reads."""
+
+    def __init__(self, code: int, message: str):
+        super().__init__(f"[{code}] {message}")
+        self.code = code
+
+
+def _out_of_memory_run() -> dict:
+    """``taylor-2d`` with the state on the device and every allocation after its first step
+    refused, as a GPU out of memory refuses them (its first rebuild on the device allocates
+    the build's buffers): the error, the record's failure, the history's rows and the step."""
+    import numba.cuda
+
+    import impactsph.simulation as simulation
+    from impactsph.errors import DeviceMemoryError
+    from impactsph.gpu import GpuRates
+    from impactsph.loading import load_case
+
+    case, overrides, steps = RESIDENT["taylor-2d"]
+    simulation.select_backend = (lambda device, dim, *options, cpu_only=None:
+                                 GpuRates(dim, *options))
+    sim = simulation.Simulation(load_case(case, [*overrides, f"time.max_steps={steps}"]))
+    sim.state.velocity[:] += np.random.default_rng(5).normal(0.0, 5.0, sim.state.velocity.shape)
+    real, error = numba.cuda.device_array, None
+
+    def refused(*args, **kwargs):
+        raise CudaAPIError(2, "Call to cuMemAlloc results in CUDA_ERROR_OUT_OF_MEMORY")
+
+    def refuse_from_step_1(s) -> None:  # (the run's first upload allocates too)
+        if s.step == 1:
+            numba.cuda.device_array = refused
+
+    try:
+        sim.run(callback=refuse_from_step_1)
+    except DeviceMemoryError as exc:
+        error = str(exc)
+    finally:
+        numba.cuda.device_array = real
+    return {"error": error, "failure": sim.record.failure, "rows": len(sim.record.history),
+            "step": sim.step}
+
+
 def _device_memory(sim) -> dict:
     """A device run's allocations (each once) against :mod:`impactsph.gpu_memory`'s count
     of them from the run's sizes, and the layouts that count reads from the run and from its
@@ -565,6 +608,7 @@ def _worker(task: str, folder: Path) -> int:
             sim, resident, _ = _resident_run(name, on_gpu=True)
             np.savez(folder / f"{name}.npz", **sim.state.arrays())
             report[name] = {"resident": resident, "device": sim.summary()["device"]}
+        report["out_of_memory"] = _out_of_memory_run()
         report["enforce"] = _device_enforce()
         report["survey"] = _device_survey()
         # a restart: 2 steps, a checkpoint, the rest from it, against the run above

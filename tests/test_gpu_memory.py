@@ -5,6 +5,9 @@ for.  The count itself is held to a device run's allocations in numba's CUDA sim
 
 from __future__ import annotations
 
+import csv
+import json
+
 import pytest
 from test_preflight import _toml
 from typer.testing import CliRunner
@@ -142,3 +145,49 @@ def test_without_a_gpu_the_case_is_not_counted_on_one():
     case = load_case("taylor", ['compute.device="gpu"'])
     assert not pf.runs_on_gpu(case)
     assert pf.preflight(case).estimate.device_memory is None
+
+
+class CudaAPIError(Exception):
+    """numba-cuda's driver error, as its refusal of an allocation reads."""
+
+    def __init__(self, code: int, message: str):
+        super().__init__(f"[{code}] {message}")
+        self.code = code
+
+
+def test_a_run_out_of_gpu_memory_stops_in_one_line_and_keeps_its_outputs(tmp_path,
+                                                                          monkeypatch):
+    """Where the GPU refuses an allocation in a step, ``impactsph run`` stops with one line
+    (exit code 3) that says in which step and when, and keeps the history of every whole
+    step and a summary whose status is ``out_of_memory`` (the refusal stood in for on the
+    CPU: the same run with the state on the device, in the simulator, is
+    ``tests/test_gpu_step.py``'s)."""
+    from impactsph.integrate import INTEGRATORS
+    from impactsph.simulation import Simulation
+
+    integrator = INTEGRATORS["midpoint"]
+    real = integrator.step
+
+    def step(self, state, dt):
+        if state.step == 5:
+            raise CudaAPIError(2, "Call to cuMemAlloc results in CUDA_ERROR_OUT_OF_MEMORY")
+        return real(self, state, dt)
+
+    monkeypatch.setattr(integrator, "step", step)
+    monkeypatch.setattr(Simulation, "_on_gpu", lambda self: True)
+    monkeypatch.setattr(Simulation, "_keep_on_device", lambda self: None)
+    monkeypatch.setattr(gpu, "free_memory", lambda: (int(3e9), "Test GPU"))
+    out = tmp_path / "bars"
+    res = runner.invoke(app, ["run", "bars", "--out", str(out), "--quiet",
+                              "--set", "output.figures=false"])
+    assert res.exit_code == 3, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1, res.output
+    assert "run stopped: the GPU ran out of memory in step 6, at t = " in lines[0], lines[0]
+    assert "the Test GPU has 3 GB free" in lines[0] and str(out) in lines[0], lines[0]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "out_of_memory"
+    assert summary["failure"].startswith("the GPU ran out of memory in step 6, at t = ")
+    with (out / "history.csv").open() as fh:
+        steps = [int(float(row["step"])) for row in csv.DictReader(fh)]
+    assert steps[-1] == 5 and steps == sorted(steps), steps

@@ -126,6 +126,22 @@ def test_the_device_memory_is_counted_from_the_runs_sizes(resident_comparison, n
                                                memory["allocated"][:16])
 
 
+def test_a_gpu_out_of_memory_in_a_step_stops_the_run_in_one_line(resident_comparison):
+    """An allocation the GPU refuses in a step (a rebuild's buffers) stops the run with a
+    :class:`~impactsph.errors.DeviceMemoryError`: one line that says in which step and at
+    what time, and what the run held on the GPU; the record keeps it as the failure and the
+    history keeps every whole step's row (``taylor-2d`` writes one a step)."""
+    mode, report, cpu, folder = resident_comparison
+    info = report["out_of_memory"]
+    error = info["error"]
+    assert error is not None, info
+    assert error.startswith(f"the GPU ran out of memory in step {info['step'] + 1}, at t = "), error
+    assert "; the run held " in error and " neighbour-list entries" in error, error
+    assert error.endswith('compute.device = "cpu"') and "\n" not in error, error
+    assert info["failure"] == error
+    assert info["rows"] == info["step"] + 1 and info["step"] >= 1, info
+
+
 def test_a_symmetry_plane_on_the_host_path_matches_the_cpu(resident_comparison):
     """With the state on the host (``compute.resident = false``) and the rates on the
     device, a symmetry plane's ghosts take their sources' results mirrored on the host, on the

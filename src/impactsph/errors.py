@@ -16,6 +16,12 @@ class SimulationError(RuntimeError):
         self.step, self.time, self.particle = step, time, particle
 
 
+class DeviceMemoryError(SimulationError):
+    """The GPU ran out of memory while the run was set up or stepped (an allocation the
+    driver refused, e.g. a neighbour list that outgrew its buffer); the message says where
+    and when, and what the run held on the GPU."""
+
+
 class OutputError(OSError):
     """An output directory or file that cannot be used or written (a file where a directory
     is wanted, no permission, a full disk, a directory that holds another run or is in use);

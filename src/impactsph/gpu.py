@@ -133,6 +133,19 @@ def record_columns(columns: int, dim: int, viscosity) -> int:
 RECORD_ORDER = "F"
 
 
+def out_of_memory(exc: BaseException) -> bool:
+    """Whether ``exc`` is the CUDA driver's refusal of an allocation
+    (``CUDA_ERROR_OUT_OF_MEMORY``, code 2, raised by numba-cuda after it has freed what it
+    had deferred and tried again)."""
+    if "CUDA_ERROR_OUT_OF_MEMORY" in str(exc):
+        return True
+    code = getattr(exc, "code", None)
+    try:
+        return type(exc).__name__ == "CudaAPIError" and int(code) == 2
+    except (TypeError, ValueError):
+        return False
+
+
 def free_memory() -> tuple[int | None, str]:
     """``(free bytes, name)`` of the GPU this process uses (its CUDA context made if it has
     none yet: a run then reuses it); ``(None, what)`` under numba's CUDA simulator (whose

@@ -17,7 +17,7 @@ A run directory holds:
 and flushed as rows are recorded), and are written whole, atomically, at the end; the other
 files are only ever replaced whole (:mod:`.atomic`).  ``summary.json`` is written when the run
 starts, at each checkpoint (``status`` ``running``) and at the end (``finished``,
-``interrupted`` or ``unstable``); see :data:`STATUSES`.
+``interrupted``, ``unstable`` or ``out_of_memory``); see :data:`STATUSES`.
 """
 
 from __future__ import annotations
@@ -39,8 +39,9 @@ from .atomic import output_error, write_bytes, write_text
 #: ``summary.json``'s ``status``: ``running`` (written when the run starts and at each
 #: checkpoint: ``t_end`` and ``n_steps`` are the time and step reached), ``interrupted``
 #: (stopped on request after a whole step; continue from ``checkpoint``), ``unstable``
-#: (stopped by an instability; ``failure`` says where), ``finished``
-STATUSES = ("running", "interrupted", "unstable", "finished")
+#: (stopped by an instability; ``failure`` says where), ``out_of_memory`` (the GPU ran out
+#: of memory; ``failure`` says where and what the run held on it), ``finished``
+STATUSES = ("running", "interrupted", "unstable", "out_of_memory", "finished")
 
 #: :func:`.atomic.write_text`, under the name paper.py and sweep.py import from here
 atomic_write_text = write_text

@@ -13,8 +13,9 @@ it starts) and returns a :class:`Report`:
   pair rate measured on this machine by earlier runs, or :data:`DEFAULT_PAIR_RATE`);
 - **errors** (the case is refused, exit code 2): a memory estimate above the memory this
   machine has available, and for a run whose state will stay on a GPU a GPU memory estimate
-  (:func:`device_memory`, :mod:`impactsph.gpu_memory`) above the GPU's free memory; particles behind a wall at t = 0 (the run would stop at its first
-  step with "particle crossed a wall");
+  (:func:`device_memory`, :mod:`impactsph.gpu_memory`) above the GPU's free memory;
+  particles behind a wall at t = 0 (the run would stop at its first step with "particle
+  crossed a wall");
 - **warnings** (the run goes on): bodies that overlap, duplicate particle positions, too few
   neighbours for the kernel, isolated particles, a body of one particle, and magnitudes that
   are implausible in SI units (a likely unit slip, with the value it probably meant).

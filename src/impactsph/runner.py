@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from .config import Case
-from .errors import RunInterrupted
+from .errors import DeviceMemoryError, RunInterrupted
 from .interrupt import StopRequest
 from .measures import run_measures
 from .output import (
@@ -200,11 +200,12 @@ def _run(sim: Simulation, case: Case, out: Path, *,
         t, step = sim.state.time, sim.state.step
         raise RunInterrupted(f"interrupted at t = {t:.6e} s, step {step}; checkpoint {path}",
                              time=t, step=step, checkpoint=str(path)) from None
-    except SimulationError:
+    except SimulationError as exc:
         stream.update(sim)
         stream.close()
         write_snapshots(out, sim)
-        write_summary(out, {"status": "unstable", **sim.summary()})
+        status = "out_of_memory" if isinstance(exc, DeviceMemoryError) else "unstable"
+        write_summary(out, {"status": status, **sim.summary()})
         raise
     except KeyboardInterrupt:  # stopped at once, mid-step: no checkpoint of this state
         stream.close()

@@ -15,7 +15,7 @@ from .boundaries import SYMMETRY, walls_of
 from .config import Case
 from .devices import select_backend
 from .driven import Drivers
-from .errors import SimulationError
+from .errors import DeviceMemoryError, SimulationError
 from .gauges import Gauges
 from .integrate import INTEGRATORS
 from .materials import carried_von_mises
@@ -210,13 +210,16 @@ class Simulation:
         self.wall_impulse = np.zeros(self.state.dim)  # N s, time integral of the walls' push
         self._abs_momentum0 = float(np.sum(self.state.inertial_mass *
                                            np.linalg.norm(self.state.velocity, axis=1)))
-        self.solver.rates(self.state.copy())  # compile (or load from cache) before timing
-        self._observe(0, 1.0)  # the start's forces, for the history's first row
-        self.solver.pair_evaluations = 0
-        self.solver.rate_evaluations = 0
-        if getattr(self.solver, "backend", None) is not None \
-                and self.solver.backend.device == "gpu":
-            self._keep_on_device()
+        try:
+            self.solver.rates(self.state.copy())  # compile (or load from cache) before timing
+            self._observe(0, 1.0)  # the start's forces, for the history's first row
+            self.solver.pair_evaluations = 0
+            self.solver.rate_evaluations = 0
+            if self._on_gpu():
+                self._keep_on_device()
+        except Exception as exc:
+            self._stop_if_out_of_device_memory(exc, "while the run was set up")
+            raise
         if state is None:
             self._record_row(0.0, self._survey())
             self._take_snapshots(previous=-np.inf)
@@ -247,6 +250,41 @@ class Simulation:
     def step(self) -> int:
         """The steps taken, without a download of the state."""
         return self._state.step
+
+    def _on_gpu(self) -> bool:
+        """Whether the run's rates (and perhaps its state) are on a GPU."""
+        backend = getattr(self.solver, "backend", None)
+        return backend is not None and backend.device == "gpu"
+
+    def _stop_if_out_of_device_memory(self, exc: BaseException, where: str) -> None:
+        """If ``exc`` is a GPU's refusal of an allocation (:func:`impactsph.gpu.out_of_memory`),
+        raise the :class:`DeviceMemoryError` that says ``where`` (the set-up, a step) and at
+        what time, what the run held on the GPU and what it has free now (the record keeps
+        it as the run's failure).  A device list the failed rebuild may have left half made
+        is not taken back to the host (whose list is that of the last rebuild brought back:
+        consistent, if older)."""
+        if not (self._on_gpu() and _out_of_device_memory(exc)):
+            return
+        from . import gpu
+        from .preflight import _bytes
+
+        s, r = self._state, self._resident
+        held = ""
+        if r is not None:
+            r._list_builds = 0
+            total = sum(size for size, _ in r.allocated().values())
+            held = (f"; the run held {_bytes(total)} on it ({s.n:,} particles, "
+                    f"{r.n_ghosts:,} ghosts, {int(r.indices.shape[0]):,} neighbour-list "
+                    f"entries)")
+        free, name = gpu.free_memory()
+        now = f"; the {name} has {_bytes(free)} free" if free is not None else ""
+        error = DeviceMemoryError(
+            f"the GPU ran out of memory {where}, at t = {s.time:.6e} s{held}{now}: fewer "
+            f"particles, compute.record_precision = \"float32\" or compute.device = "
+            f"\"cpu\"", step=s.step, time=s.time, particle=None)
+        if hasattr(self, "record"):
+            self.record.failure = str(error)
+        raise error from exc
 
     def _keep_on_device(self) -> None:
         """Keep the state on the GPU between steps where the case allows it (else say why:
@@ -571,7 +609,11 @@ class Simulation:
         every = self.case.output.history_every
         resident = self._resident
         if resident is not None and resident.host_current:  # the caller may have changed it
-            self._upload()
+            try:
+                self._upload()
+            except Exception as exc:
+                self._stop_if_out_of_device_memory(exc, "as the state was copied to it")
+                raise
         s = self._state
         survey = self._survey()
         dt0 = survey.dt
@@ -625,6 +667,9 @@ class Simulation:
             if note:
                 exc.args = (f"{exc}; {note}", *exc.args[1:])
             self.record.failure = str(exc)
+            raise
+        except Exception as exc:
+            self._stop_if_out_of_device_memory(exc, f"in step {s.step + 1}")
             raise
         finally:
             if resident is not None and not resident.host_current:  # the state back
@@ -698,6 +743,12 @@ class Simulation:
                               "initial_position": self.state.initial_position[i].tolist()}
                        for name, i in self.problem.probes.items()},
         }
+
+
+def _out_of_device_memory(exc: BaseException) -> bool:
+    from .gpu import out_of_memory
+
+    return out_of_memory(exc)
 
 
 def _cpu_only(case: Case) -> str | None:

@@ -173,6 +173,7 @@ def run_one(case_data: dict[str, Any], overrides: list[str], out: str,
     paths, :func:`summary_value`)."""
     import numba
 
+    from .errors import DeviceMemoryError
     from .runner import run_case
     from .simulation import SimulationError
 
@@ -192,9 +193,10 @@ def run_one(case_data: dict[str, Any], overrides: list[str], out: str,
     try:
         summary = run_case(case, out, figures=False)
         status = "ok"
-    except SimulationError as exc:
+    except SimulationError as exc:  # (a run out of GPU memory is run again by a resumed sweep)
         summary = json.loads(summary_path.read_text())
-        status = f"unstable: {exc}"
+        status = (f"out_of_memory: {exc}" if isinstance(exc, DeviceMemoryError)
+                  else f"unstable: {exc}")
     summary["case"] = case.model_dump(mode="json")
     write_summary(out, summary)
     return {"status": status, **{k: summary.get(k) for k in keys},
