@@ -40,8 +40,7 @@ def lattice(count: list[int], **compute) -> dict:
 def a_gpu(monkeypatch):
     """A GPU with ``free[0]`` bytes free, that the case's run would keep its state on."""
     free = [80e9]
-    monkeypatch.setattr(pf, "runs_on_gpu", lambda case: case.compute.device == "gpu"
-                        and case.compute.resident)
+    monkeypatch.setattr(gpu, "unavailable_reason", lambda: None)
     monkeypatch.setattr(gpu, "free_memory", lambda: (int(free[0]), "Test GPU"))
     monkeypatch.setattr(gpu, "launch_settings", lambda environ=None: (128, 0))
     monkeypatch.setattr(gpu, "simulator_enabled", lambda: False)
@@ -91,6 +90,7 @@ def test_a_gpu_run_that_fits_says_its_estimate_and_the_gpus_free_memory(a_gpu):
     est = report.estimate
     line = next(x for x in report.lines() if x.startswith("estimated GPU memory: "))
     assert line.endswith("of 80 GB free on the Test GPU"), line
+    assert "device: the GPU, the whole step there (the state stays on it)" in report.lines()
     # what it stands on: the layout's arrays for the placed particles and their list, the
     # list's indices once more (a rebuild that outgrows them), the margin and the base
     layout = DeviceLayout.of_case(case)
@@ -128,8 +128,10 @@ def test_the_gpu_estimate_grows_with_what_the_case_switches_on(a_gpu):
 
 
 def test_runs_that_keep_no_state_on_a_gpu_have_no_gpu_estimate(a_gpu):
-    assert pf.preflight(validate_case(lattice([10, 10], resident=False))
-                        ).estimate.device_memory is None
+    host = pf.preflight(validate_case(lattice([10, 10], resident=False)))
+    assert host.estimate.device_memory is None
+    assert ("device: the GPU for the rates, the state on the host between steps "
+            "(compute.resident = false: copied to the GPU at each evaluation)") in host.lines()
     cpu = lattice([10, 10])
     cpu["compute"] = {"device": "cpu"}
     report = pf.preflight(validate_case(cpu))
@@ -138,13 +140,16 @@ def test_runs_that_keep_no_state_on_a_gpu_have_no_gpu_estimate(a_gpu):
 
 
 def test_without_a_gpu_the_case_is_not_counted_on_one():
-    """Here (no GPU, no simulator): a GPU case runs on the CPU, so nothing is estimated for
-    a GPU and nothing is refused for one."""
-    if gpu.unavailable_reason() is None or gpu.simulator_enabled():
-        pytest.skip("a GPU (or the simulator) is here")
+    """Here (no GPU, or numba's CUDA simulator): a GPU case runs on the CPU, which the
+    preflight says, and nothing is estimated or refused for a GPU."""
+    if gpu.unavailable_reason() is None:
+        pytest.skip("a GPU is here")
     case = load_case("taylor", ['compute.device="gpu"'])
     assert not pf.runs_on_gpu(case)
-    assert pf.preflight(case).estimate.device_memory is None
+    report = pf.preflight(case)
+    assert report.estimate.device_memory is None
+    assert (f"device: compute.device = 'gpu' but {gpu.unavailable_reason()}; the run will use "
+            f"the CPU") in report.lines()
 
 
 class CudaAPIError(Exception):

@@ -158,6 +158,7 @@ class Estimate:
     #: free bytes of the GPU the run will use, None where unknown (numba's CUDA simulator)
     device_available: int | None = None
     device_name: str = ""  #: the GPU's name
+    device_line: str = ""  #: what the run will do on a GPU it asked for (:func:`device_plan`)
 
     @property
     def total(self) -> int:
@@ -172,6 +173,7 @@ class Estimate:
         return [
             f"particles: {parts}; total {self.total:,}"
             + (f" (+ {self.ghosts:,} wall ghosts)" if self.ghosts else ""),
+            *([self.device_line] if self.device_line else []),
             f"estimated memory: {_bytes(self.memory)}{avail}",
             *([f"estimated GPU memory: {_bytes(self.device_memory)}"
                + (f" of {_bytes(self.device_available)} free on the {self.device_name}"
@@ -652,7 +654,8 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
     runs = 2 if case.output.figures and ref is not None and ref != case.viscosity else 1
     # the reference run's arrays are allocated while the run's are still held
     memory = BASE_MEMORY + runs * (memory - BASE_MEMORY)
-    rate, source = pair_rate(run_device(case), dim, stretch=_stretches(case))
+    device_name, device_line = device_plan(case)
+    rate, source = pair_rate(device_name, dim, stretch=_stretches(case))
     # the integrator's rate evaluations per step (and the compatible energy update's work
     # pass), and the fixed cost of a step
     passes = len(INTEGRATORS[case.time.integrator].WEIGHTS) + (
@@ -664,7 +667,7 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
                     ghosts=ghosts, memory=memory, available=available_memory(), dt=dt,
                     steps=steps, pair_rate=rate, pair_rate_source=source, seconds=seconds,
                     runs=runs, dt_source="eq 26" if dt >= initial_time_step(case, cfl_only=True)
-                    else "the hourglass penalty's limit",
+                    else "the hourglass penalty's limit", device_line=device_line,
                     **({} if device is None else {"device_memory": device[0],
                                                   "device_available": device[1],
                                                   "device_name": device[2]}))
@@ -683,33 +686,44 @@ def grid_cells(case: Case, position: np.ndarray) -> float:
     return float(np.prod(np.floor(extent / radius) + 1.0))
 
 
-def run_device(case: Case) -> str:
-    """The device a run of ``case`` will evaluate its rates on: ``"gpu"`` where it asks for
-    one, one is usable here and nothing in it runs on the CPU only; else ``"cpu"`` (where
-    :func:`impactsph.devices.select_backend` falls back)."""
+def device_plan(case: Case) -> tuple[str, str]:
+    """``(device, line)``: the device a run of ``case`` will evaluate its rates on
+    (``"gpu"`` where it asks for one, one is usable here and nothing in it runs on the CPU
+    only; else ``"cpu"``, where :func:`impactsph.devices.select_backend` falls back) and
+    the preflight's line about it ("" for a case that asks for the CPU)."""
     if case.compute.device != "gpu":
-        return "cpu"
+        return "cpu", ""
     from . import gpu
     from .simulation import _cpu_only
 
-    return "gpu" if gpu.unavailable_reason() is None and _cpu_only(case) is None else "cpu"
+    why = gpu.unavailable_reason() or _cpu_only(case)
+    if why is not None:
+        return "cpu", f"device: compute.device = 'gpu' but {why}; the run will use the CPU"
+    from .gpu_step import resident_unsupported
+
+    host = resident_unsupported(case)
+    if host is not None:
+        return "gpu", (f"device: the GPU for the rates, the state on the host between steps "
+                       f"({host}: copied to the GPU at each evaluation)")
+    return "gpu", "device: the GPU, the whole step there (the state stays on it)"
+
+
+def run_device(case: Case) -> str:
+    """The device a run of ``case`` will evaluate its rates on (:func:`device_plan`)."""
+    return device_plan(case)[0]
 
 
 def runs_on_gpu(case: Case) -> bool:
     """Whether a run of ``case`` will keep its state on a GPU: ``compute.device = "gpu"``,
-    a GPU usable here (or numba's CUDA simulator), and nothing in the case that keeps the
-    state on the host or the run on the CPU (:func:`impactsph.gpu_step.resident_unsupported`,
+    a GPU usable here (not numba's CUDA simulator, under which a run falls back to the CPU),
+    and nothing in the case that keeps the state on the host or the run on the CPU
+    (:func:`impactsph.gpu_step.resident_unsupported`,
     :func:`impactsph.simulation._cpu_only`)."""
-    if case.compute.device != "gpu":
-        return False
-    from . import gpu
-
-    if gpu.unavailable_reason() is not None and not gpu.simulator_enabled():
+    if run_device(case) != "gpu":
         return False
     from .gpu_step import resident_unsupported
-    from .simulation import _cpu_only
 
-    return resident_unsupported(case) is None and _cpu_only(case) is None
+    return resident_unsupported(case) is None
 
 
 def device_memory(case: Case, n: int, ghosts: int, neighbours: float, cells: float = 0.0,
