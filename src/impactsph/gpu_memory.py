@@ -16,7 +16,11 @@ placed; ``tests/test_gpu_step.py`` holds it to the allocations the device runs o
 ``tests/test_gpu.py`` make in numba's CUDA simulator (each array counted once), so that an
 array added to the step without a term here fails a test.
 
-Pure Python: no CUDA import (the preflight of a case without a GPU reads it too).
+:func:`arrays_of` walks what a run holds, each array once: the device's allocations (the
+summary's ``device_memory_bytes``, :meth:`ResidentStep.allocated`) or the host's
+(``benchmarks/bench_memory.py``).
+
+No CUDA import (the preflight of a case without a GPU reads it too).
 """
 
 from __future__ import annotations
@@ -36,7 +40,7 @@ BUFFER_MARGIN = 32
 #: the same way, recursively: :func:`impactsph.gpu_step.prefix_sum`).
 SCAN_CHUNK = 256
 #: the books, the survey's record, the staleness tests' two slots, the bad-value code
-_BOOKS_BYTES = 17 * 8 + 7 * 8 + 2 * 8 + 8  # books, survey_out, the staleness slots, bad
+_BOOKS_BYTES = 17 * 8 + 7 * 8 + 2 * 8 + 8
 
 
 def _margin(rows: float) -> float:
