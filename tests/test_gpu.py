@@ -537,6 +537,20 @@ def _device_memory(sim) -> dict:
             "case_layout": DeviceLayout.of_case(sim.case, step.tpb).as_dict()}
 
 
+def _host_path_memory(sim) -> dict:
+    """A host-path run's device arrays (:class:`~impactsph.gpu.GpuRates`'s, each once)
+    against :meth:`impactsph.gpu_memory.DeviceLayout.host_path_parts`' count of them."""
+    from impactsph.gpu_memory import DeviceLayout, arrays_of
+
+    backend, nl = sim.solver.backend, sim.solver.neighbours
+    layout = DeviceLayout.of_case(sim.case)
+    parts = layout.host_path_parts(sim.state.n, nl.offsets.shape[0] - 1 - sim.state.n,
+                                   nl.indices.shape[0], table_bytes=int(sim.problem.table.nbytes),
+                                   count_bytes=sim.solver.buffers.pair_count.itemsize)
+    return {"allocated": sorted(arrays_of(backend, "rates", device=True).values(),
+                                reverse=True), "parts": parts}
+
+
 def _worker(task: str, folder: Path) -> int:
     try:
         from numba import cuda  # noqa: F401
@@ -607,7 +621,8 @@ def _worker(task: str, folder: Path) -> int:
         for name in HOST_PATH:  # the rates on the device, the state on the host
             sim, resident, _ = _resident_run(name, on_gpu=True)
             np.savez(folder / f"{name}.npz", **sim.state.arrays())
-            report[name] = {"resident": resident, "device": sim.summary()["device"]}
+            report[name] = {"resident": resident, "device": sim.summary()["device"],
+                            "memory": _host_path_memory(sim)}
         report["out_of_memory"] = _out_of_memory_run()
         report["enforce"] = _device_enforce()
         report["survey"] = _device_survey()

@@ -127,11 +127,24 @@ def test_the_gpu_estimate_grows_with_what_the_case_switches_on(a_gpu):
     assert float32 < plain
 
 
-def test_runs_that_keep_no_state_on_a_gpu_have_no_gpu_estimate(a_gpu):
+def test_a_run_with_its_rates_alone_on_the_gpu_is_estimated_and_a_cpu_run_is_not(a_gpu):
+    """The host path (``compute.resident = false``) holds the rates' arrays alone
+    (:meth:`~impactsph.gpu_memory.DeviceLayout.host_path_parts`, held to a run's in
+    ``tests/test_gpu_step.py``), and is refused in its own words where they do not fit."""
     host = pf.preflight(validate_case(lattice([10, 10], resident=False)))
-    assert host.estimate.device_memory is None
     assert ("device: the GPU for the rates, the state on the host between steps "
             "(compute.resident = false: copied to the GPU at each evaluation)") in host.lines()
+    case = validate_case(lattice([10, 10], resident=False))
+    est = host.estimate
+    layout = DeviceLayout.of_case(case)
+    entries = est.total * est.neighbours
+    arrays = sum(layout.host_path_parts(est.total, 0, entries).values()) + 4 * entries
+    assert pf.GPU_BASE_MEMORY + arrays < est.device_memory
+    assert est.device_memory < pf.GPU_BASE_MEMORY + 1.2 * arrays + 1e4
+    a_gpu[0] = 1e8
+    refusal = pf.preflight(validate_case(lattice([1000, 1000], resident=False))).errors
+    assert [f.field for f in refusal] == ["bodies.0.geometry.count"]
+    assert "(an estimate: 1,000,000 particles, their rates on the GPU)" in refusal[0].message
     cpu = lattice([10, 10])
     cpu["compute"] = {"device": "cpu"}
     report = pf.preflight(validate_case(cpu))

@@ -149,10 +149,21 @@ def test_a_symmetry_plane_on_the_host_path_matches_the_cpu(resident_comparison):
     mode, report, cpu, folder = resident_comparison
     name = "taylor-2d-half-host"
     sim = cpu[name][0]
-    assert report[name] == {"resident": False, "device": "gpu"}
+    assert (report[name]["resident"], report[name]["device"]) == (False, "gpu")
     with np.load(folder / f"{name}.npz") as z:
         errors = _relative_errors(sim.state.arrays(), {k: z[k] for k in z.files})
     assert not {k: e for k, e in errors.items() if not e <= TOL}, (mode, errors)
+
+
+def test_the_host_paths_device_memory_is_counted_from_its_sizes(resident_comparison):
+    """The device arrays of a run whose rates alone are on the GPU are
+    :meth:`~impactsph.gpu_memory.DeviceLayout.host_path_parts`' count, to within 1%."""
+    mode, report, cpu, folder = resident_comparison
+    memory = report["taylor-2d-half-host"]["memory"]
+    held = sum(size for size, _ in memory["allocated"])
+    counted = sum(memory["parts"].values())
+    assert abs(counted / held - 1.0) < 0.01, (held, counted, memory["parts"],
+                                               memory["allocated"])
 
 
 def test_a_device_run_restarts_bitwise(resident_comparison):

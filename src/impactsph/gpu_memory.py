@@ -248,6 +248,31 @@ class DeviceLayout:
         """The sum of :meth:`parts`."""
         return float(sum(self.parts(n, ghosts, entries, cells, **small).values()))
 
+    def host_path_parts(self, n: int, ghosts: int = 0, entries: float = 0.0, *,
+                        table_bytes: int = 0, count_bytes: int = 4) -> dict[str, float]:
+        """The device's bytes of a run whose rates alone are on the GPU
+        (``compute.resident = false``: :class:`impactsph.gpu.GpuRates`'s arrays, each
+        evaluation's state copied up and its rates down), for ``n`` particles, ``ghosts``
+        ghost rows and ``entries`` list entries, by group: ``state`` (the rows' position,
+        velocity, density, energy, the 3 x 3 deviator, the passes' material state, mass, h,
+        material, body; with the hourglass control the particles' acceleration), ``list``
+        (order, offsets, indices, the host's: offsets int32 where they fit), ``records``
+        (the packed records, and the velocity gradients with the hourglass control) and
+        ``outputs`` (every rate output for every row, those a run does not read included:
+        the contact force, the correction's and the switch's; ``count_bytes``: the pair
+        count's, the host buffer's type; and the hourglass control's)."""
+        d, w = self.dim, self.strength_width
+        rows = n + ghosts
+        carried = self.carried if self.switched else w
+        return {
+            "state": rows * (16 * d + 8 + 8 + 72 + 8 * carried + 8 + 8 + 4 + 4)
+            + (8 * d * n if self.hourglass else 0) + table_bytes,
+            "list": 4 * rows + (4 if entries < 2**31 else 8) * (rows + 1) + 4 * entries,
+            "records": rows * (self.record_columns * self.record_bytes
+                               + (8 * d * d if self.hourglass else 0)),
+            "outputs": rows * (8 + 8 * d + 8 + 8 + 8 * d + count_bytes + 48 + 8 * d + 8 + 8
+                               + 8 + (8 * d if self.hourglass else 0))}
+
 
 # -- what a run holds (benchmarks/bench_memory.py; the device's, tests/test_gpu_step.py) ------
 #: objects whose insides are not the run's arrays

@@ -729,26 +729,28 @@ def runs_on_gpu(case: Case) -> bool:
 def device_memory(case: Case, n: int, ghosts: int, neighbours: float, cells: float = 0.0,
                   table_bytes: int = 0) -> tuple[float, int | None, str] | None:
     """``(bytes, free, name)``: the peak GPU memory of the run of ``n`` particles,
-    ``ghosts`` wall ghosts and ``neighbours`` stored list entries a row with its state on the
-    GPU (:class:`impactsph.gpu_memory.DeviceLayout`'s arrays, plus the list's indices once
-    more, since a rebuild that outgrows them allocates the new before it frees the old,
+    ``ghosts`` wall ghosts and ``neighbours`` stored list entries a row on a GPU
+    (:class:`impactsph.gpu_memory.DeviceLayout`'s arrays: the whole step's where its state
+    stays there, :func:`runs_on_gpu`, else the rates' alone; plus the list's indices once
+    more, since a rebuild that outgrows them allocates the new before it frees the old;
     times :data:`GPU_MEMORY_SAFETY`, plus :data:`GPU_BASE_MEMORY`), the GPU's free memory
-    (None under numba's CUDA simulator) and its name; None for a run that will not keep its
-    state on a GPU (:func:`runs_on_gpu`)."""
-    if not runs_on_gpu(case):
+    (None where the driver does not say) and its name; None for a run on the CPU
+    (:func:`run_device`)."""
+    if run_device(case) != "gpu":
         return None
     from . import gpu
     from .gpu_memory import DeviceLayout
 
-    threads = gpu.launch_settings()[0] if not gpu.simulator_enabled() else \
-        gpu.SIMULATOR_THREADS_PER_BLOCK
-    layout = DeviceLayout.of_case(case, threads_per_block=threads)
+    layout = DeviceLayout.of_case(case, threads_per_block=gpu.launch_settings()[0])
     entries = (n + ghosts) * neighbours
-    arrays = layout.bytes(n, ghosts, entries, cells, table_bytes=table_bytes,
-                          probes=len(case.output.probes),
-                          gauges=len(case.output.gauges)) + 4 * entries
+    if runs_on_gpu(case):
+        arrays = layout.bytes(n, ghosts, entries, cells, table_bytes=table_bytes,
+                              probes=len(case.output.probes), gauges=len(case.output.gauges))
+    else:  # (the host's pair counts: int32 where they fit, as RateBuffers makes them)
+        arrays = sum(layout.host_path_parts(n, ghosts, entries,
+                                            table_bytes=table_bytes).values())
     free, name = gpu.free_memory()
-    return GPU_BASE_MEMORY + GPU_MEMORY_SAFETY * arrays, free, name
+    return GPU_BASE_MEMORY + GPU_MEMORY_SAFETY * (arrays + 4 * entries), free, name
 
 
 def memory_check(case: Case, est: Estimate) -> Finding | None:
@@ -790,7 +792,9 @@ def device_memory_check(case: Case, est: Estimate) -> Finding | None:
     value = _field_value(case, where)
     return Finding("error", where, (
         f"{where} = {value!r}: the run needs about {_bytes(est.device_memory)} of GPU memory "
-        f"(an estimate: {est.total:,} particles with their state on the GPU); the "
+        f"(an estimate: {est.total:,} particles"
+        f"{' with their state on the GPU' if runs_on_gpu(case) else ', their rates on the GPU'}"
+        f"); the "
         f"{est.device_name} has {_bytes(est.device_available)} free; compute.device = "
         f"\"cpu\" runs it on the CPU"))
 
