@@ -324,16 +324,19 @@ class GpuRates:
                   "de_corr": (n_rows,), "pair_count": (n_rows,), "dS": (n_rows, 6),
                   "factor": (n_rows,), "memory": (n_rows,)}
         count_type = getattr(b.pair_count, "dtype", np.int64)
-        out = {name: buf("out_" + name, shapes.get(name, (n_rows, dim)),
+        corrected = viscosity.correction is not None
+        switched = viscosity.switch is not None
+        # an output no kernel of this run writes has no rows: the contact force without
+        # contact, the correction's without a correction, the switch's without a switch
+        unused = {*(() if b.contact_force.shape[0] else ("contact_force",)),
+                  *(() if corrected else _CORRECTION_OUT), *(() if switched else _SWITCH_OUT)}
+        out = {name: buf("out_" + name, (0 if name in unused else n_rows,
+                                         *shapes.get(name, (n_rows, dim))[1:]),
                          count_type if name == "pair_count" else np.float64)
                for name in (*_ACTIVE_OUT, *_CORRECTION_OUT, *_SWITCH_OUT)}
         with_hourglass = hourglass > 0.0
         gradients = buf("gradients", (n_rows if with_hourglass else 0, dim, dim), np.float64)
         out["dhg"] = buf("out_dhg", (n_rows if with_hourglass else 0, dim), np.float64)
-        if b.contact_force.shape[0] == 0:  # no contact in this run: the kernel writes none
-            out["contact_force"] = buf("out_no_contact", (0, dim), np.float64)
-        corrected = viscosity.correction is not None
-        switched = viscosity.switch is not None
         if n_rows:
             blocks = (n_rows + tpb - 1) // tpb
             particle_kernel[blocks, tpb, stream](

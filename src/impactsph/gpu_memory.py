@@ -258,9 +258,9 @@ class DeviceLayout:
         material, body; with the hourglass control the particles' acceleration), ``list``
         (order, offsets, indices, the host's: offsets int32 where they fit), ``records``
         (the packed records, and the velocity gradients with the hourglass control) and
-        ``outputs`` (every rate output for every row, those a run does not read included:
-        the contact force, the correction's and the switch's; ``count_bytes``: the pair
-        count's, the host buffer's type; and the hourglass control's)."""
+        ``outputs`` (the rate outputs for every row, the contact force, the correction's,
+        the switch's and the hourglass control's where the run has them; ``count_bytes``:
+        the pair count's, the host buffer's type)."""
         d, w = self.dim, self.strength_width
         rows = n + ghosts
         carried = self.carried if self.switched else w
@@ -270,8 +270,11 @@ class DeviceLayout:
             "list": 4 * rows + (4 if entries < 2**31 else 8) * (rows + 1) + 4 * entries,
             "records": rows * (self.record_columns * self.record_bytes
                                + (8 * d * d if self.hourglass else 0)),
-            "outputs": rows * (8 + 8 * d + 8 + 8 + 8 * d + count_bytes + 48 + 8 * d + 8 + 8
-                               + 8 + (8 * d if self.hourglass else 0))}
+            "outputs": rows * (8 + 8 * d + 8 + 8 + count_bytes + 48
+                               + (8 * d if self.contact else 0)
+                               + (8 * d + 8 if self.corrected else 0)
+                               + (16 if self.switched else 0)
+                               + (8 * d if self.hourglass else 0))}
 
 
 # -- what a run holds (benchmarks/bench_memory.py; the device's, tests/test_gpu_step.py) ------
