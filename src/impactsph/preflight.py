@@ -12,8 +12,8 @@ it starts) and returns a :class:`Report`:
   time** (the steps from the CFL condition, eq 26, times the pair evaluations per step, over a
   pair rate measured on this machine by earlier runs, or :data:`DEFAULT_PAIR_RATE`);
 - **errors** (the case is refused, exit code 2): a memory estimate above the memory this
-  machine has available, and for a run whose state will stay on a GPU a GPU memory estimate
-  (:func:`device_memory`, :mod:`impactsph.gpu_memory`) above the GPU's free memory;
+  machine has available, and for a run on a GPU a GPU memory estimate (:func:`device_memory`,
+  :mod:`impactsph.gpu_memory`) above the GPU's free memory;
   particles behind a wall at t = 0 (the run would stop at its first step with "particle
   crossed a wall");
 - **warnings** (the run goes on): bodies that overlap, duplicate particle positions, too few
@@ -81,9 +81,9 @@ BASE_MEMORY = 400e6
 #: Factor on the arrays counted by :func:`memory_estimate` to reach the measured peak
 #: (allocator slack, temporaries of the neighbour build and of the outputs).
 MEMORY_SAFETY = 1.25
-#: Factor on the GPU arrays of a run with its state on the device
-#: (:class:`impactsph.gpu_memory.DeviceLayout`, which counts them to within 1% of what the
-#: device runs of ``tests/test_gpu_step.py`` hold in numba's CUDA simulator) for what they
+#: Factor on the GPU arrays of a run on a GPU (:class:`impactsph.gpu_memory.DeviceLayout`,
+#: which counts them to within 1% of what the device runs of ``tests/test_gpu_step.py`` hold
+#: in numba's CUDA simulator, its state there or its rates alone) for what they
 #: may grow to during the run: the neighbour list as the bodies are compressed, the walls'
 #: ghosts as more particles come near them.  (The list's radius already takes the stretch's
 #: largest h, and the list's indices are counted twice: :func:`device_memory`.)
@@ -153,7 +153,8 @@ class Estimate:
     seconds: float  #: wall time of the steps (compilation excluded)
     runs: int = 1  #: 2 with a reference run (output.reference_viscosity)
     dt_source: str = "eq 26"  #: what set ``dt``
-    #: bytes of GPU memory, peak, of a run with its state on a GPU; None for another run
+    #: bytes of GPU memory, peak, of a run on a GPU (its state there, or its rates alone);
+    #: None for a run on the CPU
     device_memory: float | None = None
     #: free bytes of the GPU the run will use, None where unknown (numba's CUDA simulator)
     device_available: int | None = None
@@ -615,7 +616,7 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
     """Memory and run time of the case with ``counts`` particles per body; the pair
     evaluations per particle measured at t = 0 (:func:`particle_checks`) if given, else those
     of a full lattice; the pair rate of the device the run will use (:func:`run_device`).
-    A run whose state will stay on a GPU gets its GPU memory too
+    A run on a GPU gets its GPU memory too
     (:func:`device_memory`; ``cells``: its neighbour build's grid, ``table_bytes``: its
     material table, both known once the particles are placed)."""
     from .models import VISCOSITY
