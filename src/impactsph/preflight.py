@@ -160,6 +160,7 @@ class Estimate:
     device_available: int | None = None
     device_name: str = ""  #: the GPU's name
     device_line: str = ""  #: what the run will do on a GPU it asked for (:func:`device_plan`)
+    state_on_gpu: bool = False  #: whether the run's state stays on the GPU
 
     @property
     def total(self) -> int:
@@ -409,7 +410,7 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
       carried array then takes);
 
     times :data:`MEMORY_SAFETY`, plus :data:`BASE_MEMORY` for the process itself.  With
-    ``gpu_state`` (a run whose state stays on a GPU: :func:`runs_on_gpu`) the host holds
+    ``gpu_state`` (a run whose state stays on a GPU: :func:`device_plan`) the host holds
     neither the integrator's copy nor the packed records (the device's are counted by
     :func:`device_memory`)."""
     d = dim
@@ -615,13 +616,14 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
              ghosts: int = 0, cells: float = 0.0, table_bytes: int = 0) -> Estimate:
     """Memory and run time of the case with ``counts`` particles per body; the pair
     evaluations per particle measured at t = 0 (:func:`particle_checks`) if given, else those
-    of a full lattice; the pair rate of the device the run will use (:func:`run_device`).
+    of a full lattice; the pair rate of the device the run will use (:func:`device_plan`).
     A run on a GPU gets its GPU memory too
     (:func:`device_memory`; ``cells``: its neighbour build's grid, ``table_bytes``: its
     material table, both known once the particles are placed)."""
     from .models import VISCOSITY
     from .physics.options import PassOptions
 
+    plan = device_plan(case)
     dim = case.dimension
     n = sum(counts)
     weights = np.asarray(counts, dtype=np.float64) / max(n, 1)
@@ -650,25 +652,26 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
         compatible=case.time.energy_update == "compatible",
         switched=VISCOSITY[case.viscosity.scheme].switch is not None,
         snapshots=len(case.output.snapshot_times),
-        history_values=history_values(case, steps), gpu_state=runs_on_gpu(case))
+        history_values=history_values(case, steps), gpu_state=plan.resident)
     ref = case.output.reference_viscosity
     runs = 2 if case.output.figures and ref is not None and ref != case.viscosity else 1
     # the reference run's arrays are allocated while the run's are still held
     memory = BASE_MEMORY + runs * (memory - BASE_MEMORY)
-    device_name, device_line = device_plan(case)
-    rate, source = pair_rate(device_name, dim, stretch=_stretches(case))
+    rate, source = pair_rate(plan.device, dim, stretch=_stretches(case))
     # the integrator's rate evaluations per step (and the compatible energy update's work
     # pass), and the fixed cost of a step
     passes = len(INTEGRATORS[case.time.integrator].WEIGHTS) + (
         1 if case.time.energy_update == "compatible" else 0)
     seconds = runs * steps * (passes * n * pairs_per_particle / rate + STEP_SECONDS)
-    device = device_memory(case, n, ghosts, neighbours, cells, table_bytes)
+    device = (device_memory(case, plan.resident, n, ghosts, neighbours, cells, table_bytes)
+              if plan.device == "gpu" else None)
     return Estimate(particles={b.name: k for b, k in zip(case.bodies, counts, strict=True)},
                     neighbours=neighbours, pairs_per_particle=pairs_per_particle,
                     ghosts=ghosts, memory=memory, available=available_memory(), dt=dt,
                     steps=steps, pair_rate=rate, pair_rate_source=source, seconds=seconds,
                     runs=runs, dt_source="eq 26" if dt >= initial_time_step(case, cfl_only=True)
-                    else "the hourglass penalty's limit", device_line=device_line,
+                    else "the hourglass penalty's limit", device_line=plan.line,
+                    state_on_gpu=plan.resident,
                     **({} if device is None else {"device_memory": device[0],
                                                   "device_available": device[1],
                                                   "device_name": device[2]}))
@@ -687,64 +690,62 @@ def grid_cells(case: Case, position: np.ndarray) -> float:
     return float(np.prod(np.floor(extent / radius) + 1.0))
 
 
-def device_plan(case: Case) -> tuple[str, str]:
-    """``(device, line)``: the device a run of ``case`` will evaluate its rates on
-    (``"gpu"`` where it asks for one, one is usable here and nothing in it runs on the CPU
-    only; else ``"cpu"``, where :func:`impactsph.devices.select_backend` falls back) and
-    the preflight's line about it ("" for a case that asks for the CPU)."""
+@dataclass(frozen=True)
+class DevicePlan:
+    """Where a run of a case will go: ``device`` (``"gpu"`` where it asks for one, one is
+    usable here and nothing in it runs on the CPU only; else ``"cpu"``, where
+    :func:`impactsph.devices.select_backend` falls back), whether its state stays on the GPU
+    (``resident``) and the preflight's ``line`` about it ("" for a case that asks for the
+    CPU)."""
+
+    device: str = "cpu"
+    resident: bool = False
+    line: str = ""
+
+
+def device_plan(case: Case) -> DevicePlan:
+    """The :class:`DevicePlan` of ``case`` (under numba's CUDA simulator, as without a GPU:
+    a run there falls back to the CPU)."""
     if case.compute.device != "gpu":
-        return "cpu", ""
+        return DevicePlan()
     from . import gpu
     from .simulation import _cpu_only
 
     why = gpu.unavailable_reason() or _cpu_only(case)
     if why is not None:
-        return "cpu", f"device: compute.device = 'gpu' but {why}; the run will use the CPU"
+        return DevicePlan(line=f"device: compute.device = 'gpu' but {why}; the run will use "
+                               f"the CPU")
     from .gpu_step import resident_unsupported
 
     host = resident_unsupported(case)
     if host is not None:
-        return "gpu", (f"device: the GPU for the rates, the state on the host between steps "
-                       f"({host}: copied to the GPU at each evaluation)")
-    return "gpu", "device: the GPU, the whole step there (the state stays on it)"
-
-
-def run_device(case: Case) -> str:
-    """The device a run of ``case`` will evaluate its rates on (:func:`device_plan`)."""
-    return device_plan(case)[0]
+        return DevicePlan("gpu", False, f"device: the GPU for the rates, the state on the host "
+                                        f"between steps ({host}: copied to the GPU at each "
+                                        f"evaluation)")
+    return DevicePlan("gpu", True, "device: the GPU, the whole step there (the state stays on "
+                                   "it)")
 
 
 def runs_on_gpu(case: Case) -> bool:
-    """Whether a run of ``case`` will keep its state on a GPU: ``compute.device = "gpu"``,
-    a GPU usable here (not numba's CUDA simulator, under which a run falls back to the CPU),
-    and nothing in the case that keeps the state on the host or the run on the CPU
-    (:func:`impactsph.gpu_step.resident_unsupported`,
-    :func:`impactsph.simulation._cpu_only`)."""
-    if run_device(case) != "gpu":
-        return False
-    from .gpu_step import resident_unsupported
-
-    return resident_unsupported(case) is None
+    """Whether a run of ``case`` will keep its state on a GPU (:func:`device_plan`)."""
+    return device_plan(case).resident
 
 
-def device_memory(case: Case, n: int, ghosts: int, neighbours: float, cells: float = 0.0,
-                  table_bytes: int = 0) -> tuple[float, int | None, str] | None:
+def device_memory(case: Case, resident: bool, n: int, ghosts: int, neighbours: float,
+                  cells: float = 0.0, table_bytes: int = 0) -> tuple[float, int | None, str]:
     """``(bytes, free, name)``: the peak GPU memory of the run of ``n`` particles,
     ``ghosts`` wall ghosts and ``neighbours`` stored list entries a row on a GPU
     (:class:`impactsph.gpu_memory.DeviceLayout`'s arrays: the whole step's where its state
-    stays there, :func:`runs_on_gpu`, else the rates' alone; plus the list's indices once
-    more, since a rebuild that outgrows them allocates the new before it frees the old;
-    times :data:`GPU_MEMORY_SAFETY`, plus :data:`GPU_BASE_MEMORY`), the GPU's free memory
-    (None where the driver does not say) and its name; None for a run on the CPU
-    (:func:`run_device`)."""
-    if run_device(case) != "gpu":
-        return None
+    stays there, ``resident``, else the rates' alone; plus the list's indices once more,
+    since a rebuild that outgrows them allocates the new before it frees the old; times
+    :data:`GPU_MEMORY_SAFETY`, plus :data:`GPU_BASE_MEMORY`), the GPU's free memory (None
+    where the driver does not say) and its name."""
     from . import gpu
     from .gpu_memory import DeviceLayout
 
     layout = DeviceLayout.of_case(case, threads_per_block=gpu.launch_settings()[0])
     entries = (n + ghosts) * neighbours
-    if runs_on_gpu(case):
+    if resident:
         arrays = layout.bytes(n, ghosts, entries, cells, table_bytes=table_bytes,
                               probes=len(case.output.probes), gauges=len(case.output.gauges))
     else:  # (the host's pair counts: int32 where they fit, as RateBuffers makes them)
@@ -794,7 +795,7 @@ def device_memory_check(case: Case, est: Estimate) -> Finding | None:
     return Finding("error", where, (
         f"{where} = {value!r}: the run needs about {_bytes(est.device_memory)} of GPU memory "
         f"(an estimate: {est.total:,} particles"
-        f"{' with their state on the GPU' if runs_on_gpu(case) else ', their rates on the GPU'}"
+        f"{' with their state on the GPU' if est.state_on_gpu else ', their rates on the GPU'}"
         f"); the "
         f"{est.device_name} has {_bytes(est.device_available)} free; compute.device = "
         f"\"cpu\" runs it on the CPU"))

@@ -263,9 +263,12 @@ class Simulation:
         it as the run's failure).  A device list the failed rebuild may have left half made
         is not taken back to the host (whose list is that of the last rebuild brought back:
         consistent, if older)."""
-        if not (self._on_gpu() and _out_of_device_memory(exc)):
+        if not self._on_gpu():
             return
         from . import gpu
+
+        if not gpu.out_of_memory(exc):
+            return
         from .preflight import _bytes
 
         s, r = self._state, self._resident
@@ -743,12 +746,6 @@ class Simulation:
                               "initial_position": self.state.initial_position[i].tolist()}
                        for name, i in self.problem.probes.items()},
         }
-
-
-def _out_of_device_memory(exc: BaseException) -> bool:
-    from .gpu import out_of_memory
-
-    return out_of_memory(exc)
 
 
 def _cpu_only(case: Case) -> str | None:
