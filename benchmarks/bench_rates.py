@@ -99,11 +99,15 @@ def lattice_side(n: int, dim: int) -> int:
 #: ``../shared/bench/naive_pairs.py``) or "defaults" (the case defaults: for this elastic
 #: block the stabilisation 'auto' turns on the corrected forces and the hourglass control)
 SCHEME_ENV = "IMPACTSPH_BENCH_SCHEME"
+#: how the lattices' particles are numbered (``compute.particle_order``: "input", the
+#: lattice's own row-major order, or "cells", the neighbour list's)
+ORDER_ENV = "IMPACTSPH_BENCH_PARTICLE_ORDER"
 
 
 def make_case(n: int, dim: int) -> dict:
     """A case dict: one steel block of about ``n`` particles, at rest, with the scheme that
-    ``$IMPACTSPH_BENCH_SCHEME`` names (:data:`SCHEME_ENV`)."""
+    ``$IMPACTSPH_BENCH_SCHEME`` names (:data:`SCHEME_ENV`) and the particle order that
+    ``$IMPACTSPH_BENCH_PARTICLE_ORDER`` names (:data:`ORDER_ENV`)."""
     side = lattice_side(n, dim)
     paper = os.environ.get(SCHEME_ENV, "paper") == "paper"
     return {
@@ -119,6 +123,7 @@ def make_case(n: int, dim: int) -> dict:
         "kernel": {"h_over_dx": H_OVER_DX},
         "time": {"end": 1e-6},
         "output": {"figures": False},
+        "compute": {"particle_order": os.environ.get(ORDER_ENV, "input")},
         **({"stabilisation": {"gradient_correction": "none", "hourglass": 0.0}}
            if paper else {}),
     }
@@ -319,6 +324,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="the lattices' scheme: the paper's (default; the naive yardstick's "
                     "equations) or the case defaults (an elastic block: corrected forces and "
                     "hourglass control)")
+    ap.add_argument("--particle-order", choices=("input", "cells"), default="input",
+                    help="the lattices' compute.particle_order: their own row-major numbering "
+                    "(default) or the neighbour list's cells' (Z order)")
     ap.add_argument("--no-compile", action="store_true",
                     help="skip timing numba's compilation with an empty cache")
     args = ap.parse_args(argv)
@@ -328,7 +336,8 @@ def main(argv: list[str] | None = None) -> int:
     if sizes[0] < 1:
         ap.error("--sizes must be >= 1")
 
-    os.environ[SCHEME_ENV] = args.scheme  # the children inherit it
+    os.environ[SCHEME_ENV] = args.scheme  # the children inherit them
+    os.environ[ORDER_ENV] = args.particle_order
     info = machine_info()
     start, busy0, own0 = time.perf_counter(), cpu_busy_seconds(), own_cpu_seconds()
     print(f"impactsph rate benchmark  {info['date']}  {info['source']}")
@@ -340,12 +349,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"WARNING: other processes keep {info['other_load_at_start']:.2f} cores busy; "
               "competition for the cores slows numba's parallel regions a lot")
     print(f"lattice dx = {DX:g} m, h = {H_OVER_DX} dx, steel (7850 kg/m^3, E = 2e11 Pa, "
-          f"nu = 0.3), random v ~ N(0, 1 m/s), AV, scheme: {args.scheme}, best of "
+          f"nu = 0.3), random v ~ N(0, 1 m/s), AV, scheme: {args.scheme}, particle order: "
+          f"{args.particle_order}, best of "
           f"{args.repeat}; each size in a "
           "fresh process")
     print()
 
-    results: dict = {"machine": info, "scheme": args.scheme, "repeat": args.repeat,
+    results: dict = {"machine": info, "scheme": args.scheme,
+                     "particle_order": args.particle_order, "repeat": args.repeat,
                      "sizes": [], "fits": {}}
     header = (f"{'dim':>3} {'N':>9} {'pairs/i':>7} {'rates s':>9} {'pairs/s':>9} "
               f"{'1-thr x':>7} {'rebuild s':>9} {'step s':>9} {'step/2r':>7} {'B/part':>7} "

@@ -2,7 +2,9 @@
 each choice in a process of its own (numba fixes its features for a process), alternated
 round by round, with every time divided by a reference timed in the same process. The
 choices: ``host`` (LLVM's own for the CPU), ``256`` (256-bit vectors alone: the host's
-features and ``+prefer-256-bit``) and ``tuned`` (impactsph's default for the CPU).
+features and ``+prefer-256-bit``), ``tuned`` (impactsph's default for the CPU) and
+``no-gather`` (256-bit vectors and loads for gathers on any CPU: ``+prefer-256-bit`` and
+``+prefer-no-gather``, what ``tuned`` makes on a Zen 4, to measure it elsewhere).
 
 The reference is the naive yardstick (``../shared/bench/naive_pairs.py``, loaded as
 ``bench_bare_loop.py`` loads it: its cell list and 2D rate sums on the same 1e5 lattice),
@@ -45,7 +47,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import bench_bare_loop  # noqa: E402  (a script beside this one)
 
-CHOICES = ("host", "256", "tuned")
+CHOICES = ("host", "256", "tuned", "no-gather")
 ITEMS = ("rates 2D", "rates 3D", "taylor", "cantilever")
 
 
@@ -141,7 +143,13 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(measure(args.threads[0], args.rounds, args.side,
                                  args.cantilever_end, tuple(args.items))))
         return 0
-    from impactsph.vectors import FEATURES_VARIABLE, PREFER_256, VECTORS_VARIABLE, _host_features
+    from impactsph.vectors import (
+        FEATURES_VARIABLE,
+        NO_GATHER,
+        PREFER_256,
+        VECTORS_VARIABLE,
+        _host_features,
+    )
 
     rows = []
     for process in range(args.processes):
@@ -150,6 +158,8 @@ def main(argv: list[str] | None = None) -> int:
                 env = {k: v for k, v in os.environ.items() if k != FEATURES_VARIABLE}
                 if choice == "256":
                     env[FEATURES_VARIABLE] = f"{_host_features()},{PREFER_256}"
+                elif choice == "no-gather":
+                    env[FEATURES_VARIABLE] = f"{_host_features()},{PREFER_256},{NO_GATHER}"
                 else:
                     env[VECTORS_VARIABLE] = choice
                 command = [sys.executable, __file__, "--item", "--threads", str(threads),

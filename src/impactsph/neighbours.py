@@ -190,6 +190,15 @@ def cell_sort(x: np.ndarray, lo: np.ndarray, cell: float,
     return cell_scatter(key, count, occupied, np.argsort(codes))
 
 
+def cell_order(x: np.ndarray, radius: float) -> np.ndarray:
+    """The order a list of search radius ``radius`` built on the rows ``x`` (and nothing
+    else) numbers them in: ``order[p]`` the row at sorted position ``p``, the cells of edge
+    ``radius`` in Z order and a cell's rows in their given order (:func:`cell_sort`)."""
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    lo, ncell = cell_grid(x, float(radius))
+    return cell_sort(x, lo, float(radius), ncell)[0]
+
+
 @nb.njit(inline="always", cache=True)
 def kept_within2(hp, hq, support_per_h, skin, r2max, r2inner):
     """The squared distance within which a list with a radius per pair keeps the pair of

@@ -28,6 +28,10 @@ class Problem:
     info: dict[str, float] = field(default_factory=dict)  #: set-up facts worth reporting
     #: ``output.gauges``: name -> the particle followed (chosen as the probes are)
     gauges: dict[str, int] = field(default_factory=dict)
+    #: with ``compute.particle_order = "cells"``: each particle's number as the bodies placed
+    #: it (``input_index[i]``: the row of particle ``i`` in the bodies' particles, body after
+    #: body, each in its geometry's order); None: the particles are numbered so
+    input_index: np.ndarray | None = None
 
 
 def nearest_particle(state: ParticleState, body: int, position: list[float]) -> int:
@@ -217,5 +221,42 @@ def build_problem(case: Case) -> Problem:
               for p in case.output.probes}
     gauges = {g.name: nearest_particle(state, body_names.index(g.body), g.position)
               for g in case.output.gauges}
+    input_index = None
+    if case.compute.particle_order == "cells":
+        # the probes and gauges chosen in the input order (a tie goes to the same particle
+        # whatever the order), then followed to their new numbers
+        input_index = cell_numbering(state, case.time.neighbour_skin)
+        renumber(state, input_index)
+        number_of = np.empty_like(input_index)
+        number_of[input_index] = np.arange(n)
+        probes = {name: int(number_of[i]) for name, i in probes.items()}
+        gauges = {name: int(number_of[i]) for name, i in gauges.items()}
     return Problem(state, materials, table,
-                   body_names, probes, info, gauges)
+                   body_names, probes, info, gauges, input_index)
+
+
+def cell_numbering(state: ParticleState, skin_fraction: float) -> np.ndarray:
+    """``compute.particle_order = "cells"``: the particles in the order the run's first
+    neighbour list numbers them (:func:`impactsph.neighbours.cell_order`, its cells of edge
+    ``2 h_max (1 + skin_fraction)`` in Z order, a cell's particles in their input order),
+    body by body (each body's particles stay together, in the bodies' order).  Returns the
+    input number of the particle at each new place.  Without walls and with one body, the
+    first list's order is then the identity: the passes read and write the rows by particle
+    number in the order they walk the list, and each particle's rates are those of the
+    input order's run to the bit (``tests/test_particle_order.py``)."""
+    from .kernels import SUPPORT_RADIUS
+    from .neighbours import cell_order
+
+    if state.n == 0:
+        return np.zeros(0, dtype=np.int64)
+    radius = SUPPORT_RADIUS * float(state.smoothing_length.max()) * (1.0 + skin_fraction)
+    order = np.asarray(cell_order(state.position, radius), dtype=np.int64)
+    return order[np.argsort(state.body[order], kind="stable")]
+
+
+def renumber(state: ParticleState, order: np.ndarray) -> None:
+    """Every per-particle array of ``state`` taken in ``order`` (the new particle ``i`` is
+    the old ``order[i]``), in place."""
+    for name, values in state.arrays().items():
+        if values.ndim >= 1 and values.shape[0] == state.n:
+            setattr(state, name, np.ascontiguousarray(values[order]))

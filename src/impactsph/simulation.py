@@ -493,6 +493,8 @@ class Simulation:
         fields["von_mises_stress"] = carried_von_mises(s.deviatoric_stress, damage)
         for k, name in enumerate(COMMON_STATE):
             fields[name] = s.material_state[:, k].copy()
+        if self.problem.input_index is not None:  # compute.particle_order = "cells"
+            fields["input_index"] = self.problem.input_index.copy()
         return fields
 
     def _take_snapshots(self, previous: float) -> None:
