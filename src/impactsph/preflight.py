@@ -682,22 +682,23 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
 
 
 #: particles from which the estimate says what ``compute.particle_order = "cells"`` gives a
-#: run whose particles are numbered as placed (benchmarks/README.md, "The particles in the
-#: list's order": 0.86-0.88 of a 2D step's time at 1e6 particles, none at 1e5)
+#: 2D run whose particles are numbered as placed (benchmarks/README.md, "The particles in
+#: the list's order": 0.80-0.81 of the 2D Taylor bar's step time at 1e6 particles, none at
+#: 1e5, none in 3D)
 RENUMBER_FROM = 500_000
 
 
 def order_line(case: Case, n: int) -> str:
-    """For a 2D or 3D run of :data:`RENUMBER_FROM` particles or more numbered as placed
+    """For a 2D run of :data:`RENUMBER_FROM` particles or more numbered as placed
     (``compute.particle_order = "input"``, updated Lagrangian), a line saying what the
-    renumbering would give; else empty."""
-    if (n < RENUMBER_FROM or case.dimension == 1 or case.compute.particle_order != "input"
+    renumbering would give; else empty (3D runs gained nothing measurable)."""
+    if (n < RENUMBER_FROM or case.dimension != 2 or case.compute.particle_order != "input"
             or case.formulation != "updated_lagrangian"):
         return ""
     return (f"note: compute.particle_order = 'input' numbers the {n:,} particles as the bodies "
             f"place them; 'cells' renumbers them in the neighbour list's order, the same "
-            f"results to round-off with each particle's input number in the snapshots, and "
-            f"took 0.86-0.88 of a 2D lattice's step time at 1e6 particles (0.98 in 3D)")
+            f"results to round-off with each particle's input number in the snapshots: the "
+            f"2D Taylor bar's steps took 0.80-0.81 of their time so at 1e6 particles")
 
 
 def grid_cells(case: Case, position: np.ndarray) -> float:
