@@ -27,6 +27,7 @@ within ``--budget`` seconds plus 20 s.
     python benchmarks/bench_gpu.py --devices cpu --sizes 1e4 1e5 --budget 60
     python benchmarks/bench_gpu.py --devices gpu --record-precision float32 --compare-cpu
     python benchmarks/bench_gpu.py --devices gpu cpu --dims 3 --sizes 1e5 1e6 --model quarter
+    python benchmarks/bench_gpu.py --devices gpu --dims 2 --sizes 1e6 --particle-order cells
 
 ``--model quarter`` (2026-12-07) times what an impact user's model adds to the lattice's
 step: the block as a quarter model (in 2D a half) on a rigid wall, with the symmetry planes
@@ -51,6 +52,9 @@ HERE = Path(__file__).resolve().parent
 PRECISION_ENV = "IMPACTSPH_BENCH_RECORD_PRECISION"
 #: the children's model (``--model``: ``lattice`` or ``quarter``), through the environment
 MODEL_ENV = "IMPACTSPH_BENCH_MODEL"
+#: the children's ``compute.particle_order`` (``--particle-order``; bench_rates.ORDER_ENV,
+#: which its lattice reads)
+ORDER_ENV = "IMPACTSPH_BENCH_PARTICLE_ORDER"
 #: ``--model quarter``'s speed onto its wall (m/s)
 QUARTER_SPEED = 50.0
 
@@ -90,7 +94,7 @@ def run_items(dim: int, sizes: list[int], device: str, steps: int, budget: float
         data = make_case(size, dim)
         if os.environ.get(MODEL_ENV, "lattice") == "quarter":
             data = quarter_model(data, dim)
-        data["compute"] = {"device": "cpu" if device == "cpu" else "gpu",
+        data["compute"] = {**data["compute"], "device": "cpu" if device == "cpu" else "gpu",
                            "resident": device != "gpu-host",
                            "record_precision": os.environ.get(PRECISION_ENV, "float64")}
         return data
@@ -154,6 +158,7 @@ def run_items(dim: int, sizes: list[int], device: str, steps: int, budget: float
         row = {"dimension": dim, "n_target": n, "n_particles": state.n,
                "device_asked": device, "device": ran_on, "state_on_device": resident,
                "record_precision": data["compute"]["record_precision"],
+               "particle_order": data["compute"]["particle_order"],
                "steps": steps, "compile_seconds": compile_seconds, "setup_seconds": setup,
                "warm_step_seconds": warm_step, "ms_per_step": 1e3 * wall / steps,
                "pair_evaluations_per_second": pairs / wall,
@@ -261,11 +266,13 @@ def _text(output: bytes | str | None) -> str:
 
 def child(dim: int, sizes: list[int], device: str, steps: int, timeout: float,
           compare_cpu: bool = False, launch: tuple[int, int] | None = None,
-          precision: str = "float64", model: str = "lattice") -> list[dict]:
+          precision: str = "float64", model: str = "lattice",
+          order: str = "input") -> list[dict]:
     """Run one (device, dimension) in a fresh process; a row a size, or the reason it has
     none. ``launch``: the GPU's ``(threads_per_block, max_registers)``
     (:func:`impactsph.gpu.launch_settings`), set in the child's environment, as are the
-    records' ``precision`` (:data:`PRECISION_ENV`) and the ``model`` (:data:`MODEL_ENV`)."""
+    records' ``precision`` (:data:`PRECISION_ENV`), the ``model`` (:data:`MODEL_ENV`) and
+    the particles' ``order`` (:data:`ORDER_ENV`)."""
     from impactsph.gpu import REGISTERS_ENV, THREADS_ENV
 
     command = [sys.executable, __file__, "--child", str(dim), device, str(steps),
@@ -273,6 +280,7 @@ def child(dim: int, sizes: list[int], device: str, steps: int, timeout: float,
     env = dict(os.environ)
     env[PRECISION_ENV] = precision
     env[MODEL_ENV] = model
+    env[ORDER_ENV] = order
     if launch is not None:
         env[THREADS_ENV], env[REGISTERS_ENV] = str(launch[0]), str(launch[1])
     try:
@@ -338,6 +346,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--record-precision", choices=("float64", "float32"), default="float64",
                     help="compute.record_precision of every run (docs/gpu.md, 'Records in "
                     "float32'); --compare-cpu then compares with the CPU's run in the same")
+    ap.add_argument("--particle-order", choices=("input", "cells"), default="input",
+                    help="compute.particle_order of every run: the lattice's own row-major "
+                    "numbering (default) or the neighbour list's cells' (docs/case-files.md, "
+                    "'Particle order')")
     ap.add_argument("--model", choices=("lattice", "quarter"), default="lattice",
                     help="lattice: the block at rest with random velocities (default); "
                     "quarter: the block as a quarter model on a wall, with the symmetry "
@@ -365,7 +377,7 @@ def main(argv: list[str] | None = None) -> int:
                         for n in sizes)
             continue
         for row in child(dim, sizes, device, args.steps, share, args.compare_cpu, launch,
-                         args.record_precision, args.model):
+                         args.record_precision, args.model, args.particle_order):
             row["model"] = args.model
             rows.append(row)
             print(json.dumps(row), file=sys.stderr, flush=True)
@@ -392,6 +404,8 @@ def main(argv: list[str] | None = None) -> int:
                              " (state on the host)")
         if r.get("record_precision", "float64") != "float64":
             ran += f", records in {r['record_precision']}"
+        if r.get("particle_order", "input") != "input":
+            ran += ", particles in the list's order"
         note = "" if r["device"] == r["device_asked"].split("-")[0] else \
             f"asked {r['device_asked']}"
         if r["device"] == "gpu" and "threads_per_block" in r:

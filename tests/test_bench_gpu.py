@@ -65,12 +65,13 @@ def test_a_child_keeps_the_rows_it_wrote(benchmark_script, monkeypatch, timed_ou
 
     monkeypatch.setattr(bench.subprocess, "run", fake_run)
     rows = bench.child(3, [100, 1000], "gpu", 5, 30.0, compare_cpu=True, launch=(256, 128),
-                       precision="float32", model="quarter")
+                       precision="float32", model="quarter", order="cells")
     # the launch settings reach the child, and each row says which it ran with
     assert (seen["IMPACTSPH_CUDA_THREADS_PER_BLOCK"], seen["IMPACTSPH_CUDA_MAX_REGISTERS"]) \
         == ("256", "128")
     assert seen[bench.PRECISION_ENV] == "float32"
     assert seen[bench.MODEL_ENV] == "quarter"
+    assert seen[bench.ORDER_ENV] == "cells"
     assert all((r["threads_per_block"], r["max_registers"]) == (256, 128) for r in rows)
     assert [r["n_target"] for r in rows] == [100, 1000]
     assert rows[0]["ms_per_step"] == 1.0
