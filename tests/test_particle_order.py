@@ -128,6 +128,7 @@ def test_the_snapshots_carry_each_particles_input_number(tmp_path):
     np.testing.assert_array_equal(x0, given)
     vtu = sorted((tmp_path / "vtk").glob("*.vtu"))
     assert vtu and "input_index" in vtu[-1].read_bytes().decode("latin-1")
+    assert "numbered in their first neighbour list's order" in (tmp_path / "run.log").read_text()
 
 
 def test_input_order_snapshots_have_no_input_numbers():

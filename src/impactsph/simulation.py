@@ -138,6 +138,10 @@ class Simulation:
         t0 = _time.perf_counter()
         self.case = case
         self.problem = problem or build_problem(case)
+        if self.problem.input_index is not None:
+            log.info("the %d particles are numbered in their first neighbour list's order "
+                     "(compute.particle_order = 'cells'): the snapshots carry each one's "
+                     "number as placed (input_index)", self.problem.state.n)
         #: each particle's smoothing length at t = 0, the nominal kernel the measures scale
         #: by (with kernel.max_stretch the state's own grows, and a restart's state carries
         #: those of its last list build: a copy then; without it h never changes)
