@@ -109,6 +109,15 @@ def test_a_renumbered_run_is_the_input_orders_to_round_off(name, overrides):
         assert index[j] == i, label
     if name == "cantilever":
         assert len(followed) == 2 and given.state.added_mass.any()
+        # the summaries name each one's number, and as placed
+        summary = renumbered.summary()
+        assert summary["probes"]["tip"]["input_index"] == given.problem.probes["tip"]
+        assert "input_index" not in given.summary()["probes"]["tip"]
+        from impactsph.gauges import gauge_summary
+
+        root = gauge_summary(renumbered)["root"]
+        assert root["input_index"] == given.problem.gauges["root"]
+        assert root["initial_position"] == gauge_summary(given)["root"]["initial_position"]
     assert given.state.kinetic_energy() == pytest.approx(renumbered.state.kinetic_energy(),
                                                          rel=1e-9)
 

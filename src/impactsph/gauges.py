@@ -175,7 +175,8 @@ def gauge_summary(sim: Any) -> dict[str, dict[str, Any]]:
     for name, i in sim.problem.gauges.items():
         u = s.position[i] - s.initial_position[i]
         entry: dict[str, Any] = {
-            "index": int(i), "body": sim.problem.body_names[s.body[i]],
+            "index": int(i), **sim.problem.input_number(i),
+            "body": sim.problem.body_names[s.body[i]],
             "initial_position": s.initial_position[i].tolist(),
             "final_displacement": u.tolist()}
         history = None

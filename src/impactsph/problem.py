@@ -33,6 +33,11 @@ class Problem:
     #: body, each in its geometry's order); None: the particles are numbered so
     input_index: np.ndarray | None = None
 
+    def input_number(self, i: int) -> dict[str, int]:
+        """``{"input_index": n}``, particle ``i``'s number as placed, for a summary's entry
+        of a renumbered run; empty where the particles are numbered as placed."""
+        return {} if self.input_index is None else {"input_index": int(self.input_index[i])}
+
 
 def nearest_particle(state: ParticleState, body: int, position: list[float]) -> int:
     """The particle of body ``body`` nearest to ``position`` (a probe's or a gauge's)."""

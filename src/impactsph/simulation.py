@@ -749,6 +749,7 @@ class Simulation:
             "plastic_work": math.fsum(self.state.mass * self.state.plastic_work),
             "failure": self.record.failure,
             "probes": {name: {"index": i,
+                              **self.problem.input_number(i),
                               "initial_position": self.state.initial_position[i].tolist()}
                        for name, i in self.problem.probes.items()},
         }
