@@ -715,7 +715,8 @@ class Compute(_Model):
         "them (body by body, each geometry's own order); 'cells' each body's particles "
         "renumbered at t = 0 in the order of the neighbour list's cells (Z order), so that the "
         "passes' reads and writes by particle number walk memory as their neighbour loops do "
-        "(faster from about 1e6 particles: docs/case-files.md, 'Particle order'); each "
+        "(in 2D from about 5e5 particles: 0.80 of the step's time at 1e6; docs/case-files.md, "
+        "'Particle order'); each "
         "particle's results are those of 'input', renumbered, and the snapshots carry each "
         "particle's input number ('input_index')")
     record_precision: Literal["float64", "float32"] = Field(
