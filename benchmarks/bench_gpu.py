@@ -27,7 +27,7 @@ within ``--budget`` seconds plus 20 s.
     python benchmarks/bench_gpu.py --devices cpu --sizes 1e4 1e5 --budget 60
     python benchmarks/bench_gpu.py --devices gpu --record-precision float32 --compare-cpu
     python benchmarks/bench_gpu.py --devices gpu cpu --dims 3 --sizes 1e5 1e6 --model quarter
-    python benchmarks/bench_gpu.py --devices gpu --dims 2 --sizes 1e6 --particle-order cells
+    python benchmarks/bench_gpu.py --devices gpu --dims 2 --sizes 1e6 --particle-order input
 
 ``--model quarter`` (2026-12-07) times what an impact user's model adds to the lattice's
 step: the block as a quarter model (in 2D a half) on a rigid wall, with the symmetry planes
@@ -267,7 +267,7 @@ def _text(output: bytes | str | None) -> str:
 def child(dim: int, sizes: list[int], device: str, steps: int, timeout: float,
           compare_cpu: bool = False, launch: tuple[int, int] | None = None,
           precision: str = "float64", model: str = "lattice",
-          order: str = "input") -> list[dict]:
+          order: str = "auto") -> list[dict]:
     """Run one (device, dimension) in a fresh process; a row a size, or the reason it has
     none. ``launch``: the GPU's ``(threads_per_block, max_registers)``
     (:func:`impactsph.gpu.launch_settings`), set in the child's environment, as are the
@@ -346,10 +346,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--record-precision", choices=("float64", "float32"), default="float64",
                     help="compute.record_precision of every run (docs/gpu.md, 'Records in "
                     "float32'); --compare-cpu then compares with the CPU's run in the same")
-    ap.add_argument("--particle-order", choices=("input", "cells"), default="input",
-                    help="compute.particle_order of every run: the lattice's own row-major "
-                    "numbering (default) or the neighbour list's cells' (docs/case-files.md, "
-                    "'Particle order')")
+    ap.add_argument("--particle-order", choices=("auto", "input", "cells"), default="auto",
+                    help="compute.particle_order of every run: the default's choice (auto: "
+                    "the list's order for 2D lattices of 5e5 particles or more), the "
+                    "lattice's own row-major numbering (input) or the neighbour list's cells' "
+                    "(cells) (docs/case-files.md, 'Particle order')")
     ap.add_argument("--model", choices=("lattice", "quarter"), default="lattice",
                     help="lattice: the block at rest with random velocities (default); "
                     "quarter: the block as a quarter model on a wall, with the symmetry "
@@ -404,8 +405,8 @@ def main(argv: list[str] | None = None) -> int:
                              " (state on the host)")
         if r.get("record_precision", "float64") != "float64":
             ran += f", records in {r['record_precision']}"
-        if r.get("particle_order", "input") != "input":
-            ran += ", particles in the list's order"
+        if r.get("particle_order", "auto") != "auto":
+            ran += f", particle order {r['particle_order']}"
         note = "" if r["device"] == r["device_asked"].split("-")[0] else \
             f"asked {r['device_asked']}"
         if r["device"] == "gpu" and "threads_per_block" in r:

@@ -99,8 +99,9 @@ def lattice_side(n: int, dim: int) -> int:
 #: ``../shared/bench/naive_pairs.py``) or "defaults" (the case defaults: for this elastic
 #: block the stabilisation 'auto' turns on the corrected forces and the hourglass control)
 SCHEME_ENV = "IMPACTSPH_BENCH_SCHEME"
-#: how the lattices' particles are numbered (``compute.particle_order``: "input", the
-#: lattice's own row-major order, or "cells", the neighbour list's)
+#: how the lattices' particles are numbered (``compute.particle_order``: "auto", the
+#: default's choice, "input", the lattice's own row-major order, or "cells", the neighbour
+#: list's)
 ORDER_ENV = "IMPACTSPH_BENCH_PARTICLE_ORDER"
 
 
@@ -123,7 +124,7 @@ def make_case(n: int, dim: int) -> dict:
         "kernel": {"h_over_dx": H_OVER_DX},
         "time": {"end": 1e-6},
         "output": {"figures": False},
-        "compute": {"particle_order": os.environ.get(ORDER_ENV, "input")},
+        "compute": {"particle_order": os.environ.get(ORDER_ENV, "auto")},
         **({"stabilisation": {"gradient_correction": "none", "hourglass": 0.0}}
            if paper else {}),
     }
@@ -324,9 +325,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="the lattices' scheme: the paper's (default; the naive yardstick's "
                     "equations) or the case defaults (an elastic block: corrected forces and "
                     "hourglass control)")
-    ap.add_argument("--particle-order", choices=("input", "cells"), default="input",
-                    help="the lattices' compute.particle_order: their own row-major numbering "
-                    "(default) or the neighbour list's cells' (Z order)")
+    ap.add_argument("--particle-order", choices=("auto", "input", "cells"), default="auto",
+                    help="the lattices' compute.particle_order: the default's choice (auto: "
+                    "the list's order for 2D lattices of 5e5 particles or more), their own "
+                    "row-major numbering (input) or the neighbour list's cells' (cells)")
     ap.add_argument("--no-compile", action="store_true",
                     help="skip timing numba's compilation with an empty cache")
     args = ap.parse_args(argv)

@@ -148,21 +148,44 @@ def test_input_order_snapshots_have_no_input_numbers():
 
 def test_a_bad_particle_order_is_refused_naming_the_field():
     with pytest.raises(CaseError, match=r"compute.particle_order = 'morton': Input should "
-                                        r"be 'input' or 'cells'"):
+                                        r"be 'auto', 'input' or 'cells'"):
         load_case("bars", ['compute.particle_order="morton"'])
 
 
-def test_the_estimate_of_a_large_run_numbered_as_placed_names_the_renumbering():
+def test_auto_renumbers_2d_runs_from_renumber_from_particles(monkeypatch):
+    from impactsph import problem as problem_module
+
+    def renumbered(case: dict) -> bool:
+        return Simulation(validate_case(case)).problem.input_index is not None
+
+    auto = block(2, 24, "auto")  # 576 particles
+    assert validate_case(block(2, 4, "input")).compute.particle_order == "input"
+    assert load_case("bars").compute.particle_order == "auto"  # the default
+    assert not renumbered(auto)
+    monkeypatch.setattr(problem_module, "RENUMBER_FROM", 576)
+    assert renumbered(auto)
+    assert not renumbered(block(2, 24, "input"))
+    assert not renumbered(block(3, 9, "auto"))  # 729 particles: 3D gained nothing
+    assert not renumbered({**auto, "formulation": "total_lagrangian"})  # not measured
+    monkeypatch.setattr(problem_module, "RENUMBER_FROM", 577)
+    assert not renumbered(auto)
+
+
+def test_the_estimate_says_how_a_large_2d_run_is_numbered():
     from impactsph import preflight as pf
+    from impactsph.problem import RENUMBER_FROM
 
-    def note(case_dict: dict, n: int) -> str:
-        return pf.estimate(validate_case(case_dict), [n]).order_line
+    big = RENUMBER_FROM
 
-    big = pf.RENUMBER_FROM
-    line = note(block(2, 10, "input"), big)
-    assert line.startswith("note: compute.particle_order = 'input'") and f"{big:,}" in line
-    assert line in pf.estimate(validate_case(block(2, 10, "input")), [big]).lines()
-    assert note(block(2, 10, "input"), big - 1) == ""
-    assert note(block(2, 10, "cells"), big) == ""
-    assert note(block(3, 10, "input"), big) == ""  # (3D gained nothing measurable)
-    assert note({**block(2, 10, "input"), "formulation": "total_lagrangian"}, big) == ""
+    def line(order: str, n: int, dim: int = 2, **more) -> str:
+        estimate = pf.estimate(validate_case({**block(dim, 10, order), **more}), [n])
+        assert (estimate.order_line in estimate.lines()) == bool(estimate.order_line)
+        return estimate.order_line
+
+    assert line("auto", big).startswith(f"particle order: the {big:,} particles renumbered")
+    assert line("input", big).startswith("note: compute.particle_order = 'input' numbers the")
+    assert line("cells", big) == ""  # asked for: nothing to say
+    for order in ("auto", "input"):
+        assert line(order, big - 1) == ""
+        assert line(order, big, dim=3) == ""
+        assert line(order, big, formulation="total_lagrangian") == ""

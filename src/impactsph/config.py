@@ -710,15 +710,16 @@ class Compute(_Model):
         True, description="with device = 'gpu': keep the state on the GPU between steps (the "
         "whole step runs there: docs/gpu.md) where the case allows it; the log says when it "
         "does not and why. false: copy the state up and the rates back at every evaluation")
-    particle_order: Literal["input", "cells"] = Field(
-        "input", description="how the particles are numbered: 'input' as the bodies place "
+    particle_order: Literal["auto", "input", "cells"] = Field(
+        "auto", description="how the particles are numbered: 'input' as the bodies place "
         "them (body by body, each geometry's own order); 'cells' each body's particles "
         "renumbered at t = 0 in the order of the neighbour list's cells (Z order), so that the "
         "passes' reads and writes by particle number walk memory as their neighbour loops do "
-        "(in 2D from about 5e5 particles: 0.80 of the step's time at 1e6; docs/case-files.md, "
-        "'Particle order'); each "
-        "particle's results are those of 'input', renumbered, and the snapshots carry each "
-        "particle's input number ('input_index')")
+        "(0.80 of a 2D step's time at 1e6 particles, none at 1e5 nor in 3D: docs/case-files.md, "
+        "'Particle order'); 'auto' (the default) 'cells' for a 2D updated-Lagrangian run of "
+        "500,000 particles or more, else 'input'. Each particle's results are those of "
+        "'input', renumbered, and a renumbered run's snapshots carry each particle's input "
+        "number ('input_index')")
     record_precision: Literal["float64", "float32"] = Field(
         "float64", description="the numbers of the neighbour records the pair loops read "
         "(position, velocity, density, stress over density squared, ... of every particle, "

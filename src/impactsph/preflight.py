@@ -161,8 +161,7 @@ class Estimate:
     device_name: str = ""  #: the GPU's name
     device_line: str = ""  #: what the run will do on a GPU it asked for (:func:`device_plan`)
     state_on_gpu: bool = False  #: whether the run's state stays on the GPU
-    #: a run of many particles numbered as placed: what ``compute.particle_order = "cells"``
-    #: would give it (:data:`RENUMBER_FROM`), else empty
+    #: the particles' numbering where it matters (:func:`order_line`), else empty
     order_line: str = ""
 
     @property
@@ -681,24 +680,27 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
                                                   "device_name": device[2]}))
 
 
-#: particles from which the estimate says what ``compute.particle_order = "cells"`` gives a
-#: 2D run whose particles are numbered as placed (benchmarks/README.md, "The particles in
-#: the list's order": 0.80-0.81 of the 2D Taylor bar's step time at 1e6 particles, none at
-#: 1e5, none in 3D)
-RENUMBER_FROM = 500_000
-
-
 def order_line(case: Case, n: int) -> str:
-    """For a 2D run of :data:`RENUMBER_FROM` particles or more numbered as placed
-    (``compute.particle_order = "input"``, updated Lagrangian), a line saying what the
-    renumbering would give; else empty (3D runs gained nothing measurable)."""
-    if (n < RENUMBER_FROM or case.dimension != 2 or case.compute.particle_order != "input"
-            or case.formulation != "updated_lagrangian"):
-        return ""
-    return (f"note: compute.particle_order = 'input' numbers the {n:,} particles as the bodies "
-            f"place them; 'cells' renumbers them in the neighbour list's order, the same "
-            f"results to round-off with each particle's input number in the snapshots: the "
-            f"2D Taylor bar's steps took 0.80-0.81 of their time so at 1e6 particles")
+    """A line on the particles' numbering where it matters: a run that
+    ``compute.particle_order = "auto"`` renumbers, or a 2D run of
+    :data:`impactsph.problem.RENUMBER_FROM` particles or more held to ``"input"``; else
+    empty."""
+    from .problem import RENUMBER_FROM, particle_order
+
+    setting = case.compute.particle_order
+    if setting == "auto" and particle_order(case, n) == "cells":
+        return (f"particle order: the {n:,} particles renumbered in the neighbour list's order "
+                f"(compute.particle_order = 'auto' for a 2D run of {RENUMBER_FROM:,} or more: "
+                f"about 0.8 of the step's time at 1e6); the snapshots carry each one's number "
+                f"as placed (input_index); 'input' keeps that numbering")
+    if (setting == "input" and n >= RENUMBER_FROM and case.dimension == 2
+            and case.formulation == "updated_lagrangian"):
+        return (f"note: compute.particle_order = 'input' numbers the {n:,} particles as the "
+                f"bodies place them; 'cells' (or 'auto') renumbers them in the neighbour list's "
+                f"order, the same results to round-off with each particle's input number in "
+                f"the snapshots: the 2D Taylor bar's steps took 0.80-0.81 of their time so at "
+                f"1e6 particles")
+    return ""
 
 
 def grid_cells(case: Case, position: np.ndarray) -> float:

@@ -28,9 +28,10 @@ class Problem:
     info: dict[str, float] = field(default_factory=dict)  #: set-up facts worth reporting
     #: ``output.gauges``: name -> the particle followed (chosen as the probes are)
     gauges: dict[str, int] = field(default_factory=dict)
-    #: with ``compute.particle_order = "cells"``: each particle's number as the bodies placed
-    #: it (``input_index[i]``: the row of particle ``i`` in the bodies' particles, body after
-    #: body, each in its geometry's order); None: the particles are numbered so
+    #: in a renumbered run (``compute.particle_order``, :func:`particle_order`): each
+    #: particle's number as the bodies placed it (``input_index[i]``: the row of particle
+    #: ``i`` in the bodies' particles, body after body, each in its geometry's order); None:
+    #: the particles are numbered so
     input_index: np.ndarray | None = None
 
     def input_number(self, i: int) -> dict[str, int]:
@@ -227,7 +228,7 @@ def build_problem(case: Case) -> Problem:
     gauges = {g.name: nearest_particle(state, body_names.index(g.body), g.position)
               for g in case.output.gauges}
     input_index = None
-    if case.compute.particle_order == "cells":
+    if particle_order(case, n) == "cells":
         # the probes and gauges chosen in the input order (a tie goes to the same particle
         # whatever the order), then followed to their new numbers
         input_index = cell_numbering(state, case.time.neighbour_skin)
@@ -240,15 +241,33 @@ def build_problem(case: Case) -> Problem:
                    body_names, probes, info, gauges, input_index)
 
 
+#: particles from which ``compute.particle_order = "auto"`` renumbers a 2D run's particles
+#: (benchmarks/README.md, "The particles in the list's order": the 2D Taylor bar's step took
+#: 0.80-0.81 of its time at 1e6 particles, 0.90-0.91 at 5.1e5 and 1.01-1.05 at 1.1e5; the 3D
+#: Taylor cylinder's 1.00 at 1e6)
+RENUMBER_FROM = 500_000
+
+
+def particle_order(case: Case, n: int) -> str:
+    """``compute.particle_order`` resolved for a run of ``n`` particles: ``"auto"`` is
+    ``"cells"`` for a 2D updated-Lagrangian run of :data:`RENUMBER_FROM` particles or more
+    (where it was measured to pay), else ``"input"``."""
+    order = case.compute.particle_order
+    if order != "auto":
+        return order
+    return ("cells" if case.dimension == 2 and n >= RENUMBER_FROM
+            and case.formulation == "updated_lagrangian" else "input")
+
+
 def cell_numbering(state: ParticleState, skin_fraction: float) -> np.ndarray:
-    """``compute.particle_order = "cells"``: the particles in the order the run's first
-    neighbour list numbers them (:func:`impactsph.neighbours.cell_order`, its cells of edge
-    ``2 h_max (1 + skin_fraction)`` in Z order, a cell's particles in their input order),
-    body by body (each body's particles stay together, in the bodies' order).  Returns the
-    input number of the particle at each new place.  Without walls and with one body, the
-    first list's order is then the identity: the passes read and write the rows by particle
-    number in the order they walk the list, and each particle's rates are those of the
-    input order's run to the bit (``tests/test_particle_order.py``)."""
+    """A renumbered run's numbering (``compute.particle_order``): the particles in the order
+    the run's first neighbour list numbers them (:func:`impactsph.neighbours.cell_order`, its
+    cells of edge ``2 h_max (1 + skin_fraction)`` in Z order, a cell's particles in their
+    input order), body by body (each body's particles stay together, in the bodies' order).
+    Returns the input number of the particle at each new place.  Without walls and with one
+    body, the first list's order is then the identity: the passes read and write the rows by
+    particle number in the order they walk the list, and each particle's rates are those of
+    the input order's run to the bit (``tests/test_particle_order.py``)."""
     from .kernels import SUPPORT_RADIUS
     from .neighbours import cell_order
 

@@ -140,8 +140,9 @@ class Simulation:
         self.problem = problem or build_problem(case)
         if self.problem.input_index is not None:
             log.info("the %d particles are numbered in their first neighbour list's order "
-                     "(compute.particle_order = 'cells'): the snapshots carry each one's "
-                     "number as placed (input_index)", self.problem.state.n)
+                     "(compute.particle_order = %r): the snapshots carry each one's number "
+                     "as placed (input_index)", self.problem.state.n,
+                     case.compute.particle_order)
         #: each particle's smoothing length at t = 0, the nominal kernel the measures scale
         #: by (with kernel.max_stretch the state's own grows, and a restart's state carries
         #: those of its last list build: a copy then; without it h never changes)
@@ -497,7 +498,7 @@ class Simulation:
         fields["von_mises_stress"] = carried_von_mises(s.deviatoric_stress, damage)
         for k, name in enumerate(COMMON_STATE):
             fields[name] = s.material_state[:, k].copy()
-        if self.problem.input_index is not None:  # compute.particle_order = "cells"
+        if self.problem.input_index is not None:  # renumbered (compute.particle_order)
             fields["input_index"] = self.problem.input_index.copy()
         return fields
 

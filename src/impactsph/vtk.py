@@ -6,7 +6,7 @@ tension reduced by ``1 - D``), deviatoric stress (Pa, 9 components, row-major; u
 integrated), von Mises stress (Pa, of the damaged deviator ``(1 - D) S``: what the particle
 carries), plastic flag (1 where the particle yielded in the last step), specific internal
 energy (J/kg), body id, plastic work (J/kg), equivalent plastic strain (-), plastic strain
-rate (1/s), temperature (K), damage (-); with ``compute.particle_order = "cells"`` each
+rate (1/s), temperature (K), damage (-); in a renumbered run (``compute.particle_order``) each
 particle's input number (``input_index``).  In 1D and 2D the missing coordinates are written as
 zero.
 """
@@ -47,7 +47,7 @@ def particle_fields(sim: Any) -> dict[str, np.ndarray]:
         "plastic_work": s.plastic_work.copy(),
         **{name: s.material_state[:, k].copy() for k, name in enumerate(COMMON_STATE)},
         "viscosity_factor": s.viscosity_factor.copy(),
-        # compute.particle_order = "cells": each particle's number as the bodies placed it
+        # a renumbered run (compute.particle_order): each particle's number as placed
         **({} if renumbered is None else {"input_index": renumbered.astype(np.int64)}),
     }
 
