@@ -2,10 +2,10 @@
 # One call on a lent machine with an NVIDIA GPU (issue 16): what it has, the GPU tests
 # against the CPU on the real device, and bench_gpu.py's tables: the whole step on the GPU
 # (1e5-1e7), an impact model's step (a quarter model on a wall with its symmetry planes and
-# an elastic case's stabilisation, FEATURES), the particles in the list's order (ORDER), each
-# kernel's time with ncu (KERNELS), the rates-only path and the CPU (HOST_STAGES), the
-# launch settings at 1M 3D particles (TUNE=1:
-# off by default since 2026-12-07, measured at the second lease); about 11 minutes with the
+# an elastic case's stabilisation, FEATURES), each kernel's time with ncu (KERNELS), the
+# rates-only path and the CPU (HOST_STAGES), the 2D 1e6 lattice in its own particle order
+# (ORDER=1: off by default, 2026-12-07, to fit), the launch settings at 1M 3D particles (TUNE=1:
+# off by default since 2026-12-07, measured at the second lease); about 10 minutes with the
 # default stages: set the toggles to 0 to fit a shorter call (a command there may run 10
 # minutes at most).
 #
@@ -56,7 +56,7 @@ timeout 140 python3 benchmarks/bench_gpu.py --devices gpu cpu --dims 3 --sizes 1
   --steps 20 --model quarter --budget 110 --json "$OUT/bench_gpu_quarter.json" \
   2>&1 | tee "$OUT/bench_gpu_quarter.log"
 fi
-if [ "${ORDER:-1}" = 1 ]; then
+if [ "${ORDER:-0}" = 1 ]; then
 # the 2D 1e6 lattice in its own order, against the row above, renumbered in the list's order
 # by the default (compute.particle_order = "auto", 2026-12-07: 0.80-0.81 of the 2D Taylor
 # bar's step on the CPU at 1e6)
