@@ -78,7 +78,9 @@ def test_the_first_list_is_in_particle_order_and_the_rates_are_the_same_to_the_b
 ])
 def test_a_renumbered_run_is_the_input_orders_to_round_off(name, overrides):
     """Later lists' rows may hold a cell's particles in another order (the grid moves with
-    the bodies), so a pair loop adds them in another order: the same run to round-off."""
+    the bodies), so a pair loop adds them in another order: the same run to round-off (at
+    most 2.1e-14 of a field's scale found, the Taylor bar's stress; the cantilever's to the
+    bit)."""
     runs = {}
     for order in ("input", "cells"):
         case = load_case(name, [*overrides, "output.figures=false",
@@ -100,7 +102,7 @@ def test_a_renumbered_run_is_the_input_orders_to_round_off(name, overrides):
              "deviatoric_stress": np.abs(given.state.deviatoric_stress).max()}
     for field, size in scale.items():
         difference = np.abs(getattr(renumbered.state, field) - getattr(given.state, field)[index])
-        assert difference.max() <= 1e-9 * size, (field, difference.max(), size)
+        assert difference.max() <= 1e-12 * size, (field, difference.max(), size)
     # the probes and gauges follow the same material points
     followed = {**given.problem.probes, **given.problem.gauges}
     assert followed.keys() == {**renumbered.problem.probes, **renumbered.problem.gauges}.keys()

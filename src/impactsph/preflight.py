@@ -685,16 +685,15 @@ def order_line(case: Case, n: int) -> str:
     ``compute.particle_order = "auto"`` renumbers, or a 2D run of
     :data:`impactsph.problem.RENUMBER_FROM` particles or more held to ``"input"``; else
     empty."""
-    from .problem import RENUMBER_FROM, particle_order
+    from .problem import RENUMBER_FROM, renumbering_pays
 
     setting = case.compute.particle_order
-    if setting == "auto" and particle_order(case, n) == "cells":
+    if setting == "auto" and renumbering_pays(case, n):
         return (f"particle order: the {n:,} particles renumbered in the neighbour list's order "
                 f"(compute.particle_order = 'auto' for a 2D run of {RENUMBER_FROM:,} or more: "
                 f"about 0.8 of the step's time at 1e6); the snapshots carry each one's number "
                 f"as placed (input_index); 'input' keeps that numbering")
-    if (setting == "input" and n >= RENUMBER_FROM and case.dimension == 2
-            and case.formulation == "updated_lagrangian"):
+    if setting == "input" and renumbering_pays(case, n):
         return (f"note: compute.particle_order = 'input' numbers the {n:,} particles as the "
                 f"bodies place them; 'cells' (or 'auto') renumbers them in the neighbour list's "
                 f"order, the same results to round-off with each particle's input number in "

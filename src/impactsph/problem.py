@@ -248,15 +248,20 @@ def build_problem(case: Case) -> Problem:
 RENUMBER_FROM = 500_000
 
 
+def renumbering_pays(case: Case, n: int) -> bool:
+    """Whether a run of ``case`` with ``n`` particles is one where renumbering was measured
+    to pay: 2D, updated Lagrangian, :data:`RENUMBER_FROM` particles or more."""
+    return (case.dimension == 2 and n >= RENUMBER_FROM
+            and case.formulation == "updated_lagrangian")
+
+
 def particle_order(case: Case, n: int) -> str:
     """``compute.particle_order`` resolved for a run of ``n`` particles: ``"auto"`` is
-    ``"cells"`` for a 2D updated-Lagrangian run of :data:`RENUMBER_FROM` particles or more
-    (where it was measured to pay), else ``"input"``."""
+    ``"cells"`` where :func:`renumbering_pays`, else ``"input"``."""
     order = case.compute.particle_order
     if order != "auto":
         return order
-    return ("cells" if case.dimension == 2 and n >= RENUMBER_FROM
-            and case.formulation == "updated_lagrangian" else "input")
+    return "cells" if renumbering_pays(case, n) else "input"
 
 
 def cell_numbering(state: ParticleState, skin_fraction: float) -> np.ndarray:

@@ -34,7 +34,7 @@ def particle_fields(sim: Any) -> dict[str, np.ndarray]:
     damage = s.material_state[:, DAMAGE]
     vm = carried_von_mises(s.deviatoric_stress, damage)
     plastic = s.material_state[:, PLASTIC_STRAIN_RATE] > 0.0
-    renumbered = getattr(getattr(sim, "problem", None), "input_index", None)
+    renumbered = sim.problem.input_index
     return {
         "velocity": vel,
         "density": s.density.copy(),
