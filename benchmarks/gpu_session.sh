@@ -5,11 +5,15 @@
 # an elastic case's stabilisation, FEATURES), each kernel's time with ncu (KERNELS), the
 # rates-only path and the CPU (HOST_STAGES), the 2D 1e6 lattice in its own particle order
 # (ORDER=1: off by default, 2026-12-07, to fit), the launch settings at 1M 3D particles (TUNE=1:
-# off by default since 2026-12-07, measured at the second lease); about 10 minutes with the
-# default stages: set the toggles to 0 to fit a shorter call (a command there may run 10
-# minutes at most).
+# off by default since 2026-12-07, measured at the second lease). The stages together would
+# take some 13 minutes, more than a device command may run (10), so the call keeps to TOTAL
+# seconds (default 540, counted from its start): a stage runs only if its time limit ends
+# within TOTAL, else the session log says it was skipped and why; the stages come in the
+# order of their worth (the whole step on the GPU, the tests beside it, the quarter model,
+# ncu, the rest). Set a toggle to 0 to leave a stage out, or TOTAL to the time the call has.
 #
 #   bash benchmarks/gpu_session.sh            # writes under $OUT (or runs/gpu_session)
+#   TOTAL=300 FEATURES=0 bash benchmarks/gpu_session.sh
 #
 # The machine's own python3 runs it (its numba and numba-cuda); packages it lacks travel as
 # wheels in .whl/ (pydantic, numexpr, meshio, and numpy 2.4: the image's numba-cuda 0.30.4 fails
@@ -19,6 +23,16 @@
 set -u
 OUT=${OUT:-runs/gpu_session}
 source "$(dirname "$0")/gpu_env.sh"  # $OUT, stamp, the machine, the wheels, PYTHONPATH
+TOTAL=${TOTAL:-540}  # seconds the whole call may take ($SECONDS counts from the script's start)
+
+# fits LIMIT WHAT: true if a stage whose time limit is LIMIT seconds ends within TOTAL; else
+# the session log says that WHAT was skipped, with the seconds left
+fits() {
+  local left=$((TOTAL - SECONDS))
+  if [ "$left" -ge "$1" ]; then return 0; fi
+  stamp "skipped: $2 (a limit of $1 s; $left s left of TOTAL=$TOTAL)"
+  return 1
+}
 
 stamp "smoke: impactsph imports, numba-cuda sees the GPU"
 timeout 60 python3 -c "
@@ -37,18 +51,22 @@ print('a kernel compiled and ran:', a.copy_to_host().sum() == 256, '| numpy', np
 
 # the GPU tests (mode gpu: the device against the CPU) beside the benchmark: two workers,
 # one a file; their kernels are small, their compilation is on the CPU
-stamp "tests on the GPU (in the background)"
-( timeout "${TESTS_LIMIT:-330}" python3 -m pytest -q -rA -p no:cacheprovider -n 2 --dist loadfile \
+# (their limit: TESTS_LIMIT, and no later than 20 s before TOTAL)
+tests_limit=$(( ${TESTS_LIMIT:-330} < TOTAL - SECONDS - 20 ? ${TESTS_LIMIT:-330} : TOTAL - SECONDS - 20 ))
+stamp "tests on the GPU (in the background, at most $tests_limit s)"
+( timeout "$tests_limit" python3 -m pytest -q -rA -p no:cacheprovider -n 2 --dist loadfile \
     tests/test_gpu.py tests/test_gpu_step.py -k "${TESTS_K:-not simulator and not compile_for_a_gpu}" \
     --durations=15 > "$OUT/tests.log" 2>&1; echo "tests rc $?" >> "$OUT/tests.log" ) &
 tests=$!
 
-stamp "bench: the whole step on the GPU, 1e5-1e7 (at 1e5 the same steps on the CPU too)"
 GPU_BUDGET=${GPU_BUDGET:-240}
+if fits $((GPU_BUDGET + 40)) "the whole step on the GPU"; then
+stamp "bench: the whole step on the GPU, 1e5-1e7 (at 1e5 the same steps on the CPU too)"
 timeout $((GPU_BUDGET + 40)) python3 benchmarks/bench_gpu.py --devices gpu --dims 3 2 \
   --sizes 1e5 1e6 1e7 --steps 20 --compare-cpu --budget "$GPU_BUDGET" --json "$OUT/bench_gpu.json" \
   2>&1 | tee "$OUT/bench_gpu.log"
-if [ "${FEATURES:-1}" = 1 ]; then
+fi
+if [ "${FEATURES:-1}" = 1 ] && fits 140 "the quarter model (FEATURES)"; then
 # what a user's impact model adds to a step: the ghosts' stages, their mirror, the walls'
 # constraint, the hourglass control (bench_gpu.py --model quarter), on the GPU and the CPU
 stamp "bench: a quarter model on a wall, 1e5 and 1e6 3D, GPU and CPU"
@@ -56,7 +74,7 @@ timeout 140 python3 benchmarks/bench_gpu.py --devices gpu cpu --dims 3 --sizes 1
   --steps 20 --model quarter --budget 110 --json "$OUT/bench_gpu_quarter.json" \
   2>&1 | tee "$OUT/bench_gpu_quarter.log"
 fi
-if [ "${ORDER:-0}" = 1 ]; then
+if [ "${ORDER:-0}" = 1 ] && fits 90 "the 2D lattice in its own order (ORDER)"; then
 # the 2D 1e6 lattice in its own order, against the row above, renumbered in the list's order
 # by the default (compute.particle_order = "auto", 2026-12-07: 0.80-0.81 of the 2D Taylor
 # bar's step on the CPU at 1e6)
@@ -65,7 +83,7 @@ timeout 90 python3 benchmarks/bench_gpu.py --devices gpu --dims 2 --sizes 1e6 --
   --particle-order input --budget 60 --json "$OUT/bench_gpu_input_order.json" \
   2>&1 | tee "$OUT/bench_gpu_input_order.log"
 fi
-if [ "${TUNE:-0}" = 1 ]; then
+if [ "${TUNE:-0}" = 1 ] && fits 170 "the launch settings (TUNE)"; then
 # the launch settings at 1M 3D particles: threads a block and the pair kernel's register cap
 # (benchmarks/gpu_registers.py, 3D: 166 registers free, 3 blocks of 128 a multiprocessor;
 # capped at 128, 4 blocks with 284 B of spills), a process each
@@ -74,7 +92,7 @@ timeout 170 python3 benchmarks/bench_gpu.py --devices gpu --dims 3 --sizes 1e6 -
   --threads-per-block 128 256 --max-registers 0 128 --budget 150 \
   --json "$OUT/bench_gpu_tune.json" 2>&1 | tee "$OUT/bench_gpu_tune.log"
 fi
-if [ "${KERNELS:-1}" = 1 ] && command -v ncu > /dev/null; then
+if [ "${KERNELS:-1}" = 1 ] && command -v ncu > /dev/null && fits 150 "ncu (KERNELS)"; then
 # each kernel's time in a step at 1M 3D particles (the rest of the step is launches and waits)
 stamp "kernels: ncu over three steps at 1e6 3D"
 timeout 150 ncu --clock-control none --target-processes all --launch-skip 150 \
@@ -83,10 +101,13 @@ timeout 150 ncu --clock-control none --target-processes all --launch-skip 150 \
   > "$OUT/ncu.log" 2>&1
 grep -E "^\s+[a-z_]+kernel|Duration|^  [a-z_]+\(" "$OUT/ncu.log" | head -80
 fi
-if [ "${HOST_STAGES:-1}" = 1 ]; then
-stamp "bench: the rates on the GPU, the state on the host; the CPU"
+if [ "${HOST_STAGES:-1}" = 1 ] && fits 75 "the rates on the GPU, the state on the host (HOST_STAGES)"; then
+stamp "bench: the rates on the GPU, the state on the host"
 timeout 75 python3 benchmarks/bench_gpu.py --devices gpu-host --dims 3 2 --sizes 1e5 1e6 \
   --steps 10 --budget 40 --json "$OUT/bench_gpu_host.json" 2>&1 | tee "$OUT/bench_gpu_host.log"
+fi
+if [ "${HOST_STAGES:-1}" = 1 ] && fits 75 "the CPU (HOST_STAGES)"; then
+stamp "bench: the CPU"
 timeout 75 python3 benchmarks/bench_gpu.py --devices cpu --dims 3 2 --sizes 1e5 1e6 \
   --steps 3 --budget 40 --json "$OUT/bench_cpu.json" 2>&1 | tee "$OUT/bench_cpu.log"
 fi
