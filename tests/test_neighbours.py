@@ -53,6 +53,59 @@ def test_skin_triggers_rebuild():
     assert pairs_of(nl) == brute_force_pairs(moved, 1.9)
 
 
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_the_displacement_check_in_shares_finds_the_one_particle_past_half_the_skin(
+        dim, monkeypatch):
+    """The list's displacement check runs in shares on numba's threads from
+    ``DISPLACEMENT_SHARE_ROWS`` rows a share: in three shares (whatever this worker's thread
+    count) the largest displacement is the serial check's to the bit, wherever the one
+    particle that moved farthest sits (first row, a share's first and last rows, last row),
+    and ``stale`` says so in shares as it does serially."""
+    import impactsph.neighbours as neighbours
+    from impactsph.physics.chunked import run_chunked
+
+    _, serial, share = neighbours._build_functions(dim)
+    rng = np.random.default_rng(7 + dim)
+    side = {1: 900, 2: 30, 3: 10}[dim]
+    x0 = np.stack(np.meshgrid(*[np.arange(float(side))] * dim, indexing="ij"),
+                  -1).reshape(-1, dim)
+    n = x0.shape[0]
+    nl = NeighbourList.build(x0, support=1.5, skin=0.4)
+    for row in (0, n // 3 - 1, n // 3, 2 * n // 3, n - 1):
+        x = x0 + rng.uniform(-0.1, 0.1, x0.shape)  # each |d| < 0.18 < skin / 2
+        x[row] = x0[row] + 0.21 / np.sqrt(dim)  # |d| = 0.21: past skin / 2
+        reference = nl.reference_positions
+        largest = np.full(3, -1.0)
+        run_chunked(share, 3, x, reference, nl.reference_origin, largest)
+        assert (largest >= 0.0).all()
+        assert np.sqrt(largest.max()) == serial(x, reference, nl.reference_origin)
+        assert 0.2 < serial(x, reference, nl.reference_origin) < 0.22
+        monkeypatch.setattr(neighbours, "DISPLACEMENT_SHARE_ROWS", n // 3)
+        monkeypatch.setattr(neighbours, "numba_threads", lambda: 3)
+        assert nl.stale(x, 1.5)
+        x[row] = x0[row] + 0.19 / np.sqrt(dim)  # now within skin / 2: not stale
+        assert not nl.stale(x, 1.5)
+        monkeypatch.undo()
+        assert not nl.stale(x, 1.5)
+
+
+def test_the_range_of_the_smoothing_lengths_is_numpys_min_and_max():
+    """``solver.value_range`` keeps four running pairs over interleaved values: for every
+    length 1-13 (each remainder of four) and the extremes at every place, its ``(smallest,
+    largest)`` is numpy's; an empty array is refused."""
+    from impactsph.solver import value_range
+
+    rng = np.random.default_rng(11)
+    for n in range(1, 14):
+        for place in range(n):
+            values = rng.uniform(1.0, 2.0, n)
+            values[place] = 0.5
+            values[n - 1 - place] = 3.0 if n > 1 else 0.5
+            assert value_range(values) == (values.min(), values.max())
+    with pytest.raises(ValueError, match="empty"):
+        value_range(np.zeros(0))
+
+
 def test_rank_is_the_inverse_of_the_order_and_follows_each_rebuild():
     """``rank`` (the particle pass writes particle i's record to row ``rank[i]``) is the
     inverse permutation of ``order``, made once per build and made again after a rebuild."""

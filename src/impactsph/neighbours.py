@@ -47,7 +47,7 @@ import numpy as np
 
 from .jitcache import njit_variant
 from .kernels import SUPPORT_RADIUS
-from .physics.chunked import SIMPLIFICATIONS_ONLY, run_chunked, threads_for
+from .physics.chunked import SIMPLIFICATIONS_ONLY, numba_threads, run_chunked, threads_for
 
 # the sweeps take numba's parallel simplifications without a loop to run in parallel (they run
 # in shares, as the chunked passes do: physics/chunked.py), and numba says so at each compile
@@ -62,6 +62,11 @@ RADIUS_TOLERANCE = 1e-12
 EPSILON = float(np.finfo(np.float64).eps)
 #: particles per work item of the builder's parallel sweeps
 CHUNK = 64
+#: the fewest rows a share of the list's displacement check takes (fewer: one share, no
+#: threads): the check is paced by memory, and one core's share of it is less than the
+#: machine's (the 2D lattice of 1e5 particles on two threads: 77-87 us in two shares against
+#: 127-135 us in one; a share costs more than it saves below some 1e4 rows)
+DISPLACEMENT_SHARE_ROWS = 16384
 
 
 @nb.njit(inline="always", cache=True)
@@ -250,7 +255,7 @@ ROOM = 1.1
 def _build_functions(dim: int):
     """The cell-list builder for one dimension (``dim`` is a compile-time constant; the
     helpers are module functions: numba caches a closure only if it captures no compiled
-    function): ``(build, max_displacement)``.
+    function): ``(build, max_displacement, displacement_share)``.
 
     ``build`` is Python that finds the cells (:func:`cell_grid`), sorts the particles by
     cell (:func:`cell_sort`), copies their positions in that order (``sorted_copies``), and
@@ -612,6 +617,8 @@ def _build_functions(dim: int):
 
     @njit_variant(f"{dim}d")
     def max_displacement(x, x_ref, origin):
+        """``max_i |x_i - origin - x_ref_i|`` (m): the list's displacement check, serial
+        (``displacement_share`` the same in shares)."""
         largest = 0.0
         for i in range(x.shape[0]):
             s = 0.0
@@ -621,7 +628,21 @@ def _build_functions(dim: int):
             largest = max(largest, s)
         return math.sqrt(largest)
 
-    return build, max_displacement
+    @njit_variant(f"{dim}d", nogil=True)
+    def displacement_share(first, step, x, x_ref, origin, largest):
+        """Share ``first`` of ``step`` of ``max_displacement``'s rows (a block of consecutive
+        rows each), squared, into ``largest[first]`` (:func:`run_chunked`'s shares)."""
+        n = x.shape[0]
+        most = 0.0
+        for i in range(first * n // step, (first + 1) * n // step):
+            s = 0.0
+            for a in range(dim):
+                d = (x[i, a] - origin[a]) - x_ref[i, a]
+                s += d * d
+            most = max(most, s)
+        largest[first] = most
+
+    return build, max_displacement, displacement_share
 
 
 @dataclass
@@ -694,7 +715,7 @@ class NeighbourList:
         together; a share that does not fit makes it sweep twice, counting first, as
         without ``like`` (:attr:`sweeps`).  The list is the same either way."""
         dim = x.shape[1]
-        build, _ = _build_functions(dim)
+        build = _build_functions(dim)[0]
         radius = float(support + skin)
         if not 0.0 < inner_reach <= 1.0:
             raise ValueError(f"inner_reach = {inner_reach!r}: a fraction of the support in "
@@ -770,9 +791,18 @@ class NeighbourList:
     def _moved_past_skin(self, x: np.ndarray) -> bool:
         if self.skin <= 0.0:
             return True
-        _, max_disp = _build_functions(x.shape[1])
+        _, serial, share = _build_functions(x.shape[1])
         reference = self.reference_positions[: x.shape[0]]  # ghosts follow their sources
-        return bool(max_disp(x, reference, self.reference_origin) > 0.5 * self.skin)
+        n = x.shape[0]
+        shares = min(numba_threads(), n // DISPLACEMENT_SHARE_ROWS) if (
+            n >= 2 * DISPLACEMENT_SHARE_ROWS) else 1
+        if shares <= 1:
+            moved = serial(x, reference, self.reference_origin)
+        else:  # in shares on numba's threads: a maximum is exact in any order
+            largest = np.empty(shares)
+            run_chunked(share, shares, x, reference, self.reference_origin, largest)
+            moved = math.sqrt(largest.max())
+        return bool(moved > 0.5 * self.skin)
 
     def update(self, x: np.ndarray, support: float) -> None:
         """Rebuild in place if the list is :meth:`stale`."""

@@ -91,14 +91,27 @@ def value_range(values):  # pragma: no cover (compiled)
     """``(smallest, largest)`` of the 1D array ``values`` in one pass: the smoothing lengths'
     at every rate evaluation (the support from the largest; whether they are all the same):
     0.8-0.95 us on the cantilever's 1,020 against 4.2-5.2 us for the three reductions
-    (``h.max()`` here, ``h.min()`` and ``h.max()`` in the backend) it replaces."""
-    if values.shape[0] == 0:
+    (``h.max()`` here, ``h.min()`` and ``h.max()`` in the backend) it replaces.  Four running
+    pairs over interleaved values, not one: one pair is a chain of compares that waits on
+    itself (2026-12-07: 32 us against 98 us for the 2D lattice's 1e5 values, 0.6 us against
+    1.4 us for 1,020; the same values: a minimum and a maximum are exact in any order)."""
+    n = values.shape[0]
+    if n == 0:
         raise ValueError("value_range of an empty array")
-    least = most = values[0]
-    for k in range(1, values.shape[0]):
-        least = min(least, values[k])
-        most = max(most, values[k])
-    return least, most
+    least0 = least1 = least2 = least3 = most0 = most1 = most2 = most3 = values[0]
+    k = 1
+    while k + 4 <= n:
+        v0, v1, v2, v3 = values[k], values[k + 1], values[k + 2], values[k + 3]
+        least0, least1 = min(least0, v0), min(least1, v1)
+        least2, least3 = min(least2, v2), min(least3, v3)
+        most0, most1 = max(most0, v0), max(most1, v1)
+        most2, most3 = max(most2, v2), max(most3, v3)
+        k += 4
+    while k < n:
+        least0, most0 = min(least0, values[k]), max(most0, values[k])
+        k += 1
+    return (min(min(least0, least1), min(least2, least3)),
+            max(max(most0, most1), max(most2, most3)))
 
 
 @nb.njit(cache=True)
