@@ -1,16 +1,17 @@
 #!/usr/bin/env bash
 # One call on a lent machine with an NVIDIA GPU (issue 16): what it has, the GPU tests
 # against the CPU on the real device, and bench_gpu.py's tables: the whole step on the GPU
-# (1e5-1e7), an impact model's step (a quarter model on a wall with its symmetry planes and
-# an elastic case's stabilisation, FEATURES), each kernel's time with ncu (KERNELS), the
-# rates-only path and the CPU (HOST_STAGES), the 2D 1e6 lattice in its own particle order
-# (ORDER=1: off by default, 2026-12-07, to fit), the launch settings at 1M 3D particles (TUNE=1:
-# off by default since 2026-12-07, measured at the second lease). The stages together would
-# take some 13 minutes, more than a device command may run (10), so the call keeps to TOTAL
-# seconds (default 540, counted from its start): a stage runs only if its time limit ends
-# within TOTAL, else the session log says it was skipped and why; the stages come in the
-# order of their worth (the whole step on the GPU, the tests beside it, the quarter model,
-# ncu, the rest). Set a toggle to 0 to leave a stage out, or TOTAL to the time the call has.
+# (1e5-1e7), the 1e6 lattices in the other particle order than the main table's (ORDER: 3D
+# in the neighbour list's order, 2D in its own), an impact model's step (a quarter model on a
+# wall with its symmetry planes and an elastic case's stabilisation, FEATURES), each kernel's
+# time with ncu (KERNELS), the rates-only path and the CPU (HOST_STAGES), the launch settings
+# at 1M 3D particles (TUNE=1: off by default since 2026-12-07, measured at the second lease).
+# The stages together would take some 15 minutes, more than a device command may run (10),
+# so the call keeps to TOTAL seconds (default 540, counted from its start): a stage runs only
+# if its time limit ends within TOTAL, else the session log says it was skipped and why; the
+# stages come in the order of their worth (the whole step on the GPU, the tests beside it,
+# the particle order, the quarter model, ncu, the rest). Set a toggle to 0 to leave a stage
+# out, or TOTAL to the time the call has.
 #
 #   bash benchmarks/gpu_session.sh            # writes under $OUT (or runs/gpu_session)
 #   TOTAL=300 FEATURES=0 bash benchmarks/gpu_session.sh
@@ -66,6 +67,26 @@ timeout $((GPU_BUDGET + 40)) python3 benchmarks/bench_gpu.py --devices gpu --dim
   --sizes 1e5 1e6 1e7 --steps 20 --compare-cpu --budget "$GPU_BUDGET" --json "$OUT/bench_gpu.json" \
   2>&1 | tee "$OUT/bench_gpu.log"
 fi
+if [ "${ORDER:-1}" = 1 ] && fits 100 "the 3D 1e6 lattice in the list's order (ORDER)"; then
+# the particles numbered in the neighbour list's order at t = 0 (compute.particle_order =
+# "cells"; "auto" does it for 2D from 5e5 particles only, where the CPU gains): each
+# particle's own rows (dv[i], dS[i], S[i], ...) then lie in the order the pair kernel's warps
+# walk, so its writes coalesce; against the main table's 3D 1e6 row in the lattice's order.
+# Not yet run on a GPU (2026-12-07, fifth session); on the CPU 1.01-1.04 of the rate in 3D
+stamp "bench: the 3D 1e6 lattice in the list's order, GPU"
+timeout 100 python3 benchmarks/bench_gpu.py --devices gpu --dims 3 --sizes 1e6 --steps 20 \
+  --particle-order cells --budget 70 --json "$OUT/bench_gpu_cells_order.json" \
+  2>&1 | tee "$OUT/bench_gpu_cells_order.log"
+fi
+if [ "${ORDER:-1}" = 1 ] && fits 90 "the 2D 1e6 lattice in its own order (ORDER)"; then
+# the 2D 1e6 lattice in its own order, against the main table's row, renumbered in the list's
+# order by the default (compute.particle_order = "auto", 2026-12-07: 0.80-0.81 of the 2D
+# Taylor bar's step on the CPU at 1e6)
+stamp "bench: the 2D 1e6 lattice in its own order, GPU"
+timeout 90 python3 benchmarks/bench_gpu.py --devices gpu --dims 2 --sizes 1e6 --steps 20 \
+  --particle-order input --budget 60 --json "$OUT/bench_gpu_input_order.json" \
+  2>&1 | tee "$OUT/bench_gpu_input_order.log"
+fi
 if [ "${FEATURES:-1}" = 1 ] && fits 140 "the quarter model (FEATURES)"; then
 # what a user's impact model adds to a step: the ghosts' stages, their mirror, the walls'
 # constraint, the hourglass control (bench_gpu.py --model quarter), on the GPU and the CPU
@@ -73,15 +94,6 @@ stamp "bench: a quarter model on a wall, 1e5 and 1e6 3D, GPU and CPU"
 timeout 140 python3 benchmarks/bench_gpu.py --devices gpu cpu --dims 3 --sizes 1e5 1e6 \
   --steps 20 --model quarter --budget 110 --json "$OUT/bench_gpu_quarter.json" \
   2>&1 | tee "$OUT/bench_gpu_quarter.log"
-fi
-if [ "${ORDER:-0}" = 1 ] && fits 90 "the 2D lattice in its own order (ORDER)"; then
-# the 2D 1e6 lattice in its own order, against the row above, renumbered in the list's order
-# by the default (compute.particle_order = "auto", 2026-12-07: 0.80-0.81 of the 2D Taylor
-# bar's step on the CPU at 1e6)
-stamp "bench: the 2D 1e6 lattice in its own order, GPU"
-timeout 90 python3 benchmarks/bench_gpu.py --devices gpu --dims 2 --sizes 1e6 --steps 20 \
-  --particle-order input --budget 60 --json "$OUT/bench_gpu_input_order.json" \
-  2>&1 | tee "$OUT/bench_gpu_input_order.log"
 fi
 if [ "${TUNE:-0}" = 1 ] && fits 170 "the launch settings (TUNE)"; then
 # the launch settings at 1M 3D particles: threads a block and the pair kernel's register cap
