@@ -54,6 +54,7 @@ print('a kernel compiled and ran:', a.copy_to_host().sum() == 256, '| numpy', np
 # one a file; their kernels are small, their compilation is on the CPU
 # (their limit: TESTS_LIMIT, and no later than 20 s before TOTAL)
 tests_limit=$(( ${TESTS_LIMIT:-330} < TOTAL - SECONDS - 20 ? ${TESTS_LIMIT:-330} : TOTAL - SECONDS - 20 ))
+tests_limit=$(( tests_limit > 10 ? tests_limit : 10 ))
 stamp "tests on the GPU (in the background, at most $tests_limit s)"
 ( timeout "$tests_limit" python3 -m pytest -q -rA -p no:cacheprovider -n 2 --dist loadfile \
     tests/test_gpu.py tests/test_gpu_step.py -k "${TESTS_K:-not simulator and not compile_for_a_gpu}" \

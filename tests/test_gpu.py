@@ -1237,9 +1237,9 @@ def _step_kernel_types(name: str, dim: int) -> tuple:
                      ("rho0 e0 pw0 drho de rho e pw h m de_visc de_corr lo hi origin largest "
                       "books factor memory mu inertia fraction work de_work de_pairs sh h0",
                       f1),
-                     ("pair_count bad ncell key counts ends fill a sums rows offsets src wall "
+                     ("bad ncell key counts ends fill a sums rows offsets src wall "
                       "position sb", i64),
-                     ("material order indices body", i32)):
+                     ("material order indices body pair_count", i32)):
         types.update(dict.fromkeys(names.split(), t))
     types.update(clamped=nb.boolean[::1], reference=nb.float32[:, ::1], kinds=nb.int8[::1],
                  P=nb.float64[::1, :], gradients=f3)  # (the records by column on the device)

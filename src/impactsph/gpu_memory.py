@@ -191,7 +191,7 @@ class DeviceLayout:
         parts["step"] = n * (start * (2 if self.ssp else 1)
                              + (8 * d if self.ssp and self.step_means else 0)
                              + (8 * d if self.ssp and self.bodies > 1 else 0))
-        outputs = 8 + 8 * d + 8 + 8 + 8 + 48
+        outputs = 8 + 8 * d + 8 + 8 + 4 + 48  # (the pair count in int32, as the CPU's)
         parts["outputs"] = n * (outputs + (8 * d if self.contact else 0)
                                 + (8 * d + 8 if self.corrected else 0) + 8 * hg
                                 + (outputs + 8 if self.compatible else 0))

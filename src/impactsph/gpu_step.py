@@ -1185,7 +1185,7 @@ class ResidentStep:
                              "de": empty(n, np.float64, stream=s),
                              "de_visc": empty(n, np.float64, stream=s),
                              "contact_force": empty((0, dim), np.float64, stream=s),
-                             "pair_count": empty(n, np.int64, stream=s),
+                             "pair_count": empty(n, np.int32, stream=s),
                              "dS": empty((n, 6), np.float64, stream=s),
                              "gradients": empty((0, dim, dim), np.float64, stream=s)}
         self.const = {f: empty(getattr(state, f).shape, getattr(state, f).dtype, stream=s)
@@ -1196,7 +1196,7 @@ class ResidentStep:
         self.out = {"drho": empty(n, np.float64, stream=s), "dv": empty((n, dim), np.float64),
                     "de": empty(n, np.float64), "de_visc": empty(n, np.float64),
                     "contact_force": empty((contact_rows, dim), np.float64),
-                    "pair_count": empty(n, np.int64), "dS": empty((n, 6), np.float64),
+                    "pair_count": empty(n, np.int32), "dS": empty((n, 6), np.float64),
                     "dv_corr": empty((corr_rows, dim), np.float64),
                     "de_corr": empty(corr_rows, np.float64),
                     "dhg": empty((n, dim if self.hourglass > 0.0 else 0), np.float64),
