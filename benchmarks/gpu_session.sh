@@ -1,17 +1,18 @@
 #!/usr/bin/env bash
 # One call on a lent machine with an NVIDIA GPU (issue 16): what it has, the GPU tests
 # against the CPU on the real device, and bench_gpu.py's tables: the whole step on the GPU
-# (1e5-1e7), the 1e6 lattices in the other particle order than the main table's (ORDER: 3D
-# in the neighbour list's order, 2D in its own), an impact model's step (a quarter model on a
-# wall with its symmetry planes and an elastic case's stabilisation, FEATURES), each kernel's
-# time with ncu (KERNELS), the rates-only path and the CPU (HOST_STAGES), the launch settings
-# at 1M 3D particles (TUNE=1: off by default since 2026-12-07, measured at the second lease).
-# The stages together would take some 15 minutes, more than a device command may run (10),
+# (1e5-1e7), the 3D 1e6 lattice with its records in float32 (PRECISION), the 1e6 lattices
+# in the other particle order than the main table's (ORDER: 3D in the neighbour list's
+# order, 2D in its own), an impact model's step (a quarter model on a wall with its
+# symmetry planes and an elastic case's stabilisation, FEATURES), each kernel's time with
+# ncu (KERNELS), the rates-only path and the CPU (HOST_STAGES), the launch settings at 1M 3D
+# particles (TUNE=1: off by default since 2026-12-07, measured at the second lease).
+# The stages together would take some 16 minutes, more than a device command may run (10),
 # so the call keeps to TOTAL seconds (default 540, counted from its start): a stage runs only
 # if its time limit ends within TOTAL, else the session log says it was skipped and why; the
 # stages come in the order of their worth (the whole step on the GPU, the tests beside it,
-# the particle order, the quarter model, ncu, the rest). Set a toggle to 0 to leave a stage
-# out, or TOTAL to the time the call has.
+# float32 records, the particle order, the quarter model, ncu, the rest). Set a toggle to 0
+# to leave a stage out, or TOTAL to the time the call has.
 #
 #   bash benchmarks/gpu_session.sh            # writes under $OUT (or runs/gpu_session)
 #   TOTAL=300 FEATURES=0 bash benchmarks/gpu_session.sh
@@ -67,6 +68,16 @@ stamp "bench: the whole step on the GPU, 1e5-1e7 (at 1e5 the same steps on the C
 timeout $((GPU_BUDGET + 40)) python3 benchmarks/bench_gpu.py --devices gpu --dims 3 2 \
   --sizes 1e5 1e6 1e7 --steps 20 --compare-cpu --budget "$GPU_BUDGET" --json "$OUT/bench_gpu.json" \
   2>&1 | tee "$OUT/bench_gpu.log"
+fi
+if [ "${PRECISION:-1}" = 1 ] && fits 100 "the records in float32 (PRECISION)"; then
+# the packed records in float32 (compute.record_precision, docs/gpu.md "Records in float32":
+# 88 B a particle against 152 B in 3D, nearly half of what the pair kernel reads a
+# neighbour, which bound it on the H200): against the main table's 3D 1e6 row. Not yet run
+# on a GPU (2026-12-04 to 2026-12-07: no GPU lent); on the CPU 3-5% slower
+stamp "bench: the 3D 1e6 lattice with the records in float32, GPU"
+timeout 100 python3 benchmarks/bench_gpu.py --devices gpu --dims 3 --sizes 1e6 --steps 20 \
+  --record-precision float32 --budget 70 --json "$OUT/bench_gpu_float32.json" \
+  2>&1 | tee "$OUT/bench_gpu_float32.log"
 fi
 if [ "${ORDER:-1}" = 1 ] && fits 100 "the 3D 1e6 lattice in the list's order (ORDER)"; then
 # the particles numbered in the neighbour list's order at t = 0 (compute.particle_order =
