@@ -792,14 +792,18 @@ class NeighbourList:
         if self.skin <= 0.0:
             return True
         _, serial, share = _build_functions(x.shape[1])
-        reference = self.reference_positions[: x.shape[0]]  # ghosts follow their sources
+        reference = self.reference_positions  # ghosts follow their sources: x's rows only
+        if reference.shape[0] != x.shape[0]:
+            reference = reference[: x.shape[0]]
         n = x.shape[0]
         shares = min(numba_threads(), n // DISPLACEMENT_SHARE_ROWS) if (
             n >= 2 * DISPLACEMENT_SHARE_ROWS) else 1
         if shares <= 1:
             moved = serial(x, reference, self.reference_origin)
         else:  # in shares on numba's threads: a maximum is exact in any order
-            largest = np.empty(shares)
+            largest = self.__dict__.get("_largest")  # (kept: the same arguments each check)
+            if largest is None or largest.shape[0] != shares:
+                largest = self.__dict__["_largest"] = np.empty(shares)
             run_chunked(share, shares, x, reference, self.reference_origin, largest)
             moved = math.sqrt(largest.max())
         return bool(moved > 0.5 * self.skin)
