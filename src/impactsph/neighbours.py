@@ -64,8 +64,8 @@ EPSILON = float(np.finfo(np.float64).eps)
 CHUNK = 64
 #: the fewest rows a share of the list's displacement check takes (fewer: one share, no
 #: threads): the check is paced by memory, and one core's share of it is less than the
-#: machine's (the 2D lattice of 1e5 particles on two threads: 77-87 us in two shares against
-#: 127-135 us in one; a share costs more than it saves below some 1e4 rows)
+#: machine's (the 2D lattice of 1e5 particles on two threads: 74-77 us in two shares against
+#: 132 us in one, 2026-12-07; a share costs more than it saves below some 1e4 rows)
 DISPLACEMENT_SHARE_ROWS = 16384
 
 
