@@ -54,7 +54,9 @@ print('a kernel compiled and ran:', a.copy_to_host().sum() == 256, '| numpy', np
 # the GPU tests (mode gpu: the device against the CPU) beside the benchmark: two workers,
 # one a file; their kernels are small, their compilation is on the CPU
 # (their limit: TESTS_LIMIT, and no later than 20 s before TOTAL)
-tests_limit=$(( ${TESTS_LIMIT:-330} < TOTAL - SECONDS - 20 ? ${TESTS_LIMIT:-330} : TOTAL - SECONDS - 20 ))
+tests_limit=${TESTS_LIMIT:-330}
+left=$(( TOTAL - SECONDS - 20 ))
+tests_limit=$(( tests_limit < left ? tests_limit : left ))
 tests_limit=$(( tests_limit > 10 ? tests_limit : 10 ))
 stamp "tests on the GPU (in the background, at most $tests_limit s)"
 ( timeout "$tests_limit" python3 -m pytest -q -rA -p no:cacheprovider -n 2 --dist loadfile \
@@ -62,60 +64,53 @@ stamp "tests on the GPU (in the background, at most $tests_limit s)"
     --durations=15 > "$OUT/tests.log" 2>&1; echo "tests rc $?" >> "$OUT/tests.log" ) &
 tests=$!
 
+# bench LIMIT WHAT NAME ARGS...: bench_gpu.py ARGS within LIMIT seconds, if that ends within
+# TOTAL, its table in $OUT/NAME.log and $OUT/NAME.json
+bench() {
+  local limit=$1 what=$2 name=$3
+  shift 3
+  fits "$limit" "$what" || return 0
+  stamp "bench: $what"
+  timeout "$limit" python3 benchmarks/bench_gpu.py "$@" --json "$OUT/$name.json" 2>&1 \
+    | tee "$OUT/$name.log"
+}
+
 GPU_BUDGET=${GPU_BUDGET:-240}
-if fits $((GPU_BUDGET + 40)) "the whole step on the GPU"; then
-stamp "bench: the whole step on the GPU, 1e5-1e7 (at 1e5 the same steps on the CPU too)"
-timeout $((GPU_BUDGET + 40)) python3 benchmarks/bench_gpu.py --devices gpu --dims 3 2 \
-  --sizes 1e5 1e6 1e7 --steps 20 --compare-cpu --budget "$GPU_BUDGET" --json "$OUT/bench_gpu.json" \
-  2>&1 | tee "$OUT/bench_gpu.log"
-fi
-if [ "${PRECISION:-1}" = 1 ] && fits 100 "the records in float32 (PRECISION)"; then
+bench $((GPU_BUDGET + 40)) "the whole step on the GPU, 1e5-1e7 (and the CPU's steps at 1e5)" \
+  bench_gpu --devices gpu --dims 3 2 --sizes 1e5 1e6 1e7 --steps 20 --compare-cpu \
+  --budget "$GPU_BUDGET"
 # the packed records in float32 (compute.record_precision, docs/gpu.md "Records in float32":
 # 88 B a particle against 152 B in 3D, nearly half of what the pair kernel reads a
 # neighbour, which bound it on the H200): against the main table's 3D 1e6 row. Not yet run
 # on a GPU (2026-12-04 to 2026-12-07: no GPU lent); on the CPU 3-5% slower
-stamp "bench: the 3D 1e6 lattice with the records in float32, GPU"
-timeout 100 python3 benchmarks/bench_gpu.py --devices gpu --dims 3 --sizes 1e6 --steps 20 \
-  --record-precision float32 --budget 70 --json "$OUT/bench_gpu_float32.json" \
-  2>&1 | tee "$OUT/bench_gpu_float32.log"
-fi
-if [ "${ORDER:-1}" = 1 ] && fits 100 "the 3D 1e6 lattice in the list's order (ORDER)"; then
+[ "${PRECISION:-1}" = 1 ] && bench 100 "the 3D 1e6 lattice, records in float32 (PRECISION)" \
+  bench_gpu_float32 --devices gpu --dims 3 --sizes 1e6 --steps 20 --record-precision float32 \
+  --budget 70
 # the particles numbered in the neighbour list's order at t = 0 (compute.particle_order =
 # "cells"; "auto" does it for 2D from 5e5 particles only, where the CPU gains): each
 # particle's own rows (dv[i], dS[i], S[i], ...) then lie in the order the pair kernel's warps
 # walk, so its writes coalesce; against the main table's 3D 1e6 row in the lattice's order.
 # Not yet run on a GPU (2026-12-07, fifth session); on the CPU 1.01-1.04 of the rate in 3D
-stamp "bench: the 3D 1e6 lattice in the list's order, GPU"
-timeout 100 python3 benchmarks/bench_gpu.py --devices gpu --dims 3 --sizes 1e6 --steps 20 \
-  --particle-order cells --budget 70 --json "$OUT/bench_gpu_cells_order.json" \
-  2>&1 | tee "$OUT/bench_gpu_cells_order.log"
-fi
-if [ "${ORDER:-1}" = 1 ] && fits 90 "the 2D 1e6 lattice in its own order (ORDER)"; then
+[ "${ORDER:-1}" = 1 ] && bench 100 "the 3D 1e6 lattice in the list's order (ORDER)" \
+  bench_gpu_cells_order --devices gpu --dims 3 --sizes 1e6 --steps 20 --particle-order cells \
+  --budget 70
 # the 2D 1e6 lattice in its own order, against the main table's row, renumbered in the list's
 # order by the default (compute.particle_order = "auto", 2026-12-07: 0.80-0.81 of the 2D
 # Taylor bar's step on the CPU at 1e6)
-stamp "bench: the 2D 1e6 lattice in its own order, GPU"
-timeout 90 python3 benchmarks/bench_gpu.py --devices gpu --dims 2 --sizes 1e6 --steps 20 \
-  --particle-order input --budget 60 --json "$OUT/bench_gpu_input_order.json" \
-  2>&1 | tee "$OUT/bench_gpu_input_order.log"
-fi
-if [ "${FEATURES:-1}" = 1 ] && fits 140 "the quarter model (FEATURES)"; then
+[ "${ORDER:-1}" = 1 ] && bench 90 "the 2D 1e6 lattice in its own order (ORDER)" \
+  bench_gpu_input_order --devices gpu --dims 2 --sizes 1e6 --steps 20 --particle-order input \
+  --budget 60
 # what a user's impact model adds to a step: the ghosts' stages, their mirror, the walls'
 # constraint, the hourglass control (bench_gpu.py --model quarter), on the GPU and the CPU
-stamp "bench: a quarter model on a wall, 1e5 and 1e6 3D, GPU and CPU"
-timeout 140 python3 benchmarks/bench_gpu.py --devices gpu cpu --dims 3 --sizes 1e5 1e6 \
-  --steps 20 --model quarter --budget 110 --json "$OUT/bench_gpu_quarter.json" \
-  2>&1 | tee "$OUT/bench_gpu_quarter.log"
-fi
-if [ "${TUNE:-0}" = 1 ] && fits 170 "the launch settings (TUNE)"; then
+[ "${FEATURES:-1}" = 1 ] && bench 140 "a quarter model on a wall, 3D, GPU and CPU (FEATURES)" \
+  bench_gpu_quarter --devices gpu cpu --dims 3 --sizes 1e5 1e6 --steps 20 --model quarter \
+  --budget 110
 # the launch settings at 1M 3D particles: threads a block and the pair kernel's register cap
 # (benchmarks/gpu_registers.py, 3D: 166 registers free, 3 blocks of 128 a multiprocessor;
 # capped at 128, 4 blocks with 284 B of spills), a process each
-stamp "tune: threads a block x register cap, 1e6 3D"
-timeout 170 python3 benchmarks/bench_gpu.py --devices gpu --dims 3 --sizes 1e6 --steps 20 \
-  --threads-per-block 128 256 --max-registers 0 128 --budget 150 \
-  --json "$OUT/bench_gpu_tune.json" 2>&1 | tee "$OUT/bench_gpu_tune.log"
-fi
+[ "${TUNE:-0}" = 1 ] && bench 170 "threads a block x register cap, 1e6 3D (TUNE)" \
+  bench_gpu_tune --devices gpu --dims 3 --sizes 1e6 --steps 20 --threads-per-block 128 256 \
+  --max-registers 0 128 --budget 150
 if [ "${KERNELS:-1}" = 1 ] && command -v ncu > /dev/null && fits 150 "ncu (KERNELS)"; then
 # each kernel's time in a step at 1M 3D particles (the rest of the step is launches and waits)
 stamp "kernels: ncu over three steps at 1e6 3D"
@@ -125,16 +120,10 @@ timeout 150 ncu --clock-control none --target-processes all --launch-skip 150 \
   > "$OUT/ncu.log" 2>&1
 grep -E "^\s+[a-z_]+kernel|Duration|^  [a-z_]+\(" "$OUT/ncu.log" | head -80
 fi
-if [ "${HOST_STAGES:-1}" = 1 ] && fits 75 "the rates on the GPU, the state on the host (HOST_STAGES)"; then
-stamp "bench: the rates on the GPU, the state on the host"
-timeout 75 python3 benchmarks/bench_gpu.py --devices gpu-host --dims 3 2 --sizes 1e5 1e6 \
-  --steps 10 --budget 40 --json "$OUT/bench_gpu_host.json" 2>&1 | tee "$OUT/bench_gpu_host.log"
-fi
-if [ "${HOST_STAGES:-1}" = 1 ] && fits 75 "the CPU (HOST_STAGES)"; then
-stamp "bench: the CPU"
-timeout 75 python3 benchmarks/bench_gpu.py --devices cpu --dims 3 2 --sizes 1e5 1e6 \
-  --steps 3 --budget 40 --json "$OUT/bench_cpu.json" 2>&1 | tee "$OUT/bench_cpu.log"
-fi
+[ "${HOST_STAGES:-1}" = 1 ] && bench 75 "the rates on the GPU, the state on the host" \
+  bench_gpu_host --devices gpu-host --dims 3 2 --sizes 1e5 1e6 --steps 10 --budget 40
+[ "${HOST_STAGES:-1}" = 1 ] && bench 75 "the CPU (HOST_STAGES)" \
+  bench_cpu --devices cpu --dims 3 2 --sizes 1e5 1e6 --steps 3 --budget 40
 
 stamp "waiting for the tests"
 wait "$tests"
