@@ -7,7 +7,7 @@
 # symmetry planes and an elastic case's stabilisation, FEATURES), each kernel's time with
 # ncu (KERNELS), the rates-only path and the CPU (HOST_STAGES), the launch settings at 1M 3D
 # particles (TUNE=1: off by default since 2026-12-07, measured at the second lease).
-# The stages together would take some 16 minutes, more than a device command may run (10),
+# The stages' limits add up to some 18 minutes, more than a device command may run (10),
 # so the call keeps to TOTAL seconds (default 540, counted from its start): a stage runs only
 # if its time limit ends within TOTAL, else the session log says it was skipped and why; the
 # stages come in the order of their worth (the whole step on the GPU, the tests beside it,
