@@ -444,3 +444,26 @@ def test_a_runs_rebuilds_take_one_sweep():
         if sim.solver.neighbours.builds > builds:
             sweeps.append(sim.solver.neighbours.sweeps)
     assert sweeps and set(sweeps) == {1}
+
+
+@pytest.mark.parametrize(("h_over_dx", "pairs", "entries"),
+                         [(1.2, {2: 20, 3: 56}, {2: 20, 3: 80}),
+                          (1.3, {2: 20, 3: 80}, {2: 24, 3: 92}),
+                          (1.5, {2: 24, 3: 92}, {2: 36, 3: 146})])
+def test_a_lattice_particles_pairs_and_list_entries_are_docs_performance_table(
+        h_over_dx, pairs, entries):
+    """docs/performance.md's table of pairs a particle: inside a square or cubic lattice, the
+    neighbours within the support ``2 h`` (what the pair passes evaluate) and the list's
+    entries with the default skin (0.1 of the support), at h = 1.2, 1.3 and 1.5 dx."""
+    for dim in (2, 3):
+        side = 11
+        x = np.stack(np.meshgrid(*[np.arange(float(side))] * dim, indexing="ij"),
+                     -1).reshape(-1, dim)
+        support = 2.0 * h_over_dx
+        nl = NeighbourList.build(x, support, 0.1 * support)
+        centre = int(np.flatnonzero((x == side // 2).all(axis=1))[0])
+        p = int(np.flatnonzero(nl.order == centre)[0])
+        row = nl.order[nl.indices[nl.offsets[p]:nl.offsets[p + 1]]]
+        distance = np.linalg.norm(x[row] - x[centre], axis=1)
+        assert row.size == entries[dim], (dim, row.size)
+        assert int((distance < support).sum()) == pairs[dim], dim
