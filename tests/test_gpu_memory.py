@@ -162,7 +162,7 @@ def test_without_a_gpu_the_case_is_not_counted_on_one():
     if gpu.unavailable_reason() is None:
         pytest.skip("a GPU is here")
     case = load_case("taylor", ['compute.device="gpu"'])
-    assert not pf.runs_on_gpu(case)
+    assert not pf.device_plan(case).resident
     report = pf.preflight(case)
     assert report.estimate.device_memory is None
     assert (f"device: compute.device = 'gpu' but {gpu.unavailable_reason()}; the run will use "

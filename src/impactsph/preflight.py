@@ -751,11 +751,6 @@ def device_plan(case: Case) -> DevicePlan:
                                    "it)")
 
 
-def runs_on_gpu(case: Case) -> bool:
-    """Whether a run of ``case`` will keep its state on a GPU (:func:`device_plan`)."""
-    return device_plan(case).resident
-
-
 def device_memory(case: Case, resident: bool, n: int, ghosts: int, neighbours: float,
                   cells: float = 0.0, table_bytes: int = 0) -> tuple[float, int | None, str]:
     """``(bytes, free, name)``: the peak GPU memory of the run of ``n`` particles,
@@ -817,13 +812,11 @@ def device_memory_check(case: Case, est: Estimate) -> Finding | None:
     b = int(np.argmax(list(est.particles.values())))
     where = _size_field(case, b)
     value = _field_value(case, where)
+    on_gpu = " with their state on the GPU" if est.state_on_gpu else ", their rates on the GPU"
     return Finding("error", where, (
         f"{where} = {value!r}: the run needs about {_bytes(est.device_memory)} of GPU memory "
-        f"(an estimate: {est.total:,} particles"
-        f"{' with their state on the GPU' if est.state_on_gpu else ', their rates on the GPU'}"
-        f"); the "
-        f"{est.device_name} has {_bytes(est.device_available)} free; compute.device = "
-        f"\"cpu\" runs it on the CPU"))
+        f"(an estimate: {est.total:,} particles{on_gpu}); the {est.device_name} has "
+        f"{_bytes(est.device_available)} free; compute.device = \"cpu\" runs it on the CPU"))
 
 
 # -- checks of the case's numbers --------------------------------------------------------------
