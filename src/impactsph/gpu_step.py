@@ -190,8 +190,8 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                         else integrate.combine_particle)
     # a smoothing length that follows the stretch: the CPU's row of (ST-2, ST-3) and its
     # ghosts' mirrored rows
-    stretch_row = (codegen._python_all_the_way(stretch.stretch_row(dim)) if simulated
-                   else stretch.stretch_row(dim))
+    stretch_row = (codegen._python_all_the_way(stretch.stretch_row) if simulated
+                   else stretch.stretch_row)
     mirror_row = (codegen._python_all_the_way(stretch.mirror_row) if simulated
                   else stretch.mirror_row)
     DIM = dim  # noqa: N806 - a compile-time constant of the kernels
@@ -304,7 +304,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                 F = cuda.local.array((3, 3), float64)
                 C = cuda.local.array((3, 3), float64)
                 lam = stretch_row(p, order, offsets, indices, sx, sx0, sb, sh, A, B, inv, F,
-                                  C)
+                                  C, DIM)
                 factor = min(max(lam, 1.0), max_stretch) if lam > 0.0 else 1.0
                 h[i] = h0[i] * factor
 

@@ -136,75 +136,75 @@ def principal_stretches(order, offsets, indices, x, x0, body, h, n_real) -> np.n
     return _stretch_kernel(dim)(order, offsets, indices, x, x0, body, h, n_real)
 
 
-@cache
-def stretch_row(dim: int):
-    """(ST-2, ST-3) of the real particle at sorted position ``p`` of a neighbour list, for one
-    dimension (a compile-time constant: the sums of (ST-2) in scalars): ``row(p, order,
-    offsets, indices, x, x0, body, h, A, B, inv, F, C)``, ``A``, ``B`` the ``dim x dim`` and
-    ``inv``, ``F``, ``C`` the 3 x 3 scratch of :func:`_principal_stretch` (arrays on the CPU,
-    a GPU thread's local arrays: :mod:`impactsph.gpu_step` calls it too)."""
-
-    @nb.njit(inline="always")
-    def row(p, order, offsets, indices, x, x0, body, h, A, B, inv, F, C):
-        i = order[p]
-        xi0 = x[i, 0]
-        xi1 = x[i, 1] if dim > 1 else 0.0
-        xi2 = x[i, 2] if dim > 2 else 0.0
-        Xi0 = x0[i, 0]
-        Xi1 = x0[i, 1] if dim > 1 else 0.0
-        Xi2 = x0[i, 2] if dim > 2 else 0.0
-        a00 = a01 = a02 = a10 = a11 = a12 = a20 = a21 = a22 = 0.0
-        b00 = b01 = b02 = b10 = b11 = b12 = b20 = b21 = b22 = 0.0
-        for k in range(offsets[p], offsets[p + 1]):
-            j = order[indices[k]]
-            if body[j] != body[i]:
-                continue
-            dx0 = x[j, 0] - xi0
-            r2 = dx0 ** 2
-            dx1 = dx2 = 0.0
-            if dim > 1:
-                dx1 = x[j, 1] - xi1
-                r2 += dx1 ** 2
-            if dim > 2:
-                dx2 = x[j, 2] - xi2
-                r2 += dx2 ** 2
-            w = cubic_spline(math.sqrt(r2), 0.5 * (h[i] + h[j]), dim)
-            if w == 0.0:
-                continue
-            dX0 = x0[j, 0] - Xi0
-            dX1 = x0[j, 1] - Xi1 if dim > 1 else 0.0
-            dX2 = x0[j, 2] - Xi2 if dim > 2 else 0.0
-            a00 += w * dx0 * dX0
-            b00 += w * dX0 * dX0
-            if dim > 1:
-                a01 += w * dx0 * dX1
-                b01 += w * dX0 * dX1
-                a10 += w * dx1 * dX0
-                b10 += w * dX1 * dX0
-                a11 += w * dx1 * dX1
-                b11 += w * dX1 * dX1
-            if dim > 2:
-                a02 += w * dx0 * dX2
-                b02 += w * dX0 * dX2
-                a12 += w * dx1 * dX2
-                b12 += w * dX1 * dX2
-                a20 += w * dx2 * dX0
-                b20 += w * dX2 * dX0
-                a21 += w * dx2 * dX1
-                b21 += w * dX2 * dX1
-                a22 += w * dx2 * dX2
-                b22 += w * dX2 * dX2
-        A[0, 0] = a00
-        B[0, 0] = b00
+@nb.njit(inline="always", cache=True)
+def stretch_row(p, order, offsets, indices, x, x0, body, h, A, B, inv, F, C, dim):
+    """(ST-2, ST-3) of the real particle at sorted position ``p`` of a neighbour list in
+    ``dim`` dimensions: ``A``, ``B`` the ``dim x dim`` and ``inv``, ``F``, ``C`` the 3 x 3
+    scratch of :func:`_principal_stretch` (arrays on the CPU, a GPU thread's local arrays:
+    :mod:`impactsph.gpu_step` calls it too).  Inlined into a kernel whose ``dim`` is a
+    compile-time constant (a closure's number), the sums of (ST-2) are scalars and the
+    branches on ``dim`` fold away.  A module function, not a closure made per dimension: a
+    kernel that held a compiled closure could not be found again in numba's cache (its key
+    hashes the closure's contents, and a dispatcher pickles with an id of its process), so
+    it compiled again in every process (1.3 s in 2D) and added an entry to the cache each time.
+    """
+    i = order[p]
+    xi0 = x[i, 0]
+    xi1 = x[i, 1] if dim > 1 else 0.0
+    xi2 = x[i, 2] if dim > 2 else 0.0
+    Xi0 = x0[i, 0]
+    Xi1 = x0[i, 1] if dim > 1 else 0.0
+    Xi2 = x0[i, 2] if dim > 2 else 0.0
+    a00 = a01 = a02 = a10 = a11 = a12 = a20 = a21 = a22 = 0.0
+    b00 = b01 = b02 = b10 = b11 = b12 = b20 = b21 = b22 = 0.0
+    for k in range(offsets[p], offsets[p + 1]):
+        j = order[indices[k]]
+        if body[j] != body[i]:
+            continue
+        dx0 = x[j, 0] - xi0
+        r2 = dx0 ** 2
+        dx1 = dx2 = 0.0
         if dim > 1:
-            A[0, 1], A[1, 0], A[1, 1] = a01, a10, a11
-            B[0, 1], B[1, 0], B[1, 1] = b01, b10, b11
+            dx1 = x[j, 1] - xi1
+            r2 += dx1 ** 2
         if dim > 2:
-            A[0, 2], A[1, 2], A[2, 0], A[2, 1], A[2, 2] = a02, a12, a20, a21, a22
-            B[0, 2], B[1, 2], B[2, 0], B[2, 1], B[2, 2] = b02, b12, b20, b21, b22
-        return _principal_stretch(A, B, dim, inv, F, C)
-
-    return row
+            dx2 = x[j, 2] - xi2
+            r2 += dx2 ** 2
+        w = cubic_spline(math.sqrt(r2), 0.5 * (h[i] + h[j]), dim)
+        if w == 0.0:
+            continue
+        dX0 = x0[j, 0] - Xi0
+        dX1 = x0[j, 1] - Xi1 if dim > 1 else 0.0
+        dX2 = x0[j, 2] - Xi2 if dim > 2 else 0.0
+        a00 += w * dx0 * dX0
+        b00 += w * dX0 * dX0
+        if dim > 1:
+            a01 += w * dx0 * dX1
+            b01 += w * dX0 * dX1
+            a10 += w * dx1 * dX0
+            b10 += w * dX1 * dX0
+            a11 += w * dx1 * dX1
+            b11 += w * dX1 * dX1
+        if dim > 2:
+            a02 += w * dx0 * dX2
+            b02 += w * dX0 * dX2
+            a12 += w * dx1 * dX2
+            b12 += w * dX1 * dX2
+            a20 += w * dx2 * dX0
+            b20 += w * dX2 * dX0
+            a21 += w * dx2 * dX1
+            b21 += w * dX2 * dX1
+            a22 += w * dx2 * dX2
+            b22 += w * dX2 * dX2
+    A[0, 0] = a00
+    B[0, 0] = b00
+    if dim > 1:
+        A[0, 1], A[1, 0], A[1, 1] = a01, a10, a11
+        B[0, 1], B[1, 0], B[1, 1] = b01, b10, b11
+    if dim > 2:
+        A[0, 2], A[1, 2], A[2, 0], A[2, 1], A[2, 2] = a02, a12, a20, a21, a22
+        B[0, 2], B[1, 2], B[2, 0], B[2, 1], B[2, 2] = b02, b12, b20, b21, b22
+    return _principal_stretch(A, B, dim, inv, F, C)
 
 
 @cache
@@ -213,8 +213,6 @@ def _stretch_kernel(dim: int):
     sums of (ST-2) in scalars, not in ``dim x dim`` arrays indexed in loops of a run-time
     length.  The same arithmetic in the same order, so the same bits; 1.4 times as fast (the
     3D Taylor cylinder's 2.1 million list entries: 19-20 ms against 28 ms on two threads)."""
-
-    row = stretch_row(dim)
 
     @njit_variant(f"{dim}d", parallel=True)
     def stretches(order, offsets, indices, x, x0, body, h, n_real):
@@ -229,7 +227,8 @@ def _stretch_kernel(dim: int):
                 inv, F, C = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
             else:
                 inv = F = C = A
-            out[i] = row(p, order, offsets, indices, x, x0, body, h, A, B, inv, F, C)
+            out[i] = stretch_row(p, order, offsets, indices, x, x0, body, h, A, B, inv, F,
+                                 C, dim)
         return out
 
     return stretches
