@@ -176,3 +176,23 @@ def test_every_serial_pass_borrows_every_argument_first():
                 "switch_pass", "stage"} <= set(chunked)
         for name, node in chunked.items():
             assert _borrows_every_argument_first(node), name
+
+
+def test_the_borrowed_text_is_kept_and_read_back(tmp_path, monkeypatch):
+    """``codegen._borrowed`` keeps each module's rewrite in the cache directory: the text
+    it reads back is a fresh ``borrow_arguments``' to the character, the serial and the
+    threaded module's are two files, and the kept file is what the next load reads (a file
+    written there stands in for the rewrite; one that is not UTF-8 is made again)."""
+    monkeypatch.setenv("IMPACTSPH_CACHE_DIR", str(tmp_path))
+    template = codegen._template_text(passes)
+    for serial in (True, False):
+        assert codegen._borrowed(template, serial) == borrow_arguments(template, serial)
+    kept = sorted(tmp_path.rglob("borrowed_*.txt"))
+    assert len(kept) == 2
+    serial_file = next(p for p in kept
+                       if p.read_text() == borrow_arguments(template, serial=True))
+    serial_file.write_text("# the kept rewrite\n")
+    assert codegen._borrowed(template, True) == "# the kept rewrite\n"
+    serial_file.write_bytes(b"\xff\xfe not text")
+    assert codegen._borrowed(template, True) == borrow_arguments(template, serial=True)
+    assert serial_file.read_text() == borrow_arguments(template, serial=True)

@@ -14,7 +14,8 @@ set of models is written out as a module of its own:
 2. the template's text, with its stub binding replaced by that one (and, for the serial
    passes, each starting with its arguments borrowed: :mod:`impactsph.physics.borrow`);
 3. written once to ``<cache>/passes_<hash>.py`` and imported from there (numba keeps its
-   machine code in ``__pycache__`` beside it).
+   machine code in ``__pycache__`` beside it; the borrowed arguments' rewrite of step 2 is
+   kept there too, ``borrowed_<hash>.txt``).
 
 The hash covers the template, the binding and the source files of every model function bound
 in (and of the modules the template imports), so a changed model makes a new module instead of
@@ -259,8 +260,30 @@ def generate(template: ModuleType, dim: int, options: PassOptions | str | None =
     text = text[:start] + block + "\n" + text[end:]
     # the serial passes' arrays, and the chunked passes' in any module, without reference
     # counts, as numba's threaded loop bodies get them (impactsph.physics.borrow)
-    text = borrow_arguments(text, serial=not PassOptions.coerce(options).parallel)
+    text = _borrowed(text, serial=not PassOptions.coerce(options).parallel)
     return text, inject
+
+
+def _borrowed(text: str, serial: bool) -> str:
+    """:func:`~impactsph.physics.borrow.borrow_arguments` of ``text``, kept in the cache
+    directory under a hash of ``text``, ``serial`` and borrow.py's own source: its walk over
+    the module's syntax tree took 35-40 ms a variant in every new process, a fifth of the
+    Taylor bar's ``Simulation(case)`` (its three variants).  A file that cannot be read or
+    written is made again."""
+    digest = hashlib.sha256(text.encode())
+    digest.update(b"serial" if serial else b"any")
+    digest.update((PACKAGE / "physics" / "borrow.py").read_bytes())
+    path = cache_directory() / f"borrowed_{digest.hexdigest()[:24]}.txt"
+    try:
+        return path.read_text()
+    except (OSError, UnicodeDecodeError):
+        pass
+    borrowed = borrow_arguments(text, serial=serial)
+    try:
+        atomic.write_text(path, borrowed)
+    except OSError:
+        pass
+    return borrowed
 
 
 def _fingerprint(text: str, inject: dict[str, Any]) -> str:
