@@ -9,8 +9,11 @@ from typing import Any
 
 import pytest
 
+from impactsph import codegen
 from impactsph.codegen import _dispatch, binding
 from impactsph.models import DAMAGE, EOS, STRENGTH, VISCOSITY
+from impactsph.physics import passes
+from impactsph.physics.borrow import borrow_arguments
 from impactsph.physics.options import PassOptions
 
 #: dispatch name -> (registry, the model's attribute, what the dispatch returns without one)
@@ -77,3 +80,18 @@ def test_kinds_are_grouped_by_their_function():
     for kind, function in bound.items():
         assert namespace["model"](kind, 0.0) is function
     assert namespace["model"](17, 0.0) is first  # an unknown kind: the fallback
+
+
+def test_a_cache_that_cannot_be_written_falls_back_to_one_folder_a_process(tmp_path,
+                                                                          monkeypatch):
+    """Where the cache directory cannot be made (here, under a file), the generated modules
+    and the kept rewrites go to a temporary folder, the same one for every call of the
+    process (not a new folder for each module)."""
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("IMPACTSPH_CACHE_DIR", str(blocker / "cache"))
+    first, second = codegen.cache_directory(), codegen.cache_directory()
+    assert first == second and first.is_dir() and not str(first).startswith(str(blocker))
+    text = codegen._template_text(passes)
+    assert codegen._borrowed(text, True) == borrow_arguments(text, serial=True)
+    assert [p.name.startswith("borrowed_") for p in first.iterdir()] == [True]

@@ -73,6 +73,11 @@ TEMPLATE_IMPORTS = ("kernels.py", "materials.py", "physics/borrow.py", "physics/
 PACKAGE = Path(__file__).parent
 
 
+#: the temporary directory that stands in for each cache directory that cannot be written,
+#: made once a process
+_FALLBACK: dict[str, Path] = {}
+
+
 def cache_directory() -> Path:
     """Where the generated modules are written (see the module docstring)."""
     root = os.environ.get("IMPACTSPH_CACHE_DIR")
@@ -86,7 +91,10 @@ def cache_directory() -> Path:
         probe = tempfile.NamedTemporaryFile(dir=path, prefix=".probe", delete=True)
         probe.close()
     except OSError:
-        path = Path(tempfile.mkdtemp(prefix="impactsph-kernels-"))
+        known = _FALLBACK.get(str(path))
+        if known is None or not known.is_dir():
+            known = _FALLBACK[str(path)] = Path(tempfile.mkdtemp(prefix="impactsph-kernels-"))
+        path = known
     return path
 
 
