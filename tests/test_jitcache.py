@@ -399,3 +399,45 @@ def test_every_cached_closure_kernel_has_the_same_cache_key_in_every_process():
     assert len(first) >= 20, sorted(first)
     assert any("stretches_3d" in name for name in first)
     assert {k for k in first if first[k] != second.get(k)} == set()
+
+
+RECOMPILES = r"""
+from numba.core import event
+from impactsph import Simulation, load_case
+
+compiled = []
+
+
+class Listener(event.Listener):
+    def on_start(self, ev):
+        pass
+
+    def on_end(self, ev):  # a compilation, not a load from the cache
+        function = ev.data["dispatcher"].py_func
+        name = f"{function.__module__}.{function.__qualname__}"
+        if name.startswith("impactsph"):
+            compiled.append(name)
+
+
+event.register("numba:compile", Listener())
+for case, overrides in (
+        ("taylor", ["kernel.max_stretch=1.23", "time.max_steps=40"]),
+        ("taylor3d", ["time.max_steps=12", "bodies.0.geometry.spacing=1.2e-3"]),
+        ("bars", ["time.max_steps=20"])):
+    Simulation(load_case(case, ["output.figures=false", *overrides])).run()
+print(sorted(set(compiled)))
+"""
+
+
+def test_a_second_process_compiles_nothing():
+    """Runs of the built-in cases (2D with the stretch and a wall, 3D with the stretch, 1D)
+    compile whatever the cache lacks in a first process, and nothing in a second: every
+    kernel a run calls is found in numba's cache (the stretch kernel was not, until
+    2026-12-07, and compiled in every run)."""
+    def run() -> list:
+        done = subprocess.run([sys.executable, "-c", RECOMPILES], capture_output=True,
+                              text=True, check=True)
+        return json.loads(done.stdout.strip().splitlines()[-1].replace("'", '"'))
+
+    run()
+    assert run() == []
