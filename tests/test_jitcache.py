@@ -402,6 +402,8 @@ def test_every_cached_closure_kernel_has_the_same_cache_key_in_every_process():
 
 
 RECOMPILES = r"""
+import json
+
 from numba.core import event
 from impactsph import Simulation, load_case
 
@@ -425,7 +427,7 @@ for case, overrides in (
         ("taylor3d", ["time.max_steps=12", "bodies.0.geometry.spacing=1.2e-3"]),
         ("bars", ["time.max_steps=20"])):
     Simulation(load_case(case, ["output.figures=false", *overrides])).run()
-print(sorted(set(compiled)))
+print(json.dumps(sorted(set(compiled))))
 """
 
 
@@ -437,7 +439,7 @@ def test_a_second_process_compiles_nothing():
     def run() -> list:
         done = subprocess.run([sys.executable, "-c", RECOMPILES], capture_output=True,
                               text=True, check=True)
-        return json.loads(done.stdout.strip().splitlines()[-1].replace("'", '"'))
+        return json.loads(done.stdout.strip().splitlines()[-1])
 
     run()
     assert run() == []
