@@ -4,6 +4,10 @@ inlines it into a pass once."""
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
 from types import SimpleNamespace
 from typing import Any
 
@@ -95,3 +99,39 @@ def test_a_cache_that_cannot_be_written_falls_back_to_one_folder_a_process(tmp_p
     text = codegen._template_text(passes)
     assert codegen._borrowed(text, True) == borrow_arguments(text, serial=True)
     assert [p.name.startswith("borrowed_") for p in first.iterdir()] == [True]
+
+
+#: a child that falls back to a temporary folder, writes a kept rewrite into it, forks a
+#: grandchild that ends by ``sys.exit`` (running the handlers it inherited), and prints the
+#: folder, whether it held the file and whether it outlived the grandchild
+_FALLBACK_CHILD = """
+import json, os, sys
+from impactsph import codegen
+from impactsph.physics import passes
+folder = codegen.cache_directory()
+codegen._borrowed(codegen._template_text(passes), True)
+kept = any(p.name.startswith("borrowed_") for p in folder.iterdir())
+pid = os.fork()
+if pid == 0:
+    sys.exit(0)
+os.waitpid(pid, 0)
+print(json.dumps({"folder": str(folder), "kept": kept, "after_fork": folder.is_dir()}))
+"""
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs os.fork")
+def test_the_fallback_folder_is_removed_when_its_process_ends(tmp_path):
+    """The temporary folder that stands in for a cache directory that cannot be written
+    goes when the process that made it ends (each suite run left two in the temporary
+    directory, 2026-12-07), and not when a child forked from that process ends."""
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")
+    env = dict(os.environ, IMPACTSPH_CACHE_DIR=str(blocker / "cache"))
+    result = subprocess.run([sys.executable, "-c", _FALLBACK_CHILD], env=env,
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr[-3000:]
+    report = json.loads(result.stdout.strip().splitlines()[-1])
+    folder = report["folder"]
+    assert not folder.startswith(str(blocker)) and report["kept"], report
+    assert report["after_fork"], report  # the grandchild's exit left it to its parent
+    assert not os.path.exists(folder), os.listdir(folder)

@@ -21,7 +21,8 @@ The hash covers the template, the binding and the source files of every model fu
 in (and of the modules the template imports), so a changed model makes a new module instead of
 reusing stale machine code.  The cache is ``$IMPACTSPH_CACHE_DIR``, else
 ``$XDG_CACHE_HOME/impactsph``, else ``~/.cache/impactsph``; a directory that cannot be written
-falls back to a temporary one (the code is then compiled in every process).
+falls back to a temporary one, one a process, removed when the process ends (the code is
+then compiled in every process).
 
 ``simulated=True`` builds the same module for numba's CUDA simulator: nothing is compiled for
 the CPU (``JIT`` does nothing and every compiled function bound in is replaced by its Python
@@ -30,10 +31,12 @@ source), since the simulator's arrays cannot be passed to compiled functions.
 
 from __future__ import annotations
 
+import atexit
 import hashlib
 import importlib.util
 import inspect
 import os
+import shutil
 import sys
 import tempfile
 import types
@@ -94,8 +97,17 @@ def cache_directory() -> Path:
         known = _FALLBACK.get(str(path))
         if known is None or not known.is_dir():
             known = _FALLBACK[str(path)] = Path(tempfile.mkdtemp(prefix="impactsph-kernels-"))
+            atexit.register(_remove_fallback, known, os.getpid())
         path = known
     return path
+
+
+def _remove_fallback(folder: Path, owner: int) -> None:
+    """Remove a fallback folder of :func:`cache_directory` when the process that made it ends
+    (nothing in it serves another process); not in a child forked from it, which would
+    otherwise take it from under its parent."""
+    if os.getpid() == owner:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def _no_jit(*args: Any, **kwargs: Any) -> Any:
