@@ -26,7 +26,8 @@ def test_run_bars_writes_outputs(tmp_path):
                               "--set", "viscosity.alpha1=0.3", "--set", "viscosity.alpha2=0.3"])
     assert res.exit_code == 0, res.output
     summary = json.loads((out / "summary.json").read_text())
-    for key in ("n_particles", "n_steps", "t_end", "wall_seconds", "pair_evaluations_per_second",
+    for key in ("n_particles", "n_steps", "t_end", "wall_seconds", "compile_seconds",
+                "pair_evaluations_per_second",
                 "kinetic_energy_initial", "kinetic_energy_final", "kinetic_energy_ratio_final",
                 "total_energy_relative_error", "momentum_drift", "contact_time_us",
                 "velocity_profile_l1_error", "velocity_profile_oscillation",

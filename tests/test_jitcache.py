@@ -443,3 +443,66 @@ def test_a_second_process_compiles_nothing():
 
     run()
     assert run() == []
+
+
+def test_the_compile_timer_counts_numbas_compiling_once_and_only_inside():
+    """:class:`CompileTimer` counts the seconds numba holds its compiler lock inside the
+    ``with``: a new function's compilation (its callee's inside it, counted once), not the
+    calls of compiled code, nor compilations before or after."""
+    import numba as nb
+
+    from impactsph.jitcache import CompileTimer
+
+    @nb.njit
+    def callee(x):
+        return x * 2.0
+
+    @nb.njit
+    def caller(x):
+        return callee(x) + 1.0
+
+    @nb.njit
+    def later(x):
+        return x - 1.0
+
+    with CompileTimer() as timer:
+        started = time.perf_counter()
+        assert caller(1.0) == 3.0  # compiles caller and, inside it, callee
+        first = time.perf_counter() - started
+        compiled = timer.seconds
+        started = time.perf_counter()
+        for _ in range(1000):
+            caller(1.0)
+        calls = time.perf_counter() - started
+    assert 0.5 * first < compiled <= first  # the compilation is most of the first call
+    assert timer.seconds == compiled and calls < compiled  # the calls add nothing
+    later(1.0)  # after the with: not counted
+    assert timer.seconds == compiled
+
+
+def test_a_runs_compile_time_is_counted_and_left_out_of_its_pair_rate():
+    """A run's ``compile_seconds`` holds what numba compiled inside its loop (here a new
+    function a callback calls), and the summary's pair rate is over the rest of its time."""
+    import numba as nb
+
+    from impactsph import Simulation, load_case
+
+    @nb.njit
+    def fresh(x):  # compiled at the callback's first call, inside the run's loop
+        return x + 1.0
+
+    seconds = []
+
+    def callback(sim):
+        if not seconds:
+            started = time.perf_counter()
+            fresh(1.0)
+            seconds.append(time.perf_counter() - started)
+
+    sim = Simulation(load_case("bars", ["time.end=2e-6"]))
+    sim.run(callback=callback)
+    record, summary = sim.record, sim.summary()
+    assert 0.5 * seconds[0] <= record.compile_seconds <= record.wall_seconds
+    assert summary["compile_seconds"] == record.compile_seconds
+    assert summary["pair_evaluations_per_second"] == (
+        summary["pair_evaluations"] / (record.wall_seconds - record.compile_seconds))

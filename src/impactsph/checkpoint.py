@@ -120,6 +120,7 @@ def write_checkpoint(sim: Simulation, path: Path | str) -> Path:
             rec.create_dataset("gauges", data=np.array(sim.record.gauges, dtype=np.float64
                                                        ).reshape(-1, len(sim.gauges.columns)))
         rec.attrs["wall_seconds"] = sim.record.wall_seconds
+        rec.attrs["compile_seconds"] = sim.record.compile_seconds
         rec.attrs["setup_seconds"] = sim.record.setup_seconds
         for k, snap in enumerate(sim.record.snapshots):
             sg = rec.create_group(f"snapshot_{k}")
@@ -333,5 +334,7 @@ def load_checkpoint(path: Path | str, case: Any = None, *, verify: bool = True
                      {n: rec[f"snapshot_{k}"][n][()] for n in rec[f"snapshot_{k}"]})
             for k in range(int(rec.attrs["n_snapshots"]))]
         sim.record.wall_seconds = float(rec.attrs["wall_seconds"])
+        # (a checkpoint written before runs counted their compile time: none counted)
+        sim.record.compile_seconds = float(rec.attrs.get("compile_seconds", 0.0))
         sim.record.setup_seconds = float(rec.attrs["setup_seconds"])
     return sim

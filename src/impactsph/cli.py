@@ -49,7 +49,8 @@ def _main(version: Annotated[bool, typer.Option(
 #: What ``impactsph run`` prints of every run's summary; the case's problem adds its own
 #: (:meth:`impactsph.problems.ProblemKind.summary_keys`).
 SUMMARY_KEYS = (
-    "n_particles", "n_steps", "t_end", "wall_seconds", "pair_evaluations_per_second",
+    "n_particles", "n_steps", "t_end", "wall_seconds", "compile_seconds",
+    "pair_evaluations_per_second",
     "kinetic_energy_ratio_final", "total_energy_relative_error", "momentum_drift",
 )
 

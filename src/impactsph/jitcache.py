@@ -36,6 +36,7 @@ import inspect
 import itertools
 import os
 import re
+import time
 import types
 from collections.abc import Callable
 from pathlib import Path
@@ -337,6 +338,59 @@ def log_compiles(path: str | os.PathLike) -> None:
                 log.write(f"{pid}\t{seconds:.3f}\t{len(started)}\t{name}\t{test}\n")
 
     event.register("numba:compile", _Logger())
+
+
+#: the event module of numba and of numba-cuda (which has its own lock, and takes numba's
+#: too where numba is installed), and the event each fires while its compiler lock is held:
+#: compiling a function, or loading it from the disk cache
+_LOCK_EVENTS = (("numba.core.event", "numba:compiler_lock"),
+                ("numba.cuda.core.event", "numba-cuda:compiler_lock"))
+
+
+class CompileTimer:
+    """The seconds numba spends compiling or loading compiled code from its cache while the
+    timer is entered (``with CompileTimer() as timer: ...; timer.seconds``): the time its
+    compiler lock is held, the outermost hold only (a callee's compilation and numba-cuda's
+    lock, which takes numba's, are inside their caller's).  What a run's time owes to the
+    code rather than the steps: a first run's, or a short run's loads of its kernels
+    (:attr:`impactsph.simulation.RunRecord.compile_seconds`)."""
+
+    def __init__(self) -> None:
+        self.seconds = 0.0
+        self._depth = 0
+        self._since = 0.0
+        self._registered: list[tuple[Any, str, Any]] = []
+
+    def _start(self, ev: Any) -> None:
+        if self._depth == 0:
+            self._since = time.perf_counter()
+        self._depth += 1
+
+    def _end(self, ev: Any) -> None:
+        self._depth = max(self._depth - 1, 0)
+        if self._depth == 0:
+            self.seconds += time.perf_counter() - self._since
+
+    def __enter__(self) -> CompileTimer:
+        import sys
+
+        import numba.core.event  # noqa: F401 (loaded; numba-cuda's module only if in use)
+
+        for name, kind in _LOCK_EVENTS:
+            module = sys.modules.get(name)
+            if module is None:
+                continue
+            listener = type("_Listener", (module.Listener,),
+                            {"on_start": lambda _, ev: self._start(ev),
+                             "on_end": lambda _, ev: self._end(ev)})()
+            module.register(kind, listener)
+            self._registered.append((module, kind, listener))
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for module, kind, listener in self._registered:
+            module.unregister(kind, listener)
+        self._registered.clear()
 
 
 def noalias_option() -> dict[str, bool]:

@@ -531,13 +531,14 @@ def pair_rate(device: str, dim: int, stretch: bool = False) -> tuple[float, str]
 
 def record_pair_rate(summary: dict[str, Any], name: str, stretch: bool = False) -> None:
     """Keep the pair rate a finished run measured (its summary's ``pair_evaluations`` over
-    its ``wall_seconds`` less :data:`STEP_SECONDS` a step) for later estimates, if it
+    its ``wall_seconds`` less its ``compile_seconds``, numba's compiling and loading of code,
+    and less :data:`STEP_SECONDS` a step) for later estimates, if it
     evaluated at least :data:`MIN_PAIRS_TO_RECORD` pairs and kept its thread count (a run
     whose thread governor gave up cores to other processes, ``thread_changes``, measured a
     loaded machine, not this one: :mod:`impactsph.threads`); kept apart for runs whose
     kernel follows the stretch (``stretch``).  Never fails a run."""
     pairs = summary.get("pair_evaluations") or 0
-    wall = summary.get("wall_seconds") or 0.0
+    wall = (summary.get("wall_seconds") or 0.0) - (summary.get("compile_seconds") or 0.0)
     if pairs < MIN_PAIRS_TO_RECORD or not wall > 0 or summary.get("thread_changes"):
         return
     # the pairs' own rate: the fixed cost of the steps (STEP_SECONDS) taken out, at most half

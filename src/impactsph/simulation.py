@@ -18,6 +18,7 @@ from .driven import Drivers
 from .errors import DeviceMemoryError, SimulationError
 from .gauges import Gauges
 from .integrate import INTEGRATORS
+from .jitcache import CompileTimer
 from .materials import carried_von_mises
 from .models import VISCOSITY
 from .models.columns import COMMON_STATE, DAMAGE
@@ -50,6 +51,10 @@ class RunRecord:
     #: rows of ``gauges.csv`` (the time, then the gauges' columns: :class:`~.gauges.Gauges`)
     gauges: list[np.ndarray] = field(default_factory=list)
     wall_seconds: float = 0.0
+    #: of ``wall_seconds``, the time numba spent compiling the run's code or loading it from
+    #: its disk cache (:class:`~impactsph.jitcache.CompileTimer`): most of a first run's
+    #: time, and a short run's loads
+    compile_seconds: float = 0.0
     setup_seconds: float = 0.0
     failure: str | None = None
     #: the thread count's changes: (wall seconds into the run, cores other processes held,
@@ -634,6 +639,7 @@ class Simulation:
         else:
             governor = self._governor = ThreadGovernor(setting, tune=tune)
         changes, trials = len(governor.changes), len(governor.trials)
+        compiling = CompileTimer().__enter__()
         start = _time.perf_counter()
         try:
             while s.time < t_end * (1 - 1e-12):
@@ -685,6 +691,8 @@ class Simulation:
             if resident is not None and not resident.host_current:  # the state back
                 self._sync()
             self.record.wall_seconds += _time.perf_counter() - start
+            compiling.__exit__()
+            self.record.compile_seconds += compiling.seconds
             self.record.thread_changes.extend(governor.changes[changes:])
             self.record.thread_trials.extend(governor.trials[trials:])
             governor.close()
@@ -710,15 +718,19 @@ class Simulation:
         if "external_work" in h[0]:  # driven regions: the energy they put in counts too
             scale = max(abs(e0), float(np.max(np.abs([r["external_work"] for r in h]))))
         wall = self.record.wall_seconds
+        stepping = wall - self.record.compile_seconds
         return {
             "n_particles": self.state.n,
             "dimension": self.state.dim,
             "n_steps": self.state.step,
             "t_end": self.state.time,
             "wall_seconds": wall,
+            "compile_seconds": self.record.compile_seconds,
             "setup_seconds": self.record.setup_seconds,
             "pair_evaluations": self.solver.pair_evaluations,
-            "pair_evaluations_per_second": self.solver.pair_evaluations / wall if wall else 0.0,
+            # the steps' own rate: numba's compiling and loading of code left out
+            "pair_evaluations_per_second": self.solver.pair_evaluations / stepping
+            if stepping > 0.0 else 0.0,
             "neighbour_list_builds": self.solver.neighbours.builds,
             "device": self.solver.backend.device,
             # the GPU memory of a run with its state there (its arrays, each once)
