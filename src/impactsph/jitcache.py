@@ -367,7 +367,9 @@ class CompileTimer:
         self._depth += 1
 
     def _end(self, ev: Any) -> None:
-        self._depth = max(self._depth - 1, 0)
+        if self._depth == 0:  # a hold that began before the timer (another thread's)
+            return
+        self._depth -= 1
         if self._depth == 0:
             self.seconds += time.perf_counter() - self._since
 
