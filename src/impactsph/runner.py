@@ -32,7 +32,7 @@ from .preflight import label_of, scheme_line
 from .problems.registry import analyse
 from .rundir import IfExists, RunLock, check_run_dir, clear_outputs, make_run_dir, remove_if_empty
 from .runlog import held_records, run_log
-from .simulation import Simulation, SimulationError
+from .simulation import RunRecord, Simulation, SimulationError
 
 log = logging.getLogger("impactsph")
 
@@ -106,6 +106,14 @@ class PeriodicOutputs:
         if self.vtk is not None and (not self.vtk.entries
                                      or self.vtk.entries[-1][0] < sim.state.time):
             self.vtk.write(sim)
+
+
+def compiling_note(record: RunRecord) -> str:
+    """``", 4.4 s of it numba compiling or loading code"`` where that was a tenth of the run's
+    wall time or more (a first run, or a short one), else nothing."""
+    if record.compile_seconds >= 0.1 * record.wall_seconds and record.compile_seconds > 0.0:
+        return f", {record.compile_seconds:.3g} s of it numba compiling or loading code"
+    return ""
 
 
 def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], None] | None = None,
@@ -218,8 +226,8 @@ def _run(sim: Simulation, case: Case, out: Path, *,
     stream.close()
     periodic.finish(sim)
     write_snapshots(out, sim)
-    log.info("finished: t = %g s, %d steps, %.3g s of wall time", sim.state.time,
-             sim.state.step, sim.record.wall_seconds)
+    log.info("finished: t = %g s, %d steps, %.3g s of wall time%s", sim.state.time,
+             sim.state.step, sim.record.wall_seconds, compiling_note(sim.record))
     summary = finished_summary(sim)
     write_summary(out, summary)  # before the figures, which read it back (load_run)
     if case.output.checkpoint_interval is None:  # complete: no automatic checkpoint kept
