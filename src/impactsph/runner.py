@@ -110,8 +110,9 @@ class PeriodicOutputs:
 
 def compiling_note(record: RunRecord) -> str:
     """``", 4.4 s of it numba compiling or loading code"`` where that was a tenth of the run's
-    wall time or more (a first run, or a short one), else nothing."""
-    if record.compile_seconds >= 0.1 * record.wall_seconds and record.compile_seconds > 0.0:
+    wall time or more and 0.1 s or more (a first run, or a short one after an upgrade), else
+    nothing."""
+    if record.compile_seconds >= max(0.1 * record.wall_seconds, 0.1):
         return f", {record.compile_seconds:.3g} s of it numba compiling or loading code"
     return ""
 
