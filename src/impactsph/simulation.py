@@ -781,29 +781,134 @@ def _cpu_only(case: Case) -> str | None:
     return None
 
 
+#: the most particles of :func:`compile_case`'s copy of a case: twice the largest count at
+#: which a pass changes its path (``passes.PREFETCH_ROWS``, the particle pass in the list's
+#: order; 2D renumbering, from 500,000, is left to the runs)
+COMPILE_PARTICLES = 32768
+
+
+def compile_case(dim: int, like: Case | None = None) -> dict:
+    """The small case whose one step :func:`compile_kernels` runs: blocks of 1 mm spacing
+    moving at 1 m/s onto a wall.  Without ``like``: a 4 x 4 (x 4) elastic block with AC.
+    With ``like``: a copy of that case, which compiles the passes generated for its options
+    and its materials' models (each set of them is a module of its own,
+    :mod:`impactsph.codegen`): every setting but the particles, the boundaries and the
+    outputs is the case's (its plug-ins, 2D mode, formulation, materials, kernel, viscosity,
+    stabilisation, contact, integrator and compute settings); each of its bodies becomes a
+    block of its material and smoothing length, as many particles as it has up to a share of
+    :data:`COMPILE_PARTICLES`, side by side along x."""
+    axis = [0.0] * (dim - 1)
+    wall = {"type": "wall", "point": [0.0] * dim, "normal": [*axis, 1.0]}
+    if like is None:
+        return {"name": f"compile_{dim}d", "dimension": dim,
+                "materials": {"m": {"model": "elastic", "density": 1000.0,
+                                    "youngs_modulus": 1e9}},
+                "bodies": [{"name": "b", "material": "m", "velocity": [*axis, -1.0],
+                            "geometry": {"origin": [0.0] * dim, "size": [4e-3] * dim,
+                                         "spacing": 1e-3}}],
+                "boundaries": [wall], "viscosity": {"scheme": "ac"},
+                "time": {"end": 1.0, "max_steps": 1}, "output": {"figures": False}}
+    from .preflight import count_particles
+
+    case = like.model_dump(mode="json", exclude={"description"})
+    case["name"] = f"compile_{dim}d_like_{like.name}"
+    case["analysis"] = "none"
+    try:
+        counts = count_particles(like)
+    except (OSError, ValueError):  # (a particle file that cannot be read: the smallest)
+        counts = [0] * len(like.bodies)
+    share = COMPILE_PARTICLES // len(like.bodies)
+    bodies, start = [], 0.0
+    for k, body in enumerate(like.bodies):
+        # as many particles as the case's body up to a share of COMPILE_PARTICLES, at least
+        # 4 a side: the passes' paths that depend on the count are the run's
+        side = max(4, round(min(counts[k], share) ** (1.0 / dim)))
+        bodies.append({"name": f"b{k}", "material": body.material,
+                       "h_over_dx": body.h_over_dx, "velocity": [*axis, -1.0],
+                       "geometry": {"origin": [start, *([0.0] * (dim - 1))],
+                                    "size": [side * 1e-3] * dim, "spacing": 1e-3}})
+        start += (side + 2) * 1e-3  # 2 mm apart: within reach, so contact is compiled too
+    case["bodies"] = bodies
+    case["boundaries"] = [{**wall, **{k: v for k, v in boundary.items()
+                                      if k in ("slip", "friction")}}
+                          for boundary in case["boundaries"][:1]
+                          if boundary.get("type", "wall") == "wall"] or [wall]
+    case["time"] = {**case["time"], "end": 1.0, "max_steps": 1}
+    case["output"] = {"figures": False,
+                      "reference_viscosity": case["output"]["reference_viscosity"]}
+    return case
+
+
+def compile_key(case: Case) -> tuple:
+    """What of ``case`` chooses the code its runs compile, so that a sweep calls
+    :func:`compile_kernels` once for each (not for each value of a number that the compiled
+    code only reads: a speed, a viscosity coefficient, a size): the dimension, formulation
+    and plug-ins, the generated passes' options (:meth:`PassOptions.compiled`) of the run and
+    of its reference run, the stage's (the materials' models), the viscosity schemes, the
+    integrator, the stretch, the boundaries' kinds, several bodies or one, tip masses,
+    clamps and driven regions, the device, and which side of the passes' size thresholds
+    its particle count is on."""
+    from .integrate import stage_options
+    from .materials import case_materials, material_table
+    from .physics import passes
+    from .preflight import count_particles
+    from .solver import CHUNK
+
+    schemes = [case.viscosity]
+    reference = case.output.reference_viscosity
+    if case.output.figures and reference is not None and reference != case.viscosity:
+        schemes.append(reference)
+    table = material_table(case_materials(case), case.time.wave_speed)
+    try:
+        n = sum(count_particles(case))
+    except (OSError, ValueError):
+        n = 0
+    return (case.dimension, case.formulation, tuple(case.plugins),
+            tuple((v.scheme, PassOptions.of_case(case.model_copy(update={"viscosity": v}))
+                   .compiled()) for v in schemes),
+            stage_options(table, case.two_dimensional == "plane_stress",
+                          case.two_dimensional == "axisymmetric"),
+            case.time.integrator, case.time.energy_update, case.kernel.max_stretch > 1.0,
+            tuple(sorted({b.type for b in case.boundaries})), len(case.bodies) > 1,
+            tuple((b.tip_mass is not None, b.clamped is not None, bool(b.driven))
+                  for b in case.bodies),
+            case.compute.device, case.compute.resident, n > CHUNK,
+            n >= passes.PREFETCH_ROWS)
+
+
 def compile_kernels(dim: int, like: Case | None = None) -> None:
     """Compile (or load from numba's disk cache) every kernel a run of dimension ``dim``
-    needs, by running one step of a tiny case with AC and a wall (the passes generated for the
-    registered models, :mod:`impactsph.codegen`, included), with the ``[stabilisation]`` and
-    ``[contact]`` options of the case ``like`` if given.  Parallel processes
-    starting on a cold cache at once can overwrite each other's cache files (numba's cache
-    takes no lock between processes): calling this first, in one process, avoids that."""
+    needs, by running one step of :func:`compile_case`'s tiny case: a small copy of the case
+    ``like`` if given (and of its reference run with ``output.reference_viscosity``, whose
+    figures a run draws beside its own), else an elastic block with AC and a wall.  Processes
+    starting on a cold cache at once would each compile the same code (numba's cache files
+    are written under a lock, :func:`impactsph.jitcache.lock_cache_writes`): calling this
+    first, in one process, compiles it once.  A copy of ``like`` that cannot be built or run
+    (a setting that needs its own geometry, say) is logged and the elastic block is run
+    instead: the runs then compile what it lacks themselves."""
     from .loading import validate_case
 
-    options = {} if like is None else {
-        "stabilisation": like.stabilisation.model_dump(),
-        "contact": like.contact.model_dump(),
-        "kernel": like.kernel.model_dump()}
-    case = validate_case({**options,
-        "name": f"compile_{dim}d", "dimension": dim,
-        "materials": {"m": {"model": "elastic", "density": 1000.0, "youngs_modulus": 1e9}},
-        "bodies": [{"name": "b", "material": "m", "velocity": [0.0] * (dim - 1) + [-1.0],
-                    "geometry": {"origin": [0.0] * dim, "size": [4e-3] * dim,
-                                 "spacing": 1e-3}}],
-        "boundaries": [{"type": "wall", "point": [0.0] * dim,
-                        "normal": [0.0] * (dim - 1) + [1.0]}],
-        "viscosity": {"scheme": "ac"}, "time": {"end": 1.0, "max_steps": 1},
-        "output": {"figures": False}})
+    cases = []
+    if like is not None:
+        copy = compile_case(dim, like)
+        cases.append(copy)
+        reference = like.output.reference_viscosity
+        if like.output.figures and reference is not None and reference != like.viscosity:
+            cases.append({**copy, "name": copy["name"] + "_reference",
+                          "viscosity": reference.model_dump(mode="json")})
+    try:
+        for case in cases:
+            _compile_step(validate_case(case))
+        if cases:
+            return
+    except Exception as exc:  # an optimisation: never the reason a sweep fails
+        log.warning("compiling ahead for %r: its small copy did not run (%s); the runs "
+                    "compile what the elastic block leaves out", like.name, exc)
+    _compile_step(validate_case(compile_case(dim)))
+
+
+def _compile_step(case: Case) -> None:
+    """One step of ``case``, and the snapshots' pressures (what a run's kernels are)."""
     sim = Simulation(case)
     sim.run()
     sim.solver.pressure(sim.state)  # the snapshots' pressures

@@ -248,12 +248,11 @@ def run_many(base: dict[str, Any] | list[dict[str, Any]], run_overrides: list[li
     cases = [validate_case(apply_overrides(b, ov))  # validate every run before any starts
              for b, ov in zip(bases, run_overrides, strict=True)]
     if not scheduler:  # fill numba's disk cache once, before the workers start together
-        from .simulation import compile_kernels
+        from .simulation import compile_kernels, compile_key
 
         seen = set()
         for case in cases:  # once per set of compile-time options
-            key = (case.dimension, case.stabilisation.model_dump_json(),
-                   case.contact.model_dump_json(), case.kernel.model_dump_json())
+            key = compile_key(case)
             if key not in seen:
                 seen.add(key)
                 compile_kernels(case.dimension, case)
