@@ -796,7 +796,9 @@ def compile_case(dim: int, like: Case | None = None) -> dict:
     outputs is the case's (its plug-ins, 2D mode, formulation, materials, kernel, viscosity,
     stabilisation, contact, integrator and compute settings); each of its bodies becomes a
     block of its material and smoothing length, as many particles as it has up to a share of
-    :data:`COMPILE_PARTICLES`, side by side along x."""
+    :data:`COMPILE_PARTICLES`, side by side along x, onto one wall (the case's first wall's
+    slip and friction), beside a symmetry plane where the case has one.  Left to the runs:
+    the code of tip masses, clamps, driven regions, probes and gauges."""
     axis = [0.0] * (dim - 1)
     wall = {"type": "wall", "point": [0.0] * dim, "normal": [*axis, 1.0]}
     if like is None:
@@ -829,10 +831,13 @@ def compile_case(dim: int, like: Case | None = None) -> dict:
                                     "size": [side * 1e-3] * dim, "spacing": 1e-3}})
         start += (side + 2) * 1e-3  # 2 mm apart: within reach, so contact is compiled too
     case["bodies"] = bodies
-    case["boundaries"] = [{**wall, **{k: v for k, v in boundary.items()
-                                      if k in ("slip", "friction")}}
-                          for boundary in case["boundaries"][:1]
-                          if boundary.get("type", "wall") == "wall"] or [wall]
+    walls = [b for b in case["boundaries"] if b.get("type", "wall") == "wall"]
+    case["boundaries"] = [{**wall, **{k: v for k, v in walls[0].items()
+                                      if k in ("slip", "friction")}} if walls else wall]
+    if dim > 1 and any(b.type == "symmetry" for b in like.boundaries):
+        # the blocks' side x = 0 on a symmetry plane: its images are compiled too
+        case["boundaries"].append({"type": "symmetry", "point": [0.0] * dim,
+                                   "normal": [1.0, *([0.0] * (dim - 1))]})
     case["time"] = {**case["time"], "end": 1.0, "max_steps": 1}
     case["output"] = {"figures": False,
                       "reference_viscosity": case["output"]["reference_viscosity"]}
@@ -845,9 +850,9 @@ def compile_key(case: Case) -> tuple:
     code only reads: a speed, a viscosity coefficient, a size): the dimension, formulation
     and plug-ins, the generated passes' options (:meth:`PassOptions.compiled`) of the run and
     of its reference run, the stage's (the materials' models), the viscosity schemes, the
-    integrator, the stretch, the boundaries' kinds, several bodies or one, tip masses,
-    clamps and driven regions, the device, and which side of the passes' size thresholds
-    its particle count is on."""
+    integrator, the stretch, the boundaries' kinds, several bodies or one, the device, and
+    which side of the passes' size thresholds its particle count is on (what
+    :func:`compile_case`'s copy compiles)."""
     from .integrate import stage_options
     from .materials import case_materials, material_table
     from .physics import passes
@@ -870,8 +875,6 @@ def compile_key(case: Case) -> tuple:
                           case.two_dimensional == "axisymmetric"),
             case.time.integrator, case.time.energy_update, case.kernel.max_stretch > 1.0,
             tuple(sorted({b.type for b in case.boundaries})), len(case.bodies) > 1,
-            tuple((b.tip_mass is not None, b.clamped is not None, bool(b.driven))
-                  for b in case.bodies),
             case.compute.device, case.compute.resident, n > CHUNK,
             n >= passes.PREFETCH_ROWS)
 
