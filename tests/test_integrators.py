@@ -156,3 +156,37 @@ def test_the_combination_is_numpys_to_the_bit():
         combine_kept(weight, *got, *kept[:7], np.zeros((n, 0)))
         for a, b in zip(got[:7], expected[:7], strict=True):
             assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("name, overrides, kept", [
+    ("bars", [], False),  # elastic (1D)
+    ("bars", ['time.integrator="ssp_rk3"'], False),  # and SSP-RK3's second copy
+    ("rings", [], False),  # elastic, plane strain, two bodies
+    ("taylor", [], True),  # a return map (the plastic strain, its rate, the heating)
+    ("taylor", ['materials.iron.model="elastic"', 'two_dimensional="plane_stress"'], True),
+    ("taylor_axisymmetric", ['materials.iron.model="elastic"'], True),  # the radius
+])
+def test_the_start_copy_keeps_the_material_state_only_where_a_model_changes_it(
+        name, overrides, kept, monkeypatch):
+    """The step's start copy holds the material state only where a stage can change it
+    (:func:`impactsph.integrate.material_state_kept`); an elastic run in 1D, plane strain or
+    3D keeps none of its columns (40 bytes a particle), and runs to the same bits as with
+    them kept: no column of its state moves."""
+    from impactsph import integrate
+
+    case = load_case(name, [*overrides, "time.max_steps=6"])
+    sim = Simulation(case)
+    start = sim.state.material_state.copy()
+    sim.run()
+    copies = [sim.integrator._start] + ([sim.integrator._y1] if "ssp" in str(overrides) else [])
+    width = sim.state.material_state.shape[1] if kept else 0
+    assert [c.material_state.shape for c in copies] == [(sim.state.n, width)] * len(copies)
+    if kept:
+        return
+    assert np.array_equal(sim.state.material_state, start)  # nothing moves it
+    monkeypatch.setattr(integrate, "material_state_kept", lambda options: True)
+    full = Simulation(case)
+    full.run()
+    assert full.integrator._start.material_state.shape == start.shape
+    for key, value in sim.state.arrays().items():
+        assert np.array_equal(value, full.state.arrays()[key]), key

@@ -63,7 +63,9 @@ class DeviceLayout:
     ``switched``: with a switch; ``hourglass``: the hourglass control; ``ssp``: SSP-RK3;
     ``step_means``: its step's mean acceleration is kept (clamps or driven regions);
     ``compatible``: the compatible energy update; ``stretch``: ``kernel.max_stretch`` > 1;
-    ``added_inertia``: a tip mass carried as added inertia; ``threads_per_block``."""
+    ``added_inertia``: a tip mass carried as added inertia; ``state_kept``: the step's
+    start copy keeps the material state (:func:`impactsph.integrate.material_state_kept`:
+    a model changes it); ``threads_per_block``."""
 
     dim: int
     strength_width: int
@@ -85,6 +87,7 @@ class DeviceLayout:
     compatible: bool = False
     stretch: bool = False
     added_inertia: bool = False
+    state_kept: bool = True
     threads_per_block: int = 128
 
     @classmethod
@@ -95,7 +98,7 @@ class DeviceLayout:
         from .models import VISCOSITY
         from .models.columns import PASS_CARRIED
         from .physics.options import PassOptions
-        from .preflight import state_width
+        from .preflight import state_kept, state_width
 
         dim = case.dimension
         scheme = VISCOSITY[case.viscosity.scheme]
@@ -125,7 +128,7 @@ class DeviceLayout:
             added_inertia=any(b.tip_mass is not None
                               and b.tip_mass.carried_as == "added_inertia"
                               for b in case.bodies),
-            threads_per_block=threads_per_block)
+            state_kept=state_kept(case), threads_per_block=threads_per_block)
 
     def as_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in fields(self)}
@@ -182,7 +185,8 @@ class DeviceLayout:
             capacity = rows + rows // 8 + 16
         blocks = max(1, math.ceil(n / self.threads_per_block))
         integrated = 16 * d + 8 + 8 + 72 + 8 + 8 * w + 8 * hg
-        start = integrated - 72 + 48  # the deviator's six components
+        # the deviator's six components; the material state only where a model changes it
+        start = integrated - 72 + 48 - (0 if self.state_kept else 8 * w)
         parts: dict[str, float] = {}
         parts["state"] = n * (integrated + 8 + 8 + 4 + 4 + 1 + 8 * d
                               + (16 if self.added_inertia else 0)

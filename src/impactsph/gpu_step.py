@@ -223,7 +223,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
             e0[i] = e[i]
             store_upper(S, S0, i)
             pw0[i] = pw[i]
-            for a in range(st.shape[1]):
+            for a in range(st0.shape[1]):  # (none where no model changes them)
                 st0[i, a] = st[i, a]
             for a in range(hg.shape[1]):
                 hg0[i, a] = hg[i, a]
@@ -1148,7 +1148,8 @@ class ResidentStep:
             ssp=self.integrator == "ssp_rk3",
             step_means=self.drivers is not None or self.clamped_rows.shape[0] > 0,
             compatible=self.compatible, stretch=self.max_stretch > 1.0,
-            added_inertia=self.fraction is not None, threads_per_block=self.tpb)
+            added_inertia=self.fraction is not None,
+            state_kept=int(self.start["material_state"].shape[1]) > 0, threads_per_block=self.tpb)
 
     def allocated(self) -> dict[int, tuple[int, str]]:
         """Every device allocation this run holds (the rate backend's too), each once:
@@ -1161,10 +1162,18 @@ class ResidentStep:
         empty = cuda.device_array
         self.now = {f: empty(getattr(state, f).shape, getattr(state, f).dtype, stream=s)
                     for f in INTEGRATED}
-        # the deviator's start copy: its six components (the advance's S0)
+        # the deviator's start copy: its six components (the advance's S0); the material
+        # state's none of its columns where no model changes it (the CPU's start copy's:
+        # impactsph.integrate.material_state_kept)
+        kept = integrate.material_state_kept(integrate.stage_options(
+            table, self.options.plane_stress, self.options.axisymmetric))
+        shapes = {f: getattr(state, f).shape for f in INTEGRATED}
+        shapes["deviatoric_stress"] = (n, 6)
+        if not kept:
+            shapes["material_state"] = (n, 0)
+
         def integrated_copy() -> dict:
-            return {f: empty((n, 6) if f == "deviatoric_stress" else getattr(state, f).shape,
-                             getattr(state, f).dtype, stream=s) for f in INTEGRATED}
+            return {f: empty(shapes[f], getattr(state, f).dtype, stream=s) for f in INTEGRATED}
 
         self.start = integrated_copy()
         ssp = self.integrator == "ssp_rk3"

@@ -139,6 +139,19 @@ def stage_options(table: np.ndarray, plane_stress: bool = False,
         eos_kinds=tuple(sorted({int(k) for k in table[:, EOS_KIND]})))
 
 
+def material_state_kept(options: PassOptions) -> bool:
+    """Whether a stage of the passes' module of stage ``options`` (:func:`stage_options`)
+    changes the material state, so that the integrator keeps it in the step's start copy: a
+    strength model with a return map or a damage model with an update (each writes its
+    columns, and the plastic work heats), plane stress (the thickness ratio) or axisymmetry
+    (the radius).  Where none does (elastic materials, in 1D, plane strain or 3D), the
+    stage's copies, restores and combinations of it have nothing to do, and the start keeps
+    none of its columns: 40 bytes a particle less (the 5 common columns), 80 with SSP-RK3's
+    second copy."""
+    return bool(options.strength_kinds or options.damage_kinds or options.plane_stress
+                or options.axisymmetric)
+
+
 def stable_time_step(state: ParticleState, table: np.ndarray, courant: float,
                      n_active: int | None = None, hourglass: float = 0.0) -> float:
     """CFL step of eq 26 (with the hourglass control's coefficient ``hourglass``, if on)."""
@@ -179,7 +192,7 @@ def combine_particle(i, keep, weight, x, v, rho, e, S, plastic_work, state, hg, 
         for b in range(3):
             S[i, a, b] = S[i, a, b] * keep + weight * S0[i, UPPER[a][b]]
     plastic_work[i] = plastic_work[i] * keep + weight * pw0[i]
-    for c in range(state.shape[1]):
+    for c in range(state0.shape[1]):  # (none kept where no model changes them)
         state[i, c] = state[i, c] * keep + weight * state0[i, c]
     for a in range(hg.shape[1]):
         hg[i, a] = hg[i, a] * keep + weight * hg0[i, a]
@@ -254,6 +267,8 @@ class MidpointIntegrator:
         self.n_active = n_active
         #: the options of the passes' module whose stage this integrator runs
         self.stage_options = stage_options(table, plane_stress, axisymmetric)
+        #: whether the step's start copy keeps the material state (:func:`material_state_kept`)
+        self.material_state_kept = material_state_kept(self.stage_options)
         self._stage_pass = compiled_passes(dim, options=self.stage_options).stage
         self.survey_kernel = _survey_kernel(dim)
         #: the hourglass control's zeta, which the survey's signal speed includes
@@ -310,11 +325,13 @@ class MidpointIntegrator:
             buf = SimpleNamespace(**{f: np.empty_like(getattr(state, f))
                                      for f in self.INTEGRATED if f != "deviatoric_stress"})
             buf.deviatoric_stress = np.empty((state.n, 6))
+            if not self.material_state_kept:  # (no model changes it: no columns kept)
+                buf.material_state = np.empty((state.n, 0))
             setattr(self, name, buf)
         if not copy:
             return buf
         for f in self.INTEGRATED:
-            if f != "deviatoric_stress":
+            if f != "deviatoric_stress" and (f != "material_state" or self.material_state_kept):
                 np.copyto(getattr(buf, f), getattr(state, f))
         keep_upper(state.deviatoric_stress, buf.deviatoric_stress)
         return buf

@@ -383,7 +383,7 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
                     corrected: bool = False, walls: bool = False, contact: bool = False,
                     hourglass: bool = False,
                     force_correction: bool = False, strength_width: int = 1,
-                    snapshots: int = 0, history_values: int = 0,
+                    state_kept: bool = True, snapshots: int = 0, history_values: int = 0,
                     compatible: bool = False, switched: bool = False,
                     gpu_state: bool = False) -> float:
     """Peak bytes of a run of ``n`` particles (``ghosts`` more in the sums) with ``neighbours``
@@ -391,7 +391,8 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
 
     - per particle: the state (:func:`state_bytes`; 16 bytes less without a switch, whose
       factor and memory are then views of one number), the integrator's copy of its integrated
-      fields, and ``snapshots`` copies of the state (plus the pressure) kept for
+      fields (the material state only with ``state_kept``, where a model changes it:
+      :func:`state_kept`), and ``snapshots`` copies of the state (plus the pressure) kept for
       ``snapshots.npz``;
     - per particle and ghost: the rate buffers (``RateBuffers``), the packed particle records
       (unpadded: 10 to 22 doubles without the optional columns, the viscous acceleration's
@@ -419,7 +420,8 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     d = dim
     state = state_bytes(d, strength_width, hourglass)
     # x, v, rho, e, the deviator's six components, plastic work, material state
-    integrator = 16 * d + 72 + 8 * strength_width + (8 * d if hourglass else 0)
+    integrator = 16 * d + 72 + (8 * strength_width if state_kept else 0) \
+        + (8 * d if hourglass else 0)
     snapshot = state + 8
     # without a switch the state's viscosity factor and memory are views of one number
     if gpu_state:  # (the step and the records are the device's)
@@ -616,6 +618,17 @@ def state_width(case: Case) -> int:
                                                    [m.damage for m in materials])
 
 
+def state_kept(case: Case) -> bool:
+    """Whether the case's step keeps its material state in the start copy
+    (:func:`impactsph.integrate.material_state_kept`: a model of its materials changes it)."""
+    from .integrate import material_state_kept, stage_options
+    from .materials import case_materials, material_table
+
+    table = material_table(case_materials(case), case.time.wave_speed)
+    return material_state_kept(stage_options(table, case.two_dimensional == "plane_stress",
+                                             case.two_dimensional == "axisymmetric"))
+
+
 def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None = None,
              ghosts: int = 0, cells: float = 0.0, table_bytes: int = 0) -> Estimate:
     """Memory and run time of the case with ``counts`` particles per body; the pair
@@ -652,7 +665,7 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
         hourglass=case.stabilisation.hourglass > 0.0,
         force_correction=PassOptions.of_case(case).gradient_correction
         == "velocity_gradient_and_forces",
-        strength_width=state_width(case),
+        strength_width=state_width(case), state_kept=state_kept(case),
         compatible=case.time.energy_update == "compatible",
         switched=VISCOSITY[case.viscosity.scheme].switch is not None,
         snapshots=len(case.output.snapshot_times),
