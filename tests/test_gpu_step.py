@@ -40,6 +40,20 @@ def resident_comparison(request, tmp_path_factory):
     return mode, report, cpu, folder
 
 
+def test_the_simulator_polls_without_holding_the_interpreter(resident_comparison):
+    """The resident step's reductions (shared memory and barriers) run on the simulator's
+    threads, whose poll releases the interpreter lock (``test_gpu._yielding_simulator``;
+    without it the resident runs take twice as long); its other kernels' blocks run their
+    threads in turn (``test_gpu._sequential_simulator``): a numba whose simulator no longer
+    has ``BlockThread``, or no longer polls through its ``is_alive``, fails here, not by a
+    slow test run."""
+    mode, report, _, _ = resident_comparison
+    assert report["yielding"] == report["sequential"] == (mode == "simulator")
+    if mode == "simulator":
+        assert report["polls"] > 1000, report["polls"]
+        assert report["blocks_in_turn"] > 1000, report["blocks_in_turn"]
+
+
 @pytest.mark.parametrize("name", list(RESIDENT))
 def test_the_whole_step_on_the_device_matches_the_cpu(resident_comparison, name):
     """With the state kept on the device (neighbour list built there, the integrator's stages,
