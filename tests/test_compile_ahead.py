@@ -93,3 +93,28 @@ def test_a_copy_that_does_not_run_falls_back_to_the_elastic_block(monkeypatch, c
         simulation_module.compile_kernels(1, load_case("bars"))
     assert ran == ["compile_1d_like_bars", "compile_1d"]
     assert "a setting the copy cannot take" in caplog.text
+
+
+def test_a_sweep_compiles_ahead_once_a_key_and_survives_a_key_that_fails(monkeypatch, caplog):
+    """:func:`impactsph.sweep.compile_ahead` compiles once for cases of one key, once more for
+    another, and a case whose key cannot be made on its own, with a warning."""
+    from impactsph import sweep
+
+    compiled = []
+    monkeypatch.setattr(simulation_module, "compile_kernels",
+                        lambda dim, case: compiled.append(case.name))
+    same = [load_case("bars", [f"viscosity.alpha1={a}"]) for a in (0.3, 0.5)]
+    other = load_case("bars", ['viscosity.scheme="balsara"'])
+    broken = load_case("bars", ['name="broken"'])
+    real = simulation_module.compile_key
+
+    def key(case):
+        if case.name == "broken":
+            raise ValueError("no key")
+        return real(case)
+
+    monkeypatch.setattr(simulation_module, "compile_key", key)
+    with caplog.at_level(logging.WARNING, logger="impactsph.sweep"):
+        assert sweep.compile_ahead([*same, other, broken]) == 3
+    assert compiled == ["bars", "bars", "broken"]
+    assert "no key" in caplog.text

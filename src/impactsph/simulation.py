@@ -869,8 +869,8 @@ def compile_key(case: Case) -> tuple:
     except (OSError, ValueError):
         n = 0
     return (case.dimension, case.formulation, tuple(case.plugins),
-            tuple((v.scheme, PassOptions.of_case(case.model_copy(update={"viscosity": v}))
-                   .compiled()) for v in schemes),
+            frozenset((v.scheme, PassOptions.of_case(case.model_copy(update={"viscosity": v}))
+                       .compiled()) for v in schemes),
             stage_options(table, case.two_dimensional == "plane_stress",
                           case.two_dimensional == "axisymmetric"),
             case.time.integrator, case.time.energy_update, case.kernel.max_stretch > 1.0,

@@ -226,6 +226,28 @@ def local_cluster(workers: int | None = None) -> Any:
                         scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
 
 
+def compile_ahead(cases: list[Any]) -> int:
+    """Compile (or load) the code of the runs ``cases`` in this process, one
+    :func:`~impactsph.simulation.compile_kernels` for each set of them whose compiled code
+    differs (:func:`~impactsph.simulation.compile_key`), before a sweep's local workers start
+    together; returns how many it ran.  A case whose key cannot be made is compiled ahead on
+    its own, with a warning: compiling ahead is never why a sweep fails."""
+    from .simulation import compile_kernels, compile_key
+
+    seen = set()
+    for case in cases:
+        try:
+            key = compile_key(case)
+        except Exception as exc:  # noqa: BLE001 (an optimisation: log it and go on)
+            log.warning("compiling ahead for %r: its key could not be made (%s)",
+                        case.name, exc)
+            key = ("this case", id(case))
+        if key not in seen:
+            seen.add(key)
+            compile_kernels(case.dimension, case)
+    return len(seen)
+
+
 def run_many(base: dict[str, Any] | list[dict[str, Any]], run_overrides: list[list[str]],
              out: Path, *,
              scheduler: str | None = None, workers: int | None = None,
@@ -248,14 +270,7 @@ def run_many(base: dict[str, Any] | list[dict[str, Any]], run_overrides: list[li
     cases = [validate_case(apply_overrides(b, ov))  # validate every run before any starts
              for b, ov in zip(bases, run_overrides, strict=True)]
     if not scheduler:  # fill numba's disk cache once, before the workers start together
-        from .simulation import compile_kernels, compile_key
-
-        seen = set()
-        for case in cases:  # once per set of compile-time options
-            key = compile_key(case)
-            if key not in seen:
-                seen.add(key)
-                compile_kernels(case.dimension, case)
+        compile_ahead(cases)
     rows: dict[int, dict[str, Any]] = {}
     cluster = None
     if scheduler:
