@@ -117,9 +117,6 @@ PAIR_RATE_FILE = "pair_rates.json"
 #: 1.11-1.15 on the x2 plane-strain Taylor bar, benchmarks/README.md).  Applied to a rate
 #: that a run of the other kind measured, where none of the case's kind has.
 STRETCH_COST = 1.13
-#: Names of the cases whose run in this process compiles the kernels (:func:`before_run`):
-#: part of their steps' wall time is compilation, so :func:`after_run` keeps no pair rate.
-_COMPILING: set[str] = set()
 
 
 @dataclass(frozen=True)
@@ -618,15 +615,23 @@ def state_width(case: Case) -> int:
                                                    [m.damage for m in materials])
 
 
-def state_kept(case: Case) -> bool:
-    """Whether the case's step keeps its material state in the start copy
-    (:func:`impactsph.integrate.material_state_kept`: a model of its materials changes it)."""
-    from .integrate import material_state_kept, stage_options
+def case_stage_options(case: Case) -> Any:
+    """The options of the passes' module whose stage the case's runs use
+    (:func:`impactsph.integrate.stage_options`: its 2D model and its materials' models)."""
+    from .integrate import stage_options
     from .materials import case_materials, material_table
 
     table = material_table(case_materials(case), case.time.wave_speed)
-    return material_state_kept(stage_options(table, case.two_dimensional == "plane_stress",
-                                             case.two_dimensional == "axisymmetric"))
+    return stage_options(table, case.two_dimensional == "plane_stress",
+                         case.two_dimensional == "axisymmetric")
+
+
+def state_kept(case: Case) -> bool:
+    """Whether the case's step keeps its material state in the start copy
+    (:func:`impactsph.integrate.material_state_kept`: a model of its materials changes it)."""
+    from .integrate import material_state_kept
+
+    return material_state_kept(case_stage_options(case))
 
 
 def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None = None,
@@ -1171,7 +1176,6 @@ def before_run(case: Case, quiet: bool = False,
     notice = compile_notice(case)
     if notice is not None:
         echo(notice)
-        _COMPILING.add(case.name)  # this run's time is not a pair rate worth keeping
     return report
 
 
@@ -1185,8 +1189,6 @@ def kernels_cached(case: Case) -> bool | None:
     the case's own (bodies of different h); either one cached counts."""
     from dataclasses import replace
 
-    from .integrate import stage_options
-    from .materials import case_materials, material_table
     from .physics.options import PassOptions
     from .physics.rates import compiled_passes
 
@@ -1199,9 +1201,7 @@ def kernels_cached(case: Case) -> bool | None:
                                if case.kernel.max_stretch <= 1.0 else [])
         pairs = any(cached(compiled_passes(case.dimension, options=o).pair_pass)
                     for o in modules)
-        table = material_table(case_materials(case), case.time.wave_speed)
-        stage = stage_options(table, case.two_dimensional == "plane_stress",
-                              case.two_dimensional == "axisymmetric")
+        stage = case_stage_options(case)
         return pairs and cached(compiled_passes(case.dimension, options=stage).stage)
     except (AttributeError, OSError, TypeError):
         return None
@@ -1235,12 +1235,12 @@ def _stretches(case: Case) -> bool:
 def after_run(case: Case, summary: dict[str, Any], restarted: bool = False,
               echo: Callable[[str], None] = _stderr) -> list[str]:
     """Warnings about a finished run, one line each to ``echo`` (stderr) and returned, and
-    the pair rate it measured kept for later estimates (:func:`record_pair_rate`; not for a
-    run that compiled the kernels or was ``restarted`` from a checkpoint, whose summary counts
+    the pair rate it measured kept for later estimates (:func:`record_pair_rate`, its
+    compiling left out; not for a run ``restarted`` from a checkpoint, whose summary counts
     the pairs since t = 0 over the wall time since the restart).  Warns when more than
     :data:`KINETIC_ENERGY_REMAINING` of the initial kinetic energy remains at the end time in
     a problem that is expected to dissipate it (:func:`keeps_kinetic_energy`)."""
-    if case.name not in _COMPILING and not restarted:
+    if not restarted:
         record_pair_rate(summary, case.name, stretch=_stretches(case))
     lines = []
     ratio = summary.get("kinetic_energy_ratio_final")

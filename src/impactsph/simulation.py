@@ -853,17 +853,14 @@ def compile_key(case: Case) -> tuple:
     integrator, the stretch, the boundaries' kinds, several bodies or one, the device, and
     which side of the passes' size thresholds its particle count is on (what
     :func:`compile_case`'s copy compiles)."""
-    from .integrate import stage_options
-    from .materials import case_materials, material_table
     from .physics import passes
-    from .preflight import count_particles
+    from .preflight import case_stage_options, count_particles
     from .solver import CHUNK
 
     schemes = [case.viscosity]
     reference = case.output.reference_viscosity
     if case.output.figures and reference is not None and reference != case.viscosity:
         schemes.append(reference)
-    table = material_table(case_materials(case), case.time.wave_speed)
     try:
         n = sum(count_particles(case))
     except (OSError, ValueError):
@@ -871,8 +868,7 @@ def compile_key(case: Case) -> tuple:
     return (case.dimension, case.formulation, tuple(case.plugins),
             frozenset((v.scheme, PassOptions.of_case(case.model_copy(update={"viscosity": v}))
                        .compiled()) for v in schemes),
-            stage_options(table, case.two_dimensional == "plane_stress",
-                          case.two_dimensional == "axisymmetric"),
+            case_stage_options(case),
             case.time.integrator, case.time.energy_update, case.kernel.max_stretch > 1.0,
             tuple(sorted({b.type for b in case.boundaries})), len(case.bodies) > 1,
             case.compute.device, case.compute.resident, n > CHUNK,
