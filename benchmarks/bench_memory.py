@@ -4,10 +4,12 @@ in bytes per particle, largest first (issue 16's target: 1 kB per particle in 3D
 
     .venv/bin/python benchmarks/bench_memory.py [--dim 3] [--n 1e5] [--scheme av]
         [--steps 2] [--wall] [--h-over-dx 1.3] [--skin 0.05] [--json PATH]
-        [--device gpu [--simulator]] [--record-precision float32]
+        [--device gpu [--simulator]] [--record-precision float32] [--yield-stress 5e8]
 
 The case is ``bench_ac_cost.py``'s lattice (dx = 1 mm, h = 1.2 dx, elastic steel, random
-velocities of about 1 m/s, the paper's scheme: no stabilisation), ``--scheme`` its viscosity.
+velocities of about 1 m/s, the paper's scheme: no stabilisation), ``--scheme`` its viscosity;
+``--yield-stress`` makes the steel elastic-perfectly plastic (von Mises), whose return map
+changes the material state (the step's start copy then keeps its first three columns).
 Unlike ``bench_rates.py``'s peak-RSS growth this counts only the run's own arrays (not numba's
 or numpy's workspace, nor memory the allocator keeps), and says which object holds each.
 With ``--device gpu`` the run's state lives on the GPU (``compute.resident``) and the device's
@@ -65,6 +67,8 @@ def main(argv: list[str] | None = None) -> None:
                         "a few thousand particles)")
     parser.add_argument("--record-precision", choices=("float64", "float32"), default=None,
                         help="compute.record_precision (default: the case's float64)")
+    parser.add_argument("--yield-stress", type=float, default=None,
+                        help="Pa: an elastic-perfectly plastic steel (default: elastic)")
     parser.add_argument("--json", type=Path, default=None, help="also write the table here")
     args = parser.parse_args(argv)
     if args.simulator:
@@ -84,6 +88,8 @@ def main(argv: list[str] | None = None) -> None:
     case = lattice_case(args.dim, int(args.n), args.scheme)
     if args.h_over_dx is not None:
         case["kernel"]["h_over_dx"] = args.h_over_dx
+    if args.yield_stress is not None:
+        case["materials"]["m"].update(model="elastic_plastic", yield_stress=args.yield_stress)
     if args.skin is not None:
         case["time"]["neighbour_skin"] = args.skin
     if args.wall:
@@ -126,6 +132,7 @@ def main(argv: list[str] | None = None) -> None:
     pairs = lists.indices.shape[0]
     print(f"impactsph {__version__}: {args.dim}D lattice, {n} particles, h = {h_over_dx} dx, "
           f"skin {skin} of the support, {args.scheme}, "
+          f"{'elastic' if args.yield_stress is None else 'plastic'} steel, "
           f"{'a wall under it, ' if args.wall else ''}"
           f"records in {case['compute'].get('record_precision', 'float64')}, "
           f"after {args.steps} steps: {total / n:.0f} B per particle in "
@@ -141,7 +148,7 @@ def main(argv: list[str] | None = None) -> None:
         args.json.write_text(json.dumps({
             "version": __version__, "machine": platform.machine(), "cpu": host_cpu_name(),
             "dim": args.dim, "particles": n, "h_over_dx": h_over_dx, "skin": skin,
-            "scheme": args.scheme,
+            "scheme": args.scheme, "yield_stress": args.yield_stress,
             "wall": args.wall, "device": args.device, "simulator": args.simulator,
             "record_precision": case["compute"].get("record_precision", "float64"),
             "neighbours_per_particle": pairs / n,

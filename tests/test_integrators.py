@@ -158,6 +158,18 @@ def test_the_combination_is_numpys_to_the_bit():
             assert np.array_equal(a, b)
 
 
+def _all_columns_kept(monkeypatch) -> None:
+    """The step's start copy keeps every column of the case's material state."""
+    from impactsph import integrate
+
+    monkeypatch.setattr(integrate, "material_state_kept", lambda options, width: width)
+
+
+def _same_state(a: Simulation, b: Simulation) -> None:
+    for key, value in a.state.arrays().items():
+        assert np.array_equal(value, b.state.arrays()[key]), key
+
+
 @pytest.mark.parametrize("name, overrides", [
     ("bars", []),  # elastic (1D)
     ("bars", ['time.integrator="ssp_rk3"']),  # and SSP-RK3's second copy
@@ -168,8 +180,6 @@ def test_an_elastic_runs_start_copy_keeps_no_material_state(name, overrides, mon
     3D: :func:`impactsph.integrate.material_state_kept`) the step's start copy keeps none of
     its columns (40 bytes a particle), and the run gives the same bits as with them kept: no
     column of its state moves."""
-    from impactsph import integrate
-
     case = load_case(name, [*overrides, "time.max_steps=6"])
     sim = Simulation(case)
     start = sim.state.material_state.copy()
@@ -177,31 +187,66 @@ def test_an_elastic_runs_start_copy_keeps_no_material_state(name, overrides, mon
     copies = [sim.integrator._start] + ([sim.integrator._y1] if overrides else [])
     assert [c.material_state.shape for c in copies] == [(sim.state.n, 0)] * len(copies)
     assert np.array_equal(sim.state.material_state, start)  # nothing moves it
-    monkeypatch.setattr(integrate, "material_state_kept", lambda options: True)
+    _all_columns_kept(monkeypatch)
     full = Simulation(case)
     full.run()
     assert full.integrator._start.material_state.shape == start.shape
-    for key, value in sim.state.arrays().items():
-        assert np.array_equal(value, full.state.arrays()[key]), key
+    _same_state(sim, full)
+
+
+@pytest.mark.parametrize("integrator", ["midpoint", "ssp_rk3"])
+def test_a_plastic_runs_start_copy_keeps_the_return_maps_columns(integrator, monkeypatch):
+    """A return map without a damage model, plane stress or axisymmetry changes the first
+    three columns of the material state (the plastic strain, its rate, the temperature):
+    the start copy keeps those, not the damage and the thickness ratio (16 bytes a
+    particle), and the run gives the same bits as with every column kept.  The Taylor bar's
+    impact face yields within its first steps, so the kept columns do move."""
+    from impactsph.models.columns import EQUIVALENT_PLASTIC_STRAIN, RETURN_MAP_COLUMNS
+
+    case = load_case("taylor", [f'time.integrator="{integrator}"', "time.max_steps=12"])
+    sim = Simulation(case)
+    start = sim.state.material_state.copy()
+    sim.run()
+    copies = [sim.integrator._start] + ([sim.integrator._y1] if integrator == "ssp_rk3"
+                                        else [])
+    assert [c.material_state.shape for c in copies] == [(sim.state.n, 3)] * len(copies)
+    assert RETURN_MAP_COLUMNS == 3
+    assert (sim.state.material_state[:, EQUIVALENT_PLASTIC_STRAIN] > 0.0).any()
+    # the columns left out of the copy never move
+    assert np.array_equal(sim.state.material_state[:, 3:], start[:, 3:])
+    _all_columns_kept(monkeypatch)
+    full = Simulation(case)
+    full.run()
+    assert full.integrator._start.material_state.shape == start.shape
+    _same_state(sim, full)
 
 
 def test_the_start_copy_keeps_the_material_state_where_a_model_changes_it():
-    """A return map (the plastic strain, its rate, the heating), a damage model, plane stress
-    (the thickness ratio) or axisymmetry (the radius) keeps the material state in the start
-    copy; the run's copy has the state's width."""
+    """A damage model, plane stress (the thickness ratio) or axisymmetry (the radius) keeps
+    the whole material state in the start copy, a return map alone its first three
+    columns, and an elastic run none; the run's copy has that width."""
     from impactsph.integrate import material_state_kept
+    from impactsph.models import STRENGTH
     from impactsph.physics.options import PassOptions
-    from impactsph.preflight import state_kept
+    from impactsph.preflight import state_kept, state_width
 
-    assert material_state_kept(PassOptions(strength_kinds=(), damage_kinds=(1,)))
-    assert not material_state_kept(PassOptions(strength_kinds=(), damage_kinds=()))
+    plastic = (list(STRENGTH).index(STRENGTH["elastic_plastic"]),)
+    assert material_state_kept(PassOptions(strength_kinds=(), damage_kinds=(1,)), 9) == 9
+    assert material_state_kept(PassOptions(strength_kinds=plastic, damage_kinds=()), 5) == 3
+    assert material_state_kept(PassOptions(strength_kinds=plastic, damage_kinds=(),
+                                           plane_stress=True), 5) == 5
+    assert material_state_kept(PassOptions(strength_kinds=(), damage_kinds=()), 5) == 0
     taylor = "taylor"
     elastic = 'materials.iron.model="elastic"'
-    assert state_kept(load_case(taylor))
-    assert state_kept(load_case(taylor, [elastic, 'two_dimensional="plane_stress"']))
-    assert state_kept(load_case("taylor_axisymmetric", [elastic]))
-    assert not state_kept(load_case(taylor, [elastic]))
-    assert not state_kept(load_case("rings"))
-    sim = Simulation(load_case(taylor, ["time.max_steps=2"]))
+    damage = ['materials.iron.damage="johnson_cook_damage"',
+              "materials.iron.johnson_cook_damage={d1=0.05, d2=3.44, d3=-2.12}"]
+    assert state_kept(load_case(taylor)) == 3
+    assert state_kept(load_case(taylor, [elastic, 'two_dimensional="plane_stress"'])) == 5
+    assert state_kept(load_case("taylor_axisymmetric", [elastic])) == 5
+    assert state_kept(load_case(taylor, [elastic])) == 0
+    assert state_kept(load_case("rings")) == 0
+    with_damage = load_case(taylor, [*damage, "time.max_steps=2"])
+    assert state_kept(with_damage) == state_width(with_damage) > 5
+    sim = Simulation(with_damage)
     sim.run()
-    assert sim.integrator._start.material_state.shape == sim.state.material_state.shape
+    assert sim.integrator._start.material_state.shape == (sim.state.n, state_width(with_damage))

@@ -63,9 +63,10 @@ class DeviceLayout:
     ``switched``: with a switch; ``hourglass``: the hourglass control; ``ssp``: SSP-RK3;
     ``step_means``: its step's mean acceleration is kept (clamps or driven regions);
     ``compatible``: the compatible energy update; ``stretch``: ``kernel.max_stretch`` > 1;
-    ``added_inertia``: a tip mass carried as added inertia; ``state_kept``: the step's
-    start copy keeps the material state (:func:`impactsph.integrate.material_state_kept`:
-    a model changes it); ``threads_per_block``."""
+    ``added_inertia``: a tip mass carried as added inertia; ``state_kept``: how many
+    of the material state's columns the step's start copy keeps
+    (:func:`impactsph.integrate.material_state_kept`: those a model changes; None: all
+    ``strength_width``); ``threads_per_block``."""
 
     dim: int
     strength_width: int
@@ -87,7 +88,7 @@ class DeviceLayout:
     compatible: bool = False
     stretch: bool = False
     added_inertia: bool = False
-    state_kept: bool = True
+    state_kept: int | None = None
     threads_per_block: int = 128
 
     @classmethod
@@ -186,7 +187,8 @@ class DeviceLayout:
         blocks = max(1, math.ceil(n / self.threads_per_block))
         integrated = 16 * d + 8 + 8 + 72 + 8 + 8 * w + 8 * hg
         # the deviator's six components; the material state only where a model changes it
-        start = integrated - 72 + 48 - (0 if self.state_kept else 8 * w)
+        start = integrated - 72 + 48 - 8 * (w - (w if self.state_kept is None
+                                                   else self.state_kept))
         parts: dict[str, float] = {}
         parts["state"] = n * (integrated + 8 + 8 + 4 + 4 + 1 + 8 * d
                               + (16 if self.added_inertia else 0)

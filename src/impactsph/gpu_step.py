@@ -105,6 +105,7 @@ from . import boundaries, codegen, integrate
 from .gpu import RECORD_ORDER, cuda, gpu_kernels, record_columns, simulator_enabled
 from .gpu_memory import BUFFER_MARGIN, SCAN_CHUNK, DeviceLayout, arrays_of
 from .kernels import SUPPORT_RADIUS
+from .materials import TableLayout
 from .models.columns import (
     CARRIED,
     PASS_CARRIED,
@@ -223,7 +224,7 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
             e0[i] = e[i]
             store_upper(S, S0, i)
             pw0[i] = pw[i]
-            for a in range(st0.shape[1]):  # (none where no model changes them)
+            for a in range(st0.shape[1]):  # (the kept columns: those a model changes)
                 st0[i, a] = st[i, a]
             for a in range(hg.shape[1]):
                 hg0[i, a] = hg[i, a]
@@ -1149,7 +1150,7 @@ class ResidentStep:
             step_means=self.drivers is not None or self.clamped_rows.shape[0] > 0,
             compatible=self.compatible, stretch=self.max_stretch > 1.0,
             added_inertia=self.fraction is not None,
-            state_kept=int(self.start["material_state"].shape[1]) > 0, threads_per_block=self.tpb)
+            state_kept=int(self.start["material_state"].shape[1]), threads_per_block=self.tpb)
 
     def allocated(self) -> dict[int, tuple[int, str]]:
         """Every device allocation this run holds (the rate backend's too), each once:
@@ -1163,14 +1164,14 @@ class ResidentStep:
         self.now = {f: empty(getattr(state, f).shape, getattr(state, f).dtype, stream=s)
                     for f in INTEGRATED}
         # the deviator's start copy: its six components (the advance's S0); the material
-        # state's none of its columns where no model changes it (the CPU's start copy's:
+        # state's first columns, those a model changes (the CPU's start copy's:
         # impactsph.integrate.material_state_kept)
         kept = integrate.material_state_kept(integrate.stage_options(
-            table, self.options.plane_stress, self.options.axisymmetric))
+            table, self.options.plane_stress, self.options.axisymmetric),
+            TableLayout.registered().state_width_of_table(table))
         shapes = {f: getattr(state, f).shape for f in INTEGRATED}
         shapes["deviatoric_stress"] = (n, 6)
-        if not kept:
-            shapes["material_state"] = (n, 0)
+        shapes["material_state"] = (n, kept)
 
         def integrated_copy() -> dict:
             return {f: empty(shapes[f], getattr(state, f).dtype, stream=s) for f in INTEGRATED}

@@ -23,6 +23,7 @@ import numpy as np
 from .jitcache import njit_variant
 from .materials import DAMAGE_KIND, EOS_KIND, STRENGTH_KIND, TableLayout
 from .models import DAMAGE, STRENGTH
+from .models.columns import RETURN_MAP_COLUMNS
 from .physics.borrow import borrowed
 from .physics.chunked import run_chunked, threads_for
 from .physics.options import PassOptions, parallel_default
@@ -139,17 +140,31 @@ def stage_options(table: np.ndarray, plane_stress: bool = False,
         eos_kinds=tuple(sorted({int(k) for k in table[:, EOS_KIND]})))
 
 
-def material_state_kept(options: PassOptions) -> bool:
-    """Whether a stage of the passes' module of stage ``options`` (:func:`stage_options`)
-    changes the material state, so that the integrator keeps it in the step's start copy: a
-    strength model with a return map or a damage model with an update (each writes its
-    columns, and the plastic work heats), plane stress (the thickness ratio) or axisymmetry
-    (the radius).  Where none does (elastic materials, in 1D, plane strain or 3D), the
-    stage's copies, restores and combinations of it have nothing to do, and the start keeps
-    none of its columns: 40 bytes a particle less (the 5 common columns), 80 with SSP-RK3's
-    second copy."""
-    return bool(options.strength_kinds or options.damage_kinds or options.plane_stress
-                or options.axisymmetric)
+def material_state_kept(options: PassOptions, width: int) -> int:
+    """How many of the material state's first columns (of its ``width``) a stage of the
+    passes' module of stage ``options`` (:func:`stage_options`) changes, and so how many the
+    integrator keeps in the step's start copy (the stages restore those and leave the rest,
+    which no stage writes):
+
+    - all of them with a damage model with an update (its own columns are the last),
+      plane stress (the thickness ratio), axisymmetry (the radius) or a strength model with
+      a state of its own (its block follows the common columns);
+    - with a return map and none of those, the first three (:data:`RETURN_MAP_COLUMNS`: the
+      equivalent plastic strain, its rate, and the temperature the plastic work heats): the
+      damage and the thickness ratio stay as they were set, 16 bytes a particle less (32
+      with SSP-RK3's second copy);
+    - none where no model changes the state (elastic materials, in 1D, plane strain or 3D):
+      40 bytes a particle less (the 5 common columns), 80 with SSP-RK3.
+
+    The stage's restore, the step's combination and the device's copies loop over the kept
+    columns (the copy's own width), so a prefix serves them all."""
+    strength = list(STRENGTH)
+    if (options.damage_kinds or options.plane_stress or options.axisymmetric
+            or any(strength[k].state for k in options.strength_kinds)):
+        return width
+    if options.strength_kinds:
+        return min(RETURN_MAP_COLUMNS, width)
+    return 0
 
 
 def stable_time_step(state: ParticleState, table: np.ndarray, courant: float,
@@ -192,7 +207,7 @@ def combine_particle(i, keep, weight, x, v, rho, e, S, plastic_work, state, hg, 
         for b in range(3):
             S[i, a, b] = S[i, a, b] * keep + weight * S0[i, UPPER[a][b]]
     plastic_work[i] = plastic_work[i] * keep + weight * pw0[i]
-    for c in range(state0.shape[1]):  # (none kept where no model changes them)
+    for c in range(state0.shape[1]):  # (the kept columns: those a model changes)
         state[i, c] = state[i, c] * keep + weight * state0[i, c]
     for a in range(hg.shape[1]):
         hg[i, a] = hg[i, a] * keep + weight * hg0[i, a]
@@ -267,8 +282,10 @@ class MidpointIntegrator:
         self.n_active = n_active
         #: the options of the passes' module whose stage this integrator runs
         self.stage_options = stage_options(table, plane_stress, axisymmetric)
-        #: whether the step's start copy keeps the material state (:func:`material_state_kept`)
-        self.material_state_kept = material_state_kept(self.stage_options)
+        #: how many of the material state's first columns the step's start copy keeps
+        #: (:func:`material_state_kept`: those a stage changes)
+        self.material_state_kept = material_state_kept(
+            self.stage_options, TableLayout.registered().state_width_of_table(table))
         self._stage_pass = compiled_passes(dim, options=self.stage_options).stage
         self.survey_kernel = _survey_kernel(dim)
         #: the hourglass control's zeta, which the survey's signal speed includes
@@ -325,13 +342,15 @@ class MidpointIntegrator:
             buf = SimpleNamespace(**{f: np.empty_like(getattr(state, f))
                                      for f in self.INTEGRATED if f != "deviatoric_stress"})
             buf.deviatoric_stress = np.empty((state.n, 6))
-            if not self.material_state_kept:  # (no model changes it: no columns kept)
-                buf.material_state = np.empty((state.n, 0))
+            # (the columns a stage changes: none where no model does)
+            buf.material_state = np.empty((state.n, self.material_state_kept))
             setattr(self, name, buf)
         if not copy:
             return buf
         for f in self.INTEGRATED:
-            if f != "deviatoric_stress" and (f != "material_state" or self.material_state_kept):
+            if f == "material_state":
+                np.copyto(buf.material_state, state.material_state[:, :self.material_state_kept])
+            elif f != "deviatoric_stress":
                 np.copyto(getattr(buf, f), getattr(state, f))
         keep_upper(state.deviatoric_stress, buf.deviatoric_stress)
         return buf

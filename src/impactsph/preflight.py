@@ -380,7 +380,7 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
                     corrected: bool = False, walls: bool = False, contact: bool = False,
                     hourglass: bool = False,
                     force_correction: bool = False, strength_width: int = 1,
-                    state_kept: bool = True, snapshots: int = 0, history_values: int = 0,
+                    state_kept: int | None = None, snapshots: int = 0, history_values: int = 0,
                     compatible: bool = False, switched: bool = False,
                     gpu_state: bool = False) -> float:
     """Peak bytes of a run of ``n`` particles (``ghosts`` more in the sums) with ``neighbours``
@@ -388,9 +388,9 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
 
     - per particle: the state (:func:`state_bytes`; 16 bytes less without a switch, whose
       factor and memory are then views of one number), the integrator's copy of its integrated
-      fields (the material state only with ``state_kept``, where a model changes it:
-      :func:`state_kept`), and ``snapshots`` copies of the state (plus the pressure) kept for
-      ``snapshots.npz``;
+      fields (of the material state the first ``state_kept`` columns, those a model
+      changes: :func:`state_kept`; None: all ``strength_width``), and ``snapshots`` copies
+      of the state (plus the pressure) kept for ``snapshots.npz``;
     - per particle and ghost: the rate buffers (``RateBuffers``), the packed particle records
       (unpadded: 10 to 22 doubles without the optional columns, the viscous acceleration's
       only with a correction or a switch), the extended arrays of the wall ghosts (with
@@ -417,7 +417,8 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     d = dim
     state = state_bytes(d, strength_width, hourglass)
     # x, v, rho, e, the deviator's six components, plastic work, material state
-    integrator = 16 * d + 72 + (8 * strength_width if state_kept else 0) \
+    kept = strength_width if state_kept is None else state_kept
+    integrator = 16 * d + 72 + 8 * kept \
         + (8 * d if hourglass else 0)
     snapshot = state + 8
     # without a switch the state's viscosity factor and memory are views of one number
@@ -626,12 +627,13 @@ def case_stage_options(case: Case) -> Any:
                          case.two_dimensional == "axisymmetric")
 
 
-def state_kept(case: Case) -> bool:
-    """Whether the case's step keeps its material state in the start copy
-    (:func:`impactsph.integrate.material_state_kept`: a model of its materials changes it)."""
+def state_kept(case: Case) -> int:
+    """How many of the case's material state's columns its step keeps in the start copy
+    (:func:`impactsph.integrate.material_state_kept`: those a model of its materials
+    changes)."""
     from .integrate import material_state_kept
 
-    return material_state_kept(case_stage_options(case))
+    return material_state_kept(case_stage_options(case), state_width(case))
 
 
 def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None = None,

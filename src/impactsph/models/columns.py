@@ -34,6 +34,10 @@ COMMON_STATE = ("equivalent_plastic_strain", "plastic_strain_rate", "temperature
                 "thickness_ratio")
 #: the number of common columns
 CARRIED = len(COMMON_STATE)
+#: the common columns a return map changes, the first ones: the equivalent plastic strain,
+#: its rate and the temperature its plastic work heats (the step's start copy keeps these
+#: where no other model changes the state: :func:`impactsph.integrate.material_state_kept`)
+RETURN_MAP_COLUMNS = TEMPERATURE + 1
 #: the rate passes' ``carried`` array (every row, ghosts included): the common columns, then,
 #: for a viscosity scheme with a switch, the particle's viscosity factor and its switch's
 #: memory (``ParticleState.viscosity_factor``, ``ParticleState.viscosity_memory``; neither is

@@ -1431,7 +1431,7 @@ def advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, 
     for a in range(3):  # S0 and dS: six components each (a symmetric tensor's upper triangle)
         for b in range(3):
             S[i, a, b] = S0[i, UPPER[a][b]] + dt * dS[i, UPPER[a][b]]
-    if restore:  # (the kept columns: none where no model changes them, material_state_kept)
+    if restore:  # (the kept columns: those a model changes, material_state_kept)
         for c in range(state0.shape[1]):  # the case's width (TableLayout.state_width_of)
             state[i, c] = state0[i, c]
     for a in range(hg.shape[1]):  # the hourglass acceleration (no columns when it is off)
@@ -1752,7 +1752,7 @@ def keep_particle(i, x, v, rho, e, S, plastic_work, state, hg, x0, v0, rho0, e0,
     e0[i] = e[i]
     store_upper(S, S0, i)
     pw0[i] = plastic_work[i]
-    for c in range(state0.shape[1]):  # (none where no model changes them)
+    for c in range(state0.shape[1]):  # (the kept columns: those a model changes)
         state0[i, c] = state[i, c]
     for a in range(hg.shape[1]):
         hg0[i, a] = hg[i, a]
