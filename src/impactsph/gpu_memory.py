@@ -186,9 +186,9 @@ class DeviceLayout:
             capacity = rows + rows // 8 + 16
         blocks = max(1, math.ceil(n / self.threads_per_block))
         integrated = 16 * d + 8 + 8 + 72 + 8 + 8 * w + 8 * hg
-        # the deviator's six components; the material state only where a model changes it
-        start = integrated - 72 + 48 - 8 * (w - (w if self.state_kept is None
-                                                   else self.state_kept))
+        # the deviator's six components; of the material state the columns a model changes
+        kept = w if self.state_kept is None else self.state_kept
+        start = integrated - 72 + 48 - 8 * (w - kept)
         parts: dict[str, float] = {}
         parts["state"] = n * (integrated + 8 + 8 + 4 + 4 + 1 + 8 * d
                               + (16 if self.added_inertia else 0)
