@@ -483,8 +483,9 @@ def test_the_compile_timer_counts_numbas_compiling_once_and_only_inside():
     late = CompileTimer()
     late._end(None)
     late._start(None)
+    time.sleep(0.02)
     late._end(None)
-    assert 0.0 <= late.seconds < 0.1
+    assert 0.02 <= late.seconds < 0.5
 
 
 def test_a_runs_compile_time_is_counted_and_left_out_of_its_pair_rate():

@@ -418,8 +418,7 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     state = state_bytes(d, strength_width, hourglass)
     # x, v, rho, e, the deviator's six components, plastic work, material state
     kept = strength_width if state_kept is None else state_kept
-    integrator = 16 * d + 72 + 8 * kept \
-        + (8 * d if hourglass else 0)
+    integrator = 16 * d + 72 + 8 * kept + (8 * d if hourglass else 0)
     snapshot = state + 8
     # without a switch the state's viscosity factor and memory are views of one number
     if gpu_state:  # (the step and the records are the device's)
@@ -616,6 +615,15 @@ def state_width(case: Case) -> int:
                                                    [m.damage for m in materials])
 
 
+def reference_run(case: Case, figures: bool | None = None) -> Any:
+    """The viscosity of the reference run that a run of ``case`` draws its figures beside
+    (``output.reference_viscosity``), or None: none given, the figures off (``figures``, else
+    the case's ``output.figures``), or the case's own scheme."""
+    ref = case.output.reference_viscosity
+    drawn = case.output.figures if figures is None else figures
+    return ref if drawn and ref is not None and ref != case.viscosity else None
+
+
 def case_stage_options(case: Case) -> Any:
     """The options of the passes' module whose stage the case's runs use
     (:func:`impactsph.integrate.stage_options`: its 2D model and its materials' models)."""
@@ -677,8 +685,7 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
         switched=VISCOSITY[case.viscosity.scheme].switch is not None,
         snapshots=len(case.output.snapshot_times),
         history_values=history_values(case, steps), gpu_state=plan.resident)
-    ref = case.output.reference_viscosity
-    runs = 2 if case.output.figures and ref is not None and ref != case.viscosity else 1
+    runs = 1 if reference_run(case) is None else 2
     # the reference run's arrays are allocated while the run's are still held
     memory = BASE_MEMORY + runs * (memory - BASE_MEMORY)
     rate, source = pair_rate(plan.device, dim, stretch=_stretches(case))

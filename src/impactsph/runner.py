@@ -28,7 +28,7 @@ from .output import (
     write_snapshots,
     write_summary,
 )
-from .preflight import label_of, scheme_line
+from .preflight import label_of, reference_run, scheme_line
 from .problems.registry import analyse
 from .rundir import IfExists, RunLock, check_run_dir, clear_outputs, make_run_dir, remove_if_empty
 from .runlog import held_records, run_log
@@ -244,8 +244,8 @@ def _run(sim: Simulation, case: Case, out: Path, *,
         if stop is not None and stop():
             raise stopped()
         runs = [load_run(out)]
-        ref = case.output.reference_viscosity
-        if ref is not None and ref != case.viscosity:
+        ref = reference_run(case, figures=True)
+        if ref is not None:
             ref_case = case.model_copy(update={
                 "viscosity": ref,
                 "output": case.output.model_copy(update={"figures": False,

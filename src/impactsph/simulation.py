@@ -810,15 +810,10 @@ def compile_case(dim: int, like: Case | None = None) -> dict:
                                          "spacing": 1e-3}}],
                 "boundaries": [wall], "viscosity": {"scheme": "ac"},
                 "time": {"end": 1.0, "max_steps": 1}, "output": {"figures": False}}
-    from .preflight import count_particles
-
     case = like.model_dump(mode="json", exclude={"description"})
     case["name"] = f"compile_{dim}d_like_{like.name}"
     case["analysis"] = "none"
-    try:
-        counts = count_particles(like)
-    except (OSError, ValueError):  # (a particle file that cannot be read: the smallest)
-        counts = [0] * len(like.bodies)
+    counts = _counts(like)
     share = COMPILE_PARTICLES // len(like.bodies)
     bodies, start = [], 0.0
     for k, body in enumerate(like.bodies):
@@ -844,6 +839,17 @@ def compile_case(dim: int, like: Case | None = None) -> dict:
     return case
 
 
+def _counts(case: Case) -> list[int]:
+    """The particles of each of the case's bodies (0 for a body whose particle file cannot be
+    read: compiling ahead then takes the smallest copy)."""
+    from .preflight import count_particles
+
+    try:
+        return count_particles(case)
+    except (OSError, ValueError):
+        return [0] * len(case.bodies)
+
+
 def compile_key(case: Case) -> tuple:
     """What of ``case`` chooses the code its runs compile, so that a sweep calls
     :func:`compile_kernels` once for each (not for each value of a number that the compiled
@@ -854,17 +860,12 @@ def compile_key(case: Case) -> tuple:
     which side of the passes' size thresholds its particle count is on (what
     :func:`compile_case`'s copy compiles)."""
     from .physics import passes
-    from .preflight import case_stage_options, count_particles
+    from .preflight import case_stage_options, reference_run
     from .solver import CHUNK
 
-    schemes = [case.viscosity]
-    reference = case.output.reference_viscosity
-    if case.output.figures and reference is not None and reference != case.viscosity:
-        schemes.append(reference)
-    try:
-        n = sum(count_particles(case))
-    except (OSError, ValueError):
-        n = 0
+    reference = reference_run(case)
+    schemes = [case.viscosity] + ([] if reference is None else [reference])
+    n = sum(_counts(case))
     return (case.dimension, case.formulation, tuple(case.plugins),
             frozenset((v.scheme, PassOptions.of_case(case.model_copy(update={"viscosity": v}))
                        .compiled()) for v in schemes),
@@ -886,13 +887,14 @@ def compile_kernels(dim: int, like: Case | None = None) -> None:
     (a setting that needs its own geometry, say) is logged and the elastic block is run
     instead: the runs then compile what it lacks themselves."""
     from .loading import validate_case
+    from .preflight import reference_run
 
     cases = []
     if like is not None:
         copy = compile_case(dim, like)
         cases.append(copy)
-        reference = like.output.reference_viscosity
-        if like.output.figures and reference is not None and reference != like.viscosity:
+        reference = reference_run(like)
+        if reference is not None:
             cases.append({**copy, "name": copy["name"] + "_reference",
                           "viscosity": reference.model_dump(mode="json")})
     try:

@@ -1431,8 +1431,8 @@ def advance_particle(i, dt, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv, 
     for a in range(3):  # S0 and dS: six components each (a symmetric tensor's upper triangle)
         for b in range(3):
             S[i, a, b] = S0[i, UPPER[a][b]] + dt * dS[i, UPPER[a][b]]
-    if restore:  # (the kept columns: those a model changes, material_state_kept)
-        for c in range(state0.shape[1]):  # the case's width (TableLayout.state_width_of)
+    if restore:  # the kept columns: those a model changes (material_state_kept)
+        for c in range(state0.shape[1]):
             state[i, c] = state0[i, c]
     for a in range(hg.shape[1]):  # the hourglass acceleration (no columns when it is off)
         hg[i, a] = hg0[i, a] + dt * dhg[i, a]
