@@ -162,7 +162,7 @@ def _all_columns_kept(monkeypatch) -> None:
     """The step's start copy keeps every column of the case's material state."""
     from impactsph import integrate
 
-    monkeypatch.setattr(integrate, "material_state_kept", lambda options, width: width)
+    monkeypatch.setattr(integrate, "material_state_kept", lambda options, width, heats=True: width)
 
 
 def _same_state(a: Simulation, b: Simulation) -> None:
@@ -194,26 +194,44 @@ def test_an_elastic_runs_start_copy_keeps_no_material_state(name, overrides, mon
     _same_state(sim, full)
 
 
-@pytest.mark.parametrize("integrator", ["midpoint", "ssp_rk3"])
-def test_a_plastic_runs_start_copy_keeps_the_return_maps_columns(integrator, monkeypatch):
-    """A return map without a damage model, plane stress or axisymmetry changes the first
-    three columns of the material state (the plastic strain, its rate, the temperature):
-    the start copy keeps those, not the damage and the thickness ratio (16 bytes a
-    particle), and the run gives the same bits as with every column kept.  The Taylor bar's
-    impact face yields within its first steps, so the kept columns do move."""
-    from impactsph.models.columns import EQUIVALENT_PLASTIC_STRAIN, RETURN_MAP_COLUMNS
+HEATING = ["materials.iron.specific_heat=452.0"]  # beta / c_p: the plastic work heats
 
-    case = load_case("taylor", [f'time.integrator="{integrator}"', "time.max_steps=12"])
+
+@pytest.mark.parametrize("integrator, heating", [("midpoint", []), ("ssp_rk3", []),
+                                                 ("midpoint", HEATING)],
+                         ids=["midpoint", "ssp_rk3", "heating"])
+def test_a_plastic_runs_start_copy_keeps_the_return_maps_columns(integrator, heating,
+                                                                  monkeypatch):
+    """A return map without a damage model, plane stress or axisymmetry changes the first
+    columns of the material state only: the plastic strain and its rate, and the temperature
+    where its material heats (a specific heat given).  The start copy keeps those, two or
+    three columns, not the others (24 or 16 bytes a particle), and the run gives the same
+    bits as with every column kept.  The Taylor bar's impact face yields within its first
+    steps, so the kept columns do move; its iron has no specific heat, so its temperature
+    stays unless one is given."""
+    from impactsph.models.columns import (
+        EQUIVALENT_PLASTIC_STRAIN,
+        PLASTIC_COLUMNS,
+        RETURN_MAP_COLUMNS,
+        TEMPERATURE,
+    )
+
+    case = load_case("taylor", [f'time.integrator="{integrator}"', "time.max_steps=12",
+                                *heating])
+    kept = RETURN_MAP_COLUMNS if heating else PLASTIC_COLUMNS
+    assert (RETURN_MAP_COLUMNS, PLASTIC_COLUMNS) == (3, 2)
     sim = Simulation(case)
     start = sim.state.material_state.copy()
     sim.run()
     copies = [sim.integrator._start] + ([sim.integrator._y1] if integrator == "ssp_rk3"
                                         else [])
-    assert [c.material_state.shape for c in copies] == [(sim.state.n, 3)] * len(copies)
-    assert RETURN_MAP_COLUMNS == 3
+    assert [c.material_state.shape for c in copies] == [(sim.state.n, kept)] * len(copies)
     assert (sim.state.material_state[:, EQUIVALENT_PLASTIC_STRAIN] > 0.0).any()
+    # the temperature moves where the material heats
+    assert (sim.state.material_state[:, TEMPERATURE] > start[:, TEMPERATURE]).any() \
+        == bool(heating)
     # the columns left out of the copy never move
-    assert np.array_equal(sim.state.material_state[:, 3:], start[:, 3:])
+    assert np.array_equal(sim.state.material_state[:, kept:], start[:, kept:])
     _all_columns_kept(monkeypatch)
     full = Simulation(case)
     full.run()
@@ -224,7 +242,8 @@ def test_a_plastic_runs_start_copy_keeps_the_return_maps_columns(integrator, mon
 def test_the_start_copy_keeps_the_material_state_where_a_model_changes_it():
     """A damage model, plane stress (the thickness ratio) or axisymmetry (the radius) keeps
     the whole material state in the start copy, a return map alone its first three
-    columns, and an elastic run none; the run's copy has that width."""
+    columns where its material heats and two where it does not, and an elastic run none;
+    the run's copy has that width."""
     from impactsph.integrate import material_state_kept
     from impactsph.models import STRENGTH
     from impactsph.physics.options import PassOptions
@@ -233,6 +252,10 @@ def test_the_start_copy_keeps_the_material_state_where_a_model_changes_it():
     plastic = (list(STRENGTH).index(STRENGTH["elastic_plastic"]),)
     assert material_state_kept(PassOptions(strength_kinds=(), damage_kinds=(1,)), 9) == 9
     assert material_state_kept(PassOptions(strength_kinds=plastic, damage_kinds=()), 5) == 3
+    assert material_state_kept(PassOptions(strength_kinds=plastic, damage_kinds=()), 5,
+                               heats=False) == 2
+    assert material_state_kept(PassOptions(strength_kinds=plastic, damage_kinds=(),
+                                           plane_stress=True), 5, heats=False) == 5
     assert material_state_kept(PassOptions(strength_kinds=plastic, damage_kinds=(),
                                            plane_stress=True), 5) == 5
     assert material_state_kept(PassOptions(strength_kinds=(), damage_kinds=()), 5) == 0
@@ -240,7 +263,8 @@ def test_the_start_copy_keeps_the_material_state_where_a_model_changes_it():
     elastic = 'materials.iron.model="elastic"'
     damage = ['materials.iron.damage="johnson_cook_damage"',
               "materials.iron.johnson_cook_damage={d1=0.05, d2=3.44, d3=-2.12}"]
-    assert state_kept(load_case(taylor)) == 3
+    assert state_kept(load_case(taylor)) == 2  # the paper's iron: no specific heat
+    assert state_kept(load_case(taylor, HEATING)) == 3
     assert state_kept(load_case(taylor, [elastic, 'two_dimensional="plane_stress"'])) == 5
     assert state_kept(load_case("taylor_axisymmetric", [elastic])) == 5
     assert state_kept(load_case(taylor, [elastic])) == 0

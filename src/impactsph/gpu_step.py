@@ -105,7 +105,6 @@ from . import boundaries, codegen, integrate
 from .gpu import RECORD_ORDER, cuda, gpu_kernels, record_columns, simulator_enabled
 from .gpu_memory import BUFFER_MARGIN, SCAN_CHUNK, DeviceLayout, arrays_of
 from .kernels import SUPPORT_RADIUS
-from .materials import TableLayout
 from .models.columns import (
     CARRIED,
     PASS_CARRIED,
@@ -1165,10 +1164,9 @@ class ResidentStep:
                     for f in INTEGRATED}
         # the deviator's start copy: its six components (the advance's S0); the material
         # state's first columns, those a model changes (the CPU's start copy's:
-        # impactsph.integrate.material_state_kept)
-        kept = integrate.material_state_kept(integrate.stage_options(
-            table, self.options.plane_stress, self.options.axisymmetric),
-            TableLayout.registered().state_width_of_table(table))
+        # impactsph.integrate.state_kept_of_table)
+        kept = integrate.state_kept_of_table(integrate.stage_options(
+            table, self.options.plane_stress, self.options.axisymmetric), table)
         shapes = {f: getattr(state, f).shape for f in INTEGRATED}
         shapes["deviatoric_stress"] = (n, 6)
         shapes["material_state"] = (n, kept)

@@ -21,9 +21,9 @@ import numba as nb
 import numpy as np
 
 from .jitcache import njit_variant
-from .materials import DAMAGE_KIND, EOS_KIND, STRENGTH_KIND, TableLayout
+from .materials import DAMAGE_KIND, EOS_KIND, HEAT_PER_WORK, STRENGTH_KIND, TableLayout
 from .models import DAMAGE, STRENGTH
-from .models.columns import RETURN_MAP_COLUMNS
+from .models.columns import PLASTIC_COLUMNS, RETURN_MAP_COLUMNS
 from .physics.borrow import borrowed
 from .physics.chunked import run_chunked, threads_for
 from .physics.options import PassOptions, parallel_default
@@ -140,7 +140,7 @@ def stage_options(table: np.ndarray, plane_stress: bool = False,
         eos_kinds=tuple(sorted({int(k) for k in table[:, EOS_KIND]})))
 
 
-def material_state_kept(options: PassOptions, width: int) -> int:
+def material_state_kept(options: PassOptions, width: int, heats: bool = True) -> int:
     """How many of the material state's first columns (of its ``width``) a stage of the
     passes' module of stage ``options`` (:func:`stage_options`) changes, and so how many the
     integrator keeps in the step's start copy (the stages restore those and leave the rest,
@@ -152,7 +152,10 @@ def material_state_kept(options: PassOptions, width: int) -> int:
     - with a return map and none of those, the first three (:data:`RETURN_MAP_COLUMNS`: the
       equivalent plastic strain, its rate, and the temperature the plastic work heats): the
       damage and the thickness ratio stay as they were set, 16 bytes a particle less (32
-      with SSP-RK3's second copy);
+      with SSP-RK3's second copy); the first two (:data:`PLASTIC_COLUMNS`) where no
+      material that yields ``heats`` (no specific heat, or no Taylor-Quinney factor: the
+      stage adds ``beta / c_p`` times the plastic work, 0, to the temperature), 8 bytes
+      less again (:func:`state_kept_of_table`);
     - none where no model changes the state (elastic materials, in 1D, plane strain or 3D):
       40 bytes a particle less (the 5 common columns), 80 with SSP-RK3.
 
@@ -163,8 +166,19 @@ def material_state_kept(options: PassOptions, width: int) -> int:
             or any(strength[k].state for k in options.strength_kinds)):
         return width
     if options.strength_kinds:
-        return min(RETURN_MAP_COLUMNS, width)
+        return min(RETURN_MAP_COLUMNS if heats else PLASTIC_COLUMNS, width)
     return 0
+
+
+def state_kept_of_table(options: PassOptions, table: np.ndarray) -> int:
+    """:func:`material_state_kept` for a run of the material ``table`` whose stage has
+    ``options`` (:func:`stage_options`): the table's state width, and whether a material
+    with a return map heats (its ``beta / c_p``, :data:`HEAT_PER_WORK`, above 0)."""
+    strength = list(STRENGTH)
+    heats = any(row[HEAT_PER_WORK] > 0.0
+                and strength[int(row[STRENGTH_KIND])].return_map is not None for row in table)
+    return material_state_kept(options, TableLayout.registered().state_width_of_table(table),
+                               heats)
 
 
 def stable_time_step(state: ParticleState, table: np.ndarray, courant: float,
@@ -284,8 +298,7 @@ class MidpointIntegrator:
         self.stage_options = stage_options(table, plane_stress, axisymmetric)
         #: how many of the material state's first columns the step's start copy keeps
         #: (:func:`material_state_kept`: those a stage changes)
-        self.material_state_kept = material_state_kept(
-            self.stage_options, TableLayout.registered().state_width_of_table(table))
+        self.material_state_kept = state_kept_of_table(self.stage_options, table)
         self._stage_pass = compiled_passes(dim, options=self.stage_options).stage
         self.survey_kernel = _survey_kernel(dim)
         #: the hourglass control's zeta, which the survey's signal speed includes

@@ -624,24 +624,34 @@ def reference_run(case: Case, figures: bool | None = None) -> Any:
     return ref if drawn and ref is not None and ref != case.viscosity else None
 
 
-def case_stage_options(case: Case) -> Any:
-    """The options of the passes' module whose stage the case's runs use
-    (:func:`impactsph.integrate.stage_options`: its 2D model and its materials' models)."""
-    from .integrate import stage_options
+def _case_table(case: Case) -> np.ndarray:
+    """The case's material table (:func:`impactsph.materials.material_table`)."""
     from .materials import case_materials, material_table
 
-    table = material_table(case_materials(case), case.time.wave_speed)
+    return material_table(case_materials(case), case.time.wave_speed)
+
+
+def _table_stage_options(case: Case, table: np.ndarray) -> Any:
+    from .integrate import stage_options
+
     return stage_options(table, case.two_dimensional == "plane_stress",
                          case.two_dimensional == "axisymmetric")
 
 
+def case_stage_options(case: Case) -> Any:
+    """The options of the passes' module whose stage the case's runs use
+    (:func:`impactsph.integrate.stage_options`: its 2D model and its materials' models)."""
+    return _table_stage_options(case, _case_table(case))
+
+
 def state_kept(case: Case) -> int:
     """How many of the case's material state's columns its step keeps in the start copy
-    (:func:`impactsph.integrate.material_state_kept`: those a model of its materials
+    (:func:`impactsph.integrate.state_kept_of_table`: those a model of its materials
     changes)."""
-    from .integrate import material_state_kept
+    from .integrate import state_kept_of_table
 
-    return material_state_kept(case_stage_options(case), state_width(case))
+    table = _case_table(case)
+    return state_kept_of_table(_table_stage_options(case, table), table)
 
 
 def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None = None,

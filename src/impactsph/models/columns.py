@@ -38,6 +38,9 @@ CARRIED = len(COMMON_STATE)
 #: its rate and the temperature its plastic work heats (the step's start copy keeps these
 #: where no other model changes the state: :func:`impactsph.integrate.material_state_kept`)
 RETURN_MAP_COLUMNS = TEMPERATURE + 1
+#: of those, the ones a return map changes where its material does not heat (no specific
+#: heat: the equivalent plastic strain and its rate)
+PLASTIC_COLUMNS = PLASTIC_STRAIN_RATE + 1
 #: the rate passes' ``carried`` array (every row, ghosts included): the common columns, then,
 #: for a viscosity scheme with a switch, the particle's viscosity factor and its switch's
 #: memory (``ParticleState.viscosity_factor``, ``ParticleState.viscosity_memory``; neither is

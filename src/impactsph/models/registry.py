@@ -86,10 +86,11 @@ class StrengthModel:
     strain and its rate, which the model updates, the temperature, the damage), ``own`` its
     values of this model's ``state`` fields (views), changed in place; ``dt`` the stage's time
     step (s).  Of the common state a return map writes the plastic strain and its rate
-    only: the integrator restores those and the temperature (the first three columns,
-    ``RETURN_MAP_COLUMNS``) and ``own`` at the start of each stage, as it does the stress,
-    and not the damage or the thickness ratio unless a damage model, plane stress or
-    axisymmetry changes them (:func:`impactsph.integrate.material_state_kept`).
+    only: the integrator restores those (the first two columns, ``PLASTIC_COLUMNS``), the
+    temperature where a material that yields heats (the first three, ``RETURN_MAP_COLUMNS``)
+    and ``own`` at the start of each stage, as it does the stress, and not the damage or the
+    thickness ratio unless a damage model, plane stress or axisymmetry changes them
+    (:func:`impactsph.integrate.material_state_kept`).
     The integrator then heats the particle by ``beta / c_p`` times the returned work.
     ``None``: the stress is left as it is (elastic).
 
