@@ -149,6 +149,27 @@ def test_the_added_mass_is_inertia_not_volume():
     assert not heavy.added_mass.any()
 
 
+def test_a_run_without_added_mass_holds_no_array_of_it():
+    """Where no particle carries added mass the run holds the added masses as a read-only
+    view of one zero (8 bytes a particle less): the survey, the stage and the books read the
+    inertia, then the masses themselves, not a copy.  A tip mass carried as inertia keeps
+    its array."""
+    plain = Simulation(validate_case(struck_bar(50, "particle_mass")
+                                     | {"time": {"end": 1e-6}}))
+    added = plain.state.added_mass
+    assert added.shape == (50,) and added.strides == (0,) and not added.flags.writeable
+    assert plain.state.inertial_mass is plain.state.mass
+    with pytest.raises(ValueError, match="read-only"):
+        added[0] = 1.0
+    plain.run()
+    assert plain.integrator._inertia is plain.state.mass
+    carried = Simulation(validate_case(struck_bar(50) | {"time": {"end": 1e-6}}))
+    assert carried.state.added_mass.flags.writeable
+    assert carried.state.added_mass.sum() == pytest.approx(G)
+    np.testing.assert_array_equal(carried.state.inertial_mass,
+                                  carried.state.mass + carried.state.added_mass)
+
+
 def test_added_mass_survives_a_checkpoint(tmp_path):
     case = validate_case(struck_bar(50) | {"time": {"end": 2e-6}})
     sim = Simulation(case)

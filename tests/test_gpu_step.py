@@ -226,7 +226,7 @@ def test_the_survey_on_the_device_is_the_cpus(resident_comparison, spoil):
     _, report, _, _ = resident_comparison
     x, v, rho, e, S, m, h, material, table, walls = _survey_input(spoil)
     n = x.shape[0]
-    dt, sums, bad = _survey_kernel(2)(n, x, v, rho, e, S, m, np.zeros(n), h, material, table,
+    dt, sums, bad = _survey_kernel(2)(n, x, v, rho, e, S, m, m, h, material, table,
                                       0.3, 0.0, walls.points, walls.normals)
     got_dt, got_sums, got_bad = report["survey"][str(spoil)]
     behind = np.flatnonzero(walls.distances(x).min(axis=1) < 0.0)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from impactsph import Simulation, load_case
-from impactsph.integrate import _inertia, run_stage, stage_options
+from impactsph.integrate import run_stage, stage_options
 from impactsph.materials import EOS_KIND
 from impactsph.models.columns import THICKNESS_RATIO
 from impactsph.physics.rates import compiled_passes
@@ -46,10 +46,10 @@ def test_the_stage_in_one_pass_is_the_stage_then_the_walls_then_the_survey(overr
         s.material_state[:, THICKNESS_RATIO] = 0.9
     rates = [np.array(r) for r in sim.solver.rates(s)]
     dt = 0.3 * it.survey_kernel(s.n, s.position, s.velocity, s.material_density,
-                                s.specific_energy, s.deviatoric_stress, s.mass, s.added_mass,
+                                s.specific_energy, s.deviatoric_stress, s.mass, s.inertial_mass,
                                 s.smoothing_length, s.material, it.table, 1.0,
                                 it.hourglass, *it.planes)[0]
-    it._inertia = _inertia(s)
+    it._inertia = s.inertial_mass
     # apart: the step's start copy (numpy's), the stage alone (no walls, no survey), the
     # walls' pass, the survey's pass
     apart = s.copy()
@@ -62,12 +62,12 @@ def test_the_stage_in_one_pass_is_the_stage_then_the_walls_then_the_survey(overr
         start.plastic_work, start.material_state, start.hourglass_acceleration,
         start.velocity, *rates, apart.clamped, apart.material, it.table, apart.smoothing_length,
         *(getattr(apart, f) for f in FIELDS), np.zeros((0, dim)), np.zeros((0, dim)),
-        it._inertia, np.zeros_like(it._wall_parts), False, apart.mass, apart.added_mass,
+        it._inertia, np.zeros_like(it._wall_parts), False, apart.mass,
         it.hourglass, np.zeros_like(it._survey_parts), np.zeros_like(it._bad_of))
     moved, impulse = sim.walls.enforce(apart.position, apart.velocity, it._inertia)
     expected = it.survey_kernel(apart.n, apart.position, apart.velocity,
                                 apart.material_density, apart.specific_energy,
-                                apart.deviatoric_stress, apart.mass, apart.added_mass,
+                                apart.deviatoric_stress, apart.mass, apart.inertial_mass,
                                 apart.smoothing_length, apart.material, it.table, 1.0,
                                 it.hourglass, *it.planes)
     # in one pass, the start copy made by the stage itself
@@ -100,7 +100,7 @@ def test_the_stages_survey_finds_the_first_bad_value_and_needs_no_thread_count()
     rates = [np.array(r) for r in sim.solver.rates(s)]
     s.specific_energy[[900, 31]] = np.nan
     s.velocity[1200, 1] = np.inf
-    it._inertia = _inertia(s)
+    it._inertia = s.inertial_mass
     results = []
     threads = numba.get_num_threads()
     try:
@@ -119,7 +119,7 @@ def test_the_stages_survey_finds_the_first_bad_value_and_needs_no_thread_count()
     assert bad == 0 * s.n + 1200
     expected = it.survey_kernel(state.n, state.position, state.velocity,
                                 state.material_density, state.specific_energy,
-                                state.deviatoric_stress, state.mass, state.added_mass,
+                                state.deviatoric_stress, state.mass, state.inertial_mass,
                                 state.smoothing_length, state.material, it.table, 1.0, 0.0,
                                 *it.planes)
     assert (step, bad) == (expected[0], expected[2])
@@ -162,7 +162,7 @@ def test_a_particle_behind_a_wall_is_the_surveys_last_kind_of_bad_value():
 
     def survey():
         return it.survey_kernel(s.n, s.position, s.velocity, s.material_density,
-                                s.specific_energy, s.deviatoric_stress, s.mass, s.added_mass,
+                                s.specific_energy, s.deviatoric_stress, s.mass, s.inertial_mass,
                                 s.smoothing_length, s.material, it.table, 1.0, 0.0,
                                 *it.planes)[2]
 
@@ -188,7 +188,7 @@ def test_the_stage_in_shares_is_the_stage_in_one(monkeypatch):
         sim = _pushed_through_the_wall([])
         s, it = sim.state, sim.integrator
         rates = [np.array(r) for r in sim.solver.rates(s)]
-        it._inertia = _inertia(s)
+        it._inertia = s.inertial_mass
         start = it._save_start(s, copy=False)
         count = it._stage(s, 2e-9, start, rates, 1.0, True, keep=True,
                           survey=True)
@@ -383,7 +383,7 @@ def test_the_survey_in_shares_is_the_survey_in_one(monkeypatch):
             results.append(it.survey_kernel(
                 planted.n, planted.position, planted.velocity, planted.material_density,
                 planted.specific_energy, planted.deviatoric_stress, planted.mass,
-                planted.added_mass, planted.smoothing_length, planted.material, it.table, 0.3,
+                planted.inertial_mass, planted.smoothing_length, planted.material, it.table, 0.3,
                 it.hourglass, *it.planes))
     (step, sums, bad), four, (_, _, bad_planted), four_planted = results
     assert bad == 6 * s.n + int(np.flatnonzero(

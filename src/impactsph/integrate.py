@@ -43,16 +43,10 @@ from .physics.survey import (
 from .state import ParticleState
 
 
-def _inertia(state: ParticleState) -> np.ndarray:
-    """``mass + added_mass`` (kg), what the books' impulses multiply: the masses themselves
-    (no copy: 8 bytes a particle) where no particle carries added mass.  Read only."""
-    return state.inertial_mass if state.added_mass.any() else state.mass
-
-
 @cache
 def _survey_kernel(dim: int):
     @njit_variant(f"{dim}d", nogil=True, error_model="numpy")
-    def survey_share(first, step, n_active, x, v, rho, e, S, m, added, h, material, table,
+    def survey_share(first, step, n_active, x, v, rho, e, S, m, inertia, h, material, table,
                      hourglass, points, normals, parts, bad_of):  # pragma: no cover (compiled)
         """Share ``first`` of ``step`` of the survey's chunks (a chunked pass,
         :mod:`impactsph.physics.chunked`): each chunk's partial survey into its row of
@@ -67,7 +61,7 @@ def _survey_kernel(dim: int):
         e = borrowed(e)
         S = borrowed(S)
         m = borrowed(m)
-        added = borrowed(added)
+        inertia = borrowed(inertia)
         h = borrowed(h)
         material = borrowed(material)
         table = borrowed(table)
@@ -82,18 +76,18 @@ def _survey_kernel(dim: int):
             checked = rows_finite(lo, hi, x, v, rho, e, S)
             for i in range(lo, hi):
                 acc = survey_particle(i, n_active, x, v, rho[i], rho, e, S, m,
-                                      m[i] + added[i], h, material, table, hourglass, points,
+                                      inertia[i], h, material, table, hourglass, points,
                                       normals, acc, checked)
             store_survey(acc, parts, bad_of, chunk)
 
     def survey(n_active: int, x: np.ndarray, v: np.ndarray, rho: np.ndarray, e: np.ndarray,
-               S: np.ndarray, m: np.ndarray, added: np.ndarray, h: np.ndarray,
+               S: np.ndarray, m: np.ndarray, inertia: np.ndarray, h: np.ndarray,
                material: np.ndarray, table: np.ndarray, courant: float, hourglass: float,
                points: np.ndarray, normals: np.ndarray) -> tuple[float, np.ndarray, int]:
         """One pass over the state: the CFL step (eq 26, with the hourglass control's
         signal speed added where ``hourglass`` (zeta) > 0:
         :data:`impactsph.physics.survey.HOURGLASS_SPEED`), kinetic
-        energy and momentum (of the mass ``m`` plus the added mass ``added``), internal
+        energy and momentum (of ``inertia``, the mass with the added mass), internal
         energy (of ``m``), and the first bad value (``rho``: the material density).  Returns
         ``(dt, sums, bad)``: ``sums = (KE, IE, p_x, p_y, p_z)``; ``bad = field * n + i`` for
         the first particle ``i`` of the first field (0 position, 1 velocity, 2 density, 3
@@ -112,7 +106,7 @@ def _survey_kernel(dim: int):
         parts = np.full((n_chunks + 1, SURVEY_WIDTH), np.nan)
         bad_of = np.full(n_chunks + 1, -1, dtype=np.int64)
         run_chunked(survey_share, threads_for(n_active, SURVEY_CHUNK, parallel_default()),
-                    n_active, x, v, rho, e, S, m, added, h, material, table,
+                    n_active, x, v, rho, e, S, m, inertia, h, material, table,
                     float(hourglass), points, normals, parts, bad_of)
         # the chunks folded in chunk order by the stage's own fold (no walls' rows)
         fold_stage(n_active, np.zeros((n_chunks + 1, 1 + dim)), True, parts, bad_of)
@@ -190,7 +184,7 @@ def stable_time_step(state: ParticleState, table: np.ndarray, courant: float,
     no_planes = np.zeros((0, state.dim))
     dt, _, _ = survey(n, state.position, state.velocity, state.material_density,
                       state.specific_energy,
-                      state.deviatoric_stress, state.mass, state.added_mass,
+                      state.deviatoric_stress, state.mass, state.inertial_mass,
                       state.smoothing_length,
                       state.material, table, courant, float(hourglass), no_planes, no_planes)
     return float(dt)
@@ -252,8 +246,8 @@ def run_stage(stage_pass: Any, threaded: bool, n_active: int, *arguments: Any) -
     (:func:`impactsph.physics.survey.fold_stage`): the same bits whatever the thread count."""
     run_chunked(stage_pass, threads_for(n_active, SURVEY_CHUNK, threaded), n_active,
                 *arguments)
-    # the stage's last arguments: walls, survey, m, added, hourglass, surveyed, bad_of
-    walls, survey, surveyed, bad_of = arguments[-7], arguments[-6], arguments[-2], arguments[-1]
+    # the stage's last arguments: walls, survey, m, hourglass, surveyed, bad_of
+    walls, survey, surveyed, bad_of = arguments[-6], arguments[-5], arguments[-2], arguments[-1]
     fold_stage(n_active, walls, survey, surveyed, bad_of)
 
 
@@ -398,7 +392,7 @@ class MidpointIntegrator:
                   state.velocity, state.density, state.specific_energy,
                   state.deviatoric_stress, state.plastic_work, state.material_state,
                   state.hourglass_acceleration, points, normals, self._inertia, walls, survey,
-                  state.mass, state.added_mass, self.hourglass, self._survey_parts,
+                  state.mass, self.hourglass, self._survey_parts,
                   self._bad_of)
         if survey:
             self.last_survey = folded_survey(self._survey_parts, self._bad_of)
@@ -450,9 +444,10 @@ class MidpointIntegrator:
 
     def _first_step(self, state: ParticleState) -> None:
         """What the steps of a run keep from its first: the masses the impulses take
-        (:func:`_inertia`: mass + added mass, impulses = inertia dv) and the clamped
+        (:attr:`~impactsph.state.ParticleState.inertial_mass`: mass + added mass, impulses
+        = inertia dv) and the clamped
         particles' rows and inertia (the supports' impulse, :meth:`_clamp_impulse`)."""
-        self._inertia = _inertia(state)
+        self._inertia = state.inertial_mass
         self._clamped_rows = np.flatnonzero(state.clamped)
         self._clamped_inertia = self._inertia[self._clamped_rows]
         self._any_clamped = self._clamped_rows.size > 0

@@ -77,10 +77,10 @@ def _speed_and_displacement(i, velocity, position, initial_position):
 
 
 @nb.njit(cache=True)
-def body_totals(body, mass, added_mass, velocity, specific_energy, plastic_work, position,
+def body_totals(body, mass, inertia, velocity, specific_energy, plastic_work, position,
                 initial_position, n_bodies):  # pragma: no cover (compiled)
-    """Per body, in one compiled pass over the particles: kinetic energy (of the mass and
-    the added mass), internal energy,
+    """Per body, in one compiled pass over the particles: kinetic energy (of ``inertia``,
+    the mass with the added mass), internal energy,
     plastic work (J) and the largest squared displacement ``|x - x0|^2`` (m^2), as the
     columns of an ``(n_bodies, 4)`` array."""
     out = np.zeros((n_bodies, 4))
@@ -88,7 +88,7 @@ def body_totals(body, mass, added_mass, velocity, specific_energy, plastic_work,
         kinetic = internal = plastic = largest = 0.0
         for i in range(body.shape[0]):
             v2, u2 = _speed_and_displacement(i, velocity, position, initial_position)
-            kinetic += 0.5 * (mass[i] + added_mass[i]) * v2
+            kinetic += 0.5 * inertia[i] * v2
             internal += mass[i] * specific_energy[i]
             plastic += mass[i] * plastic_work[i]
             if u2 > largest:
@@ -98,7 +98,7 @@ def body_totals(body, mass, added_mass, velocity, specific_energy, plastic_work,
     for i in range(body.shape[0]):
         b = body[i]
         v2, u2 = _speed_and_displacement(i, velocity, position, initial_position)
-        out[b, 0] += 0.5 * (mass[i] + added_mass[i]) * v2
+        out[b, 0] += 0.5 * inertia[i] * v2
         out[b, 1] += mass[i] * specific_energy[i]
         out[b, 2] += mass[i] * plastic_work[i]
         if u2 > out[b, 3]:
@@ -193,6 +193,11 @@ class Simulation:
                     setattr(self.state, name, np.array(getattr(self.state, name)))
             if state is None:  # a fresh start: the viscosity switch's initial factors
                 self.state.viscosity_factor[:] = scheme.initial_factor(case.viscosity)
+        if not self.state.added_mass.any():
+            # no particle carries added mass: a read-only view of one zero (8 B a particle
+            # less); the passes and the books read the inertia (ParticleState.inertial_mass:
+            # then the masses themselves), never the added masses
+            self.state.added_mass = np.broadcast_to(np.float64(0.0), (self.state.n,))
         if case.stabilisation.hourglass > 0.0 and self.state.hourglass_acceleration.shape[1] \
                 != self.state.dim:
             self.state.hourglass_acceleration = np.zeros((self.state.n, self.state.dim))
@@ -398,7 +403,7 @@ class Simulation:
             points, normals = self.integrator.planes
             dt, sums, bad = self.integrator.survey_kernel(
                 s.n, s.position, s.velocity, s.material_density, s.specific_energy,
-                s.deviatoric_stress, s.mass, s.added_mass, s.smoothing_length, s.material,
+                s.deviatoric_stress, s.mass, s.inertial_mass, s.smoothing_length, s.material,
                 self.problem.table, self.case.time.courant, self.integrator.hourglass,
                 points, normals)
         # a solver's own limit (the total-Lagrangian hourglass penalty's and walls')
@@ -443,7 +448,7 @@ class Simulation:
             if n_bodies > 1 and s.step > 0:  # the last step's mean (the device keeps it)
                 self._body_force[:] = device[:, 4: 4 + s.dim]
         else:
-            totals = body_totals(s.body, s.mass, s.added_mass, s.velocity, s.specific_energy,
+            totals = body_totals(s.body, s.mass, s.inertial_mass, s.velocity, s.specific_energy,
                                  s.plastic_work, s.position, s.initial_position, n_bodies)
         row = {"time": s.time, "step": s.step, "dt": dt, "kinetic_energy": survey.kinetic,
                "internal_energy": survey.internal,

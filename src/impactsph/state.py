@@ -112,8 +112,10 @@ class ParticleState:
 
     @property
     def inertial_mass(self) -> np.ndarray:
-        """``mass + added_mass`` (kg): what the particle's momentum and kinetic energy count."""
-        return self.mass + self.added_mass
+        """``mass + added_mass`` (kg): what the particle's momentum and kinetic energy count;
+        the masses themselves (not a copy: read it, do not write it) where no particle
+        carries added mass."""
+        return self.mass + self.added_mass if self.added_mass.any() else self.mass
 
     def inertia_fraction(self) -> np.ndarray | None:
         """``m_i / (m_i + added_i)``, the factor that turns a particle's force per own mass

@@ -1767,7 +1767,7 @@ def keep_particle(i, x, v, rho, e, S, plastic_work, state, hg, x0, v0, rho0, e0,
 @JIT(cache=True, nogil=True, error_model="numpy")
 def stage(first, step, n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg0, v_rate, dv,
           drho, de, dS, dhg, clamped, material, table, h, x, v, rho, e, S, plastic_work, state,
-          hg, points, normals, inertia, walls, survey, m, added, hourglass, surveyed, bad_of):
+          hg, points, normals, inertia, walls, survey, m, hourglass, surveyed, bad_of):
     """One integrator stage of the active particles of share ``first`` of ``step``
     (:mod:`impactsph.physics.chunked`: :func:`impactsph.integrate.run_stage` runs the shares
     and then folds the chunks' results), chunk by chunk of :data:`SURVEY_CHUNK` particles; for
@@ -1784,10 +1784,11 @@ def stage(first, step, n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg
     4. with ``survey``, the particle into its chunk's survey
        (:func:`impactsph.physics.survey.survey_particle`, its material density
        ``rho / thickness ratio`` as :attr:`impactsph.state.ParticleState.material_density`;
-       masses ``m`` and ``added``, hourglass control's ``hourglass``, a particle left behind
-       one of the planes after the constraint a bad value): ``surveyed[chunk]``,
-       ``bad_of[chunk]``, which ``fold_stage`` folds into their last rows as the survey's own
-       pass folds them (:func:`impactsph.physics.survey.fold_survey`), to the same bits.
+       masses ``m``, the masses with the added masses ``inertia``, hourglass control's
+       ``hourglass``, a particle left behind one of the planes after the constraint a bad
+       value): ``surveyed[chunk]``, ``bad_of[chunk]``, which ``fold_stage`` folds into their
+       last rows as the survey's own pass folds them
+       (:func:`impactsph.physics.survey.fold_survey`), to the same bits.
 
     Each particle's steps read and write only its own rows, so one pass gives what the
     stage, the walls' pass and the survey gave one after another.  The "numpy" error model
@@ -1815,7 +1816,7 @@ def stage(first, step, n_active, dt, keep, x0, v0, rho0, e0, S0, pw0, state0, hg
             checked = rows_finite(lo, hi, x, v, rho, e, S)
             for i in range(lo, hi):
                 acc = survey_particle(i, n_active, x, v, rho[i] / state[i, THICKNESS_RATIO],
-                                      rho, e, S, m, m[i] + added[i], h, material, table,
+                                      rho, e, S, m, inertia[i], h, material, table,
                                       hourglass, points, normals, acc, checked)
             store_survey(acc, surveyed, bad_of, chunk)
 
