@@ -173,6 +173,34 @@ def test_a_run_keeps_momentum_and_energy_and_bounds_h():
     assert ratio[high].max() < 1.02
 
 
+def test_one_length_at_t0_is_held_once_and_gives_a_copys_bits():
+    """With the stretch, a run whose particles all start with one smoothing length holds it
+    as a read-only view of that number (8 bytes a particle less) and gives the bits that a
+    copy per particle gives, its h grown where the foot spreads; lengths that differ are
+    copied."""
+    from impactsph.problem import build_problem
+
+    case = load_case("taylor", ["kernel.max_stretch=1.25", "time.end=3e-6",
+                                "output.figures=false"])
+    sim = Simulation(case)
+    h0 = sim.state.smoothing_length.copy()
+    assert sim.h_reference.strides == (0,) and not sim.h_reference.flags.writeable
+    assert sim.solver._h_reference is sim.h_reference
+    copied = Simulation(case)
+    copied.h_reference = copied.solver._h_reference = np.array(copied.h_reference)
+    for run in (sim, copied):
+        run.run()
+    assert (sim.state.smoothing_length > h0).any()  # the stretch has grown some h
+    for name, value in sim.state.arrays().items():
+        assert np.array_equal(value, copied.state.arrays()[name]), name
+    np.testing.assert_array_equal(sim.h_reference, h0)
+    problem = build_problem(case)
+    problem.state.smoothing_length[0] *= 1.01
+    uneven = Simulation(case, problem=problem)
+    assert uneven.h_reference.flags.writeable
+    np.testing.assert_array_equal(uneven.h_reference, problem.state.smoothing_length)
+
+
 @pytest.mark.parametrize("extra, field", [
     (["stabilisation.artificial_stress=0.3"], "stabilisation.artificial_stress"),
     (['formulation="total_lagrangian"', 'viscosity.scheme="av"'], "total_lagrangian"),
