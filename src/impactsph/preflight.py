@@ -372,7 +372,11 @@ def lattice_neighbours(radius_over_dx: float, dim: int) -> float:
 
 
 def state_bytes(dim: int, strength_width: int, hourglass: bool = False) -> int:
-    """Bytes per particle of :class:`impactsph.state.ParticleState` (and of a snapshot)."""
+    """Bytes per particle of :class:`impactsph.state.ParticleState` (and of a snapshot): its
+    positions, velocity, density, energy, deviator, mass, smoothing length, body, material,
+    clamp, plastic work, material state and hourglass acceleration; not a viscosity switch's
+    factor and memory, nor the added masses (views of one number in a run without a switch
+    or without added mass)."""
     return (24 * dim + 121 + 8 * strength_width + (8 * dim if hourglass else 0))
 
 
@@ -386,10 +390,10 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     """Peak bytes of a run of ``n`` particles (``ghosts`` more in the sums) with ``neighbours``
     stored neighbour-list entries per particle:
 
-    - per particle: the state (:func:`state_bytes`; 16 bytes less without a switch, whose
-      factor and memory are then views of one number), the integrator's copy of its integrated
-      fields (of the material state the first ``state_kept`` columns, those a model
-      changes: :func:`state_kept`; None: all ``strength_width``), and ``snapshots`` copies
+    - per particle: the state (:func:`state_bytes`; 16 bytes more with a switch, its factor
+      and memory, which are views of one number without one), the integrator's copy of its
+      integrated fields (of the material state the first ``state_kept`` columns, those a
+      model changes: :func:`state_kept`; None: all ``strength_width``), and ``snapshots`` copies
       of the state (plus the pressure) kept for ``snapshots.npz``;
     - per particle and ghost: the rate buffers (``RateBuffers``), the packed particle records
       (unpadded: 10 to 22 doubles without the optional columns, the viscous acceleration's
@@ -420,10 +424,10 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     kept = strength_width if state_kept is None else state_kept
     integrator = 16 * d + 72 + 8 * kept + (8 * d if hourglass else 0)
     snapshot = state + 8
-    # without a switch the state's viscosity factor and memory are views of one number
     if gpu_state:  # (the step and the records are the device's)
         integrator = 0
-    per_particle = state - (0 if switched else 16) + integrator + snapshots * snapshot
+    # without a switch the state's viscosity factor and memory are views of one number
+    per_particle = state + (16 if switched else 0) + integrator + snapshots * snapshot
     # drho, de, de_visc, the deviator's rate (six components), pair count; dv
     buffers = 76 + 8 * d + (8 * d if contact else 0) + (8 * d + 8 if corrected else 0) \
         + (8 * d + 8 * d * d if hourglass else 0)
