@@ -186,8 +186,7 @@ def material_point(material: Any, *, strain_rate: float, strain: float | None = 
 
     # the integrator's stage without walls or a survey (its arrays for those, unused)
     no_walls = (np.zeros((0, 3)), np.zeros((0, 3)), np.ones(1), np.zeros((2, 4)))
-    no_survey = (np.ones(1), np.zeros(1), 0.0, np.zeros((2, SURVEY_WIDTH)),
-                 np.zeros(2, dtype=np.int64))
+    no_survey = (np.ones(1), 0.0, np.zeros((2, SURVEY_WIDTH)), np.zeros(2, dtype=np.int64))
 
     def stage(L):
         """One forward-Euler step from the start arrays with velocity gradient L."""
