@@ -163,6 +163,11 @@ def test_a_run_without_added_mass_holds_no_array_of_it():
         added[0] = 1.0
     plain.run()
     assert plain.integrator._inertia is plain.state.mass
+    # a view of one number is read as that number, an array as its rows
+    for added, carries in ((np.broadcast_to(np.float64(2.0), (50,)), True),
+                           (np.zeros(50), False), (np.eye(1, 50, 49)[0], True)):
+        plain.state.added_mass = added
+        assert plain.state.carries_added_mass() is carries
     carried = Simulation(validate_case(struck_bar(50) | {"time": {"end": 1e-6}}))
     assert carried.state.added_mass.flags.writeable
     assert carried.state.added_mass.sum() == pytest.approx(G)
