@@ -445,8 +445,8 @@ class MidpointIntegrator:
     def _first_step(self, state: ParticleState) -> None:
         """What the steps of a run keep from its first: the masses the impulses take
         (:attr:`~impactsph.state.ParticleState.inertial_mass`: mass + added mass, impulses
-        = inertia dv) and the clamped
-        particles' rows and inertia (the supports' impulse, :meth:`_clamp_impulse`)."""
+        = inertia dv) and the clamped particles' rows and inertia (the supports' impulse,
+        :meth:`_clamp_impulse`)."""
         self._inertia = state.inertial_mass
         self._clamped_rows = np.flatnonzero(state.clamped)
         self._clamped_inertia = self._inertia[self._clamped_rows]

@@ -636,6 +636,7 @@ def _case_table(case: Case) -> np.ndarray:
 
 
 def _table_stage_options(case: Case, table: np.ndarray) -> Any:
+    """:func:`case_stage_options` from the case's ``table``, built already."""
     from .integrate import stage_options
 
     return stage_options(table, case.two_dimensional == "plane_stress",
