@@ -193,6 +193,32 @@ def test_added_mass_survives_a_checkpoint(tmp_path):
     assert bar["final_velocity"][0] == pytest.approx(momentum / (RHO * LENGTH + G))
 
 
+@pytest.mark.parametrize("carried_as", ["added_inertia", "particle_mass"])
+def test_a_checkpoint_without_the_largest_displacement_takes_the_one_now(tmp_path, carried_as):
+    """A checkpoint written before runs kept their largest displacement: the restart takes
+    the largest now (:func:`impactsph.simulation.body_totals` over the restored state), and
+    the kernel gets the inertia, an array of the masses' layout, not the read-only view of
+    the added masses (which numba would type as another layout and compile again)."""
+    import h5py
+
+    from impactsph.simulation import body_totals
+
+    data = struck_bar(50, carried_as) | {"time": {"end": 2e-6}}
+    if carried_as == "particle_mass":  # (G on one particle tears the bar's end: one of its)
+        data["bodies"][0]["tip_mass"]["mass"] = RHO * LENGTH / 50
+    sim = Simulation(validate_case(data))
+    sim.run()
+    path = write_checkpoint(sim, tmp_path / "c.h5")
+    with h5py.File(path, "r+") as f:
+        del f["accumulators"]["max_displacement"]
+    old = load_checkpoint(path, verify=False)
+    s = old.state
+    assert s.carries_added_mass() == (carried_as == "added_inertia")
+    now = np.sqrt(((s.position - s.initial_position) ** 2).sum(axis=1)).max()
+    assert now > 0.0 and old.max_displacement[0] == pytest.approx(now, rel=1e-12)
+    assert all(signature[2].layout == "C" for signature in body_totals.signatures)
+
+
 def test_a_checkpoint_of_an_older_version_keeps_its_tip_mass_in_the_masses(tmp_path):
     """A checkpoint written before 0.3 has no ``added_mass`` and its case no ``carried_as``:
     that version carried a tip mass in the particle masses, so it continues that way, and a

@@ -310,7 +310,7 @@ def load_checkpoint(path: Path | str, case: Any = None, *, verify: bool = True
             from .simulation import body_totals
 
             sim.max_displacement = np.sqrt(body_totals(
-                state.body, state.mass, state.added_mass, state.velocity,
+                state.body, state.mass, state.inertial_mass, state.velocity,
                 state.specific_energy,
                 state.plastic_work, state.position, state.initial_position,
                 len(sim.problem.body_names))[:, 3])

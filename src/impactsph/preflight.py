@@ -48,7 +48,7 @@ from .errors import CaseError
 from .initial import max_speed
 from .integrate import INTEGRATORS
 from .kernels import SUPPORT_RADIUS
-from .models.columns import PASS_CARRIED
+from .models.columns import CARRIED, PASS_CARRIED
 from .physics.records import record_columns
 
 # -- thresholds (documented in docs/case-files.md, "Preflight checks") ----------------------
@@ -372,11 +372,11 @@ def lattice_neighbours(radius_over_dx: float, dim: int) -> float:
 
 
 def state_bytes(dim: int, strength_width: int, hourglass: bool = False) -> int:
-    """Bytes per particle of :class:`impactsph.state.ParticleState` (and of a snapshot): its
+    """Bytes per particle of :class:`impactsph.state.ParticleState` as a run holds it: its
     positions, velocity, density, energy, deviator, mass, smoothing length, body, material,
     clamp, plastic work, material state and hourglass acceleration; not a viscosity switch's
     factor and memory, nor the added masses (views of one number in a run without a switch
-    or without added mass)."""
+    or without added mass; a snapshot copies them whole: :func:`memory_estimate`)."""
     return (24 * dim + 121 + 8 * strength_width + (8 * dim if hourglass else 0))
 
 
@@ -394,7 +394,8 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
       and memory, which are views of one number without one), the integrator's copy of its
       integrated fields (of the material state the first ``state_kept`` columns, those a
       model changes: :func:`state_kept`; None: all ``strength_width``), and ``snapshots`` copies
-      of the state (plus the pressure) kept for ``snapshots.npz``;
+      of the state (its views copied whole, plus the pressure, the von Mises stress and the
+      common material state's columns) kept for ``snapshots.npz``;
     - per particle and ghost: the rate buffers (``RateBuffers``), the packed particle records
       (unpadded: 10 to 22 doubles without the optional columns, the viscous acceleration's
       only with a correction or a switch), the extended arrays of the wall ghosts (with
@@ -423,7 +424,10 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
     # x, v, rho, e, the deviator's six components, plastic work, material state
     kept = strength_width if state_kept is None else state_kept
     integrator = 16 * d + 72 + 8 * kept + (8 * d if hourglass else 0)
-    snapshot = state + 8
+    # a snapshot's copies (Simulation._snapshot_fields): the state's arrays, the views of
+    # one number copied whole (a switch's factor and memory, the added masses), the pressure,
+    # the von Mises stress and the common material state's columns again
+    snapshot = state + 24 + 8 + 8 + 8 * CARRIED
     if gpu_state:  # (the step and the records are the device's)
         integrator = 0
     # without a switch the state's viscosity factor and memory are views of one number

@@ -50,7 +50,9 @@ class ParticleState:
     #: (n,) kg: inertia carried by a particle beyond its own mass, e.g. a rigid tip mass
     #: (``bodies.tip_mass``, ``carried_as = "added_inertia"``).  It enters the particle's
     #: acceleration, ``F_i / (m_i + added_i)``, its kinetic energy and its momentum, but not
-    #: its volume ``m_i / rho_i`` nor its internal energy; zeros by default
+    #: its volume ``m_i / rho_i`` nor its internal energy; zeros by default (a
+    #: :class:`~impactsph.simulation.Simulation` without added mass holds them, and the
+    #: memory, as a read-only view of the one zero: the passes read the inertia)
     added_mass: np.ndarray = field(default=None)
     time: float = 0.0
     step: int = 0

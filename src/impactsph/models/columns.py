@@ -36,7 +36,8 @@ COMMON_STATE = ("equivalent_plastic_strain", "plastic_strain_rate", "temperature
 CARRIED = len(COMMON_STATE)
 #: the common columns a return map changes, the first ones: the equivalent plastic strain,
 #: its rate and the temperature its plastic work heats (the step's start copy keeps these
-#: where no other model changes the state: :func:`impactsph.integrate.material_state_kept`)
+#: where no other model changes the state and a material that yields heats:
+#: :func:`impactsph.integrate.material_state_kept`)
 RETURN_MAP_COLUMNS = TEMPERATURE + 1
 #: of those, the ones a return map changes where its material does not heat (no specific
 #: heat: the equivalent plastic strain and its rate)
