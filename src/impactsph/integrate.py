@@ -452,6 +452,13 @@ class MidpointIntegrator:
         self._clamped_inertia = self._inertia[self._clamped_rows]
         self._any_clamped = self._clamped_rows.size > 0
 
+    def inertia(self, state: ParticleState) -> np.ndarray:
+        """The masses with the added masses that the run's steps take, kept from its first
+        step (one array for the survey and the history too, not ``mass + added`` at each
+        call); ``state``'s before it (:attr:`~impactsph.state.ParticleState.inertial_mass`:
+        the masses themselves where none is added)."""
+        return self._inertia if self._inertia is not None else state.inertial_mass
+
     def _clamp_impulse(self, dt: float, dv: np.ndarray) -> None:
         """The supports' impulse over ``dt``: minus what the step's mean accelerations
         ``dv`` would have given the clamped particles (the clamped rows taken by index, not by

@@ -203,10 +203,6 @@ class Simulation:
             # less); the passes and the books read the inertia (ParticleState.inertial_mass:
             # then the masses themselves), never the added masses
             self.state.added_mass = np.broadcast_to(np.float64(0.0), (self.state.n,))
-        #: the masses with the added masses, which a run keeps as they were set (as the
-        #: integrator's and the device's inertia): the survey's and the history's, made once
-        #: (ParticleState.inertial_mass: the masses themselves where none is added)
-        self._inertia = self._state.inertial_mass
         if case.stabilisation.hourglass > 0.0 and self.state.hourglass_acceleration.shape[1] \
                 != self.state.dim:
             self.state.hourglass_acceleration = np.zeros((self.state.n, self.state.dim))
@@ -412,8 +408,8 @@ class Simulation:
             points, normals = self.integrator.planes
             dt, sums, bad = self.integrator.survey_kernel(
                 s.n, s.position, s.velocity, s.material_density, s.specific_energy,
-                s.deviatoric_stress, s.mass, self._inertia, s.smoothing_length, s.material,
-                self.problem.table, self.case.time.courant, self.integrator.hourglass,
+                s.deviatoric_stress, s.mass, self.integrator.inertia(s), s.smoothing_length,
+                s.material, self.problem.table, self.case.time.courant, self.integrator.hourglass,
                 points, normals)
         # a solver's own limit (the total-Lagrangian hourglass penalty's and walls')
         dt = min(float(dt), self.solver.step_limit(s))
@@ -457,8 +453,9 @@ class Simulation:
             if n_bodies > 1 and s.step > 0:  # the last step's mean (the device keeps it)
                 self._body_force[:] = device[:, 4: 4 + s.dim]
         else:
-            totals = body_totals(s.body, s.mass, self._inertia, s.velocity, s.specific_energy,
-                                 s.plastic_work, s.position, s.initial_position, n_bodies)
+            totals = body_totals(s.body, s.mass, self.integrator.inertia(s), s.velocity,
+                                 s.specific_energy, s.plastic_work, s.position,
+                                 s.initial_position, n_bodies)
         row = {"time": s.time, "step": s.step, "dt": dt, "kinetic_energy": survey.kinetic,
                "internal_energy": survey.internal,
                "total_energy": survey.kinetic + survey.internal,
