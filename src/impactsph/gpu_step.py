@@ -1390,7 +1390,7 @@ class ResidentStep:
         # masses themselves where nothing is added, 8 B a particle less), and with added mass
         # the fraction that turns forces per own mass into accelerations
         self.inertia = (cuda.to_device(np.ascontiguousarray(state.mass + state.added_mass),
-                                       stream=s) if state.carries_added_mass()
+                                       stream=s) if state.added_mass.any()
                         else self.const["mass"])
         fraction = state.inertia_fraction()
         self.fraction = (None if fraction is None

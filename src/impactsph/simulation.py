@@ -198,7 +198,7 @@ class Simulation:
                     setattr(self.state, name, np.array(getattr(self.state, name)))
             if state is None:  # a fresh start: the viscosity switch's initial factors
                 self.state.viscosity_factor[:] = scheme.initial_factor(case.viscosity)
-        if not self.state.carries_added_mass():
+        if not self.state.added_mass.any():
             # no particle carries added mass: a read-only view of one zero (8 B a particle
             # less); the passes and the books read the inertia (ParticleState.inertial_mass:
             # then the masses themselves), never the added masses

@@ -117,21 +117,12 @@ class ParticleState:
         """``mass + added_mass`` (kg): what the particle's momentum and kinetic energy count;
         the masses themselves (not a copy: read it, do not write it) where no particle
         carries added mass."""
-        return self.mass + self.added_mass if self.carries_added_mass() else self.mass
-
-    def carries_added_mass(self) -> bool:
-        """Whether any particle carries added mass: for the read-only view of one number that
-        a run holds where none does (:class:`~impactsph.simulation.Simulation`), that number
-        (0.24 us at 1e5 particles, where ``any`` reads them all: 31 us)."""
-        added = self.added_mass
-        if added.ndim == 1 and added.shape[0] > 0 and added.strides[0] == 0:
-            return bool(added[0] != 0.0)
-        return bool(added.any())
+        return self.mass + self.added_mass if self.added_mass.any() else self.mass
 
     def inertia_fraction(self) -> np.ndarray | None:
         """``m_i / (m_i + added_i)``, the factor that turns a particle's force per own mass
         into its acceleration; None where no particle carries added mass."""
-        if not self.carries_added_mass():
+        if not self.added_mass.any():
             return None
         return self.mass / self.inertial_mass
 
