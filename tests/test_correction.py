@@ -195,33 +195,33 @@ def test_ac_momentum_drift_is_measured_not_hidden():
 
 def test_the_inner_list_changes_no_bit(monkeypatch):
     """The correction pass reads the neighbour list's inner list (pairs within h_c's support
-    plus the skin), and so does the pairwise AC's switch pass: the paper's Taylor bar (a
-    wall, plasticity; the list rebuilt several times) ends on the same bits as with the
-    whole list, with AC at ``h_c = h/2`` and ``0.3 h`` and with the pairwise AC; with ``h_c =
-    h`` the list has no inner part."""
+    plus the skin: each row's first entries), and so does the pairwise AC's switch pass: the
+    paper's Taylor bar (a wall, plasticity; the list rebuilt several times) ends on the same
+    bits as with the whole rows, with AC at ``h_c = h/2`` and ``0.3 h`` and with the pairwise
+    AC; with ``h_c = h`` the list has no inner part."""
     from impactsph import load_case
     from impactsph.simulation import Simulation
 
     def final(overrides, whole_list, pass_name):
         with monkeypatch.context() as patch:
             if whole_list:
-                patch.setattr(NeighbourList, "within",
-                              lambda self, reach: (self.offsets, self.indices))
+                patch.setattr(NeighbourList, "within", lambda self, reach: self.offsets[1:])
             sim = Simulation(load_case("taylor", ["time.end=3e-6", *overrides]))
             backend = sim.solver.backend
-            read = []  # the lists the pass was given: inner (True) or whole
+            read = []  # the rows' ends the pass was given: the inner list's (True) or theirs
             # (the switch pass takes the chunks' first and step before its arguments)
             skip = 2 if pass_name == "switch_pass" else 0
             if pass_name == "switch_pass":  # a module of the scheme's switch alone
                 of_kind = backend.switch_pass
-                run = lambda *args: of_kind(args[7])(*args)  # noqa: E731 (args[7]: the kind)
+                run = lambda *args: of_kind(args[8])(*args)  # noqa: E731 (args[8]: the kind)
             else:
                 run = getattr(backend.passes, pass_name)
 
             def counted(*args):
                 nl = sim.solver.neighbours
-                read.append(args[skip + 4] is nl.inner_indices is not None)
-                assert read[-1] or args[skip + 4] is nl.indices
+                assert args[skip + 3] is nl.offsets and args[skip + 5] is nl.indices
+                read.append(args[skip + 4] is nl.inner_ends is not None)
+                assert read[-1] or np.array_equal(args[skip + 4], nl.offsets[1:])
                 return run(*args)
 
             if pass_name == "switch_pass":
@@ -231,7 +231,7 @@ def test_the_inner_list_changes_no_bit(monkeypatch):
             sim.run()
         nl = sim.solver.neighbours
         assert nl.builds > 2
-        assert set(read) == {nl.inner_offsets is not None and not whole_list}
+        assert set(read) == {nl.inner_ends is not None and not whole_list}
         return sim.state.arrays(), nl
 
     for overrides, reach, pass_name in (
@@ -241,8 +241,9 @@ def test_the_inner_list_changes_no_bit(monkeypatch):
         inner, nl = final(overrides, False, pass_name)
         whole, _ = final(overrides, True, pass_name)
         assert nl.inner_reach == reach
-        assert nl.inner_indices.size < 0.5 * nl.indices.size  # what the pass is spared
+        # what the pass is spared
+        assert (nl.inner_ends - nl.offsets[:-1]).sum() < 0.5 * nl.indices.size
         for name, arr in whole.items():
             np.testing.assert_array_equal(inner[name], arr, err_msg=name)
     _, nl = final(["viscosity.correction_h_ratio=1.0"], False, "correction_pass")
-    assert nl.inner_offsets is None and nl.inner_reach == 1.0
+    assert nl.inner_ends is None and nl.inner_reach == 1.0

@@ -360,7 +360,11 @@ def _resident_run(name: str, on_gpu: bool, stop_after: int | None = None):
     except _StopHereError:
         pass
     nl = sim.solver.neighbours
-    lists = [nl.order[nl.indices[nl.offsets[p]:nl.offsets[p + 1]]].tolist()
+    # each particle's inner entries' count (the CPU's list, with an inner list: its rows'
+    # first entries; the device keeps none) and its row
+    ends = nl.offsets[:-1] if nl.inner_ends is None else nl.inner_ends
+    lists = [[int(ends[p] - nl.offsets[p]),
+              nl.order[nl.indices[nl.offsets[p]:nl.offsets[p + 1]]].tolist()]
              for p in np.argsort(nl.order)]
     return sim, resident, lists
 
@@ -870,7 +874,7 @@ def _rate_calls(name: str, overrides: list[str], seed: int) -> list[dict]:
     third["neighbours"] = copy.copy(second["neighbours"])
     nl = third["neighbours"]
     nl.offsets, nl.indices = _thinned(nl.offsets, nl.indices)
-    nl.inner_offsets = nl.inner_indices = None  # (the inner list was the old list's)
+    nl.inner_ends = None  # (the inner list was the old list's)
     nl.splits = None  # (and so were the rows' splits, 2D and 3D)
     nl.inner_reach = 1.0
     third["m"] = second["m"] * (1.0 + 0.1 * rng.random(second["m"].shape))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -286,26 +287,45 @@ def test_checkpoint_of_the_registered_width_loads(tmp_path):
 
 
 def test_checkpoint_keeps_the_inner_list_and_loads_without_one(tmp_path):
-    """The neighbour list's inner list (AC's correction pass reads it) is written and read
-    back; a checkpoint of a version that wrote none continues on the whole list, to the same
-    bits."""
+    """The neighbour list's inner list (AC's correction pass reads it: its rows' ends) is
+    written and read back; a checkpoint of a version that wrote none continues on the whole
+    rows, and one that wrote it as a list of its own (before 2026-12-07) on the rows' inner
+    entries, to the same bits."""
     case, sim, path = _halfway_checkpoint(tmp_path)
     kept = load_checkpoint(path, case).solver.neighbours
     nl = sim.solver.neighbours
     assert kept.inner_reach == nl.inner_reach == 0.5
-    np.testing.assert_array_equal(kept.inner_offsets, nl.inner_offsets)
-    np.testing.assert_array_equal(kept.inner_indices, nl.inner_indices)
+    np.testing.assert_array_equal(kept.inner_ends, nl.inner_ends)
+    np.testing.assert_array_equal(kept.indices, nl.indices)
+    # as written before 2026-12-07: the inner entries a list of their own (the rows here
+    # already hold them first, which the reader's move leaves as they are)
+    old = tmp_path / "old.h5"
+    shutil.copy(path, old)
+    with h5py.File(old, "a") as f:
+        del f.attrs["sha256"]
+        g = f["neighbours"]
+        counts = g["inner_ends"][()] - g["offsets"][()][:-1]
+        g.create_dataset("inner_offsets", data=np.concatenate([[0], np.cumsum(counts)])
+                         .astype(np.int32))
+        g.create_dataset("inner_indices", data=np.concatenate(
+            [g["indices"][a:a + c] for a, c in zip(g["offsets"][()][:-1], counts,
+                                                    strict=True)]))
+        del g["inner_ends"]
+    before = load_checkpoint(old, case)
+    np.testing.assert_array_equal(before.solver.neighbours.inner_ends, nl.inner_ends)
+    np.testing.assert_array_equal(before.solver.neighbours.indices, nl.indices)
     with h5py.File(path, "a") as f:
         del f.attrs["sha256"]
         g = f["neighbours"]
-        del g["inner_offsets"], g["inner_indices"], g.attrs["inner_reach"]
-        del g.attrs["inner_radius"]
+        del g["inner_ends"], g.attrs["inner_reach"], g.attrs["inner_radius"]
     again = load_checkpoint(path, case)
-    assert again.solver.neighbours.inner_offsets is None
+    assert again.solver.neighbours.inner_ends is None
     again.run()
+    before.run()
     sim.run()
     for name, arr in final_arrays(sim).items():
         np.testing.assert_array_equal(again.state.arrays()[name], arr, err_msg=name)
+        np.testing.assert_array_equal(before.state.arrays()[name], arr, err_msg=name)
 
 
 def test_checkpoint_without_the_rows_splits_loads_and_a_wrong_split_is_refused(tmp_path):

@@ -5,11 +5,30 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from impactsph.neighbours import RADIUS_TOLERANCE, NeighbourList, brute_force_pairs
+from impactsph.neighbours import (
+    RADIUS_TOLERANCE,
+    NeighbourList,
+    brute_force_pairs,
+    inner_entries_first,
+)
 
 
 def pairs_of(nl: NeighbourList) -> set[tuple[int, int]]:
     return nl.pairs()
+
+
+def inner_entries(nl: NeighbourList) -> np.ndarray:
+    """Every row's inner entries (``indices[offsets[p]:inner_ends[p]]``), row after row."""
+    starts = nl.offsets[:-1]
+    return np.concatenate([nl.indices[a:b] for a, b in zip(starts, nl.inner_ends, strict=True)]
+                          + [np.zeros(0, nl.indices.dtype)])
+
+
+def inner_pairs(nl: NeighbourList) -> set[tuple[int, int]]:
+    """The ordered pairs ``(i, j)`` of particle numbers of the inner list."""
+    rows = np.repeat(nl.order, nl.inner_ends - nl.offsets[:-1])
+    cols = nl.order[inner_entries(nl)]
+    return set(zip(rows.tolist(), cols.tolist(), strict=True))
 
 
 @pytest.mark.parametrize("dim", [1, 2, 3])
@@ -142,51 +161,90 @@ def test_support_growing_past_the_radius_makes_the_list_stale():
 
 
 @pytest.mark.parametrize("dim", [1, 2, 3])
-def test_inner_list_is_the_near_part_of_the_list_in_its_order(dim):
-    """The inner list holds, for each particle, exactly the pairs closer than ``reach *
-    support + skin``, in the order they have in the whole list."""
+def test_inner_list_is_the_near_part_of_each_row_at_its_start(dim):
+    """The inner list is, for each particle, exactly the pairs closer than ``reach * support
+    + skin``: its row's first entries, in the order they have in the list built without an
+    inner list, whose row follows them without them (its front part and its back part as
+    there: the same splits)."""
     rng = np.random.default_rng(10 + dim)
     x = rng.random((500, dim)) * [1.0, 0.7, 0.5][:dim]
     support, skin, reach = 0.12, 0.012, 0.5
     nl = NeighbourList.build(x, support, skin, inner_reach=reach)
     assert nl.inner_reach == reach
     assert nl.inner_radius == pytest.approx(reach * support + skin)
-    inner = NeighbourList(nl.inner_offsets, nl.inner_indices, nl.inner_radius, skin,
-                          nl.reference_positions, order=nl.order)
-    assert pairs_of(inner) == brute_force_pairs(x, reach * support + skin)
-    xs = x[nl.order]
-    for p in range(x.shape[0]):
-        whole = nl.indices[nl.offsets[p]:nl.offsets[p + 1]]
-        near = whole[np.linalg.norm(xs[whole] - xs[p], axis=1) < nl.inner_radius]
-        np.testing.assert_array_equal(nl.inner_indices[nl.inner_offsets[p]:
-                                                       nl.inner_offsets[p + 1]], near)
-    # a reach the inner list covers gets it; a longer one the whole list
-    assert nl.within(reach)[1] is nl.inner_indices
-    assert nl.within(0.3)[1] is nl.inner_indices
-    assert nl.within(0.6)[1] is nl.indices
-    # without a reach below 1 there is none
+    assert inner_pairs(nl) == brute_force_pairs(x, reach * support + skin)
+    assert nl.inner_ends.dtype == nl.offsets.dtype == np.int32
     whole = NeighbourList.build(x, support, skin)
-    assert whole.inner_offsets is None and whole.within(0.5)[1] is whole.indices
-    np.testing.assert_array_equal(whole.indices, nl.indices)
+    assert whole.inner_ends is None
+    np.testing.assert_array_equal(nl.order, whole.order)
+    np.testing.assert_array_equal(nl.offsets, whole.offsets)
+    if dim > 1:
+        np.testing.assert_array_equal(nl.splits, whole.splits)
+    xs = x[nl.order]
+    inner_sizes = []
+    for p in range(x.shape[0]):
+        row = whole.indices[whole.offsets[p]:whole.offsets[p + 1]]
+        near = np.linalg.norm(xs[row] - xs[p], axis=1) < nl.inner_radius
+        assert nl.offsets[p] <= nl.inner_ends[p] <= nl.offsets[p + 1]
+        np.testing.assert_array_equal(nl.indices[nl.offsets[p]:nl.inner_ends[p]], row[near])
+        np.testing.assert_array_equal(nl.indices[nl.inner_ends[p]:nl.offsets[p + 1]],
+                                      row[~near])
+        inner_sizes.append(int(near.sum()))
+    assert 0 < np.mean(inner_sizes) < 0.6 * np.mean(np.diff(nl.offsets))  # a part, not all
+    # a reach the inner list covers gets its ends; a longer one the rows' own ends, a view of
+    # the offsets (the same object while they are the same array)
+    assert nl.within(reach) is nl.inner_ends
+    assert nl.within(0.3) is nl.inner_ends
+    ends = nl.within(0.6)
+    np.testing.assert_array_equal(ends, nl.offsets[1:])
+    assert ends.base is nl.offsets and nl.within(1.0) is ends
+    # without a reach below 1 there is none
+    np.testing.assert_array_equal(whole.within(0.5), whole.offsets[1:])
     with pytest.raises(ValueError, match="inner_reach = 0.0"):
         NeighbourList.build(x, support, skin, inner_reach=0.0)
+    with pytest.raises(ValueError, match=r"inner_ends of shape \(3,\)"):
+        NeighbourList(nl.offsets, nl.indices, nl.radius, skin, nl.reference_positions,
+                      inner_reach=reach, inner_radius=nl.inner_radius,
+                      inner_ends=nl.inner_ends[:3])
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_an_inner_list_of_its_own_is_moved_to_the_rows_starts(dim):
+    """A list held with an inner list of its own (as before 2026-12-07, and in checkpoints
+    of then), each row's inner entries moved to its start by ``inner_entries_first``, is the
+    list a build now makes."""
+    rng = np.random.default_rng(30 + dim)
+    x = rng.random((400, dim)) * [1.0, 0.7, 0.5][:dim]
+    support, skin, reach = 0.12, 0.012, 0.5
+    nl = NeighbourList.build(x, support, skin, inner_reach=reach)
+    whole = NeighbourList.build(x, support, skin)
+    # the old layout: the whole list's rows, and the inner entries in their order apart
+    xs = x[whole.order]
+    inner_offsets, inner_indices = [0], []
+    for p in range(x.shape[0]):
+        row = whole.indices[whole.offsets[p]:whole.offsets[p + 1]]
+        near = row[np.linalg.norm(xs[row] - xs[p], axis=1) < nl.inner_radius]
+        inner_indices.extend(near.tolist())
+        inner_offsets.append(len(inner_indices))
+    moved, inner_ends = inner_entries_first(whole.offsets, whole.indices,
+                                            np.array(inner_offsets, dtype=np.int32),
+                                            np.array(inner_indices, dtype=np.int32))
+    assert moved.dtype == nl.indices.dtype and inner_ends.dtype == nl.inner_ends.dtype
+    np.testing.assert_array_equal(moved, nl.indices)
+    np.testing.assert_array_equal(inner_ends, nl.inner_ends)
 
 
 def test_inner_list_is_rebuilt_with_the_list():
     x = np.stack(np.meshgrid(np.arange(6.0), np.arange(6.0), indexing="ij"), -1).reshape(-1, 2)
     nl = NeighbourList.build(x, support=2.5, skin=0.4, inner_reach=0.5)
-    assert pairs_of(NeighbourList(nl.inner_offsets, nl.inner_indices, 1.65, 0.4,
-                                  nl.reference_positions, order=nl.order)) == \
-        brute_force_pairs(x, 1.65)
+    assert inner_pairs(nl) == brute_force_pairs(x, 1.65)
     assert not nl.stale(x, 2.5)
     assert nl.stale(x, 2.6)  # the support grew: both lists are short
     moved = x.copy()
     moved[7] += 0.3
     nl.update(moved, support=2.5)
     assert nl.builds == 2 and nl.inner_reach == 0.5
-    assert pairs_of(NeighbourList(nl.inner_offsets, nl.inner_indices, 1.65, 0.4,
-                                  nl.reference_positions, order=nl.order)) == \
-        brute_force_pairs(moved, 1.65)
+    assert inner_pairs(nl) == brute_force_pairs(moved, 1.65)
 
 
 def _morton_reference(cell: np.ndarray) -> int:
@@ -227,15 +285,19 @@ def _stencil_order_reference(x: np.ndarray, radius: float) -> tuple[np.ndarray, 
     return order, rows
 
 
-def _split_row(row: list[int], xs: np.ndarray, p: int, front_limit, dim: int) -> list[int]:
+def _split_row(row: list[int], xs: np.ndarray, p: int, front_limit, dim: int,
+               inner_limit: float = 0.0) -> list[int]:
     """A row as the builder is specified to split it in 2D and 3D: the entries ``q`` with
     ``|x_p - x_q|^2 < front_limit(q)`` first, in the row's order, then the rest in the reverse
-    order (1D rows are not split)."""
-    if dim < 2:
-        return row
+    order (1D rows are not split); with an inner list, the entries with ``|x_p - x_q|^2 <
+    inner_limit`` ahead of all, in the row's order (in 1D too)."""
     r2 = [float(np.sum((xs[p] - xs[q]) ** 2)) for q in row]
-    return ([q for q, d in zip(row, r2, strict=True) if d < front_limit(q)]
-            + [q for q, d in zip(row, r2, strict=True) if not d < front_limit(q)][::-1])
+    inner = [q for q, d in zip(row, r2, strict=True) if d < inner_limit]
+    rest = [(q, d) for q, d in zip(row, r2, strict=True) if not d < inner_limit]
+    if dim < 2:
+        return inner + [q for q, _ in rest]
+    return (inner + [q for q, d in rest if d < front_limit(q)]
+            + [q for q, d in rest if not d < front_limit(q)][::-1])
 
 
 def _check_splits(nl: NeighbourList, dim: int) -> None:
@@ -276,20 +338,25 @@ def test_list_order_is_the_stencil_order(dim):
                              (shuffled, 0.75, 0.0), (shuffled + 1e4 / 3.0, 0.5, 0.0),
                              (rng.random((150, dim)) - 1e3, 0.21, 0.0),
                              (jittered, 0.5, 0.1), (rng.random((150, dim)), 0.19, 0.02)):
-        nl = NeighbourList.build(x, support, skin)
-        order, rows = _stencil_order_reference(x, nl.radius)
-        np.testing.assert_array_equal(nl.order, order)
-        _check_splits(nl, dim)
-        xs = x[order]
-        front = (nl.radius - skin) ** 2
-        for p, row in enumerate(rows):
-            expected = _split_row(row, xs, p, lambda q, f=front: f, dim)
-            assert nl.indices[nl.offsets[p]:nl.offsets[p + 1]].tolist() == expected, p
-            if dim > 1:
-                front_part = nl.indices[nl.offsets[p]:nl.splits[p]]
-                assert np.all(np.sum((xs[front_part] - xs[p]) ** 2, axis=1) < front), p
-                if skin == 0.0:  # without a skin every pair is within the support
-                    assert nl.splits[p] == nl.offsets[p + 1]
+        for reach in (1.0, 0.5):  # (0.5: with an inner list, each row's first entries)
+            nl = NeighbourList.build(x, support, skin, inner_reach=reach)
+            order, rows = _stencil_order_reference(x, nl.radius)
+            np.testing.assert_array_equal(nl.order, order)
+            _check_splits(nl, dim)
+            xs = x[order]
+            front = (nl.radius - skin) ** 2
+            inner = nl.inner_radius ** 2
+            for p, row in enumerate(rows):
+                expected = _split_row(row, xs, p, lambda q, f=front: f, dim, inner)
+                assert nl.indices[nl.offsets[p]:nl.offsets[p + 1]].tolist() == expected, p
+                if reach < 1.0:
+                    within = np.sum((xs[row] - xs[p]) ** 2, axis=1) < inner
+                    assert nl.inner_ends[p] - nl.offsets[p] == within.sum(), p
+                if dim > 1:
+                    front_part = nl.indices[nl.offsets[p]:nl.splits[p]]
+                    assert np.all(np.sum((xs[front_part] - xs[p]) ** 2, axis=1) < front), p
+                    if skin == 0.0:  # without a skin every pair is within the support
+                        assert nl.splits[p] == nl.offsets[p + 1]
 
 
 @pytest.mark.parametrize("dim", [1, 2, 3])
@@ -329,9 +396,9 @@ def test_a_radius_per_pair_keeps_each_pairs_own_support(dim):
 
     for p in range(0, x.shape[0], 7):
         row = [q for q in rows[p] if np.sum((xs[p] - xs[q]) ** 2) < limits(p, q)[0]]
-        expected = _split_row(row, xs, p, lambda q, p=p: limits(p, q)[1], dim)
+        expected = _split_row(row, xs, p, lambda q, p=p: limits(p, q)[1], dim, inner2)
         assert nl.indices[nl.offsets[p]:nl.offsets[p + 1]].tolist() == expected, p
-    np.testing.assert_array_equal(nl.inner_indices, whole.inner_indices)
+    np.testing.assert_array_equal(inner_entries(nl), inner_entries(whole))
     with pytest.raises(ValueError, match="h has 3 rows"):
         NeighbourList.build(x, support, skin, h=h[:3])
 
@@ -379,8 +446,7 @@ def test_the_list_in_shares_is_the_list_in_one(dim, monkeypatch):
                       NeighbourList.build(x, 0.13, 0.02, inner_reach=0.5, h=h)])
     for one, three in zip(*lists, strict=True):
         assert one.indices.size > 5 * len(x)  # rows of several neighbours
-        for field in ("order", "offsets", "indices", "inner_offsets", "inner_indices",
-                      "splits"):
+        for field in ("order", "offsets", "indices", "inner_ends", "splits"):
             a, b = getattr(one, field), getattr(three, field)
             assert (a is None) == (b is None) == (field == "splits" and dim == 1), field
             if a is not None:
@@ -407,18 +473,16 @@ def test_one_sweep_gives_the_list_of_two(dim, monkeypatch):
             two = NeighbourList.build(x, 0.13, 0.02, inner_reach=0.5, h=per_pair)
             fewer = NeighbourList.build(x[:-60], 0.13, 0.02, inner_reach=0.5,
                                         h=None if per_pair is None else per_pair[:-60])
-            short = (two.offsets // 2, two.inner_offsets // 2)
+            short = two.offsets // 2
             assert two.sweeps == 2 and two.indices.size > 5 * len(x)
             # (from fewer rows the room is an estimate: one sweep or two)
             once = {1} if dim > 1 else {2}
-            for like, sweeps in (((two.offsets, two.inner_offsets), once),
-                                 ((fewer.offsets, fewer.inner_offsets), once | {2}),
+            for like, sweeps in ((two.offsets, once), (fewer.offsets, once | {2}),
                                  (short, {2})):
                 one = NeighbourList.build(x, 0.13, 0.02, inner_reach=0.5, h=per_pair,
                                           like=like)
                 assert one.sweeps in sweeps
-                for field in ("order", "offsets", "indices", "inner_offsets",
-                              "inner_indices", "splits"):
+                for field in ("order", "offsets", "indices", "inner_ends", "splits"):
                     a, b = getattr(two, field), getattr(one, field)
                     assert (a is None) == (b is None) == (field == "splits" and dim == 1)
                     if a is not None:

@@ -31,7 +31,7 @@ from .errors import CaseError
 from .loading import validate_case
 from .materials import TableLayout
 from .models.columns import COMMON_STATE, THICKNESS_RATIO
-from .neighbours import NeighbourList
+from .neighbours import NeighbourList, inner_entries_first
 from .problem import build_problem
 from .simulation import Simulation, Snapshot
 from .state import ParticleState
@@ -93,9 +93,8 @@ def write_checkpoint(sim: Simulation, path: Path | str) -> Path:
                      "reference_origin"):
             g.create_dataset(name, data=getattr(nl, name))
         g.attrs["radius"], g.attrs["skin"], g.attrs["builds"] = nl.radius, nl.skin, nl.builds
-        if nl.inner_offsets is not None:  # the inner list (neighbours.py)
-            g.create_dataset("inner_offsets", data=nl.inner_offsets)
-            g.create_dataset("inner_indices", data=nl.inner_indices)
+        if nl.inner_ends is not None:  # the inner list: each row's first entries (neighbours.py)
+            g.create_dataset("inner_ends", data=nl.inner_ends)
             g.attrs["inner_reach"], g.attrs["inner_radius"] = nl.inner_reach, nl.inner_radius
         if nl.splits is not None:  # 2D and 3D: where each row's skin part starts (neighbours.py)
             g.create_dataset("splits", data=nl.splits)
@@ -272,13 +271,20 @@ def load_checkpoint(path: Path | str, case: Any = None, *, verify: bool = True
                                                                       f.attrs["time"])))
         sim = Simulation(case, problem=problem, state=state)
         g = f["neighbours"]
-        # the inner list, where written (without one the passes read the whole list)
-        inner = ({"inner_offsets": g["inner_offsets"][()],
-                  "inner_indices": g["inner_indices"][()],
-                  "inner_reach": float(g.attrs["inner_reach"]),
-                  "inner_radius": float(g.attrs["inner_radius"])}
-                 if "inner_offsets" in g else {})
-        nl = NeighbourList(g["offsets"][()], g["indices"][()], float(g.attrs["radius"]),
+        offsets, indices = g["offsets"][()], g["indices"][()]
+        # the inner list, where written (without one the passes read the whole list): each
+        # row's first entries, or (a checkpoint written before 2026-12-07) a list of its own,
+        # whose entries are moved to their rows' starts as a build now puts them
+        inner = {}
+        if "inner_ends" in g:
+            inner["inner_ends"] = g["inner_ends"][()]
+        elif "inner_offsets" in g:
+            indices, inner["inner_ends"] = inner_entries_first(
+                offsets, indices, g["inner_offsets"][()], g["inner_indices"][()])
+        if inner:
+            inner["inner_reach"] = float(g.attrs["inner_reach"])
+            inner["inner_radius"] = float(g.attrs["inner_radius"])
+        nl = NeighbourList(offsets, indices, float(g.attrs["radius"]),
                            float(g.attrs["skin"]), g["reference_positions"][()],
                            int(g.attrs["builds"]),
                            order=g["order"][()] if "order" in g else None,

@@ -249,11 +249,11 @@ def binding(dim: int, options: PassOptions | str | None = None) -> tuple[str, di
                   viscosity[:-1], f"return _viscosity_{viscosity[-1][0]}(vr, r2, h_ij, c_ij, "
                   f"rho_ij, params)", inject, viscosity[-1][0]),
         "",
-        _dispatch("viscosity_correction", "p, i, P, offsets, indices, columns, dim, params, "
+        _dispatch("viscosity_correction", "p, i, P, start, end, indices, columns, dim, params, "
                   "dv_corr, de_corr, dv, de", "_correction_", corrections, "return None", inject),
         "",
-        _dispatch("viscosity_switch", "p, i, P, offsets, indices, columns, dim, params, elapsed, "
-                  "memory", "_switch_", switches, "return 1.0", inject),
+        _dispatch("viscosity_switch", "p, i, P, start, end, indices, columns, dim, params, "
+                  "elapsed, memory", "_switch_", switches, "return 1.0", inject),
         END,
     ])
     return source, inject

@@ -1459,7 +1459,7 @@ class ResidentStep:
             # the device builds no inner list (its correction kernel reads the whole list, to
             # the same sums): the host's, of an older build, goes
             nl.inner_reach, nl.inner_radius = 1.0, 0.0
-            nl.inner_offsets = nl.inner_indices = None
+            nl.inner_ends = None
             # nor the rows' splits (its rows are split as the CPU's, but it keeps no marks):
             # the host's, of an older build, go, and the CPU passes test whole rows
             nl.splits = None

@@ -27,12 +27,17 @@ rest against the support before their vectorised loops (``passes.support_range``
 that leaves the support before the next build is masked by the loop, and one that enters it
 is found by the test.  (1D rows, four to six entries, are not split.)
 
-A list may also carry an *inner list*: the same neighbours, in the same order, of those
-closer than a smaller radius ``reach * 2 h_max + skin`` (the same skin), built in the same
-sweeps.  A pass whose kernel reaches only part of the support (the acceleration
-correction's, ``2 h_c = h``) loops over it instead of the whole list: the entries it skips
-are the ones that pass would have skipped by their distance, so its sums are the same to the
-bit (``tests/test_neighbours.py``).
+A list may also carry an *inner list*: of each row's neighbours, those closer than a smaller
+radius ``reach * 2 h_max + skin`` (the same skin), found in the same sweeps.  They are the
+row's first entries, in the stencil's order, ahead of the rest of its front part (all of
+them lie within the front's radius), and ``NeighbourList.inner_ends[p]`` is where they end:
+the inner list costs 4 bytes a row, not 4 bytes an entry again (a copy of its own, before
+2026-12-07, took 69 bytes a particle of a 3D lattice at h = 1.3 dx).  A pass whose kernel
+reaches only part of the support (the acceleration correction's, ``2 h_c = h``) loops over
+``indices[offsets[p]:inner_ends[p]]`` instead of the whole row: the entries it skips are the
+ones that pass would have skipped by their distance, so its sums are the same to the bit
+(``tests/test_neighbours.py``).  The passes that read whole rows sum the inner entries
+first, then the rest of the front part, then the back part.
 """
 
 from __future__ import annotations
@@ -290,22 +295,22 @@ def _build_functions(dim: int):
     @njit_variant(f"{dim}d", parallel=SIMPLIFICATIONS_ONLY, nogil=True)
     def sweep_rows(first, step, sweep, xs, hs, lo, ncell, cell_start, cell_end, radius,
                    r2max, r2inner, r2front, support_per_h, skin, h_largest, slack,
-                   largest_cell, offsets, indices, inner_offsets, inner_indices, splits,
-                   bases, used):
+                   largest_cell, offsets, indices, inner_ends, splits, bases, used):
         """Share ``first`` of ``step`` of the rows' chunks (:data:`CHUNK` rows each) in sweep
-        ``sweep``: 0 counts each row's neighbours (and its inner list's) into ``offsets[p +
-        1]`` (``inner_offsets[p + 1]``), 1 stores them, the offsets made running totals
-        between the two (``running_totals``).  Sweep 2 does both at once: each row is stored
-        at the share's next free place in ``indices`` (``inner_indices``), in its region
-        ``bases[0, first]:bases[0, first + 1]`` (``bases[1, ...]``), where there is room for
-        the most a row can hold (``3**dim`` times ``largest_cell``, the largest cell's
-        count), its count to ``offsets[p + 1]`` and its front part's length to
-        ``splits[p]``; ``used[:, first]`` gets the entries the share stored, or -1 in
-        ``used[0, first]`` where the room ran short (the caller then sweeps twice).
-        ``compact_shares`` moves the regions together."""
+        ``sweep``: 0 counts each row's neighbours into ``offsets[p + 1]`` (and its inner
+        entries into ``inner_ends[p]``), 1 stores them, the offsets made running totals
+        between the two (``running_totals``), each row's inner entries first (the row's
+        inner end to ``inner_ends[p]``).  Sweep 2 does both at once: each row is stored at
+        the share's next free place in ``indices``, in its region ``bases[first]:bases[first
+        + 1]``, where there is room for the most a row can hold (``3**dim`` times
+        ``largest_cell``, the largest cell's count), its count to ``offsets[p + 1]``, its
+        front part's length to ``splits[p]`` and its inner entries' count to
+        ``inner_ends[p]``; ``used[first]`` gets the entries the share stored, or -1 where
+        the room ran short (the caller then sweeps twice).  ``compact_shares`` moves the
+        regions together."""
         n = xs.shape[0]
         per_pair = hs.shape[0] > 0
-        inner = inner_offsets.shape[0] > 0
+        inner = inner_ends.shape[0] > 0
         # 2D and 3D with a skin: each row in two parts, the pairs within their support at the
         # build (or within the inner list's radius) first, in the stencil's order, then the
         # rest of the row, the skin's, stored from the row's end back (so the count sweep
@@ -326,7 +331,12 @@ def _build_functions(dim: int):
         # more than the round-off of the boxes' faces and of the binning, so that no cell
         # holding a neighbour is skipped: the list is the same to the bit
         prune = dim > 2 or (dim == 2 and per_pair)
-        # the two sweeps are the same loop: count the neighbours, then (offsets known) store
+        # a row with an inner list: its inner entries first (at the row's start, in the
+        # stencil's order: the correction pass's sums are those of a list of their own), then
+        # the rest of its front part, then its back part.  Sweep 1 knows the inner count
+        # (sweep 0's) and stores each part in place; sweep 2 stores the inner entries in
+        # place and the rest in a scratch row, copied in behind them at the row's end.
+        # The two sweeps are the same loop: count the neighbours, then (offsets known) store
         # them; written out here, not in a helper, so that dim is a compile-time constant and the
         # small loops unroll.  The stencil's cells are visited with axis 0 fastest (the
         # order of the list); the count is branch-free (LLVM vectorises it), the store only in
@@ -344,12 +354,14 @@ def _build_functions(dim: int):
         # moved down behind its front part
         once = dim > 1 and sweep == 2  # (1D lists are swept twice: ``build``)
         row_size = 3 ** dim * largest_cell if once else 0
-        free = bases[0, first] if once else 0
-        free_inner = bases[1, first] if once and inner else 0
+        free = bases[first] if once else 0
+        scratched = once and inner  # (the rest of a row in the scratch row: above)
         for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
             # the 3D store sweeps' scratch: a cell's candidates
             candidates = np.empty(largest_cell if prefilter and sweep > 0 else 0,
                                   dtype=np.int64)
+            scratch = np.empty(row_size if scratched else 0, dtype=np.int32)
+            store = scratch if scratched else indices
             for p in range(chunk * CHUNK, min((chunk + 1) * CHUNK, n)):
                 xp0 = xs[p, 0]
                 xp1 = xs[p, 1] if dim > 1 else 0.0
@@ -358,16 +370,20 @@ def _build_functions(dim: int):
                 c0 = min(max(int((xp0 - lo0) / radius), 0), n0 - 1)
                 c1 = min(max(int((xp1 - lo1) / radius), 0), n1 - 1) if dim > 1 else 0
                 c2 = min(max(int((xp2 - lo2) / radius), 0), n2 - 1) if dim > 2 else 0
-                found = 0
+                found = 0  # (sweep 0: the row's entries; 1 and 2: its front part's)
                 found_inner = 0
                 found_back = 0
-                if once and (free + row_size > bases[0, first + 1]
-                             or (inner and free_inner + row_size > bases[1, first + 1])):
-                    used[0, first] = -1  # (the room was short: the caller sweeps twice)
+                if once and free + row_size > bases[first + 1]:
+                    used[first] = -1  # (the room was short: the caller sweeps twice)
                     return
                 pos = free if once else offsets[p]
                 back = free + row_size - 1 if once else offsets[p + 1] - 1  # the row's end
-                pos_inner = free_inner if once else (inner_offsets[p] if inner else 0)
+                # where the front part's entries beyond the inner ones go, and the back
+                # part's end: the row's own place (sweep 1: behind the inner entries, whose
+                # count sweep 0 left in inner_ends), or the scratch row's
+                rest = 0 if scratched else pos + (inner_ends[p] if inner and sweep == 1
+                                                  else 0)
+                rest_end = row_size - 1 if scratched else back
                 # pruning (3D, and 2D with a radius per pair): the particle's distances to
                 # its cell's lower and upper faces on each axis (less the slack; 0 where
                 # negative), the gaps to the stencil's cells, against its reach (with a
@@ -461,105 +477,101 @@ def _build_functions(dim: int):
                                     rs = (0.5 * support_per_h * (hp + hs[q]) + skin) - skin
                                     front_lim = min(lim, max(rs * rs, r2inner))
                                 if r2 < lim:
+                                    if inner and r2 < r2inner:  # (front, the row's start)
+                                        indices[pos + found_inner] = q
+                                        found_inner += 1
+                                        found += 1
+                                        continue
                                     # the row's back part, filled from the row's end, or
                                     # its front (a select, not a branch: the two are not
                                     # predictable)
                                     to_back = split and r2 >= front_lim
-                                    at = back - found_back if to_back else pos + found
-                                    indices[at] = q
+                                    at = (rest_end - found_back if to_back
+                                          else rest + (found - found_inner))
+                                    store[at] = q
                                     found_back += 1 if to_back else 0
                                     found += 0 if to_back else 1
-                                    if inner and r2 < r2inner:
-                                        inner_indices[pos_inner + found_inner] = q
-                                        found_inner += 1
                 if sweep == 0:
                     offsets[p + 1] = found
                     if inner:
-                        inner_offsets[p + 1] = found_inner
+                        inner_ends[p] = found_inner  # (a count, read by sweep 1)
                 elif once:
-                    for k in range(found_back):  # (moved down: a copy forwards)
-                        indices[free + found + k] = indices[back - found_back + 1 + k]
+                    if scratched:  # the rest of the front part, then the back part
+                        for k in range(found - found_inner):
+                            indices[free + found_inner + k] = scratch[k]
+                        for k in range(found_back):
+                            indices[free + found + k] = scratch[row_size - found_back + k]
+                    else:
+                        for k in range(found_back):  # (moved down: a copy forwards)
+                            indices[free + found + k] = indices[back - found_back + 1 + k]
                     offsets[p + 1] = found + found_back
-                    if inner:
-                        inner_offsets[p + 1] = found_inner
+                    if inner:  # (counts, made places by compact_shares)
+                        inner_ends[p] = found_inner
                     if split:
-                        splits[p] = found  # (made a place by compact_shares)
+                        splits[p] = found
                     free += found + found_back
-                    free_inner += found_inner
-                elif split:
-                    splits[p] = pos + found
+                else:
+                    if split:
+                        splits[p] = pos + found
+                    if inner:
+                        inner_ends[p] = pos + found_inner
         if once:
-            used[0, first] = free - bases[0, first]
-            used[1, first] = free_inner - bases[1, first]
+            used[first] = free - bases[first]
 
     @njit_variant(f"{dim}d")
-    def running_totals(offsets, inner_offsets):
-        """The counts of sweep 0 (``offsets[p + 1]``, ``inner_offsets[p + 1]``) made running
-        totals, and the index arrays of sweep 1, of their sizes."""
+    def running_totals(offsets):
+        """The counts of sweep 0 (``offsets[p + 1]``) made running totals, and the index
+        array of sweep 1, of their size."""
         n = offsets.shape[0] - 1
         running_sum(offsets)
-        inner_indices = np.empty(0, dtype=np.int32)
-        if inner_offsets.shape[0] > 0:
-            running_sum(inner_offsets)
-            inner_indices = np.empty(inner_offsets[n], dtype=np.int32)
-        return np.empty(offsets[n], dtype=np.int32), inner_indices
+        return np.empty(offsets[n], dtype=np.int32)
 
     @njit_variant(f"{dim}d")
-    def compact_shares(offsets, inner_offsets, splits, indices, inner_indices, bases, used):
+    def compact_shares(offsets, inner_ends, splits, indices, bases, used):
         """Sweep 2's shares made the list sweeps 0 and 1 make: the counts made running
         totals, each share's region moved down to its rows' place (regions in the shares'
         order, each at or past its place: a copy forwards), each front part's length made
-        its row's split.  Returns the entries and the inner list's."""
+        its row's split and each inner count its row's inner end.  Returns the entries."""
         n = offsets.shape[0] - 1
-        inner = inner_offsets.shape[0] > 0
         running_sum(offsets)
-        if inner:
-            running_sum(inner_offsets)
-        step = used.shape[1]
+        step = used.shape[0]
         for t in range(step):
             start = share_first_row(t, step, n)
-            at, source = offsets[start], bases[0, t]
+            at, source = offsets[start], bases[t]
             if at < source:  # (the first share's is in place)
-                for k in range(used[0, t]):
+                for k in range(used[t]):
                     indices[at + k] = indices[source + k]
-            at, source = (inner_offsets[start], bases[1, t]) if inner else (0, 0)
-            if at < source:
-                for k in range(used[1, t]):
-                    inner_indices[at + k] = inner_indices[source + k]
         for p in range(splits.shape[0]):
             splits[p] += offsets[p]
-        return offsets[n], inner_offsets[n] if inner else 0
+        for p in range(inner_ends.shape[0]):
+            inner_ends[p] += offsets[p]
+        return offsets[n]
 
     def share_rooms(n, threads, like, row_largest):
-        """The single sweep's regions: ``bases[k, t]`` where share ``t``'s begins (``k`` =
-        0 the list, 1 the inner list), each :data:`ROOM` times what ``like`` (the last
-        list's offsets, and its inner list's or None) held in the share's rows, and
-        ``row_largest``.  If the last list had another count of rows (ghosts come and go,
-        in the cells' order among the rest), in the same fraction of its rows, times the
+        """The single sweep's regions: ``bases[t]`` where share ``t``'s begins, each
+        :data:`ROOM` times what ``like`` (the last list's offsets) held in the share's rows,
+        and ``row_largest``.  If the last list had another count of rows (ghosts come and
+        go, in the cells' order among the rest), in the same fraction of its rows, times the
         ratio of the counts.  (Python on a few numbers: a share a thread.)"""
         starts = [share_first_row(t, threads, n) for t in range(threads + 1)]
-        bases = np.zeros((2, threads + 1), dtype=np.int64)
-        for k in range(2):
-            old = like[k]
-            if old is None or old.shape[0] < 2:
-                continue
-            rows = old.shape[0] - 1
-            at = 0
-            for t in range(threads):
-                held = (int(old[starts[t + 1] * rows // n]) - int(old[starts[t] * rows // n]))
-                at += math.ceil(ROOM * held * n / rows) + row_largest
-                bases[k, t + 1] = at
+        bases = np.zeros(threads + 1, dtype=np.int64)
+        rows = like.shape[0] - 1
+        at = 0
+        for t in range(threads):
+            held = int(like[starts[t + 1] * rows // n]) - int(like[starts[t] * rows // n])
+            at += math.ceil(ROOM * held * n / rows) + row_largest
+            bases[t + 1] = at
         return bases
 
     def build(x, radius, inner_radius, h, support_per_h, skin, like=None):
         """The list of the rows ``x`` within ``radius`` (with a radius per pair ``h``:
         ``support_per_h h_ij + skin``, no further), its inner list within ``inner_radius``
-        (0: none) and its rows' splits (2D and 3D): ``(order, offsets, indices,
-        inner_offsets, inner_indices, splits, sweeps, lo)``, ``lo`` the rows' smallest
-        coordinates (zeros without rows).  With ``like`` (the offsets of the list this one
-        replaces, and of its inner list or None) in one sweep (``sweeps`` = 1) in 2D and
-        3D, unless a share's rows did not fit the room that gives them; else in two, a count
-        and a store (2)."""
+        (0: none; its entries each row's first, ``inner_ends`` where they end) and its rows'
+        splits (2D and 3D): ``(order, offsets, indices, inner_ends, splits, sweeps, lo)``,
+        ``lo`` the rows' smallest coordinates (zeros without rows).  With ``like`` (the
+        offsets of the list this one replaces) in one sweep (``sweeps`` = 1) in 2D and 3D,
+        unless a share's rows did not fit the room that gives them; else in two, a count and
+        a store (2)."""
         n = x.shape[0]
         per_pair = h.shape[0] > 0  # a radius per pair: support_per_h h_ij + skin
         lo, ncell = cell_grid(x, radius)
@@ -580,40 +592,36 @@ def _build_functions(dim: int):
         slack = 64.0 * EPSILON * reach
         # (1D rows hold a few entries: there the count is cheap, and the single sweep's code,
         # pruned from the 1D sweep, would lengthen the README's first command's compiling)
-        once = (dim > 1 and like is not None and like[0].shape[0] > 1 and like[0][-1] > 0
+        once = (dim > 1 and like is not None and like.shape[0] > 1 and like[-1] > 0
                 and n > 0)
         largest_cell = int((cell_end - cell_start).max()) if (dim > 2 or once) and n > 0 else 0
         offsets = np.zeros(n + 1, dtype=np.int64)
-        inner_offsets = np.zeros(n + 1 if inner else 0, dtype=np.int64)
+        inner_ends = np.zeros(n if inner else 0, dtype=np.int64)
         splits = np.zeros(n if dim > 1 else 0, dtype=np.int64)
         threads = threads_for(n, CHUNK, True)
         arguments = (xs, hs, lo, ncell, cell_start, cell_end, radius, r2max, r2inner, r2front,
                      support_per_h, skin, h_largest, slack, largest_cell, offsets)
         if once:
-            bases = share_rooms(n, threads, (like[0], like[1] if inner else None),
-                                3 ** dim * largest_cell)
-            used = np.zeros((2, threads), dtype=np.int64)
-            # (arrays of their own, not numba's: their room beyond the list is given back)
-            indices = np.empty(bases[0, -1], dtype=np.int32)
-            inner_indices = np.empty(bases[1, -1], dtype=np.int32)
-            run_chunked(sweep_rows, threads, 2, *arguments, indices, inner_offsets,
-                        inner_indices, splits, bases, used)
-            if used[0].min() >= 0:
-                entries, inner_entries = compact_shares(offsets, inner_offsets, splits,
-                                                        indices, inner_indices, bases, used)
+            bases = share_rooms(n, threads, like, 3 ** dim * largest_cell)
+            used = np.zeros(threads, dtype=np.int64)
+            # (an array of its own, not numba's: its room beyond the list is given back)
+            indices = np.empty(bases[-1], dtype=np.int32)
+            run_chunked(sweep_rows, threads, 2, *arguments, indices, inner_ends, splits,
+                        bases, used)
+            if used.min() >= 0:
+                entries = compact_shares(offsets, inner_ends, splits, indices, bases, used)
                 indices.resize(entries, refcheck=False)
-                inner_indices.resize(inner_entries, refcheck=False)
-                return order, offsets, indices, inner_offsets, inner_indices, splits, 1, lo
-        indices = inner_indices = np.empty(0, dtype=np.int32)
+                return order, offsets, indices, inner_ends, splits, 1, lo
+        indices = np.empty(0, dtype=np.int32)
         # (unread; of the single sweep's shapes, so that a build of either kind after the
         # other finds the sweep's compiled code by its arguments' kinds: chunked._address)
-        bases, used = np.zeros((2, threads + 1), np.int64), np.zeros((2, threads), np.int64)
+        bases, used = np.zeros(threads + 1, np.int64), np.zeros(threads, np.int64)
         for sweep in range(2):
-            run_chunked(sweep_rows, threads, sweep, *arguments, indices, inner_offsets,
-                        inner_indices, splits, bases, used)
+            run_chunked(sweep_rows, threads, sweep, *arguments, indices, inner_ends, splits,
+                        bases, used)
             if sweep == 0:
-                indices, inner_indices = running_totals(offsets, inner_offsets)
-        return order, offsets, indices, inner_offsets, inner_indices, splits, 2, lo
+                indices = running_totals(offsets)
+        return order, offsets, indices, inner_ends, splits, 2, lo
 
     @njit_variant(f"{dim}d")
     def max_displacement(x, x_ref, origin):
@@ -669,11 +677,11 @@ class NeighbourList:
     order: np.ndarray | None = None  #: sorted position -> particle; None: the identity
     reference_origin: np.ndarray | None = None  #: subtracted from reference_positions
     #: the inner list (module docstring): the fraction of the support it covers (1: no inner
-    #: list), its radius, offsets and indices (as ``offsets`` and ``indices`` are)
+    #: list), its radius, and where each row's inner entries end: ``indices[offsets[p]:
+    #: inner_ends[p]]`` are the row's pairs within the inner radius, its first entries
     inner_reach: float = 1.0
     inner_radius: float = 0.0
-    inner_offsets: np.ndarray | None = None
-    inner_indices: np.ndarray | None = None
+    inner_ends: np.ndarray | None = None
     #: 2D and 3D: where each row's back part starts (module docstring): ``indices[offsets[p]:
     #: splits[p]]`` were within their support (or the inner list's radius) at the build, the
     #: rest of the row was not.  None: no split known (1D, or a list handed in without one)
@@ -687,13 +695,14 @@ class NeighbourList:
             self.order = np.arange(self.offsets.shape[0] - 1, dtype=np.int32)
         if self.reference_origin is None:
             self.reference_origin = np.zeros(self.reference_positions.shape[1])
-        if (self.inner_offsets is None) != (self.inner_indices is None) or (
-                self.inner_offsets is not None
-                and not (0.0 < self.inner_reach < 1.0 and self.inner_radius > self.skin)):
-            raise ValueError(f"an inner list needs its offsets, its indices, inner_reach in "
-                             f"(0, 1) and inner_radius above the skin; got inner_reach = "
-                             f"{self.inner_reach!r}, inner_radius = {self.inner_radius!r}")
         rows = self.offsets.shape[0] - 1
+        if self.inner_ends is not None and not (
+                0.0 < self.inner_reach < 1.0 and self.inner_radius > self.skin
+                and self.inner_ends.shape == (rows,)):
+            raise ValueError(f"an inner list needs its rows' ends, one per row ({rows},), "
+                             f"inner_reach in (0, 1) and inner_radius above the skin; got "
+                             f"inner_ends of shape {self.inner_ends.shape}, inner_reach = "
+                             f"{self.inner_reach!r}, inner_radius = {self.inner_radius!r}")
         if self.splits is not None and self.splits.shape != (rows,):
             raise ValueError(f"splits has shape {self.splits.shape}: one entry per row of the "
                              f"list, ({rows},), or None")
@@ -701,7 +710,7 @@ class NeighbourList:
     @classmethod
     def build(cls, x: np.ndarray, support: float, skin: float = 0.0,
               inner_reach: float = 1.0, h: np.ndarray | None = None,
-              like: tuple[np.ndarray, np.ndarray | None] | None = None) -> NeighbourList:
+              like: np.ndarray | None = None) -> NeighbourList:
         """All pairs closer than ``support + skin`` (``support`` = 2 h_max for eq 20), and
         with ``inner_reach`` < 1 an inner list of those closer than ``inner_reach * support +
         skin``.  With ``h`` (a smoothing length per row), only the pairs closer than their own
@@ -709,11 +718,11 @@ class NeighbourList:
         inner list stays a part of the whole): every pair a pass of support ``2 h_ij`` uses,
         without the rows' entries out to the largest h's reach.
 
-        With ``like`` (the offsets of the list this one replaces, and of its inner list or
-        None) the rows of a 2D or 3D list are swept once, each share of them stored in a
-        room sized from what ``like`` held in the same rows (:data:`ROOM`), then moved
-        together; a share that does not fit makes it sweep twice, counting first, as
-        without ``like`` (:attr:`sweeps`).  The list is the same either way."""
+        With ``like`` (the offsets of the list this one replaces) the rows of a 2D or 3D
+        list are swept once, each share of them stored in a room sized from what ``like``
+        held in the same rows (:data:`ROOM`), then moved together; a share that does not fit
+        makes it sweep twice, counting first, as without ``like`` (:attr:`sweeps`).  The list
+        is the same either way."""
         dim = x.shape[1]
         build = _build_functions(dim)[0]
         radius = float(support + skin)
@@ -725,11 +734,11 @@ class NeighbourList:
         if per_pair.shape[0] not in (0, x.shape[0]):
             raise ValueError(f"h has {per_pair.shape[0]} rows for {x.shape[0]} positions")
         x = np.ascontiguousarray(x)
-        order, offsets, indices, inner_offsets, inner_indices, splits, sweeps, origin = build(
+        order, offsets, indices, inner_ends, splits, sweeps, origin = build(
             x, radius, inner_radius, per_pair, float(SUPPORT_RADIUS), float(skin), like)
         if offsets[-1] < np.iinfo(np.int32).max:  # 4 bytes per particle less
             offsets = offsets.astype(np.int32)
-            inner_offsets = inner_offsets.astype(np.int32)
+            inner_ends = inner_ends.astype(np.int32)
             splits = splits.astype(np.int32)
         # (the origin: the rows' smallest coordinates, which the cells' grid has found;
         # numpy's x.min(axis=0) took 50-80 us for the Taylor bar's 1,482 rows, 3.4 ms for
@@ -738,8 +747,7 @@ class NeighbourList:
         return cls(offsets, indices, radius, float(skin), offsets_from(x, origin),
                    order=order.astype(np.int32), reference_origin=origin,
                    inner_reach=float(inner_reach) if inner else 1.0, inner_radius=inner_radius,
-                   inner_offsets=inner_offsets if inner else None,
-                   inner_indices=inner_indices if inner else None,
+                   inner_ends=inner_ends if inner else None,
                    splits=splits if dim > 1 else None, sweeps=sweeps)
 
     @property
@@ -769,12 +777,18 @@ class NeighbourList:
             known = self.__dict__["_rank"] = (self.order, rank)
         return known[1]
 
-    def within(self, reach: float) -> tuple[np.ndarray, np.ndarray]:
-        """``(offsets, indices)`` of a list that holds every pair within ``reach`` times the
-        support: the inner list where it reaches that far, else the whole list."""
-        if self.inner_offsets is not None and reach <= self.inner_reach:
-            return self.inner_offsets, self.inner_indices
-        return self.offsets, self.indices
+    def within(self, reach: float) -> np.ndarray:
+        """Each row's end for a pass that needs every pair within ``reach`` times the
+        support: ``indices[offsets[p]:ends[p]]`` holds them.  The inner list's
+        :attr:`inner_ends` where it reaches that far, else the rows' own ends (a view of
+        ``offsets``, the same object from one call to the next while the offsets are: a
+        pass's arguments stay the same objects, :func:`impactsph.physics.chunked._address`)."""
+        if self.inner_ends is not None and reach <= self.inner_reach:
+            return self.inner_ends
+        known = self.__dict__.get("_row_ends")  # (the offsets, their view)
+        if known is None or known[0] is not self.offsets:
+            known = self.__dict__["_row_ends"] = (self.offsets, self.offsets[1:])
+        return known[1]
 
     def stale(self, x: np.ndarray, support: float) -> bool:
         """Whether the list no longer holds every pair within ``support`` of particles at
@@ -811,14 +825,14 @@ class NeighbourList:
     def update(self, x: np.ndarray, support: float) -> None:
         """Rebuild in place if the list is :meth:`stale`."""
         if self.stale(x, support):
-            like = (self.offsets, self.inner_offsets)
-            self.indices = self.inner_indices = None  # (freed before the new ones are made)
+            like = self.offsets
+            self.indices = None  # (freed before the new ones are made)
             new = NeighbourList.build(x, support, self.skin, self.inner_reach, like=like)
             self.offsets, self.indices, self.order = new.offsets, new.indices, new.order
             self.radius, self.reference_positions = new.radius, new.reference_positions
             self.reference_origin = new.reference_origin
             self.inner_reach, self.inner_radius = new.inner_reach, new.inner_radius
-            self.inner_offsets, self.inner_indices = new.inner_offsets, new.inner_indices
+            self.inner_ends = new.inner_ends
             self.splits, self.sweeps = new.splits, new.sweeps
             self.builds += 1
 
@@ -854,3 +868,24 @@ def brute_force_pairs(x: np.ndarray, radius: float) -> set[tuple[int, int]]:
     d = np.linalg.norm(x[:, None, :] - x[None, :, :], axis=-1)
     i, j = np.nonzero(d < radius)
     return {(int(a), int(b)) for a, b in zip(i, j, strict=True) if a != b}
+
+
+def inner_entries_first(offsets: np.ndarray, indices: np.ndarray, inner_offsets: np.ndarray,
+                        inner_indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A list with an inner list of its own (``inner_indices[inner_offsets[p]:inner_offsets[p
+    + 1]]``, each row's entries within the inner radius in the row's order, as lists were
+    held before 2026-12-07 and checkpoints of then hold them) as it is held now: ``(indices,
+    inner_ends)``, each row's inner entries moved to its start, the rest after them in their
+    order (a stable partition of each row: the layout :meth:`NeighbourList.build` gives the
+    same rows, the rows' splits unchanged, since inner entries lie in the front part)."""
+    rows = offsets.shape[0] - 1
+    row = np.repeat(np.arange(rows, dtype=np.int64), np.diff(offsets))
+    inner_row = np.repeat(np.arange(rows, dtype=np.int64), np.diff(inner_offsets))
+    # an entry is inner if its (row, neighbour) is in the inner list (a row holds each
+    # neighbour once)
+    width = np.int64(max(rows, 1))
+    inner = np.isin(row * width + indices, inner_row * width + inner_indices)
+    # each row's inner entries, then the rest, each in their order
+    moved = indices[np.argsort(2 * row + ~inner, kind="stable")].astype(indices.dtype)
+    inner_ends = (offsets[:-1] + np.diff(inner_offsets)).astype(offsets.dtype)
+    return moved, inner_ends

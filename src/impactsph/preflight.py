@@ -386,7 +386,7 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
                     force_correction: bool = False, strength_width: int = 1,
                     state_kept: int | None = None, snapshots: int = 0, history_values: int = 0,
                     compatible: bool = False, switched: bool = False,
-                    gpu_state: bool = False) -> float:
+                    inner_list: bool = False, gpu_state: bool = False) -> float:
     """Peak bytes of a run of ``n`` particles (``ghosts`` more in the sums) with ``neighbours``
     stored neighbour-list entries per particle:
 
@@ -400,8 +400,10 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
       (unpadded: 10 to 22 doubles without the optional columns, the viscous acceleration's
       only with a correction or a switch), the extended arrays of the wall ghosts (with
       ``walls``), the neighbour list's offsets, order and reference positions (and in 2D and
-      3D its rows' splits), and the builder's temporaries (cell keys, sort order, sorted
-      positions; the cells' counts and the occupied cells' Morton codes are a few bytes);
+      3D its rows' splits; with ``inner_list``, a scheme whose correction or switch reads the
+      list's inner list on the CPU, the rows' inner ends), and the builder's temporaries
+      (cell keys, sort order, sorted positions; the cells' counts and the occupied cells'
+      Morton codes are a few bytes);
     - per stored neighbour pair: 4 bytes (int32 index);
     - ``history_values`` numbers of the history and the probes (:data:`HISTORY_VALUE_BYTES`
       each, :func:`history_values`);
@@ -451,7 +453,7 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
             carried = 8 * strength_width
     # offsets, order, reference, the 2D and 3D rows' splits (built as 8 B, kept as 4); the
     # build's temporaries (cell keys, sort order, sorted positions, the cells' counts)
-    neighbour_list = 12 + 4 * d + (8 if d > 1 else 0) + 24 + 8 * d
+    neighbour_list = 12 + 4 * d + (8 if d > 1 else 0) + 24 + 8 * d + (4 if inner_list else 0)
     if compatible:  # the work pass's rate buffers, the pair energy rates, the velocities
         buffers += (76 + 8 * d) + 8 + 16 * d
     per_row = buffers + records + ghost_arrays + carried + neighbour_list + 4 * neighbours
@@ -673,6 +675,7 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
     material table, both known once the particles are placed)."""
     from .models import VISCOSITY
     from .physics.options import PassOptions
+    from .physics.rates import ViscositySettings
 
     plan = device_plan(case)
     dim = case.dimension
@@ -702,6 +705,8 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
         strength_width=state_width(case), state_kept=state_kept(case),
         compatible=case.time.energy_update == "compatible",
         switched=VISCOSITY[case.viscosity.scheme].switch is not None,
+        # (the CPU's list only: the device builds none)
+        inner_list=plan.device == "cpu" and ViscositySettings.of(case.viscosity).inner_reach < 1,
         snapshots=len(case.output.snapshot_times),
         history_values=history_values(case, steps), gpu_state=plan.resident)
     runs = 1 if reference_run(case) is None else 2

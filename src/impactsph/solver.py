@@ -225,7 +225,7 @@ class Solver:
         builds = old.builds if old is not None else 0
         # the old list's offsets size the new one's room (its build's single sweep); its
         # indices are freed first: the peak memory is one list (and that room)
-        like = None if old is None else (old.offsets, old.inner_offsets)
+        like = None if old is None else old.offsets
         self.neighbours = old = None
         # an inner list for the CPU's correction and switch passes (the GPU's kernels read the
         # whole list)

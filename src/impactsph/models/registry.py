@@ -152,24 +152,25 @@ class ViscosityScheme:
     r_ij``, ``r2 = |r_ij|^2``, pair means ``h_ij, c_ij, rho_ij``; ``params`` the tuple of four
     floats that ``pair_parameters(viscosity)`` returns for the case's ``[viscosity]`` table.
 
-    ``correction`` (compiled, optional): ``correction(p, i, P, offsets, indices, layout,
+    ``correction`` (compiled, optional): ``correction(p, i, P, start, end, indices, layout,
     dim, params, dv_corr, de_corr, dv, de)`` for the active particle ``i`` at sorted position
-    ``p``, reading the packed records ``P`` (``layout``: the tuple of their column indices,
+    ``p``, whose neighbours are the sorted positions ``indices[start:end]``, reading the
+    packed records ``P`` (``layout``: the tuple of their column indices,
     see :func:`impactsph.physics.passes.record_columns`) and adding its terms to ``dv``,
     ``de``; ``correction_parameters(viscosity)`` gives its four floats.
 
-    ``switch`` (compiled, optional): ``switch(p, i, P, offsets, indices, layout, dim, params,
-    elapsed, memory) -> f_i``, the particle's viscosity factor for the next rate evaluation (a
-    float in ``[0, 1]``), read from the packed records after the pair pass (``layout``: the
-    columns ``(x, v, h, volume, body, u, c, f, memory, rho, m)``, ``u`` the viscous
-    acceleration of the unscaled ``Pi_ij``, ``f`` the factor in use, ``memory`` what the switch
-    kept at the last evaluation); ``elapsed`` is the time (s) since the factors were last set,
-    for a switch that evolves them (0 at the first evaluation); the switch writes what it keeps
-    for the next evaluation into ``memory[i]`` (it must write it: the array is not
-    initialised); ``switch_parameters(viscosity)`` gives its four floats.  A scheme with a switch
-    has every pair's ``Pi_ij`` multiplied by the mean ``(f_i + f_j) / 2`` of the two
-    particles' factors (docs/dissipation.md): a symmetric factor, so momentum and the energy
-    balance are kept exactly."""
+    ``switch`` (compiled, optional): ``switch(p, i, P, start, end, indices, layout, dim, params,
+    elapsed, memory) -> f_i`` (its neighbours as the correction's), the particle's viscosity
+    factor for the next rate evaluation (a float in ``[0, 1]``), read from the packed records
+    after the pair pass (``layout``: the columns ``(x, v, h, volume, body, u, c, f, memory, rho,
+    m)``, ``u`` the viscous acceleration of the unscaled ``Pi_ij``, ``f`` the factor in use,
+    ``memory`` what the switch kept at the last evaluation); ``elapsed`` is the time (s) since
+    the factors were last set, for a switch that evolves them (0 at the first evaluation); the
+    switch writes what it keeps for the next evaluation into ``memory[i]`` (it must write it:
+    the array is not initialised); ``switch_parameters(viscosity)`` gives its four floats. A
+    scheme with a switch has every pair's ``Pi_ij`` multiplied by the mean ``(f_i + f_j) / 2``
+    of the two particles' factors (docs/dissipation.md): a symmetric factor, so momentum and the
+    energy balance are kept exactly."""
 
     name: str
     pair_viscosity: Any
@@ -196,9 +197,10 @@ class ViscosityScheme:
     #: how far ``correction`` reads its neighbours: ``correction_reach(viscosity)`` is a
     #: fraction ``f`` of the kernel support such that the correction never uses a pair at
     #: ``r_ij >= f 2 h_max`` (``h_max`` the largest smoothing length of the run; None: the
-    #: whole support).  The CPU's correction pass is then handed the neighbour list's inner
-    #: list (:mod:`impactsph.neighbours`), which holds every pair closer than that; a reach
-    #: too short drops pairs silently, so a correction must skip the pairs beyond it itself
+    #: whole support).  The CPU's correction pass then reads only each row's inner list
+    #: (:mod:`impactsph.neighbours`: its first entries), which holds every pair closer than
+    #: that; a reach too short drops pairs silently, so a correction must skip the pairs
+    #: beyond it itself
     correction_reach: Callable[[Any], float] | None = None
     #: the same for ``switch``: ``switch_reach(viscosity) -> f``, no pair at ``r_ij >= f 2
     #: h_max`` used by the switch (None: the whole support)

@@ -1651,9 +1651,10 @@ def pair_pass(first, step, n_active, order, P, offsets, indices, starts, visc_ki
 
 
 @JIT(parallel=PARALLEL_OPTION, cache=True, error_model=BODY_ERROR_MODEL)
-def correction_pass(n_active, order, P, offsets, indices, visc_kind, correction_params,
+def correction_pass(n_active, order, P, offsets, ends, indices, visc_kind, correction_params,
                     dv_corr, de_corr, dv, de, chunk_size):
-    """Pass 3 (a scheme with a correction only) over the active particles."""
+    """Pass 3 (a scheme with a correction only) over the active particles, each row's
+    ``indices[offsets[p]:ends[p]]`` (the inner list's rows: ``NeighbourList.within``)."""
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
     far = n >= PREFETCH_ROWS
@@ -1667,8 +1668,9 @@ def correction_pass(n_active, order, P, offsets, indices, visc_kind, correction_
                 prefetch_row(de, ahead, 1, True)
             i = order[p]
             if i < n_active:
-                viscosity_correction(visc_kind, p, i, P, offsets, indices, CORRECTION_COLUMNS,
-                                     DIM, correction_params, dv_corr, de_corr, dv, de)
+                viscosity_correction(visc_kind, p, i, P, offsets[p], ends[p], indices,
+                                     CORRECTION_COLUMNS, DIM, correction_params, dv_corr,
+                                     de_corr, dv, de)
 
 
 # (a prange loop until 2026-12-05, threaded in the serial modules too: compiled serial, the
@@ -1676,20 +1678,21 @@ def correction_pass(n_active, order, P, offsets, indices, visc_kind, correction_
 # the copy numba's cache holds, not the one a compiling process runs: impactsph.physics.chunked)
 @JIT(parallel=CHUNKED_OPTION, cache=True, nogil=True, **NOALIAS,
      fastmath=SWITCH_FASTMATH, error_model=SWITCH_ERROR_MODEL)
-def switch_pass(first, step, n_active, order, P, offsets, indices, visc_kind, switch_params,
-                elapsed, factor, memory, chunk_size):
+def switch_pass(first, step, n_active, order, P, offsets, ends, indices, visc_kind,
+                switch_params, elapsed, factor, memory, chunk_size):
     """The viscosity switch (a scheme with one) over the active particles, after the pair
     pass: ``factor[i]``, the particle's factor for the next rate evaluation (``elapsed``: the
-    time since the factors in the records were set)."""
+    time since the factors in the records were set), each row's ``indices[offsets[p]:
+    ends[p]]`` (as in ``correction_pass``)."""
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
     for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
         for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
             i = order[p]
             if i < n_active:
-                factor[i] = viscosity_switch(visc_kind, p, i, P, offsets, indices,
-                                             SWITCH_COLUMNS, DIM, switch_params, elapsed,
-                                             memory)
+                factor[i] = viscosity_switch(visc_kind, p, i, P, offsets[p], ends[p],
+                                             indices, SWITCH_COLUMNS, DIM, switch_params,
+                                             elapsed, memory)
 
 
 @JIT(parallel=PARALLEL_OPTION, cache=True, error_model=BODY_ERROR_MODEL)
@@ -1877,18 +1880,18 @@ def cuda_kernels(max_registers=0):
                           correction_params, dv_corr, de_corr, dv, de):
         p = cuda.grid(1)
         if p < n_rows and order[p] < n_active:
-            viscosity_correction(visc_kind, p, order[p], P, offsets, indices,
-                                 CORRECTION_COLUMNS, DIM, correction_params, dv_corr, de_corr,
-                                 dv, de)
+            viscosity_correction(visc_kind, p, order[p], P, offsets[p], offsets[p + 1],
+                                 indices, CORRECTION_COLUMNS, DIM, correction_params, dv_corr,
+                                 de_corr, dv, de)
 
     @cuda.jit
     def switch_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind, switch_params,
                       elapsed, factor, memory):
         p = cuda.grid(1)
         if p < n_rows and order[p] < n_active:
-            factor[order[p]] = viscosity_switch(visc_kind, p, order[p], P, offsets, indices,
-                                                SWITCH_COLUMNS, DIM, switch_params, elapsed,
-                                                memory)
+            factor[order[p]] = viscosity_switch(visc_kind, p, order[p], P, offsets[p],
+                                                offsets[p + 1], indices, SWITCH_COLUMNS, DIM,
+                                                switch_params, elapsed, memory)
 
     @cuda.jit
     def moment_kernel(n_rows, P, offsets, indices):

@@ -52,7 +52,8 @@ class ViscositySettings:
     #: ``PassOptions(velocity_reconstruction=True)``)
     reconstruction: bool = False
     #: how far the correction reads its neighbours, a fraction of the support (the correction
-    #: pass gets the neighbour list's inner list where it has one that reaches so far)
+    #: pass reads each row's inner entries where the list has an inner list that reaches so
+    #: far: ``NeighbourList.within``)
     correction_reach: float = 1.0
     #: the same for the switch pass
     switch_reach: float = 1.0
@@ -256,16 +257,16 @@ class CpuRates:
                             n_bodies, self.options.normal_stress, b.dv, b.de, b.contact_force,
                             chunk)
         if viscosity.correction is not None:  # (the inner list where there is one)
-            near_offsets, near_indices = nl.within(viscosity.correction_reach)
-            k.correction_pass(n_active, nl.order, self._packed, near_offsets, near_indices,
+            k.correction_pass(n_active, nl.order, self._packed, nl.offsets,
+                              nl.within(viscosity.correction_reach), nl.indices,
                               viscosity.kind, viscosity.correction, b.dv_corr, b.de_corr,
                               b.dv, b.de, chunk)
         if viscosity.switch is not None:
             if b.factor.shape[0] < n_active:
                 raise ValueError("a viscosity switch needs RateBuffers(..., switched=True)")
-            near_offsets, near_indices = nl.within(viscosity.switch_reach)
             run_chunked(self.switch_pass(viscosity.kind), threads, n_active, nl.order,
-                        self._packed, near_offsets, near_indices, viscosity.kind,
+                        self._packed, nl.offsets, nl.within(viscosity.switch_reach),
+                        nl.indices, viscosity.kind,
                         viscosity.switch, float(switch_elapsed), b.factor, b.memory, chunk)
         if hourglass > 0.0:
             run_chunked(loops.hourglass_pass, threads, n_active, nl.order, self._packed,
@@ -353,7 +354,8 @@ def correction_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray
     settings = ViscositySettings.of(viscosity)
     dv_corr, de_corr = np.zeros((n, dim)), np.zeros(n)
     compiled_passes(dim, options=PassOptions(record_precision=record_precision)).correction_pass(
-        n, neighbours.order, packed, neighbours.offsets, neighbours.indices, settings.kind,
+        n, neighbours.order, packed, neighbours.offsets,
+        neighbours.within(settings.correction_reach), neighbours.indices, settings.kind,
         settings.correction, dv_corr, de_corr, np.zeros((n, dim)), np.zeros(n), chunk_size(n))
     return dv_corr, de_corr
 
@@ -377,6 +379,7 @@ def switch_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray, h:
     out, new_memory = np.zeros(n), np.zeros(n)
     compiled_passes(dim, options=PassOptions(viscosity_factor=True, switch_kind=settings.kind,
                                              record_precision=record_precision)).switch_pass(
-        0, 1, n, neighbours.order, packed, neighbours.offsets, neighbours.indices, settings.kind,
+        0, 1, n, neighbours.order, packed, neighbours.offsets,
+        neighbours.within(settings.switch_reach), neighbours.indices, settings.kind,
         settings.switch, float(elapsed), out, new_memory, chunk_size(n))
     return (out, new_memory) if with_memory else out

@@ -164,7 +164,7 @@ pair_viscosity = monaghan_pair_viscosity
 
 
 @nb.njit(inline="always", cache=True)
-def correction_sums(p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, h_ratio, paper):
+def correction_sums(p, P, start, end, indices, X, V, H, VOL, BODY, U, dim, h_ratio, paper):
     """The neighbour sums of eq 34 for the particle at sorted position ``p``, over the
     neighbours ``j != i`` of the same body within ``2 h_c``, ``h_c = h_ratio h_ij``:
     ``(w_ii, sum_j w_ij, sum_j w_ij u_j (three components), 1/2 sum_j w_ij v_ij . u_j)``,
@@ -178,7 +178,7 @@ def correction_sums(p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, h_ratio,
     paper_energy = 0.0
     h_i = Pi_[H]
     self_weight = correction_weight(Pi_[VOL], 0.0, h_ratio * h_i, dim)
-    for k in range(offsets[p], offsets[p + 1]):
+    for k in range(start, end):
         j = indices[k]
         Pj = P[j]
         # distance first: most neighbours lie beyond 2 h_c, and position and h share the
@@ -204,7 +204,7 @@ def correction_sums(p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, h_ratio,
 
 
 @nb.njit(inline="always", cache=True)
-def correct(p, i, P, offsets, indices, layout, dim, params, dv_corr, de_corr, dv, de):
+def correct(p, i, P, start, end, indices, layout, dim, params, dv_corr, de_corr, dv, de):
     """The correction of the active particle ``i`` at sorted position ``p`` (eqs 33-37):
     ``-u_corr_i`` and its energy term into ``dv_corr[i]``, ``de_corr[i]``, and added to the
     totals ``dv[i]``, ``de[i]``.  Reads the packed records ``P`` (columns ``layout = (x, v,
@@ -216,7 +216,7 @@ def correct(p, i, P, offsets, indices, layout, dim, params, dv_corr, de_corr, dv
     energy_mode = int(params[2])
     Pi_ = P[p]
     self_weight, weight_sum, u0, u1, u2, paper_energy = correction_sums(
-        p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, params[0],
+        p, P, start, end, indices, X, V, H, VOL, BODY, U, dim, params[0],
         energy_mode == ENERGY_PAPER)
     weighted_u = (u0, u1, u2)
     work = 0.0

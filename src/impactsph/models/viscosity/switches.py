@@ -89,7 +89,7 @@ class BalsaraParameters(MonaghanParameters):
 
 
 @nb.njit(inline="always", cache=True)
-def neighbour_fields(p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, M, dim):
+def neighbour_fields(p, P, start, end, indices, X, V, H, VOL, BODY, C, MEMORY, M, dim):
     """One loop over the neighbours of the same body of the particle at sorted position
     ``p``: the SPH velocity gradient ``L_ab = dv_a/dx_b = -sum_j V_j v_ij,a dW_ij/dx_b``
     (``grad W`` with the pair's mean smoothing length; nine components, row by row), ``rho_i
@@ -115,7 +115,7 @@ def neighbour_fields(p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, M, d
     sign_i = 1.0 if memory_i > 0.0 else (-1.0 if memory_i < 0.0 else 0.0)
     R = sign_i * P[p, M] * cubic_spline(0.0, h_i, dim)
     v_sig = c_i
-    for k in range(offsets[p], offsets[p + 1]):
+    for k in range(start, end):
         j = indices[k]  # P[j, col], not a row view: the view stops the vectoriser
         d0 = xi0 - record_coordinate(P, j, X, 0, dim)
         d1 = xi1 - record_coordinate(P, j, X, 1, dim) if dim > 1 else 0.0
@@ -150,12 +150,12 @@ def neighbour_fields(p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, M, d
 
 
 @nb.njit(inline="always", cache=True)
-def cullen_dehnen_fields(p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, RHO, M, dim):
+def cullen_dehnen_fields(p, P, start, end, indices, X, V, H, VOL, BODY, C, MEMORY, RHO, M, dim):
     """``(div v, tr(S S^T), R, v_sig)`` of the particle at sorted position ``p`` from
     :func:`neighbour_fields`: the divergence, the squared norm of the velocity gradient's
     traceless symmetric part ``S`` and ``R`` divided by ``rho_i``."""
     L00, L01, L02, L10, L11, L12, L20, L21, L22, R, v_sig = neighbour_fields(
-        p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, M, dim)
+        p, P, start, end, indices, X, V, H, VOL, BODY, C, MEMORY, M, dim)
     div = L00 + L11 + L22
     third = div / dim
     s00, s11, s22 = L00 - third, L11 - third, L22 - third
@@ -169,23 +169,23 @@ def cullen_dehnen_fields(p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, 
 
 
 @nb.njit(inline="always", cache=True)
-def divergence_and_curl(p, P, offsets, indices, layout, dim):
+def divergence_and_curl(p, P, start, end, indices, layout, dim):
     """``(div v, |curl v|)`` of the particle at sorted position ``p``, from the velocity
     gradient of :func:`neighbour_fields`."""
     X, V, H, VOL, BODY, U, C, F, MEMORY, RHO, M = layout
     L00, L01, L02, L10, L11, L12, L20, L21, L22, _, _ = neighbour_fields(
-        p, P, offsets, indices, X, V, H, VOL, BODY, C, MEMORY, M, dim)
+        p, P, start, end, indices, X, V, H, VOL, BODY, C, MEMORY, M, dim)
     c0, c1, c2 = L21 - L12, L02 - L20, L10 - L01
     return L00 + L11 + L22, math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
 
 
 @nb.njit(inline="always", cache=True)
-def balsara_factor(p, i, P, offsets, indices, layout, dim, params, elapsed, memory):
+def balsara_factor(p, i, P, start, end, indices, layout, dim, params, elapsed, memory):
     """Balsara's ``f_i`` for the particle at sorted position ``p`` (``params = (eps_B, unused,
     unused, unused)``; ``layout``: :class:`~impactsph.models.registry.ViscosityScheme`)."""
     X, V, H, VOL, BODY, U, C, F, MEMORY, RHO, M = layout
     memory[i] = 0.0  # nothing kept
-    div, curl = divergence_and_curl(p, P, offsets, indices, layout, dim)
+    div, curl = divergence_and_curl(p, P, start, end, indices, layout, dim)
     a = abs(div)
     return a / (a + curl + params[0] * P[p, C] / P[p, H])
 
@@ -203,14 +203,14 @@ class MorrisMonaghanParameters(MonaghanParameters):
 
 
 @nb.njit(inline="always", cache=True)
-def morris_monaghan_factor(p, i, P, offsets, indices, layout, dim, params, elapsed, memory):
+def morris_monaghan_factor(p, i, P, start, end, indices, layout, dim, params, elapsed, memory):
     """Morris & Monaghan's ``f_i = alpha_i / alpha1`` after ``elapsed`` seconds (``params =
     (alpha_min / alpha1, l, unused, unused)``): the factor in use (record column ``f``)
     advanced by the exact solution of ``df/dt = -(f - f_min) / tau + S (1 - f)`` with this
     evaluation's ``tau = h / (l c)`` and ``S = max(-div v, 0)``."""
     X, V, H, VOL, BODY, U, C, F, MEMORY, RHO, M = layout
     memory[i] = 0.0  # nothing kept
-    div, _ = divergence_and_curl(p, P, offsets, indices, layout, dim)
+    div, _ = divergence_and_curl(p, P, start, end, indices, layout, dim)
     f_min = params[0]
     rate = params[1] * P[p, C] / P[p, H]  # 1 / tau
     source = max(-div, 0.0)
@@ -226,13 +226,13 @@ class PairwiseCorrectionParameters(CorrectionParameters):
 
 
 @nb.njit(inline="always", cache=True)
-def ac_pairwise_factor(p, i, P, offsets, indices, layout, dim, params, elapsed, memory):
+def ac_pairwise_factor(p, i, P, start, end, indices, layout, dim, params, elapsed, memory):
     """The pairwise AC's ``f_i`` (``params = (h_ratio, variant, unused, unused)``)."""
     X, V, H, VOL, BODY, U, C, F, MEMORY, RHO, M = layout
     memory[i] = 0.0  # nothing kept
     Pi_ = P[p]
     self_weight, weight_sum, s0, s1, s2, _ = correction_sums(
-        p, P, offsets, indices, X, V, H, VOL, BODY, U, dim, params[0], False)
+        p, P, start, end, indices, X, V, H, VOL, BODY, U, dim, params[0], False)
     variant = int(params[1])
     weighted = (s0, s1, s2)
     uu = 0.0
@@ -265,14 +265,14 @@ OPTIMISED_BISECTIONS = 12
 
 
 @nb.njit(inline="always", cache=True)
-def _variation_slope(p, P, offsets, indices, X, V, H, VOL, BODY, U, F, dim, f, step):
+def _variation_slope(p, P, start, end, indices, X, V, H, VOL, BODY, U, F, dim, f, step):
     """``d TV_i / d f`` at ``f``: the slope of the local total variation of the velocity after
     ``step`` seconds of viscous acceleration, ``TV_i(f) = sum_j V_j W_ij |v_ij + step (f u_i -
     f_j u_j)|`` (neighbours of the same body, ``f_j`` their factors in use)."""
     Pi_ = P[p]
     slope = 0.0
     h_i = Pi_[H]
-    for k in range(offsets[p], offsets[p + 1]):
+    for k in range(start, end):
         j = indices[k]
         Pj = P[j]
         if Pj[BODY] != Pi_[BODY]:
@@ -297,7 +297,7 @@ def _variation_slope(p, P, offsets, indices, X, V, H, VOL, BODY, U, F, dim, f, s
 
 
 @nb.njit(inline="always", cache=True)
-def ac_optimised_factor(p, i, P, offsets, indices, layout, dim, params, elapsed, memory):
+def ac_optimised_factor(p, i, P, start, end, indices, layout, dim, params, elapsed, memory):
     """The optimised correction's ``f_i`` (``params = (h_ratio, variant, unused, unused)``):
     the smallest ``f`` in ``[f_AC, 1]`` that minimises ``TV_i(f)`` (see
     :func:`_variation_slope`) over the next ``elapsed`` seconds, ``f_AC`` the pairwise AC's
@@ -306,7 +306,7 @@ def ac_optimised_factor(p, i, P, offsets, indices, layout, dim, params, elapsed,
     negative, 1 where it is negative at 1, else the root of the slope by bisection."""
     X, V, H, VOL, BODY, U, C, F, MEMORY, RHO, M = layout
     memory[i] = 0.0  # nothing kept
-    low = ac_pairwise_factor(p, i, P, offsets, indices, layout, dim, params, elapsed,
+    low = ac_pairwise_factor(p, i, P, start, end, indices, layout, dim, params, elapsed,
                              memory)
     if elapsed <= 0.0 or low >= 1.0:
         return low
@@ -314,7 +314,7 @@ def ac_optimised_factor(p, i, P, offsets, indices, layout, dim, params, elapsed,
     a, b = low, 1.0
     for step in range(OPTIMISED_BISECTIONS + 2):
         f = low if step == 0 else (1.0 if step == 1 else 0.5 * (a + b))
-        slope = _variation_slope(p, P, offsets, indices, X, V, H, VOL, BODY, U, F, dim, f,
+        slope = _variation_slope(p, P, start, end, indices, X, V, H, VOL, BODY, U, F, dim, f,
                                  elapsed)
         if step == 0:
             if slope >= 0.0:
@@ -339,7 +339,7 @@ class CullenDehnenParameters(MonaghanParameters):
 
 
 @nb.njit(inline="always", cache=True)
-def cullen_dehnen_factor(p, i, P, offsets, indices, layout, dim, params, elapsed, memory):
+def cullen_dehnen_factor(p, i, P, start, end, indices, layout, dim, params, elapsed, memory):
     """Cullen & Dehnen's ``f_i = alpha_i / alpha1`` (``params = (l, unused, unused,
     unused)``): the local target ``f_loc = H^2 A / (v_sig^2 + H^2 A)`` with ``A = xi
     max(-dD/dt, 0)``, ``dD/dt`` the change of the divergence since the last evaluation over
@@ -348,7 +348,7 @@ def cullen_dehnen_factor(p, i, P, offsets, indices, layout, dim, params, elapsed
     is below it, else it decays towards it, ``f_loc + (f - f_loc) exp(-elapsed 2 l v_sig /
     H)``.  Keeps ``D`` in ``memory[i]``."""
     X, V, H, VOL, BODY, U, C, F, MEMORY, RHO, M = layout
-    div, shear, R, v_sig = cullen_dehnen_fields(p, P, offsets, indices, X, V, H, VOL, BODY, C,
+    div, shear, R, v_sig = cullen_dehnen_fields(p, P, start, end, indices, X, V, H, VOL, BODY, C,
                                                 MEMORY, RHO, M, dim)
     memory[i] = div
     if elapsed <= 0.0:
