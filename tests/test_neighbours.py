@@ -206,6 +206,11 @@ def test_inner_list_is_the_near_part_of_each_row_at_its_start(dim):
         NeighbourList(nl.offsets, nl.indices, nl.radius, skin, nl.reference_positions,
                       inner_reach=reach, inner_radius=nl.inner_radius,
                       inner_ends=nl.inner_ends[:3])
+    beyond = nl.inner_ends.copy()
+    beyond[7] = nl.offsets[8] + 1  # (past its row's end: the pass would read the next row)
+    with pytest.raises(ValueError, match="one per row .* within the row"):
+        NeighbourList(nl.offsets, nl.indices, nl.radius, skin, nl.reference_positions,
+                      inner_reach=reach, inner_radius=nl.inner_radius, inner_ends=beyond)
 
 
 @pytest.mark.parametrize("dim", [1, 2, 3])
@@ -232,6 +237,14 @@ def test_an_inner_list_of_its_own_is_moved_to_the_rows_starts(dim):
     assert moved.dtype == nl.indices.dtype and inner_ends.dtype == nl.inner_ends.dtype
     np.testing.assert_array_equal(moved, nl.indices)
     np.testing.assert_array_equal(inner_ends, nl.inner_ends)
+    # an inner row that is not a part of its row, in its order, is refused
+    swapped = np.array(inner_indices, dtype=np.int32)
+    first = next(p for p in range(x.shape[0]) if inner_offsets[p + 1] - inner_offsets[p] > 1)
+    a = inner_offsets[first]
+    swapped[a], swapped[a + 1] = swapped[a + 1], swapped[a]
+    with pytest.raises(ValueError, match="not a part of its row"):
+        inner_entries_first(whole.offsets, whole.indices,
+                            np.array(inner_offsets, dtype=np.int32), swapped)
 
 
 def test_inner_list_is_rebuilt_with_the_list():

@@ -12,7 +12,9 @@ and the rates stay on the device, and a step is a sequence of kernel launches:
   depend on the threads' scheduling), then the same two sweeps as the CPU builder (count,
   prefix sum, store).  The stencil and the particles within a cell come in the CPU builder's
   order, and a 2D or 3D row is split at the support as the CPU's is, so each particle's neighbours
-  are listed in the same order on both; where the smoothing lengths differ (a body of its own
+  are listed in the same order on both (but for the CPU's inner list, which the CPU holds as
+  each row's first entries where a correction or switch reads it, and the device builds
+  none); where the smoothing lengths differ (a body of its own
   ``h_over_dx``) each pair is kept within its own radius and split at its own support, as
   the CPU's list with a radius per pair;
 - the rate passes of :func:`impactsph.physics.passes.cuda_kernels` on the device records;

@@ -698,9 +698,12 @@ class NeighbourList:
         rows = self.offsets.shape[0] - 1
         if self.inner_ends is not None and not (
                 0.0 < self.inner_reach < 1.0 and self.inner_radius > self.skin
-                and self.inner_ends.shape == (rows,)):
-            raise ValueError(f"an inner list needs its rows' ends, one per row ({rows},), "
-                             f"inner_reach in (0, 1) and inner_radius above the skin; got "
+                and self.inner_ends.shape == (rows,)
+                and bool(np.all(self.offsets[:-1] <= self.inner_ends))
+                and bool(np.all(self.inner_ends <= self.offsets[1:]))):
+            raise ValueError(f"an inner list needs its rows' ends, one per row ({rows},) "
+                             f"within the row, inner_reach in (0, 1) and inner_radius above "
+                             f"the skin; got "
                              f"inner_ends of shape {self.inner_ends.shape}, inner_reach = "
                              f"{self.inner_reach!r}, inner_radius = {self.inner_radius!r}")
         if self.splits is not None and self.splits.shape != (rows,):
@@ -870,6 +873,31 @@ def brute_force_pairs(x: np.ndarray, radius: float) -> set[tuple[int, int]]:
     return {(int(a), int(b)) for a, b in zip(i, j, strict=True) if a != b}
 
 
+@nb.njit(cache=True)
+def _inner_first(offsets, indices, inner_offsets, inner_indices, moved, inner_ends):
+    """:func:`inner_entries_first`'s rows, one after another: each row's entries that its
+    inner row holds (a part of it in its order: one pointer walks it) first, then the rest."""
+    for p in range(offsets.shape[0] - 1):
+        start, end = offsets[p], offsets[p + 1]
+        k, k_end = inner_offsets[p], inner_offsets[p + 1]
+        at = start
+        for e in range(start, end):  # the inner entries
+            if k < k_end and indices[e] == inner_indices[k]:
+                moved[at] = indices[e]
+                at += 1
+                k += 1
+        if k != k_end:
+            raise ValueError("an inner list's row is not a part of its row, in its order")
+        inner_ends[p] = at
+        k = inner_offsets[p]
+        for e in range(start, end):  # the rest, in their order
+            if k < k_end and indices[e] == inner_indices[k]:
+                k += 1
+            else:
+                moved[at] = indices[e]
+                at += 1
+
+
 def inner_entries_first(offsets: np.ndarray, indices: np.ndarray, inner_offsets: np.ndarray,
                         inner_indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A list with an inner list of its own (``inner_indices[inner_offsets[p]:inner_offsets[p
@@ -877,15 +905,9 @@ def inner_entries_first(offsets: np.ndarray, indices: np.ndarray, inner_offsets:
     held before 2026-12-07 and checkpoints of then hold them) as it is held now: ``(indices,
     inner_ends)``, each row's inner entries moved to its start, the rest after them in their
     order (a stable partition of each row: the layout :meth:`NeighbourList.build` gives the
-    same rows, the rows' splits unchanged, since inner entries lie in the front part)."""
-    rows = offsets.shape[0] - 1
-    row = np.repeat(np.arange(rows, dtype=np.int64), np.diff(offsets))
-    inner_row = np.repeat(np.arange(rows, dtype=np.int64), np.diff(inner_offsets))
-    # an entry is inner if its (row, neighbour) is in the inner list (a row holds each
-    # neighbour once)
-    width = np.int64(max(rows, 1))
-    inner = np.isin(row * width + indices, inner_row * width + inner_indices)
-    # each row's inner entries, then the rest, each in their order
-    moved = indices[np.argsort(2 * row + ~inner, kind="stable")].astype(indices.dtype)
-    inner_ends = (offsets[:-1] + np.diff(inner_offsets)).astype(offsets.dtype)
+    same rows, the rows' splits unchanged, since inner entries lie in the front part).  One
+    pass over the rows, holding the new entries alone (a restart of a large 3D run)."""
+    moved = np.empty_like(indices)
+    inner_ends = np.empty(offsets.shape[0] - 1, dtype=offsets.dtype)
+    _inner_first(offsets, indices, inner_offsets, inner_indices, moved, inner_ends)
     return moved, inner_ends

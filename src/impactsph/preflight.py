@@ -451,9 +451,10 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
         if not switched:
             per_particle -= 8 * strength_width
             carried = 8 * strength_width
-    # offsets, order, reference, the 2D and 3D rows' splits (built as 8 B, kept as 4); the
-    # build's temporaries (cell keys, sort order, sorted positions, the cells' counts)
-    neighbour_list = 12 + 4 * d + (8 if d > 1 else 0) + 24 + 8 * d + (4 if inner_list else 0)
+    # offsets, order, reference, the 2D and 3D rows' splits and the inner list's ends (each
+    # built as 8 B, kept as 4); the build's temporaries (cell keys, sort order, sorted
+    # positions, the cells' counts)
+    neighbour_list = 12 + 4 * d + (8 if d > 1 else 0) + 24 + 8 * d + (8 if inner_list else 0)
     if compatible:  # the work pass's rate buffers, the pair energy rates, the velocities
         buffers += (76 + 8 * d) + 8 + 16 * d
     per_row = buffers + records + ghost_arrays + carried + neighbour_list + 4 * neighbours

@@ -1660,6 +1660,8 @@ def correction_pass(n_active, order, P, offsets, ends, indices, visc_kind, corre
     far = n >= PREFETCH_ROWS
     for chunk in nb.prange(n_chunks):
         for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
+            if far:  # the start of the row ahead: its inner entries (neighbours.py)
+                prefetch_row(indices, offsets[min(p + PREFETCH_AHEAD, n - 1)], 2, False)
             ahead = particle_ahead(order, p, n_active, far)
             if ahead >= 0:  # (as in pair_pass)
                 prefetch_row(dv_corr, ahead, 2, True)
