@@ -247,3 +247,35 @@ def test_the_inner_list_changes_no_bit(monkeypatch):
             np.testing.assert_array_equal(inner[name], arr, err_msg=name)
     _, nl = final(["viscosity.correction_h_ratio=1.0"], False, "correction_pass")
     assert nl.inner_ends is None and nl.inner_reach == 1.0
+
+
+@pytest.mark.parametrize("energy", ["paper", "work"])
+def test_the_books_take_the_power_and_heating_of_what_the_correction_adds(monkeypatch,
+                                                                         energy):
+    """The run's book of the correction's work rate (``Solver.powers[1]``) is ``sum_i m_i v_i
+    . a_c,i`` of the accelerations ``a_c`` the correction adds to the particles, and its
+    heating book (``powers[2]``) ``sum_i m_i de_c,i`` of what it adds to their energy rates
+    (each particle's two numbers, ``RateBuffers.correction_books``): measured as the change
+    of the accelerations and energy rates when the correction pass is left out, on the
+    paper's Taylor bar after 2 us (a wall, plasticity), for the paper's energy term and for
+    the work's."""
+    from impactsph import load_case
+    from impactsph.simulation import Simulation
+
+    sim = Simulation(load_case("taylor", ["time.end=2e-6",
+                                          f'viscosity.energy_correction="{energy}"']))
+    sim.run()
+    solver, state = sim.solver, sim.state
+    n = solver.n_active
+    solver.rates(state)
+    dv, de = solver.buffers.dv[:n].copy(), solver.buffers.de[:n].copy()
+    power, heating = solver.powers[1], solver.powers[2]
+    monkeypatch.setattr(solver.backend.passes, "correction_pass", lambda *args: None)
+    solver.rates(state)
+    added, added_heat = dv - solver.buffers.dv[:n], de - solver.buffers.de[:n]
+    assert np.abs(added).max() > 0.0 and abs(power) > 0.0
+    expected = float(np.sum(state.mass[:, None] * state.velocity * added))
+    assert power == pytest.approx(expected, rel=1e-9)
+    assert heating == pytest.approx(float(np.sum(state.mass * added_heat)), rel=1e-9)
+    if energy == "work":  # the work variant heats by what the force works
+        assert heating == pytest.approx(-power, rel=1e-12)

@@ -1197,8 +1197,8 @@ def _kernel_argument_types(dim: int) -> dict:
     types["carried"] = f2
     types["normal_stress"] = nb.boolean
     for names, t in (("n_rows n_active visc_kind", nb.int64),
-                     ("m rho e h drho de_visc de_corr de", f1),
-                     ("x v contact_force dv_corr dv hg dhg dS", f2),
+                     ("m rho e h drho de_visc de", f1),
+                     ("x v contact_force correction_books dv hg dhg dS", f2),
                      ("S L_sorted", f3)):
         types.update(dict.fromkeys(names.split(), t))
     types["P"] = nb.float64[::1, :]  # the records by column (impactsph.gpu.RECORD_ORDER)
@@ -1325,11 +1325,11 @@ def _step_kernel_types(name: str, dim: int) -> tuple:
                       nb.float64),
                      ("corrected store first count_events walls per_radian heating per_pair",
                       nb.boolean),
-                     ("x0 v0 x v dv xs v_rate hg0 hg dhg part st0 st dv_corr table points "
+                     ("x0 v0 x v dv xs v_rate hg0 hg dhg part st0 st correction_books table points "
                       "normals scratch contact_force carried force layer_force x0 S0 dS "
                       "friction_force reactions rate mean sx sx0", f2),
                      ("S", f3),
-                     ("rho0 e0 pw0 drho de rho e pw h m de_visc de_corr lo hi origin largest "
+                     ("rho0 e0 pw0 drho de rho e pw h m de_visc lo hi origin largest "
                       "books factor memory mu inertia fraction work de_work de_pairs sh h0",
                       f1),
                      ("bad ncell key counts ends fill a sums rows offsets src wall "

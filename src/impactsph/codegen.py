@@ -250,7 +250,7 @@ def binding(dim: int, options: PassOptions | str | None = None) -> tuple[str, di
                   f"rho_ij, params)", inject, viscosity[-1][0]),
         "",
         _dispatch("viscosity_correction", "p, i, P, start, end, indices, columns, dim, params, "
-                  "dv_corr, de_corr, dv, de", "_correction_", corrections, "return None", inject),
+                  "books, dv, de", "_correction_", corrections, "return None", inject),
         "",
         _dispatch("viscosity_switch", "p, i, P, start, end, indices, columns, dim, params, "
                   "elapsed, memory", "_switch_", switches, "return 1.0", inject),

@@ -194,7 +194,7 @@ def launch_settings(environ: dict | None = None) -> tuple[int, int]:
 #: The kernels' outputs for the active rows, copied into the ``RateBuffers`` of that name
 #: (a buffer without rows, e.g. no contact or no AC, is skipped).
 _ACTIVE_OUT = ("drho", "dv", "de", "de_visc", "contact_force", "pair_count", "dS")
-_CORRECTION_OUT = ("dv_corr", "de_corr")
+_CORRECTION_OUT = ("correction_books",)
 _SWITCH_OUT = ("factor", "memory")
 
 
@@ -321,7 +321,7 @@ class GpuRates:
         packed = buf("packed", (n_rows, record_columns(record_width, dim, viscosity)),
                      self.options.record_dtype, RECORD_ORDER)
         shapes = {"drho": (n_rows,), "de": (n_rows,), "de_visc": (n_rows,),
-                  "de_corr": (n_rows,), "pair_count": (n_rows,), "dS": (n_rows, 6),
+                  "correction_books": (n_rows, 2), "pair_count": (n_rows,), "dS": (n_rows, 6),
                   "factor": (n_rows,), "memory": (n_rows,)}
         count_type = getattr(b.pair_count, "dtype", np.int64)
         corrected = viscosity.correction is not None
@@ -368,8 +368,7 @@ class GpuRates:
                 if corrected:
                     correction_kernel[blocks, tpb, stream](
                         n_rows, n_active, dorder, packed, doff, dind, int(viscosity.kind),
-                        viscosity.correction, out["dv_corr"], out["de_corr"], out["dv"],
-                        out["de"])
+                        viscosity.correction, out["correction_books"], out["dv"], out["de"])
                 if switched:
                     switch_kernel[blocks, tpb, stream](
                         n_rows, n_active, dorder, packed, doff, dind, int(viscosity.kind),

@@ -199,7 +199,7 @@ class DeviceLayout:
                              + (8 * d if self.ssp and self.bodies > 1 else 0))
         outputs = 8 + 8 * d + 8 + 8 + 4 + 48  # (the pair count in int32, as the CPU's)
         parts["outputs"] = n * (outputs + (8 * d if self.contact else 0)
-                                + (8 * d + 8 if self.corrected else 0) + 8 * hg
+                                + (16 if self.corrected else 0) + 8 * hg
                                 + (outputs + 8 if self.compatible else 0))
         if self.compatible:  # the step's mean velocity, ghosts' rows included
             parts["outputs"] += 8 * d * _margin(rows)
@@ -278,7 +278,7 @@ class DeviceLayout:
                                + (8 * d * d if self.hourglass else 0)),
             "outputs": rows * (8 + 8 * d + 8 + 8 + count_bytes + 48
                                + (8 * d if self.contact else 0)
-                               + (8 * d + 8 if self.corrected else 0)
+                               + (16 if self.corrected else 0)
                                + (16 if self.switched else 0)
                                + (8 * d if self.hourglass else 0))}
 

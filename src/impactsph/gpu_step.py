@@ -447,10 +447,11 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
                                       normals, mu, reach, dv, de, force[i])
 
     @cuda.jit
-    def totals_kernel(n, m, v, de_visc, dv_corr, de_corr, pair_count, contact_force,
+    def totals_kernel(n, m, de_visc, correction_books, pair_count, contact_force,
                       layer_force, friction_force, corrected, walls, part):
-        """Per block: sum m de_visc, sum m v . dv_corr, sum m de_corr, the pairs and (walls)
-        the walls' push: the contact forces' sum and the penalty layer's."""
+        """Per block: sum m de_visc, the correction's power and heating (sum m
+        correction_books[:, 0], sum m correction_books[:, 1]), the pairs and (walls) the
+        walls' push: the contact forces' sum and the penalty layer's."""
         sh = cuda.shared.array((TOTALS, TPB), float64)
         i = cuda.grid(1)
         t = cuda.threadIdx.x
@@ -460,11 +461,8 @@ def step_kernels(dim: int, simulated: bool, version: int, options: Any, tpb: int
             sh[0, t] = m[i] * de_visc[i]
             sh[3, t] = pair_count[i]
             if corrected:
-                sh[2, t] = m[i] * de_corr[i]
-                w = 0.0
-                for a in range(DIM):
-                    w += v[i, a] * dv_corr[i, a]
-                sh[1, t] = m[i] * w
+                sh[1, t] = m[i] * correction_books[i, 0]
+                sh[2, t] = m[i] * correction_books[i, 1]
             if walls:  # the contact forces' sum is the walls' push (bodies' cancel)
                 for a in range(DIM):
                     sh[4 + a, t] = contact_force[i, a]
@@ -1207,8 +1205,7 @@ class ResidentStep:
                     "de": empty(n, np.float64), "de_visc": empty(n, np.float64),
                     "contact_force": empty((contact_rows, dim), np.float64),
                     "pair_count": empty(n, np.int32), "dS": empty((n, 6), np.float64),
-                    "dv_corr": empty((corr_rows, dim), np.float64),
-                    "de_corr": empty(corr_rows, np.float64),
+                    "correction_books": empty((corr_rows, 2), np.float64),
                     "dhg": empty((n, dim if self.hourglass > 0.0 else 0), np.float64),
                     "gradients": empty((0, dim, dim), np.float64)}
         self.survey_part = empty((self.blocks, 6), np.float64)
@@ -1774,8 +1771,7 @@ class ResidentStep:
         if self.corrected:
             correction_kernel[blocks, tpb, s](
                 rows, n, order, P, offsets, indices, int(self.viscosity.kind),
-                self.viscosity.correction, out["dv_corr"], out["de_corr"], out["dv"],
-                out["de"])
+                self.viscosity.correction, out["correction_books"], out["dv"], out["de"])
         if self.switched:  # (over the whole list, as the correction: the same sums)
             sw = self.switch
             switch_kernel[blocks, tpb, s](
@@ -1803,9 +1799,9 @@ class ResidentStep:
                          c["material"], self.table, self.rigid_points, self.rigid_normals,
                          float(self.layer), self.per_radian, out["dv"], out["de"],
                          self.layer_force)
-        self._launch("totals", n, n, c["mass"], self.now["velocity"], out["de_visc"],
-                     out["dv_corr"], out["de_corr"], out["pair_count"], out["contact_force"],
-                     self.layer_force, self.friction_force, self.corrected,
+        self._launch("totals", n, n, c["mass"], out["de_visc"], out["correction_books"],
+                     out["pair_count"], out["contact_force"], self.layer_force,
+                     self.friction_force, self.corrected,
                      self.walls is not None,
                      self.totals_part)
         self._launch("totals_finish", 1, self.blocks, self.totals_part, float(dt),
@@ -1933,9 +1929,9 @@ class ResidentStep:
         self._launch("work_energy", n, n, float(dt), wo["de"], self.de_pairs,
                      self.now["specific_energy"])
         none = out["dv"][:0]  # (no walls' push, no correction: their columns stay zero)
-        self._launch("totals", n, n, c["mass"], self.now["velocity"], wo["de_visc"],
-                     out["dv_corr"], out["de_corr"], wo["pair_count"], wo["contact_force"],
-                     none, none, False, False, self.totals_part)
+        self._launch("totals", n, n, c["mass"], wo["de_visc"], out["correction_books"],
+                     wo["pair_count"], wo["contact_force"], none, none, False, False,
+                     self.totals_part)
         self._launch("totals_finish", 1, self.blocks, self.totals_part, float(dt), 1.0, False,
                      True, self.books)
 

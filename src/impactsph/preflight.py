@@ -434,8 +434,9 @@ def memory_estimate(n: int, dim: int, neighbours: float, *, ghosts: int = 0,
         integrator = 0
     # without a switch the state's viscosity factor and memory are views of one number
     per_particle = state + (16 if switched else 0) + integrator + snapshots * snapshot
-    # drho, de, de_visc, the deviator's rate (six components), pair count; dv
-    buffers = 76 + 8 * d + (8 * d if contact else 0) + (8 * d + 8 if corrected else 0) \
+    # drho, de, de_visc, the deviator's rate (six components), pair count; dv; a correction's
+    # books (its power and heating)
+    buffers = 76 + 8 * d + (8 * d if contact else 0) + (16 if corrected else 0) \
         + (8 * d + 8 * d * d if hourglass else 0)
     # the CPU's rows, unpadded; the viscous acceleration's columns where a pass reads them
     # (a correction or a switch: CpuRates.record_columns)

@@ -35,10 +35,9 @@ CHUNK = 2048
 
 
 @nb.njit(inline="always", cache=True)
-def _chunk_totals(chunk, n, m, v, de_visc, dv_corr, de_corr, contact_force, pair_count,
-                  corrected, part):
+def _chunk_totals(chunk, n, m, de_visc, books, contact_force, pair_count, corrected, part):
     """:func:`rate_totals`' partial sums of one chunk of particles into ``part[chunk]``."""
-    dim = v.shape[1]
+    dim = contact_force.shape[1]
     heat = work = corr_heat = pairs = 0.0
     # the force's components in scalars, not a small array: an array's sums went through
     # memory, a load and a store per particle and component (the same sums, the same order)
@@ -53,9 +52,8 @@ def _chunk_totals(chunk, n, m, v, de_visc, dv_corr, de_corr, contact_force, pair
             if dim > 2:
                 f2 += contact_force[i, 2]
         if corrected:
-            corr_heat += m[i] * de_corr[i]
-            for a in range(dim):
-                work += m[i] * v[i, a] * dv_corr[i, a]
+            work += m[i] * books[i, 0]
+            corr_heat += m[i] * books[i, 1]
     part[chunk, 0] = heat
     part[chunk, 1] = work
     part[chunk, 2] = corr_heat
@@ -75,14 +73,14 @@ def _added_parts(part):
 
 
 @nb.njit(parallel=True, cache=True)
-def rate_totals(n, m, v, de_visc, dv_corr, de_corr, contact_force, pair_count, corrected):
-    """Sums over the first ``n`` particles: ``sum m de_visc`` (W), ``sum m v . dv_corr`` (W),
-    ``sum m de_corr`` (W), ``sum contact_force`` (N or N/m) and the pair count.  Partial sums
+def rate_totals(n, m, de_visc, books, contact_force, pair_count, corrected):
+    """Sums over the first ``n`` particles: ``sum m de_visc`` (W), the correction's power
+    ``sum m books[:, 0]`` (W; its acceleration's ``sum m v . dv_corr``) and heating ``sum m
+    books[:, 1]`` (W), ``sum contact_force`` (N or N/m) and the pair count.  Partial sums
     per chunk, added in a fixed order (independent of the number of threads)."""
     part = np.zeros((max(1, (n + CHUNK - 1) // CHUNK), 7))
     for chunk in nb.prange(part.shape[0]):
-        _chunk_totals(chunk, n, m, v, de_visc, dv_corr, de_corr, contact_force, pair_count,
-                      corrected, part)
+        _chunk_totals(chunk, n, m, de_visc, books, contact_force, pair_count, corrected, part)
     return _added_parts(part)
 
 
@@ -115,16 +113,14 @@ def value_range(values):  # pragma: no cover (compiled)
 
 
 @nb.njit(cache=True)
-def serial_rate_totals(n, m, v, de_visc, dv_corr, de_corr, contact_force, pair_count,
-                       corrected):
+def serial_rate_totals(n, m, de_visc, books, contact_force, pair_count, corrected):
     """:func:`rate_totals` without threads, the same sums in the same order: for a run of
     one chunk, where starting a parallel region costs more than it gives.  (A function of
     its own: numba's cache would give a second compilation of the same Python function the
     first one's code.)"""
     part = np.zeros((max(1, (n + CHUNK - 1) // CHUNK), 7))
     for chunk in range(part.shape[0]):
-        _chunk_totals(chunk, n, m, v, de_visc, dv_corr, de_corr, contact_force, pair_count,
-                      corrected, part)
+        _chunk_totals(chunk, n, m, de_visc, books, contact_force, pair_count, corrected, part)
     return _added_parts(part)
 
 
@@ -415,8 +411,8 @@ class Solver:
                 state.viscosity_factor_time = time
         # (one chunk: the same sums without a parallel region, whose start costs more)
         totals = (rate_totals if n > CHUNK else serial_rate_totals)(
-            n, state.mass, state.velocity, b.de_visc, b.dv_corr, b.de_corr, b.contact_force,
-            b.pair_count, self.corrected)
+            n, state.mass, b.de_visc, b.correction_books, b.contact_force, b.pair_count,
+            self.corrected)
         # powers at the evaluated state (W): the artificial viscosity's heating, the work rate
         # of the AC correction force on the particles and the correction's heating; after a
         # step, those of its midpoint evaluation

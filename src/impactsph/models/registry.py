@@ -153,11 +153,13 @@ class ViscosityScheme:
     floats that ``pair_parameters(viscosity)`` returns for the case's ``[viscosity]`` table.
 
     ``correction`` (compiled, optional): ``correction(p, i, P, start, end, indices, layout,
-    dim, params, dv_corr, de_corr, dv, de)`` for the active particle ``i`` at sorted position
-    ``p``, whose neighbours are the sorted positions ``indices[start:end]``, reading the
-    packed records ``P`` (``layout``: the tuple of their column indices,
-    see :func:`impactsph.physics.passes.record_columns`) and adding its terms to ``dv``,
-    ``de``; ``correction_parameters(viscosity)`` gives its four floats.
+    dim, params, books, dv, de)`` for the active particle ``i`` at sorted position ``p``,
+    whose neighbours are the sorted positions ``indices[start:end]``, reading the packed
+    records ``P`` (``layout``: the tuple of their column indices, see
+    :func:`impactsph.physics.passes.record_columns`), adding its acceleration and heating to
+    ``dv[i]``, ``de[i]`` and writing for the run's books the power of that acceleration per
+    unit mass (``v_i`` from ``P``) and that heating (W/kg) into ``books[i, 0]``, ``books[i,
+    1]``; ``correction_parameters(viscosity)`` gives its four floats.
 
     ``switch`` (compiled, optional): ``switch(p, i, P, start, end, indices, layout, dim, params,
     elapsed, memory) -> f_i`` (its neighbours as the correction's), the particle's viscosity

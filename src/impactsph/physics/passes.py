@@ -1652,7 +1652,7 @@ def pair_pass(first, step, n_active, order, P, offsets, indices, starts, visc_ki
 
 @JIT(parallel=PARALLEL_OPTION, cache=True, error_model=BODY_ERROR_MODEL)
 def correction_pass(n_active, order, P, offsets, ends, indices, visc_kind, correction_params,
-                    dv_corr, de_corr, dv, de, chunk_size):
+                    correction_books, dv, de, chunk_size):
     """Pass 3 (a scheme with a correction only) over the active particles, each row's
     ``indices[offsets[p]:ends[p]]`` (the inner list's rows: ``NeighbourList.within``)."""
     n = order.shape[0]
@@ -1664,15 +1664,14 @@ def correction_pass(n_active, order, P, offsets, ends, indices, visc_kind, corre
                 prefetch_row(indices, offsets[min(p + PREFETCH_AHEAD, n - 1)], 2, False)
             ahead = particle_ahead(order, p, n_active, far)
             if ahead >= 0:  # (as in pair_pass)
-                prefetch_row(dv_corr, ahead, 2, True)
-                prefetch_row(de_corr, ahead, 1, True)
+                prefetch_row(correction_books, ahead, 1, True)
                 prefetch_row(dv, ahead, 2, True)
                 prefetch_row(de, ahead, 1, True)
             i = order[p]
             if i < n_active:
                 viscosity_correction(visc_kind, p, i, P, offsets[p], ends[p], indices,
-                                     CORRECTION_COLUMNS, DIM, correction_params, dv_corr,
-                                     de_corr, dv, de)
+                                     CORRECTION_COLUMNS, DIM, correction_params,
+                                     correction_books, dv, de)
 
 
 # (a prange loop until 2026-12-05, threaded in the serial modules too: compiled serial, the
@@ -1882,12 +1881,12 @@ def cuda_kernels(max_registers=0):
 
     @cuda.jit
     def correction_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind,
-                          correction_params, dv_corr, de_corr, dv, de):
+                          correction_params, correction_books, dv, de):
         p = cuda.grid(1)
         if p < n_rows and order[p] < n_active:
             viscosity_correction(visc_kind, p, order[p], P, offsets[p], offsets[p + 1],
-                                 indices, CORRECTION_COLUMNS, DIM, correction_params, dv_corr,
-                                 de_corr, dv, de)
+                                 indices, CORRECTION_COLUMNS, DIM, correction_params,
+                                 correction_books, dv, de)
 
     @cuda.jit
     def switch_kernel(n_rows, n_active, order, P, offsets, indices, visc_kind, switch_params,

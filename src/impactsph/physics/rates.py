@@ -118,8 +118,9 @@ class RateBuffers:
         self.dS = np.zeros((n, 6))  # the deviator's rate: six components (stress_rate.UPPER)
         self.contact_force = np.zeros((n if contact else 0, dim))
         self.pair_count = np.zeros(n, dtype=np.int32)
-        self.dv_corr = np.zeros((n if corrected else 0, dim))
-        self.de_corr = np.zeros(n if corrected else 0)
+        #: a correcting scheme's books of each particle: the correction's power and its
+        #: heating per unit mass (W/kg; its acceleration and heating are in dv and de)
+        self.correction_books = np.zeros((n if corrected else 0, 2))
         self.dhg = np.zeros((n if hourglass else 0, dim))  # the hourglass acceleration's rate
         #: the viscosity switch's factor of each particle, for the next evaluation
         self.factor = np.ones(n if switched else 0)
@@ -189,7 +190,7 @@ class CpuRates:
         ratio among it; all rows, ghosts included, take part in the sums) into ``b``:
         ``drho``, the total accelerations ``dv`` and specific-energy rates ``de``, the
         viscous heating ``de_visc``, ``contact_force, pair_count, dS`` and, for a scheme with
-        a correction, ``dv_corr, de_corr``; with ``hourglass`` (the coefficient zeta) > 0,
+        a correction, ``correction_books``; with ``hourglass`` (the coefficient zeta) > 0,
         ``dhg`` from the particles' ``hourglass_acceleration`` (added to ``dv``); for a scheme
         with a switch, ``factor`` (each particle's viscosity factor for the next evaluation;
         the factors used are the last column of ``carried``, set ``switch_elapsed`` seconds
@@ -259,7 +260,7 @@ class CpuRates:
         if viscosity.correction is not None:  # (the inner list where there is one)
             k.correction_pass(n_active, nl.order, self._packed, nl.offsets,
                               nl.within(viscosity.correction_reach), nl.indices,
-                              viscosity.kind, viscosity.correction, b.dv_corr, b.de_corr,
+                              viscosity.kind, viscosity.correction, b.correction_books,
                               b.dv, b.de, chunk)
         if viscosity.switch is not None:
             if b.factor.shape[0] < n_active:
@@ -352,11 +353,12 @@ def correction_only(x: np.ndarray, v: np.ndarray, m: np.ndarray, rho: np.ndarray
     packed = _records_of(x, v, m, rho, h, body, neighbours, u,
                          record_precision=record_precision)
     settings = ViscositySettings.of(viscosity)
+    # (the pass adds its terms to dv and de: from zeros, they are the terms)
     dv_corr, de_corr = np.zeros((n, dim)), np.zeros(n)
     compiled_passes(dim, options=PassOptions(record_precision=record_precision)).correction_pass(
         n, neighbours.order, packed, neighbours.offsets,
         neighbours.within(settings.correction_reach), neighbours.indices, settings.kind,
-        settings.correction, dv_corr, de_corr, np.zeros((n, dim)), np.zeros(n), chunk_size(n))
+        settings.correction, np.zeros((n, 2)), dv_corr, de_corr, chunk_size(n))
     return dv_corr, de_corr
 
 

@@ -204,12 +204,14 @@ def correction_sums(p, P, start, end, indices, X, V, H, VOL, BODY, U, dim, h_rat
 
 
 @nb.njit(inline="always", cache=True)
-def correct(p, i, P, start, end, indices, layout, dim, params, dv_corr, de_corr, dv, de):
+def correct(p, i, P, start, end, indices, layout, dim, params, books, dv, de):
     """The correction of the active particle ``i`` at sorted position ``p`` (eqs 33-37):
-    ``-u_corr_i`` and its energy term into ``dv_corr[i]``, ``de_corr[i]``, and added to the
-    totals ``dv[i]``, ``de[i]``.  Reads the packed records ``P`` (columns ``layout = (x, v,
-    h, volume, body, u)``: :func:`impactsph.physics.passes.record_columns`), whose ``u`` the
-    pair pass (evaluated with (1, 1)) has filled; neighbours of the same body within
+    ``-u_corr_i`` and its energy term added to the totals ``dv[i]``, ``de[i]``, and for the
+    run's books its power per unit mass ``v_i . a_c`` (``a_c`` the acceleration it adds) and
+    its energy term (W/kg) into ``books[i, 0]``, ``books[i, 1]``.  Reads the packed records
+    ``P`` (columns ``layout = (x, v, h, volume, body, u)``:
+    :func:`impactsph.physics.passes.record_columns`), whose ``u`` the pair pass (evaluated
+    with (1, 1)) has filled; neighbours of the same body within
     ``2 h_c``, ``h_c = h_ratio h``.  ``params = (h_ratio, variant, energy mode, unused)``."""
     X, V, H, VOL, BODY, U = layout
     variant = int(params[1])
@@ -223,13 +225,14 @@ def correct(p, i, P, start, end, indices, layout, dim, params, dv_corr, de_corr,
     for a in range(dim):
         net = corrected_viscous_acceleration(Pi_[U + a], self_weight, weight_sum,
                                              weighted_u[a], variant)
-        dv_corr[i, a] = net - Pi_[U + a]
-        work -= Pi_[V + a] * dv_corr[i, a]
-    de_corr[i] = correction_energy_rate(work, paper_energy, weight_sum, self_weight, variant,
-                                        energy_mode)
-    for a in range(dim):
-        dv[i, a] += dv_corr[i, a]
-    de[i] += de_corr[i]
+        change = net - Pi_[U + a]
+        work -= Pi_[V + a] * change
+        dv[i, a] += change
+    heating = correction_energy_rate(work, paper_energy, weight_sum, self_weight, variant,
+                                     energy_mode)
+    de[i] += heating
+    books[i, 0] = -work
+    books[i, 1] = heating
 
 
 ACCELERATION_CORRECTION = VISCOSITY.register(ViscosityScheme(
