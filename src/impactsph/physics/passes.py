@@ -1660,8 +1660,8 @@ def correction_pass(n_active, order, P, offsets, ends, indices, visc_kind, corre
     far = n >= PREFETCH_ROWS
     for chunk in nb.prange(n_chunks):
         for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
-            if far:  # the start of the row ahead: its inner entries (neighbours.py)
-                prefetch_row(indices, offsets[min(p + PREFETCH_AHEAD, n - 1)], 2, False)
+            # the start of the row ahead: its inner entries (neighbours.py)
+            prefetch_row(indices, offsets[min(p + PREFETCH_AHEAD, n - 1)], 2, False)
             ahead = particle_ahead(order, p, n_active, far)
             if ahead >= 0:  # (as in pair_pass)
                 prefetch_row(correction_books, ahead, 1, True)
@@ -1687,11 +1687,10 @@ def switch_pass(first, step, n_active, order, P, offsets, ends, indices, visc_ki
     ends[p]]`` (as in ``correction_pass``)."""
     n = order.shape[0]
     n_chunks = (n + chunk_size - 1) // chunk_size
-    far = n >= PREFETCH_ROWS
     for chunk in range(first * n_chunks // step, (first + 1) * n_chunks // step):
         for p in range(chunk * chunk_size, min((chunk + 1) * chunk_size, n)):
-            if far:  # the start of the row ahead (as in correction_pass)
-                prefetch_row(indices, offsets[min(p + PREFETCH_AHEAD, n - 1)], 2, False)
+            # the start of the row ahead (as in correction_pass)
+            prefetch_row(indices, offsets[min(p + PREFETCH_AHEAD, n - 1)], 2, False)
             i = order[p]
             if i < n_active:
                 factor[i] = viscosity_switch(visc_kind, p, i, P, offsets[p], ends[p],
