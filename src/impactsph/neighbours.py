@@ -762,9 +762,18 @@ class NeighbourList:
         (:func:`impactsph.physics.chunked._address` finds them at once)."""
         if self.splits is not None:
             return self.splits
-        known = self.__dict__.get("_row_starts")  # (the offsets, their view)
+        return self._offsets_view(ends=False)
+
+    def _offsets_view(self, ends: bool) -> np.ndarray:
+        """The rows' starts ``offsets[:-1]`` or ends ``offsets[1:]`` (``ends``): one view while
+        the offsets are the same array, so that a pass's arguments stay the same objects from
+        one evaluation to the next (:func:`impactsph.physics.chunked._address` finds them at
+        once)."""
+        key = "_row_ends" if ends else "_row_starts"
+        known = self.__dict__.get(key)  # (the offsets, their view)
         if known is None or known[0] is not self.offsets:
-            known = self.__dict__["_row_starts"] = (self.offsets, self.offsets[:-1])
+            view = self.offsets[1:] if ends else self.offsets[:-1]
+            known = self.__dict__[key] = (self.offsets, view)
         return known[1]
 
     @property
@@ -784,14 +793,10 @@ class NeighbourList:
         """Each row's end for a pass that needs every pair within ``reach`` times the
         support: ``indices[offsets[p]:ends[p]]`` holds them.  The inner list's
         :attr:`inner_ends` where it reaches that far, else the rows' own ends (a view of
-        ``offsets``, the same object from one call to the next while the offsets are: a
-        pass's arguments stay the same objects, :func:`impactsph.physics.chunked._address`)."""
+        ``offsets``, the same object from one call to the next while the offsets are)."""
         if self.inner_ends is not None and reach <= self.inner_reach:
             return self.inner_ends
-        known = self.__dict__.get("_row_ends")  # (the offsets, their view)
-        if known is None or known[0] is not self.offsets:
-            known = self.__dict__["_row_ends"] = (self.offsets, self.offsets[1:])
-        return known[1]
+        return self._offsets_view(ends=True)
 
     def stale(self, x: np.ndarray, support: float) -> bool:
         """Whether the list no longer holds every pair within ``support`` of particles at

@@ -75,9 +75,9 @@ def _added_parts(part):
 @nb.njit(parallel=True, cache=True)
 def rate_totals(n, m, de_visc, books, contact_force, pair_count, corrected):
     """Sums over the first ``n`` particles: ``sum m de_visc`` (W), the correction's power
-    ``sum m books[:, 0]`` (W; its acceleration's ``sum m v . dv_corr``) and heating ``sum m
-    books[:, 1]`` (W), ``sum contact_force`` (N or N/m) and the pair count.  Partial sums
-    per chunk, added in a fixed order (independent of the number of threads)."""
+    ``sum m books[:, 0]`` (W: ``sum m v . a_c`` of the acceleration ``a_c`` it adds) and
+    heating ``sum m books[:, 1]`` (W), ``sum contact_force`` (N or N/m) and the pair count.
+    Partial sums per chunk, added in a fixed order (independent of the number of threads)."""
     part = np.zeros((max(1, (n + CHUNK - 1) // CHUNK), 7))
     for chunk in nb.prange(part.shape[0]):
         _chunk_totals(chunk, n, m, de_visc, books, contact_force, pair_count, corrected, part)
