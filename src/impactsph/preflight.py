@@ -1274,14 +1274,19 @@ def after_run(case: Case, summary: dict[str, Any], restarted: bool = False,
     compiling left out; not for a run ``restarted`` from a checkpoint, whose summary counts
     the pairs since t = 0 over the wall time since the restart).  Warns when more than
     :data:`KINETIC_ENERGY_REMAINING` of the initial kinetic energy remains at the end time in
-    a problem that is expected to dissipate it (:func:`keeps_kinetic_energy`)."""
+    a problem that is expected to dissipate it (:func:`keeps_kinetic_energy`), unless the
+    case's analysis measures the impact part-way by design
+    (:attr:`impactsph.problems.ProblemKind.ends_during_impact`: the plates)."""
+    from .problems import get_problem
+
     if not restarted:
         record_pair_rate(summary, case.name, stretch=_stretches(case))
     lines = []
     ratio = summary.get("kinetic_energy_ratio_final")
     reached = summary.get("t_end", case.time.end) >= case.time.end * (1 - 1e-9)
     if (ratio is not None and ratio > KINETIC_ENERGY_REMAINING and reached
-            and not keeps_kinetic_energy(case)):
+            and not keeps_kinetic_energy(case)
+            and not get_problem(case.analysis).ends_during_impact):
         lines.append(f"warning: time.end = {case.time.end!r}: {100 * ratio:.3g}% of the "
                      f"initial kinetic energy remains at the end time: the impact may not be "
                      f"over; consider a longer time.end")

@@ -85,6 +85,11 @@ class ProblemKind:
     #: The field ``impactsph animate`` colours the particles by when ``--field`` is not
     #: given (a name of :func:`impactsph.animate.field_names`).
     animation_field: str = "speed"
+    #: Whether the problem is measured part-way through the impact, by design (the plates'
+    #: wave profiles, taken while the plates are still in contact): then ``impactsph run``
+    #: does not warn that kinetic energy remains at the end time
+    #: (:func:`impactsph.preflight.after_run`).
+    ends_during_impact: bool = False
 
     def metrics(self, sim: Any) -> dict[str, Any]:
         """The problem's measures of a finished run, added to ``summary.json``."""
