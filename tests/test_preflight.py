@@ -100,6 +100,22 @@ def test_memory_refusal_for_a_long_history_names_time_end():
     refusal = pf.memory_check(case, est)
     assert refusal is not None and refusal.field == "time.end"
     assert "history" in refusal.message and "output.history_every" in refusal.message
+    assert "did you mean" not in refusal.message  # 0.5 s: long, but not a likely unit slip
+
+
+def test_memory_refusal_of_an_end_time_in_the_wrong_unit_says_so():
+    """``time.end = 20`` (20 ms meant) is refused for its history's memory before the
+    magnitude warning could be shown: the refusal carries the unit hint itself."""
+    case = validate_case(block_case(time__end=20.0))
+    est = pf.estimate(case, pf.count_particles(case))
+    est.available = int(0.5 * est.memory)
+    refusal = pf.memory_check(case, est)
+    assert refusal is not None and refusal.field == "time.end"
+    assert refusal.message.startswith("time.end = 20.0: the run needs about ")
+    assert refusal.message.endswith(f"this machine has {pf._bytes(est.available)} "
+                                    f"available; more than 1 s of simulated time for an "
+                                    f"impact (micro- to milliseconds); did you mean 20 ms = "
+                                    f"0.02 or 20 us = 2e-05?")
 
 
 def test_particle_counts_match_the_placed_particles(tmp_path):

@@ -839,10 +839,13 @@ def memory_check(case: Case, est: Estimate) -> Finding | None:
     if os.environ.get("IMPACTSPH_SKIP_MEMORY_CHECK", "") not in ("", "0"):
         return None
     history = est.runs * MEMORY_SAFETY * history_values(case, est.steps) * HISTORY_VALUE_BYTES
+    hint = ""
     if history > 0.5 * (est.memory - BASE_MEMORY):
         where = "time.end"
         cause = (f"{est.steps:,} steps, whose history takes {_bytes(history)}; a larger "
                  f"output.history_every keeps less")
+        if case.time.end > END_TIME_MAX:  # the likelier cause: a unit slip (the warning's)
+            hint = f"; {_end_time_hint(case.time.end)}"
     else:
         b = int(np.argmax(list(est.particles.values())))
         where = _size_field(case, b)
@@ -850,7 +853,7 @@ def memory_check(case: Case, est: Estimate) -> Finding | None:
     value = _field_value(case, where)
     return Finding("error", where, (
         f"{where} = {value!r}: the run needs about {_bytes(est.memory)} of memory (an "
-        f"estimate: {cause}); this machine has {_bytes(est.available)} available"))
+        f"estimate: {cause}); this machine has {_bytes(est.available)} available{hint}"))
 
 
 def device_memory_check(case: Case, est: Estimate) -> Finding | None:
@@ -958,11 +961,15 @@ def magnitude_checks(case: Case) -> list[Finding]:
                      f"a speed of {_g(speed)} m/s is beyond "
                      f"hypervelocity impact ({_g(SPEED_MAX)} m/s); velocities are in m/s")
     if case.time.end > END_TIME_MAX:
-        warn("time.end", case.time.end, f"more than {_g(END_TIME_MAX)} s of simulated time for "
-             f"an impact (micro- to milliseconds); did you mean {_g(case.time.end)} ms = "
-             f"{case.time.end * 1e-3:.3g} or {_g(case.time.end)} us = "
-             f"{case.time.end * 1e-6:.3g}?")
+        warn("time.end", case.time.end, _end_time_hint(case.time.end))
     return out
+
+
+def _end_time_hint(end: float) -> str:
+    """What an end time above :data:`END_TIME_MAX` probably meant (a unit slip)."""
+    return (f"more than {_g(END_TIME_MAX)} s of simulated time for an impact (micro- to "
+            f"milliseconds); did you mean {_g(end)} ms = {end * 1e-3:.3g} or {_g(end)} us = "
+            f"{end * 1e-6:.3g}?")
 
 
 def unused_viscosity_fields(case: Case) -> list[Finding]:
