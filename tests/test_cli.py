@@ -121,6 +121,40 @@ def test_unstable_run_stops_with_where_and_when(tmp_path):
     assert summary["n_steps"] == len(rows) - 2  # the rows of t = 0 and of every step
 
 
+def _strict_json(text: str):
+    """``json.loads`` that refuses NaN and infinities, as JSON itself (and e.g. JavaScript's
+    ``JSON.parse``) does."""
+    def refuse(name):
+        raise ValueError(f"not JSON: {name}")
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_a_measure_not_taken_is_null_in_the_summary_not_nan(tmp_path):
+    """The bars stopped before they part: their contact time is not measured (a note says
+    so) and is written ``null``, in summary.json and in what the command prints: strict
+    JSON, which has no NaN."""
+    out = tmp_path / "short"
+    res = runner.invoke(app, ["run", "bars", "--quiet", "--out", str(out),
+                              "--set", "time.end=5e-6"])
+    assert res.exit_code == 0, res.output
+    summary = _strict_json((out / "summary.json").read_text())
+    assert summary["contact_time_us"] is None
+    assert any("contact_time_us" in note for note in summary["notes"]), summary["notes"]
+    printed = res.output[res.output.index("{"): res.output.index("}\n") + 1]
+    assert _strict_json(printed)["contact_time_us"] is None
+
+
+def test_json_text_writes_what_is_not_finite_as_null():
+    from impactsph.output import json_text
+
+    value = {"a": float("nan"), "b": [1.5, float("inf"), np.float64("-inf")],
+             "c": {"d": np.float32("nan"), "e": np.array(2.0), "f": np.int64(3)},
+             "g": None, "h": "text", "i": (np.float64(0.25),)}
+    assert _strict_json(json_text(value)) == {
+        "a": None, "b": [1.5, None, None], "c": {"d": None, "e": 2.0, "f": 3.0},
+        "g": None, "h": "text", "i": [0.25]}
+
+
 def test_nan_is_reported_with_step_time_and_particle(tmp_path):
     case = load_case("bars")
 
@@ -135,6 +169,7 @@ def test_nan_is_reported_with_step_time_and_particle(tmp_path):
     assert info.value.step == 50 and info.value.particle == 17
     rows = (tmp_path / "n" / "history.csv").read_text().splitlines()
     assert len(rows) == 1 + 51  # header, t = 0 and steps 1-50: all kept
+    _strict_json((tmp_path / "n" / "summary.json").read_text())  # (a failed run's too)
 
 
 def test_a_callback_that_only_reads_the_clock_costs_no_second_survey(monkeypatch):

@@ -151,11 +151,12 @@ def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Pat
 
             progress.stop()
             _fail(str(output_error(exc, exc.filename or out)))
+    from .output import json_text
     from .problems.registry import get_problem
 
     keys = (*SUMMARY_KEYS, *get_problem(c.analysis).summary_keys(c))
     shown = {k: summary[k] for k in keys if k in summary}
-    typer.echo(json.dumps(shown, indent=2))
+    typer.echo(json_text(shown))
     typer.echo(f"summary: {out / 'summary.json'}")
     for fig in summary.get("figures", []):
         typer.echo(f"figure: {fig}")

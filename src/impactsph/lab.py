@@ -13,14 +13,13 @@ as a function of the problem's case, so that it means the same on every problem.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from .geometry import quarter_cylinder_case
 from .loading import apply_overrides, read_case_dict
-from .output import load_run
+from .output import json_text, load_run
 
 Overrides = Callable[[dict[str, Any]], list[str]]
 
@@ -208,7 +207,7 @@ def run_lab(out: Path | str, problems: list[str] | None = None,
         summary = load_run(path).get("summary", {}) if (path / "case.json").exists() else {}
         rows.append(row_of(problem, scheme, summary, statuses.get(name)))
     out.mkdir(parents=True, exist_ok=True)
-    (out / "lab.json").write_text(json.dumps(rows, indent=2, default=float))
+    (out / "lab.json").write_text(json_text(rows))
     (out / "lab.md").write_text(markdown(rows))
     return rows
 

@@ -257,11 +257,35 @@ def write_snapshots(out: Path, sim: Any) -> None:
     write_bytes(out / "snapshots.npz", buf.getvalue())
 
 
+def json_text(value: Any, indent: int | None = 2) -> str:
+    """``value`` as strict JSON: a number that is not finite (a measure that could not be
+    taken, a run that went unstable) becomes ``null``, as JSON has no NaN nor infinity
+    (Python's ``json`` would write ``NaN``, which other readers refuse); numpy's numbers are
+    written as numbers.  What every JSON output of a run, a sweep, the lab and the paper's
+    tables is written with."""
+    return json.dumps(_finite_or_null(value), indent=indent, allow_nan=False, default=float)
+
+
+def _finite_or_null(value: Any) -> Any:
+    """``value`` with each float that is not finite replaced by None, in dicts, lists and
+    tuples at any depth (numpy's floats and 0-d arrays included)."""
+    if isinstance(value, dict):
+        return {k: _finite_or_null(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite_or_null(v) for v in value]
+    if isinstance(value, float | np.floating) or (isinstance(value, np.ndarray)
+                                                   and value.ndim == 0):
+        number = float(value)
+        return number if np.isfinite(number) else None
+    return value
+
+
 def write_summary(out: Path | str, summary: dict[str, Any]) -> None:
-    """``summary.json``: ``summary`` and the provenance.  The only writer of that file, for
-    runs and for the runs of a sweep (which add the case)."""
-    write_text(Path(out) / "summary.json", json.dumps(
-        {**summary, "provenance": provenance()}, indent=2, default=float))
+    """``summary.json``: ``summary`` and the provenance (strict JSON: :func:`json_text`).
+    The only writer of that file, for runs and for the runs of a sweep (which add the
+    case)."""
+    write_text(Path(out) / "summary.json",
+               json_text({**summary, "provenance": provenance()}))
 
 
 def read_csv(path: Path) -> dict[str, np.ndarray]:

@@ -18,13 +18,12 @@ loaded runs, and the tables.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 from .config import Case
 from .loading import read_case_dict, validate_case
-from .output import _csv_text, atomic_write_text, load_run
+from .output import _csv_text, atomic_write_text, json_text, load_run
 from .problems.registry import get_problem, problem_names
 from .sweep import run_many
 
@@ -152,7 +151,7 @@ def write_results(out: Path, paths: list[Path], table: list[dict[str, Any]],
     atomic_write_text(out / "table.csv", _csv_text(table))
     atomic_write_text(out / "table.md", markdown_table(table, keys, head))
     result = {"figures": [str(p) for p in paths], "table": table}
-    atomic_write_text(out / "paper.json", json.dumps(result, indent=2, default=float))
+    atomic_write_text(out / "paper.json", json_text(result))
     return result
 
 

@@ -44,7 +44,7 @@ import numpy as np
 
 from .config import Case, CaseError
 from .loading import apply_overrides, read_case_dict, validate_case
-from .output import _csv_text, atomic_write_text, write_summary
+from .output import _csv_text, atomic_write_text, json_text, write_summary
 from .problems.base import SweepCriterion
 from .problems.registry import get_problem
 
@@ -354,7 +354,7 @@ def sweep(case_source: str, grids: list[str], out: Path | str, *, scheduler: str
                                     panels=[(key, key)]))
     result = {"columns": columns, "rows": table, "finding": finding, "metrics": metrics,
               "figures": [str(f) for f in figures], "notes": notes}
-    atomic_write_text(out / "sweep.json", json.dumps(result, indent=2, default=float))
+    atomic_write_text(out / "sweep.json", json_text(result))
     return result
 
 
