@@ -77,7 +77,12 @@ def test_sweep_rejects_a_bad_grid_before_running(tmp_path):
                               "--out", str(tmp_path / "bad")])
     assert res.exit_code == 2
     assert "viscosity.alpha1" in res.output
-    assert not (tmp_path / "bad" / "runs").exists()
+    assert not (tmp_path / "bad").exists()  # nothing written, not even the directory
+    res = runner.invoke(app, ["sweep", "bars", "--grid", "viscosity.alpah1=0.1,0.3",
+                              "--out", str(tmp_path / "misspelt")])
+    assert res.exit_code == 2
+    assert "viscosity.alpah1: unknown key; did you mean" in res.output, res.output
+    assert not (tmp_path / "misspelt").exists()
 
 
 def test_paper_command_draws_figs_3_to_9_and_the_table(tmp_path):

@@ -322,6 +322,8 @@ def sweep(case_source: str, grids: list[str], out: Path | str, *, scheduler: str
     columns, runs = parse_grid(grids)
     run_overrides = [[f"{k}={json.dumps(v)}" for k, v in kv] + ["output.figures=false"]
                      for kv in runs]
+    for ov in run_overrides:  # a grid value the case refuses: refused before out is made
+        validate_case(apply_overrides(base, ov))
     out.mkdir(parents=True, exist_ok=True)
     done: dict[int, dict[str, Any]] = {}
 
