@@ -261,8 +261,8 @@ def _format_error(exc: ValidationError) -> str:
     if msg.startswith("Value error, "):
         msg = msg[len("Value error, "):]
     value = err.get("input")
-    if err["type"] == "geometry_type" and isinstance(value, dict):
-        loc, value = f"{loc}.type", value.get("type")
+    if err["type"] in ("geometry_type", "boundary_type") and isinstance(value, dict):
+        loc, value = f"{loc}.type", value.get("type")  # (the table's type, not the table)
     # the other fields in error (a union field's members' errors are one field's)
     fields = len({_location(_field_of(e, errors)) for e in others})
     more = f" (and {fields} more error{'s' if fields > 1 else ''})" if fields else ""
