@@ -251,10 +251,39 @@ def test_body_behind_a_wall_is_refused():
      "epsilon); it has no effect"),
     ({"viscosity": {"scheme": "ac", "decay": 0.2}}, "viscosity.decay",
      "not a parameter of scheme 'ac'"),
+    # a parameter the scheme accepts and does not read, set to other than its default
+    ({"viscosity": {"scheme": "ac", "alpha1": 0.3}}, "viscosity.alpha1",
+     "viscosity.alpha1 = 0.3: scheme 'ac': not used by AC, which evaluates the viscosity "
+     "with (1, 1) (eq 31); it has no effect"),
+    ({"viscosity": {"scheme": "ac_pairwise", "alpha2": 0.5}}, "viscosity.alpha2",
+     "scheme 'ac_pairwise': not used by AC"),
+    # a material's field or table of a model it does not use
+    ({"materials__steel__yield_stress": 3.5e8}, "materials.steel.yield_stress",
+     "materials.steel.yield_stress = 350000000.0: a parameter of model = 'elastic_plastic', "
+     "and this material's model is 'elastic'; it has no effect"),
+    ({"materials__steel__mie_gruneisen": {"sound_speed": 4569.0, "slope": 1.49,
+                                          "gamma": 2.17}},
+     "materials.steel.mie_gruneisen", "materials.steel.mie_gruneisen: the table of eos = "
+     "'mie_gruneisen', and this material's eos is 'linear'; it has no effect"),
 ])
 def test_implausible_magnitudes(changes, field, text):
     line = only(block_case(**changes), "warning", field)
     assert text in line, line
+
+
+def test_parameters_in_use_and_defaults_are_not_warned_about():
+    """AC's alpha1 left at its default, a yield stress with a model that yields, a
+    Mie-Gruneisen table with that eos: no finding; nor for any built-in case."""
+    assert findings(block_case(viscosity={"scheme": "ac", "alpha1": 1.0})) == []
+    assert findings(block_case(materials__steel__model="elastic_plastic",
+                               materials__steel__yield_stress=3.5e8)) == []
+    assert findings(block_case(materials__steel__eos="mie_gruneisen",
+                               materials__steel__mie_gruneisen={
+                                   "sound_speed": 4569.0, "slope": 1.49, "gamma": 2.17})) == []
+    for name in ("bars", "plates", "rings", "taylor", "taylor_axisymmetric", "cantilever"):
+        case = load_case(name)
+        assert pf.unused_material_fields(case) == [], name
+        assert pf.unused_viscosity_fields(case) == [], name
 
 
 def test_warnings_do_not_stop_check():

@@ -920,6 +920,7 @@ def magnitude_checks(case: Case) -> list[Finding]:
             warn(f"{where}.yield_stress", sigma,
                  f"implausibly low yield stress (SI, Pa: under {_g(YIELD_STRESS_MIN)}){hint}")
     out.extend(unused_viscosity_fields(case))
+    out.extend(unused_material_fields(case))
     rigid = any(wall.type != "symmetry" for wall in case.boundaries)
     if (case.two_dimensional == "plane_stress" and rigid and case.contact.traction == "pressure"
             and case.contact.wall_layer == 0.0):
@@ -972,10 +973,54 @@ def _end_time_hint(end: float) -> str:
             f"{end * 1e-6:.3g}?")
 
 
+def unused_material_fields(case: Case) -> list[Finding]:
+    """A warning for each field of a material that belongs to a model it does not use: a
+    ``yield_stress`` with ``model = "elastic"`` (a user who forgot to switch the model runs
+    an elastic body), a ``[materials.X.mie_gruneisen]`` table with ``eos = "linear"``, a
+    ``[materials.X.johnson_cook_damage]`` table with ``damage = "none"``.  The case table
+    holds every registered model's fields, so such a field is accepted, and has no effect."""
+    from .config import Material
+    from .models import DAMAGE, EOS, STRENGTH
+    from .models.registry import Parameters
+
+    owner: dict[str, tuple[str, str]] = {}  # a model's field or table -> (kind, model)
+    for kind, registry in (("model", STRENGTH), ("eos", EOS), ("damage", DAMAGE)):
+        for model in registry:
+            if model.parameters is None:
+                continue
+            names = (model.parameters.model_fields if getattr(model, "flat", False)
+                     else (model.name,))
+            for key in names:
+                if key not in Material.model_fields:  # (a common field: every model's)
+                    owner.setdefault(key, (kind, model.name))
+    out = []
+    for name, mat in case.materials.items():
+        chosen = {"model": mat.model, "eos": mat.eos, "damage": mat.damage}
+        used = set()
+        for model in (STRENGTH[mat.model], EOS[mat.eos], DAMAGE[mat.damage]):
+            if model.parameters is not None:
+                used |= set(model.parameters.model_fields if getattr(model, "flat", False)
+                            else (model.name,))
+        for key in sorted(mat.model_fields_set - used):
+            if key not in owner:
+                continue
+            kind, model = owner[key]
+            value = getattr(mat, key)
+            shown = (f"materials.{name}.{key} = {value!r}" if not isinstance(value, Parameters)
+                     else f"materials.{name}.{key}")
+            what = "the table" if isinstance(value, Parameters) else "a parameter"
+            out.append(Finding("warning", f"materials.{name}.{key}", (
+                f"{shown}: {what} of {kind} = {model!r}, and this material's {kind} is "
+                f"{chosen[kind]!r}; it has no effect")))
+    return out
+
+
 def unused_viscosity_fields(case: Case) -> list[Finding]:
     """A warning for each ``[viscosity]`` field the case sets that its scheme does not read
     (``limiter`` with ``scheme = "av"``, say): the case table holds every scheme's fields,
-    so such a field is accepted, and has no effect."""
+    so such a field is accepted, and has no effect.  Likewise a parameter the scheme accepts
+    but does not read (:data:`impactsph.models.registry.NOT_READ`: AC's ``alpha1`` and
+    ``alpha2``, which it fixes at 1), where the case sets it to other than its default."""
     from .models import VISCOSITY
 
     out = []
@@ -990,6 +1035,14 @@ def unused_viscosity_fields(case: Case) -> list[Finding]:
                 f"{where}.{name} = {getattr(viscosity, name)!r}: not a parameter of "
                 f"scheme {viscosity.scheme!r} ({', '.join(sorted(known)) or 'none'}); it has "
                 "no effect")))
+        for name in sorted(viscosity.model_fields_set & known):
+            field = parameters.model_fields[name]
+            extra = field.json_schema_extra
+            value = getattr(viscosity, name)
+            if isinstance(extra, dict) and extra.get("not_read") and value != field.default:
+                out.append(Finding("warning", f"{where}.{name}", (
+                    f"{where}.{name} = {value!r}: scheme {viscosity.scheme!r}: "
+                    f"{field.description}; it has no effect")))
     return out
 
 

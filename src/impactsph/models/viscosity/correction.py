@@ -45,7 +45,7 @@ from pydantic import Field
 
 from ...kernels import cubic_spline
 from ...physics.records import record_coordinate
-from ..registry import VISCOSITY, Parameters, ViscosityScheme
+from ..registry import NOT_READ, VISCOSITY, Parameters, ViscosityScheme
 from ..types import NonNegativeFloat, PositiveFloat
 from .monaghan import pair_viscosity as monaghan_pair_viscosity
 
@@ -63,8 +63,12 @@ class CorrectionParameters(Parameters):
     are accepted (a case switched from AV to AC keeps its table) but not used: AC evaluates
     the viscosity with (1, 1), eq 31."""
 
-    alpha1: NonNegativeFloat = Field(1.0, description="not used by AC (always 1)")
-    alpha2: NonNegativeFloat = Field(1.0, description="not used by AC (always 1)")
+    alpha1: NonNegativeFloat = Field(
+        1.0, description="not used by AC, which "
+        "evaluates the viscosity with (1, 1) (eq 31)", json_schema_extra=NOT_READ)
+    alpha2: NonNegativeFloat = Field(
+        1.0, description="not used by AC, which "
+        "evaluates the viscosity with (1, 1) (eq 31)", json_schema_extra=NOT_READ)
     epsilon: PositiveFloat = Field(0.01, description="epsilon of eq 30")
     correction: Literal["volume_weighted", "shepard", "neighbours_only"] = Field(
         DEFAULT_VARIANT, description="AC reading of eq 34 (readings a, b, c of "

@@ -67,7 +67,7 @@ from pydantic import Field
 
 from ...kernels import cubic_spline, cubic_spline_gradient_factor
 from ...physics.records import record_coordinate
-from ..registry import VISCOSITY, Parameters, ViscosityScheme
+from ..registry import NOT_READ, VISCOSITY, Parameters, ViscosityScheme
 from ..types import NonNegativeFloat, PositiveFloat
 from .correction import (
     DEFAULT_VARIANT,
@@ -250,8 +250,12 @@ def ac_pairwise_factor(p, i, P, start, end, indices, layout, dim, params, elapse
 class OptimisedCorrectionParameters(Parameters):
     """The ``[viscosity]`` fields of the optimised correction."""
 
-    alpha1: NonNegativeFloat = Field(1.0, description="not used (always 1)")
-    alpha2: NonNegativeFloat = Field(1.0, description="not used (always 1)")
+    alpha1: NonNegativeFloat = Field(
+        1.0, description="not used by this scheme, which "
+        "evaluates the viscosity with (1, 1)", json_schema_extra=NOT_READ)
+    alpha2: NonNegativeFloat = Field(
+        1.0, description="not used by this scheme, which "
+        "evaluates the viscosity with (1, 1)", json_schema_extra=NOT_READ)
     epsilon: PositiveFloat = Field(0.01, description="epsilon of eq 30")
     correction: Literal["volume_weighted", "shepard", "neighbours_only"] = Field(
         DEFAULT_VARIANT, description="the reading of eq 34 of the bounding correction")
