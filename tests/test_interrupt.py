@@ -301,7 +301,8 @@ def checkpoint(tmp_path_factory):
 
 def refused_restart(path: Path, out: Path) -> str:
     res = runner.invoke(app, ["run", "bars", "--quiet", "--out", str(out), "--restart",
-                              str(path), "--set", "time.end=2e-6"])
+                              str(path), "--set", "time.end=2e-6",
+                              "--set", "output.snapshot_times=[]"])
     assert res.exit_code == 2, res.output
     assert not out.exists()  # before any work
     line = one_line(res)
@@ -346,7 +347,9 @@ def test_a_good_checkpoint_carries_its_checksum(checkpoint):
 # -- the run directory -------------------------------------------------------------------------
 
 
-SHORT = ["--set", "time.end=1e-6", "--set", "output.figures=false"]
+# (no snapshot times: the bars' 5.75 us one, after this end, would add a warning's line)
+SHORT = ["--set", "time.end=1e-6", "--set", "output.figures=false",
+         "--set", "output.snapshot_times=[]"]
 
 
 def test_a_non_empty_out_is_refused_and_overwrite_clears_it(tmp_path):
@@ -363,6 +366,15 @@ def test_a_non_empty_out_is_refused_and_overwrite_clears_it(tmp_path):
     assert line.startswith(f"error: --out {out} is not empty (") and "--overwrite" in line
     assert f"--restart {out / 'checkpoint.h5'}" in line
     assert (out / "history.csv").read_bytes() == before  # untouched
+    # without --quiet too: refused before the preflight's particle counts and estimates
+    res = runner.invoke(app, ["run", "bars", "--out", str(out), *SHORT])
+    assert res.exit_code == 2 and one_line(res).startswith(f"error: --out {out} is not empty")
+    missing = tmp_path / "nosuch" / "checkpoint.h5"
+    res = runner.invoke(app, ["run", "bars", "--out", str(tmp_path / "r"), "--restart",
+                              str(missing), *SHORT])
+    assert res.exit_code == 2
+    assert one_line(res) == f"error: --restart {missing}: does not exist"
+    assert not (tmp_path / "r").exists()
     res = runner.invoke(app, ["run", "bars", "--quiet", "--out", str(out), *SHORT,
                               "--overwrite"])
     assert res.exit_code == 0, res.output

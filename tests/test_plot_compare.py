@@ -130,3 +130,21 @@ def test_compare_refuses_bad_input(runs, tmp_path):
     line = refused(["compare", runs / "av", tmp_path / "nowhere", "--out", tmp_path / "o"])
     assert "nowhere is not a run directory" in line
     assert not (tmp_path / "o").exists()
+
+
+def test_a_run_without_snapshots_says_why_it_has_no_shape_and_no_animation(tmp_path):
+    """The Taylor bar shortened below its first snapshot time: the preflight warns, the run
+    ends with a note that the deformed shape is not drawn (not a figure left out in
+    silence), and ``animate`` says that the snapshot times lie after the run's end."""
+    out = tmp_path / "short"
+    res = runner.invoke(app, ["run", "taylor", "--set", "bodies.0.geometry.count=[4, 12]",
+                              "--set", "time.end=1e-6", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    assert ("warning: output.snapshot_times = [1e-05, 2e-05, 3e-05, 4e-05, 5e-05]: 5 of 5 "
+            "after time.end = 1e-06: no snapshot is taken then") in res.output
+    notes = json.loads((out / "summary.json").read_text())["notes"]
+    assert any("deformed_shape.png needs a snapshot" in note for note in notes), notes
+    assert not (out / "deformed_shape.png").exists()
+    line = refused(["animate", out])
+    assert "its output.snapshot_times (1e-05, 2e-05, 3e-05, 4e-05, 5e-05 s) all lie after " \
+           "its end, time.end = 1e-06 s" in line, line

@@ -251,6 +251,10 @@ def test_body_behind_a_wall_is_refused():
      "epsilon); it has no effect"),
     ({"viscosity": {"scheme": "ac", "decay": 0.2}}, "viscosity.decay",
      "not a parameter of scheme 'ac'"),
+    # a case shortened below its snapshot times (--set time.end) takes none of them
+    ({"output": {"snapshot_times": [5e-6, 2e-5]}}, "output.snapshot_times",
+     "output.snapshot_times = [5e-06, 2e-05]: 1 of 2 after time.end = 1e-05: no snapshot is "
+     "taken then, nor any figure drawn from one"),
     # a parameter the scheme accepts and does not read, set to other than its default
     ({"viscosity": {"scheme": "ac", "alpha1": 0.3}}, "viscosity.alpha1",
      "viscosity.alpha1 = 0.3: scheme 'ac': not used by AC, which evaluates the viscosity "

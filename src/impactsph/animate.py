@@ -178,9 +178,13 @@ def animate_run(run_dir: Path | str, field: str | None = None, out: Path | str |
     run = load_run(run_dir)
     case = validate_case(run["case"])
     if not run["snapshots"]:
-        raise CaseError(f"{run_dir} has no snapshots to animate (snapshots.npz is empty): run "
-                        f"the case with output.snapshot_times, e.g. --set "
-                        f"'output.snapshot_times=[1e-6, 2e-6, 3e-6]'")
+        times = case.output.snapshot_times
+        why = (f"its output.snapshot_times ({', '.join(f'{t:g}' for t in times)} s) all lie "
+               f"after its end, time.end = {case.time.end:g} s" if times else
+               "the case has no output.snapshot_times")
+        raise CaseError(f"{run_dir} has no snapshots to animate (snapshots.npz is empty: "
+                        f"{why}): run the case with snapshot times within the run, e.g. "
+                        f"--set 'output.snapshot_times=[1e-6, 2e-6, 3e-6]'")
     field = field or get_problem(case.analysis).animation_field
     if section not in AXES:
         raise CaseError(f"--section {section!r}: give x, y or z")

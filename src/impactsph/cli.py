@@ -102,6 +102,7 @@ def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Pat
     """``impactsph run`` with the signals handled by ``stop``."""
     from .errors import OutputError
     from .preflight import after_run, before_run
+    from .rundir import check_run_dir
     from .runner import run_case
     from .simulation import SimulationError
 
@@ -109,10 +110,17 @@ def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Pat
                         format="%(levelname)s %(name)s: %(message)s")
     try:
         c = load_case(case, sets + ([f"compute.device={device}"] if device else []))
+        out = out or Path("runs") / c.name
+        # what is refused without building anything, before the preflight's lines: the
+        # output directory (run_case checks it again), a checkpoint that is not there
+        check_run_dir(out, "overwrite" if overwrite else
+                      "keep" if restart is not None else "refuse")
+        if restart is not None and not Path(restart).is_file():
+            raise CaseError(f"--restart {restart}: " + (
+                "is not a file" if Path(restart).exists() else "does not exist"))
         before_run(c, quiet=quiet)  # estimates and warnings; CaseError on a refusal
-    except CaseError as exc:
+    except (CaseError, OutputError) as exc:
         _fail(str(exc))
-    out = out or Path("runs") / c.name
     progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(),
                         TextColumn("t = {task.fields[t]:.3e} s  step {task.fields[step]}  "
                                    "dt = {task.fields[dt]:.2e} s"),

@@ -963,6 +963,13 @@ def magnitude_checks(case: Case) -> list[Finding]:
                      f"hypervelocity impact ({_g(SPEED_MAX)} m/s); velocities are in m/s")
     if case.time.end > END_TIME_MAX:
         warn("time.end", case.time.end, _end_time_hint(case.time.end))
+    # (a case shortened with --set time.end keeps its snapshot times)
+    late = [t for t in case.output.snapshot_times if t > case.time.end * (1 + 1e-9)]
+    if late:
+        warn("output.snapshot_times", case.output.snapshot_times,
+             f"{len(late)} of {len(case.output.snapshot_times)} after time.end = "
+             f"{case.time.end!r}: no snapshot is taken then, nor any figure drawn from one "
+             f"(a deformed shape, a profile)")
     return out
 
 
