@@ -77,6 +77,8 @@ BAD = [
     (["--set", "bodies.0.material=gold"], "gold"),
     (["--set", "bodies.0.velocity=[1.0, 2.0]"], "bodies.0.velocity"),
     (["--set", "time.end"], "KEY=VALUE"),
+    # a boolean shown as the case file writes it, not as Python does
+    (["--set", "time.end=true"], "time.end = true: Input should be a valid number"),
     # a boundary's type is named with its value, as a geometry's is
     (["--set", 'boundaries=[{type="symetry", point=[0.0], normal=[1.0]}]'],
      "boundaries.0.type = 'symetry': Input should be 'wall' or 'symmetry'"),

@@ -403,7 +403,7 @@ def _with_geometry(geometry: dict, dimension: int = 2, analysis: str = "none") -
     ({"type": "disk", "centre": [0.0, 0.0, 0.0], "radius": 1.0, "spacing": 0.1}, 3,
      "bodies.0.geometry: type = 'disk' is for dimension = 2 only"),
     ({"type": "disk", "centre": [0.0], "radius": 1.0, "spacing": 0.1}, 2,
-     "bodies.0.geometry.centre has 1 components; dimension = 2 needs 2"),
+     "bodies.0.geometry.centre has 1 component; dimension = 2 needs 2"),
     ({"type": "disk", "centre": [0.0, 0.0], "radius": 1.0}, 2,
      "bodies.0.geometry.spacing: required field is missing"),
     ({"type": "disk", "centre": [0.0, 0.0], "radius": 1.0, "spacing": 0.1, "size": [1.0]}, 2,

@@ -126,7 +126,7 @@ def test_compare_taylor_runs_draws_the_shapes(runs, tmp_path):
 
 def test_compare_refuses_bad_input(runs, tmp_path):
     line = refused(["compare", runs / "av", runs / "ac", "--labels", "one", "--out", tmp_path])
-    assert line == "error: --labels gives 1 labels for 2 runs"
+    assert line == "error: --labels gives 1 label for 2 runs"
     line = refused(["compare", runs / "av", tmp_path / "nowhere", "--out", tmp_path / "o"])
     assert "nowhere is not a run directory" in line
     assert not (tmp_path / "o").exists()

@@ -72,7 +72,9 @@ def run(
     out: Annotated[Path | None, typer.Option(
         help="output directory (default runs/NAME); it must be empty or new, unless "
              "--overwrite or --restart")] = None,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+    quiet: Annotated[bool, typer.Option(
+        "--quiet", "-q", help="no progress bar and no log; of the checks before the run, "
+        "the warnings and errors only")] = False,
     restart: Annotated[Path | None, typer.Option(
         help="continue from this checkpoint (DIR/checkpoint.h5, written periodically and "
              "when a run is interrupted); --out may then hold the run already")] = None,
@@ -214,7 +216,9 @@ def _stopped_at_once(out: Path) -> None:
 
 @app.command()
 def check(case: Annotated[str, typer.Argument(help="case file or built-in name")],
-          set_: Annotated[list[str] | None, typer.Option("--set")] = None) -> None:
+          set_: Annotated[list[str] | None, typer.Option(
+              "--set", help="override a field by its dotted path, e.g. "
+              "viscosity.alpha1=0.3")] = None) -> None:
     """Validate a case without running it: particle counts, estimates of memory and run
     time, and warnings about the set-up (impactsph.preflight)."""
     from .preflight import check_case, scheme_line
@@ -475,7 +479,8 @@ def compare(
     if labels is not None:
         names = [lab.strip() for lab in labels.split(",")]
         if len(names) != len(run_dirs):
-            _fail(f"--labels gives {len(names)} labels for {len(run_dirs)} runs")
+            _fail(f"--labels gives {len(names)} label{'' if len(names) == 1 else 's'} for "
+                  f"{len(run_dirs)} runs")
     else:
         names = [d.name or str(d) for d in run_dirs]
         if len(set(names)) != len(names):
@@ -483,7 +488,8 @@ def compare(
     runs = [_load_run_dir(d) for d in run_dirs]
     mismatch = case_mismatch([validate_case(r["case"]) for r in runs])
     if mismatch is not None:
-        typer.echo(f"note: {mismatch}; only the kinetic energy is overlaid", err=True)
+        typer.echo(f"note: {mismatch}; only the kinetic energy and the energies are "
+                   f"overlaid", err=True)
     out.mkdir(parents=True, exist_ok=True)
     notes: list[str] = []
     for fig in draw_figures(runs, out, names, notes=notes):

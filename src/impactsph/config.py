@@ -33,6 +33,11 @@ def _all_defaults(parameters: type[_Model]) -> bool:
     return not any(info.is_required() for info in parameters.model_fields.values())
 
 
+def _components(n: int) -> str:
+    """``"1 component"``, ``"2 components"``: a vector's length in a message."""
+    return f"{n} component{'' if n == 1 else 's'}"
+
+
 class Material(_Model):
     """A material: elastic constants, equation of state, strength model.
 
@@ -832,7 +837,7 @@ class Case(_Model):
                 for field in ("origin", "size"):
                     if len(getattr(g, field)) != d:
                         raise ValueError(f"{where}.geometry.{field} has "
-                                         f"{len(getattr(g, field))} components; "
+                                         f"{_components(len(getattr(g, field)))}; "
                                          f"dimension = {d} needs {d}")
             elif isinstance(g, Disk | Ring | Cylinder | Sphere):
                 needs = 3 if isinstance(g, Cylinder | Sphere) else 2
@@ -840,8 +845,8 @@ class Case(_Model):
                     raise ValueError(f"{where}.geometry: type = {g.type!r} is for dimension = "
                                      f"{needs} only")
                 if len(g.centre) != d:
-                    raise ValueError(f"{where}.geometry.centre has {len(g.centre)} components; "
-                                     f"dimension = {d} needs {d}")
+                    raise ValueError(f"{where}.geometry.centre has "
+                                     f"{_components(len(g.centre))}; dimension = {d} needs {d}")
             for a, component in enumerate(body.velocity):
                 if isinstance(component, str):
                     from .initial import check_expression
@@ -850,7 +855,7 @@ class Case(_Model):
                     if why:
                         raise ValueError(f"{where}.velocity.{a} = {component!r}: {why}")
             if len(body.velocity) != d:
-                raise ValueError(f"{where}.velocity has {len(body.velocity)} components; "
+                raise ValueError(f"{where}.velocity has {_components(len(body.velocity))}; "
                                  f"dimension = {d} needs {d}")
             if isinstance(g, Block):
                 if isinstance(g.spacing, list) and len(g.spacing) != d:
@@ -863,8 +868,9 @@ class Case(_Model):
             for k, drive in enumerate(body.driven):
                 regions.append((f"driven.{k}", drive))
                 if len(drive.velocity) != d:
-                    raise ValueError(f"{where}.driven.{k}.velocity has {len(drive.velocity)} "
-                                     f"components; dimension = {d} needs {d}")
+                    raise ValueError(f"{where}.driven.{k}.velocity has "
+                                     f"{_components(len(drive.velocity))}; dimension = {d} "
+                                     f"needs {d}")
                 for a, component in enumerate(drive.velocity):
                     if isinstance(component, str):
                         from .initial import check_expression

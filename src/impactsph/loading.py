@@ -272,7 +272,8 @@ def _format_error(exc: ValidationError) -> str:
     if err["type"] == "missing":
         return f"{loc}: required field is missing{more}"
     if loc and not isinstance(value, dict):
-        return f"{loc} = {value!r}: {msg}{more}"
+        shown = ("true" if value else "false") if isinstance(value, bool) else repr(value)
+        return f"{loc} = {shown}: {msg}{more}"  # (a boolean as the case file writes it)
     return f"{loc + ': ' if loc else ''}{msg}{more}"
 
 

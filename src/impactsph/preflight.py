@@ -183,7 +183,7 @@ class Estimate:
             f"estimated run time: {_duration(self.seconds)} ("
             + ("two runs, the case's and its reference_viscosity's, each " if self.runs > 1
                else "")
-            + f"{self.steps:,} steps of "
+            + f"{self.steps:,} step{'' if self.steps == 1 else 's'} of "
             f"dt = {self.dt:.3g} s by {self.dt_source}, {self.pairs_per_particle:.3g} pairs per "
             f"particle, "
             f"{self.pair_rate:.3g} pairs/s {self.pair_rate_source}; an estimate, compilation "
