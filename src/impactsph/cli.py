@@ -110,6 +110,9 @@ def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Pat
 
     logging.basicConfig(level=logging.WARNING if quiet else logging.INFO,
                         format="%(levelname)s %(name)s: %(message)s")
+    # the run's own log; other libraries' warnings only (matplotlib's "generated new
+    # fontManager" on a fresh machine is not the run's news)
+    logging.getLogger("matplotlib").setLevel(logging.WARNING)
     try:
         c = load_case(case, sets + ([f"compute.device={device}"] if device else []))
         out = out or Path("runs") / c.name
