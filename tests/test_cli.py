@@ -77,6 +77,12 @@ BAD = [
     (["--set", "bodies.0.material=gold"], "gold"),
     (["--set", "bodies.0.velocity=[1.0, 2.0]"], "bodies.0.velocity"),
     (["--set", "time.end"], "KEY=VALUE"),
+    (["--set", 'boundaries=[{type="symmetry", point=[0.0], normal=[1.0], friction=0.2}]'],
+     "boundaries.0.friction: unknown key; friction is a field of type = 'wall' (this table's "
+     "type is 'symmetry')"),
+    # a boundary's field by its own path (not pydantic's boundaries.0.wall.friction)
+    (["--set", 'boundaries=[{point=[0.0], normal=[1.0], friction=-1.0}]'],
+     "error: boundaries.0.friction = -1.0: Input should be greater than or equal to 0"),
     # a boolean shown as the case file writes it, not as Python does
     (["--set", "time.end=true"], "time.end = true: Input should be a valid number"),
     # a boundary's type is named with its value, as a geometry's is

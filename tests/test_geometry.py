@@ -413,6 +413,10 @@ def _with_geometry(geometry: dict, dimension: int = 2, analysis: str = "none") -
     ({"type": "cylinder", "centre": [0.0, 0.0, 0.0], "radius": 1.0, "length": 1.0,
       "axis": "w", "spacing": 0.1}, 3, "bodies.0.geometry.axis = 'w': Input should be 'x', "
                                        "'y' or 'z'"),
+    # a key of the geometry's other types: which types have it
+    ({"origin": [0.0, 0.0], "size": [1.0, 1.0], "spacing": 0.1, "radius": 1.0}, 2,
+     "bodies.0.geometry.radius: unknown key; radius is a field of type = 'disk', 'cylinder' or "
+     "'sphere' (this table's type is 'block')"),
     ({"type": "cone", "radius": 1.0}, 2, "bodies.0.geometry.type = 'cone': Input should "
                                          "be 'block', 'disk', 'ring', 'cylinder', 'sphere' "
                                          "or 'file'"),

@@ -443,11 +443,15 @@ class Symmetry(_Model):
     normal: list[FiniteFloat] = Field(description="normal pointing into the modelled half")
 
 
+#: a boundary's ``type``s (the tags of the :data:`Boundary` union)
+BOUNDARY_TYPES = ("wall", "symmetry")
+
+
 def _boundary_type(value: Any) -> str | None:
     """A boundary's ``type`` (``wall`` when left out); None for an unknown one."""
     kind = value.get("type", "wall") if isinstance(value, dict) else getattr(value, "type",
                                                                             "wall")
-    return kind if kind in ("wall", "symmetry") else None
+    return kind if kind in BOUNDARY_TYPES else None
 
 
 Boundary = Annotated[

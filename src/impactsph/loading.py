@@ -21,7 +21,7 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
-from .config import GEOMETRY_TYPES, Case, ParticleFile, schema
+from .config import BOUNDARY_TYPES, GEOMETRY_TYPES, Case, ParticleFile, schema
 from .errors import CaseError
 from .library import expand
 
@@ -136,9 +136,11 @@ def _is_type_tag(part: object) -> bool:
 def _location(loc: tuple[Any, ...]) -> str:
     """The dotted field path of an error location, without pydantic's names of union members
     (``constrained-float``, ...) and of the geometry's type (``bodies.0.geometry.disk.radius``
-    is ``bodies.0.geometry.radius``)."""
+    is ``bodies.0.geometry.radius``) or a boundary's (``boundaries.0.wall.friction`` is
+    ``boundaries.0.friction``)."""
     parts = [p for k, p in enumerate(loc) if not _is_type_tag(p)
-             and not (k > 0 and loc[k - 1] == "geometry" and p in GEOMETRY_TYPES)]
+             and not (k > 0 and loc[k - 1] == "geometry" and p in GEOMETRY_TYPES)
+             and not (k > 1 and loc[k - 2] == "boundaries" and p in BOUNDARY_TYPES)]
     return ".".join(str(p) for p in parts)
 
 
@@ -178,6 +180,24 @@ def allowed_keys(loc: tuple[Any, ...]) -> list[str]:
         if isinstance(node, type) and issubclass(node, BaseModel):
             keys.update(dict.fromkeys(node.model_fields))
     return list(keys)
+
+
+def _other_types_key(loc: tuple[Any, ...]) -> str:
+    """``"; radius is a field of type = 'disk', ... (this geometry's type is 'block')"`` for a
+    key of a geometry (or boundary) table that belongs to its other types; ``""`` else.  The
+    error's location names the table's type before the key (pydantic's union tag)."""
+    if len(loc) < 2 or not isinstance(loc[-1], str):
+        return ""
+    for tags in (GEOMETRY_TYPES, BOUNDARY_TYPES):
+        if loc[-2] not in tags:
+            continue
+        others = [t for t in tags if t != loc[-2] and loc[-1] in allowed_keys((*loc[:-2], t))]
+        if others:
+            names = " or ".join([", ".join(map(repr, others[:-1])), repr(others[-1])]
+                                if len(others) > 1 else [repr(others[0])])
+            return (f"; {loc[-1]} is a field of type = {names} (this table's type is "
+                    f"{loc[-2]!r})")
+    return ""
 
 
 def did_you_mean(key: str, allowed: list[str]) -> str:
@@ -268,6 +288,7 @@ def _format_error(exc: ValidationError) -> str:
     more = f" (and {fields} more error{'s' if fields > 1 else ''})" if fields else ""
     if err["type"] == "extra_forbidden":
         hint = did_you_mean(err["loc"][-1], allowed_keys(err["loc"][:-1])) if err["loc"] else ""
+        hint = hint or _other_types_key(tuple(err["loc"]))
         return f"{loc}: unknown key{hint}{more}"
     if err["type"] == "missing":
         return f"{loc}: required field is missing{more}"
