@@ -108,6 +108,11 @@ def test_unknown_builtin_and_missing_file(tmp_path):
         assert res.exit_code == 2
         assert len(res.output.strip().splitlines()) == 1
         assert "bars" in res.output or "does not exist" in res.output
+    # an empty name is not the current directory read as a case file
+    res = runner.invoke(app, ["check", ""])
+    assert res.exit_code == 2
+    assert res.output.strip().startswith("error: case '': give a case file or a built-in "
+                                         "case: bars"), res.output
 
 
 def test_case_file_with_unknown_key(tmp_path):

@@ -59,6 +59,9 @@ def read_case_dict(source: str | Path) -> dict[str, Any]:
     """Read a case file, or a built-in case by name, into a plain dict (not yet validated).
     The relative paths of particle files are made relative to the case file's directory."""
     path = Path(source)
+    if not str(source).strip():  # (Path("") is the current directory)
+        raise CaseError(f"case {str(source)!r}: give a case file or a built-in case: "
+                        f"{', '.join(BUILTIN_CASES)}")
     if not path.suffix and str(source) in BUILTIN_CASES:
         path = builtin_case_path(str(source))
     elif not path.exists():
