@@ -37,7 +37,7 @@ its total-energy error and the correction's work, so the choice is visible.
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Any, Literal
 
 import numba as nb
 import numpy as np
@@ -58,17 +58,22 @@ ENERGY_CORRECTIONS = {"work": ENERGY_WORK, "paper": ENERGY_PAPER, "none": ENERGY
 DEFAULT_VARIANT = "neighbours_only"
 
 
+def unit_alpha(scheme: str) -> Any:
+    """An ``alpha1`` or ``alpha2`` field of a scheme that evaluates the viscosity with (1, 1)
+    (eq 31): accepted, so that a case switched from AV keeps its table, and not read
+    (:data:`~impactsph.models.registry.NOT_READ`: the preflight warns where a case sets it
+    to other than 1)."""
+    return Field(1.0, description=f"not used by {scheme}, which evaluates the viscosity with "
+                 "(1, 1) (eq 31)", json_schema_extra=NOT_READ)
+
+
 class CorrectionParameters(Parameters):
     """The ``[viscosity]`` fields of the acceleration correction.  ``alpha1`` and ``alpha2``
     are accepted (a case switched from AV to AC keeps its table) but not used: AC evaluates
     the viscosity with (1, 1), eq 31."""
 
-    alpha1: NonNegativeFloat = Field(
-        1.0, description="not used by AC, which "
-        "evaluates the viscosity with (1, 1) (eq 31)", json_schema_extra=NOT_READ)
-    alpha2: NonNegativeFloat = Field(
-        1.0, description="not used by AC, which "
-        "evaluates the viscosity with (1, 1) (eq 31)", json_schema_extra=NOT_READ)
+    alpha1: NonNegativeFloat = unit_alpha("AC")
+    alpha2: NonNegativeFloat = unit_alpha("AC")
     epsilon: PositiveFloat = Field(0.01, description="epsilon of eq 30")
     correction: Literal["volume_weighted", "shepard", "neighbours_only"] = Field(
         DEFAULT_VARIANT, description="AC reading of eq 34 (readings a, b, c of "

@@ -67,7 +67,7 @@ from pydantic import Field
 
 from ...kernels import cubic_spline, cubic_spline_gradient_factor
 from ...physics.records import record_coordinate
-from ..registry import NOT_READ, VISCOSITY, Parameters, ViscosityScheme
+from ..registry import VISCOSITY, Parameters, ViscosityScheme
 from ..types import NonNegativeFloat, PositiveFloat
 from .correction import (
     DEFAULT_VARIANT,
@@ -75,6 +75,7 @@ from .correction import (
     CorrectionParameters,
     corrected_viscous_acceleration,
     correction_sums,
+    unit_alpha,
 )
 from .correction import pair_viscosity as unit_viscosity
 from .monaghan import MonaghanParameters
@@ -250,12 +251,8 @@ def ac_pairwise_factor(p, i, P, start, end, indices, layout, dim, params, elapse
 class OptimisedCorrectionParameters(Parameters):
     """The ``[viscosity]`` fields of the optimised correction."""
 
-    alpha1: NonNegativeFloat = Field(
-        1.0, description="not used by this scheme, which "
-        "evaluates the viscosity with (1, 1)", json_schema_extra=NOT_READ)
-    alpha2: NonNegativeFloat = Field(
-        1.0, description="not used by this scheme, which "
-        "evaluates the viscosity with (1, 1)", json_schema_extra=NOT_READ)
+    alpha1: NonNegativeFloat = unit_alpha("ac_optimised")
+    alpha2: NonNegativeFloat = unit_alpha("ac_optimised")
     epsilon: PositiveFloat = Field(0.01, description="epsilon of eq 30")
     correction: Literal["volume_weighted", "shepard", "neighbours_only"] = Field(
         DEFAULT_VARIANT, description="the reading of eq 34 of the bounding correction")
