@@ -987,28 +987,32 @@ def unused_material_fields(case: Case) -> list[Finding]:
     ``[materials.X.johnson_cook_damage]`` table with ``damage = "none"``.  The case table
     holds every registered model's fields, so such a field is accepted, and has no effect."""
     from .config import Material
+    from .library import material_fields
     from .models import DAMAGE, EOS, STRENGTH
     from .models.registry import Parameters
+
+    def keys_of(model: Any) -> tuple[str, ...]:
+        """The material table's keys that hold a model's parameters: its fields where it is
+        registered flat, else its sub-table."""
+        if model.parameters is None:
+            return ()
+        return (tuple(model.parameters.model_fields) if getattr(model, "flat", False)
+                else (model.name,))
 
     owner: dict[str, tuple[str, str]] = {}  # a model's field or table -> (kind, model)
     for kind, registry in (("model", STRENGTH), ("eos", EOS), ("damage", DAMAGE)):
         for model in registry:
-            if model.parameters is None:
-                continue
-            names = (model.parameters.model_fields if getattr(model, "flat", False)
-                     else (model.name,))
-            for key in names:
+            for key in keys_of(model):
                 if key not in Material.model_fields:  # (a common field: every model's)
                     owner.setdefault(key, (kind, model.name))
     out = []
     for name, mat in case.materials.items():
+        # (what a library material brings, the case cannot leave out: not warned about)
+        supplied = set(material_fields(mat.library)) if mat.library else set()
         chosen = {"model": mat.model, "eos": mat.eos, "damage": mat.damage}
-        used = set()
-        for model in (STRENGTH[mat.model], EOS[mat.eos], DAMAGE[mat.damage]):
-            if model.parameters is not None:
-                used |= set(model.parameters.model_fields if getattr(model, "flat", False)
-                            else (model.name,))
-        for key in sorted(mat.model_fields_set - used):
+        used = {key for model in (STRENGTH[mat.model], EOS[mat.eos], DAMAGE[mat.damage])
+                for key in keys_of(model)}
+        for key in sorted(mat.model_fields_set - used - supplied):
             if key not in owner:
                 continue
             kind, model = owner[key]
@@ -1025,9 +1029,9 @@ def unused_material_fields(case: Case) -> list[Finding]:
 def unused_viscosity_fields(case: Case) -> list[Finding]:
     """A warning for each ``[viscosity]`` field the case sets that its scheme does not read
     (``limiter`` with ``scheme = "av"``, say): the case table holds every scheme's fields,
-    so such a field is accepted, and has no effect.  Likewise a parameter the scheme accepts
-    but does not read (:data:`impactsph.models.registry.NOT_READ`: AC's ``alpha1`` and
-    ``alpha2``, which it fixes at 1), where the case sets it to other than its default."""
+    so such a field is accepted, and has no effect.  (AC's ``alpha1`` and ``alpha2`` are
+    its parameters, accepted and not read, so that a case switched from AV keeps its table
+    without a warning: the README's ``impactsph run bars --set viscosity.scheme=ac``.)"""
     from .models import VISCOSITY
 
     out = []
@@ -1042,14 +1046,6 @@ def unused_viscosity_fields(case: Case) -> list[Finding]:
                 f"{where}.{name} = {getattr(viscosity, name)!r}: not a parameter of "
                 f"scheme {viscosity.scheme!r} ({', '.join(sorted(known)) or 'none'}); it has "
                 "no effect")))
-        for name in sorted(viscosity.model_fields_set & known):
-            field = parameters.model_fields[name]
-            extra = field.json_schema_extra
-            value = getattr(viscosity, name)
-            if isinstance(extra, dict) and extra.get("not_read") and value != field.default:
-                out.append(Finding("warning", f"{where}.{name}", (
-                    f"{where}.{name} = {value!r}: scheme {viscosity.scheme!r}: "
-                    f"{field.description}; it has no effect")))
     return out
 
 

@@ -34,12 +34,6 @@ from typing import Any, Generic, TypeVar
 
 from pydantic import BaseModel, ConfigDict
 
-#: the ``json_schema_extra`` of a parameter a scheme accepts but does not read (AC's
-#: ``alpha1`` and ``alpha2``: a case switched from AV keeps its table); the preflight warns
-#: when a case sets it to other than its default (:func:`impactsph.preflight.
-#: unused_viscosity_fields`)
-NOT_READ = {"not_read": True}
-
 
 class Parameters(BaseModel):
     """Base of every table of a case file: unknown keys are refused and no string or boolean

@@ -45,7 +45,7 @@ from pydantic import Field
 
 from ...kernels import cubic_spline
 from ...physics.records import record_coordinate
-from ..registry import NOT_READ, VISCOSITY, Parameters, ViscosityScheme
+from ..registry import VISCOSITY, Parameters, ViscosityScheme
 from ..types import NonNegativeFloat, PositiveFloat
 from .monaghan import pair_viscosity as monaghan_pair_viscosity
 
@@ -60,11 +60,10 @@ DEFAULT_VARIANT = "neighbours_only"
 
 def unit_alpha(scheme: str) -> Any:
     """An ``alpha1`` or ``alpha2`` field of a scheme that evaluates the viscosity with (1, 1)
-    (eq 31): accepted, so that a case switched from AV keeps its table, and not read
-    (:data:`~impactsph.models.registry.NOT_READ`: the preflight warns where a case sets it
-    to other than 1)."""
+    (eq 31): accepted and not read, so that a case switched from AV keeps its table (the
+    bars' ``--set viscosity.scheme=ac``) without a word."""
     return Field(1.0, description=f"not used by {scheme}, which evaluates the viscosity with "
-                 "(1, 1) (eq 31)", json_schema_extra=NOT_READ)
+                 "(1, 1) (eq 31)")
 
 
 class CorrectionParameters(Parameters):
