@@ -148,3 +148,17 @@ def test_a_run_without_snapshots_says_why_it_has_no_shape_and_no_animation(tmp_p
     line = refused(["animate", out])
     assert "its output.snapshot_times (1e-05, 2e-05, 3e-05, 4e-05, 5e-05 s) all lie after " \
            "its end, time.end = 1e-06 s" in line, line
+
+
+def test_animate_says_a_run_stopped_before_its_first_snapshot(tmp_path):
+    """An unstable run that stopped before its first snapshot time has no snapshots either:
+    animate says so, not that the snapshot times lie after the case's end."""
+    out = tmp_path / "u"
+    res = runner.invoke(app, ["run", "bars", "--quiet", "--out", str(out), "--set",
+                              "time.courant=1.0", "--set", "viscosity.alpha1=0", "--set",
+                              "viscosity.alpha2=0", "--set", "output.snapshot_times=[1e-4]",
+                              "--set", "time.end=2e-4"])
+    assert res.exit_code == 3, res.output  # unstable
+    line = refused(["animate", out])
+    assert "the run stopped at t = " in line and "(unstable), before its first snapshot " \
+           "time, 0.0001 s" in line, line

@@ -62,7 +62,7 @@ def main() -> None:
         row = run_many(case, [args.sets], args.out, workers=1, names=[name])[0]
         summary = load_run(args.out / "runs" / row["run"]).get("summary", {})
         rows.append({"run": name, "n_particles": summary.get("n_particles"),
-                     "plastic_work_over_ke0": summary.get("plastic_work", 0.0)
+                     "plastic_work_over_ke0": (summary.get("plastic_work") or 0.0)
                      / max(summary.get("kinetic_energy_initial") or 1.0, 1e-300),
                      # the fixed-band radius in mm, beside the finite elements' (6.82 mm)
                      "fixed_radius_mm": 1e3 * (summary.get("footprint_radius_ratio_fixed") or 0.0)

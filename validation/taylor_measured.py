@@ -34,6 +34,11 @@ HERE = Path(__file__).resolve().parent
 DEFAULT = [("ofhc_copper", 190.0), ("steel_4340", 208.0)]
 
 
+def _number(value: object) -> float:
+    """A summary's measure as a float: NaN for one not taken (``null`` in summary.json)."""
+    return float(value) if isinstance(value, int | float) else math.nan
+
+
 def tests(select_all: bool) -> list[dict]:
     entries = tomllib.loads((HERE / "taylor_measured.toml").read_text())["test"]
     found = [t for t in entries if t.get("final_length") is not None]
@@ -139,10 +144,11 @@ def main() -> None:
     for (test, across), row in zip(labels, rows, strict=True):
         summary = load_run(args.out / "runs" / row["run"]).get("summary", {})
         L0, D0 = test["length"], test["diameter"]
-        Lf = summary.get("final_length_ratio", math.nan) * L0
+        # (a measure not taken is null in summary.json: NaN here)
+        Lf = _number(summary.get("final_length_ratio")) * L0
         # the foot as the analysis measures it: its radius over the same measure of the bar at
         # t = 0 (each the outermost particle plus half a spacing), times the true diameter
-        foot = summary.get("footprint_radius_ratio", math.nan) * D0
+        foot = _number(summary.get("footprint_radius_ratio")) * D0
         bar = summary.get("bodies", {}).get("bar", {})
         outline = {}
         if test.get("outline") and summary.get("profile") and "initial_radius" in summary:

@@ -179,9 +179,18 @@ def animate_run(run_dir: Path | str, field: str | None = None, out: Path | str |
     case = validate_case(run["case"])
     if not run["snapshots"]:
         times = case.output.snapshot_times
-        why = (f"its output.snapshot_times ({', '.join(f'{t:g}' for t in times)} s) all lie "
-               f"after its end, time.end = {case.time.end:g} s" if times else
-               "the case has no output.snapshot_times")
+        reached = run.get("summary", {}).get("t_end")
+        if not times:
+            why = "the case has no output.snapshot_times"
+        elif min(times) > case.time.end * (1 + 1e-9):
+            why = (f"its output.snapshot_times ({', '.join(f'{t:g}' for t in times)} s) all "
+                   f"lie after its end, time.end = {case.time.end:g} s")
+        elif isinstance(reached, int | float) and reached < min(times):
+            status = run.get("summary", {}).get("status")
+            why = (f"the run stopped at t = {reached:g} s" + (f" ({status})" if status else "")
+                   + f", before its first snapshot time, {min(times):g} s")
+        else:
+            why = "none of its output.snapshot_times was reached"
         raise CaseError(f"{run_dir} has no snapshots to animate (snapshots.npz is empty: "
                         f"{why}): run the case with snapshot times within the run, e.g. "
                         f"--set 'output.snapshot_times=[1e-6, 2e-6, 3e-6]'")

@@ -131,15 +131,22 @@ def write_checkpoint(sim: Simulation, path: Path | str) -> Path:
     return path
 
 
+def check_restart_path(path: Path | str) -> None:
+    """Refuse (:class:`CaseError`, one line) a ``--restart`` path that is not a file: what
+    ``impactsph run`` checks before its preflight, without reading the checkpoint."""
+    path = Path(path)
+    if not path.is_file():
+        raise CaseError(f"--restart {path}: " + ("is not a file" if path.exists()
+                                                 else "does not exist"))
+
+
 def verify_checkpoint(path: Path | str, case: Any = None) -> None:
     """Refuse (:class:`CaseError`, one line naming the file) a checkpoint that is missing,
     unreadable, truncated, corrupted (its checksum does not match), not impactsph's, or, with
     ``case``, of another case (it may differ only in ``time.end`` and ``output``).  Reads the
     whole file; nothing is built."""
     path = Path(path)
-    if not path.is_file():
-        raise CaseError(f"--restart {path}: " + ("is not a file" if path.exists()
-                                                 else "does not exist"))
+    check_restart_path(path)
     try:
         f = h5py.File(path, "r")
     except OSError as exc:

@@ -73,8 +73,8 @@ def run(
         help="output directory (default runs/NAME); it must be empty or new, unless "
              "--overwrite or --restart")] = None,
     quiet: Annotated[bool, typer.Option(
-        "--quiet", "-q", help="no progress bar and no log; of the checks before the run, "
-        "the warnings and errors only")] = False,
+        "--quiet", "-q", help="no progress bar, and of the log and the checks before the "
+        "run the warnings and errors only")] = False,
     restart: Annotated[Path | None, typer.Option(
         help="continue from this checkpoint (DIR/checkpoint.h5, written periodically and "
              "when a run is interrupted); --out may then hold the run already")] = None,
@@ -120,9 +120,10 @@ def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Pat
         # output directory (run_case checks it again), a checkpoint that is not there
         check_run_dir(out, "overwrite" if overwrite else
                       "keep" if restart is not None else "refuse")
-        if restart is not None and not Path(restart).is_file():
-            raise CaseError(f"--restart {restart}: " + (
-                "is not a file" if Path(restart).exists() else "does not exist"))
+        if restart is not None:
+            from .checkpoint import check_restart_path  # (h5py: only for a restart)
+
+            check_restart_path(restart)
         before_run(c, quiet=quiet)  # estimates and warnings; CaseError on a refusal
     except (CaseError, OutputError) as exc:
         _fail(str(exc))

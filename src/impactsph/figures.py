@@ -33,10 +33,12 @@ def deformed_shapes(runs: list[dict[str, Any]], labels: list[str]
     """Deformed shapes to overlay: every run at the latest snapshot time they all have, or,
     when they share none, each at its last (the time then in its label).  Also the title's
     time.  Each shape: ``label``, ``x``, ``x0`` (initial positions) and ``case`` (the run's
-    validated case)."""
+    validated case).  :class:`ValueError` where no run has a snapshot, which
+    :func:`draw_figures` makes a note (the figure is not left out in silence)."""
     with_snaps = [(lab, r) for lab, r in zip(labels, runs, strict=True) if r["snapshots"]]
     if not with_snaps:
-        return [], ""
+        raise ValueError("deformed_shape.png needs a snapshot, and no run took one "
+                         "(output.snapshot_times within the run)")
 
     def shape(label: str, run: dict[str, Any], snap: dict[str, Any]) -> dict[str, Any]:
         return {"label": label, "x": snap["position"], "x0": snap["initial_position"],

@@ -261,18 +261,19 @@ def json_text(value: Any, indent: int | None = 2) -> str:
     """``value`` as strict JSON: a number that is not finite (a measure that could not be
     taken, a run that went unstable) becomes ``null``, as JSON has no NaN nor infinity
     (Python's ``json`` would write ``NaN``, which other readers refuse); numpy's numbers are
-    written as numbers.  What every JSON output of a run, a sweep, the lab and the paper's
-    tables is written with."""
-    return json.dumps(_finite_or_null(value), indent=indent, allow_nan=False, default=float)
+    written as JSON numbers (its integers and booleans as floats, as before).  What every
+    JSON output of a run, a sweep, the lab and the paper's tables is written with."""
+    return json.dumps(finite_or_null(value), indent=indent, allow_nan=False, default=float)
 
 
-def _finite_or_null(value: Any) -> Any:
+def finite_or_null(value: Any) -> Any:
     """``value`` with each float that is not finite replaced by None, in dicts, lists and
-    tuples at any depth (numpy's floats and 0-d arrays included)."""
+    tuples at any depth (numpy's floats and 0-d arrays included): a measure not taken as
+    ``summary.json`` holds it (``null``), for the rows made from a summary in memory."""
     if isinstance(value, dict):
-        return {k: _finite_or_null(v) for k, v in value.items()}
+        return {k: finite_or_null(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [_finite_or_null(v) for v in value]
+        return [finite_or_null(v) for v in value]
     if isinstance(value, float | np.floating) or (isinstance(value, np.ndarray)
                                                    and value.ndim == 0):
         number = float(value)

@@ -44,7 +44,7 @@ import numpy as np
 
 from .config import Case, CaseError
 from .loading import apply_overrides, read_case_dict, validate_case
-from .output import _csv_text, atomic_write_text, json_text, write_summary
+from .output import _csv_text, atomic_write_text, finite_or_null, json_text, write_summary
 from .problems.base import SweepCriterion
 from .problems.registry import get_problem
 
@@ -190,6 +190,7 @@ def run_one(case_data: dict[str, Any], overrides: list[str], out: str,
             return {"status": "ok" if not done.get("failure") else "unstable",
                     **{k: done.get(k) for k in keys},
                     **{k: summary_value(done, k) for k in metrics}, "reused": True}
+    # (a measure not taken: None, as a reused run's summary.json gives it, not NaN)
     try:
         summary = run_case(case, out, figures=False)
         status = "ok"
@@ -199,8 +200,9 @@ def run_one(case_data: dict[str, Any], overrides: list[str], out: str,
                   else f"unstable: {exc}")
     summary["case"] = case.model_dump(mode="json")
     write_summary(out, summary)
-    return {"status": status, **{k: summary.get(k) for k in keys},
-            **{k: summary_value(summary, k) for k in metrics}, "reused": False}
+    return finite_or_null({"status": status, **{k: summary.get(k) for k in keys},
+                           **{k: summary_value(summary, k) for k in metrics},
+                           "reused": False})
 
 
 def run_dir_name(out: Path, name: str, overrides: list[str]) -> str:
@@ -269,6 +271,7 @@ def run_many(base: dict[str, Any] | list[dict[str, Any]], run_overrides: list[li
         raise ValueError(f"run_many: {len(bases)} cases for {len(run_overrides)} runs")
     cases = [validate_case(apply_overrides(b, ov))  # validate every run before any starts
              for b, ov in zip(bases, run_overrides, strict=True)]
+    Path(out).mkdir(parents=True, exist_ok=True)  # (not before: a refused case writes nothing)
     if not scheduler:  # fill numba's disk cache once, before the workers start together
         compile_ahead(cases)
     rows: dict[int, dict[str, Any]] = {}
@@ -322,9 +325,6 @@ def sweep(case_source: str, grids: list[str], out: Path | str, *, scheduler: str
     columns, runs = parse_grid(grids)
     run_overrides = [[f"{k}={json.dumps(v)}" for k, v in kv] + ["output.figures=false"]
                      for kv in runs]
-    for ov in run_overrides:  # a grid value the case refuses: refused before out is made
-        validate_case(apply_overrides(base, ov))
-    out.mkdir(parents=True, exist_ok=True)
     done: dict[int, dict[str, Any]] = {}
 
     def record(i: int, row: dict[str, Any]) -> None:
