@@ -361,8 +361,17 @@ def check_particle_files(case: Case) -> None:
 
 
 def load_case(source: str | Path, overrides: list[str] | None = None) -> Case:
-    """Load and validate a case file or built-in case, with optional ``--set`` overrides, and
-    check the particle files it reads."""
-    case = validate_case(apply_overrides(read_case_dict(source), overrides or []))
+    """Load and validate a case file or built-in case, with optional ``--set`` overrides (a
+    list of ``KEY=VALUE`` strings), and check the particle files it reads."""
+    if not isinstance(source, str | Path):
+        raise CaseError(f"load_case({source!r}): a case file's path or a built-in case's "
+                        f"name ({', '.join(BUILTIN_CASES)})")
+    if isinstance(overrides, str):  # (a string would be taken character by character)
+        raise CaseError(f"load_case(overrides = {overrides!r}): a list of KEY=VALUE strings, "
+                        f"e.g. [{overrides!r}]")
+    data = apply_overrides(read_case_dict(source), overrides or [])
+    # the case file's own relative paths are its directory's by now; an override's are the
+    # current directory's, made absolute as theirs are (case.json, a restart elsewhere)
+    case = validate_case(resolve_paths(data, Path.cwd()))
     check_particle_files(case)
     return case

@@ -140,6 +140,16 @@ def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], No
     ``output.checkpoint_interval``, write a checkpoint every this much wall time (None:
     never).  On an instability the history written so far is kept, and
     :class:`SimulationError` is raised."""
+    if not isinstance(case, Case):
+        raise TypeError(f"run_case(case): case is a {type(case).__name__}; it needs a "
+                        f"validated case: impactsph.load_case(NAME or FILE) or "
+                        f"impactsph.loading.validate_case(DICT)")
+    if if_exists not in ("keep", "refuse", "overwrite"):
+        raise ValueError(f"run_case(if_exists = {if_exists!r}): 'keep', 'refuse' or "
+                         f"'overwrite'")
+    if callback is not None and not callable(callback):
+        raise TypeError(f"run_case(callback = {callback!r}): a function of the simulation, "
+                        f"callback(sim), or None")
     out = Path(out)
     check_run_dir(out, "keep" if restart is not None and if_exists == "refuse" else if_exists)
     checked: list = []  # the checkpoint's verification's log lines, for run.log

@@ -140,6 +140,10 @@ class Simulation:
         """``problem``: a set-up to use instead of building one from the case; ``state``: a
         state to continue from (a restart; the record then starts empty and is expected to be
         filled by the caller, see :func:`impactsph.checkpoint.load_checkpoint`)."""
+        if not isinstance(case, Case):
+            raise TypeError(f"Simulation(case): case is a {type(case).__name__}; it needs a "
+                            f"validated case: impactsph.load_case(NAME or FILE) or "
+                            f"impactsph.loading.validate_case(DICT)")
         t0 = _time.perf_counter()
         self.case = case
         self.problem = problem or build_problem(case)
@@ -630,6 +634,17 @@ class Simulation:
         ``sim.step`` or ``sim.record`` costs no second survey).  Raises
         :class:`SimulationError` if the run goes unstable; the record keeps everything up to
         the last good step."""
+        if t_end is not None and (isinstance(t_end, bool) or not isinstance(t_end, int | float)
+                                  or not math.isfinite(t_end)):
+            raise ValueError(f"run(t_end = {t_end!r}): a finite time in seconds, or None for "
+                             f"the case's time.end")
+        if t_end is not None and t_end < self._state.time:
+            raise ValueError(f"run(t_end = {t_end!r}): before the simulation's time, "
+                             f"t = {self._state.time!r} s; it runs forward only")
+        if callback is not None and not callable(callback):
+            raise TypeError(f"run(callback = {callback!r}): a function of the simulation, "
+                            f"callback(sim), or None")
+        self._state.check_shapes()  # (arrays a caller replaced: before any compiled pass)
         t_end = self.case.time.end if t_end is None else t_end
         max_steps = self.case.time.max_steps
         every = self.case.output.history_every
@@ -685,6 +700,7 @@ class Simulation:
                     self._handed_out = False
                     callback(self)
                     if self._handed_out:  # the callback read the state: it may have changed it
+                        s.check_shapes()  # (an array replaced: no pass reads past its end)
                         if resident is not None:
                             self._upload()
                         survey = self._survey()

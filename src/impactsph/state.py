@@ -99,6 +99,35 @@ class ParticleState:
 
         return self.density / self.material_state[:, THICKNESS_RATIO]
 
+    def check_shapes(self) -> None:
+        """Raise :class:`ValueError` naming the first field that is not an array of this
+        state's shape: ``(n, dim)`` for the vectors, ``(n, 3, 3)`` for the deviator, ``(n,
+        k)`` for the material state and the hourglass acceleration, ``(n,)`` for the rest,
+        ``n`` and ``dim`` those of ``position``.  The compiled passes index them without
+        bounds checks, so an array replaced with another shape (a caller's, between two
+        pieces of a run or in a callback) is refused here first."""
+        x = self.position
+        if not isinstance(x, np.ndarray) or x.ndim != 2 or not 1 <= x.shape[1] <= 3:
+            raise ValueError(f"state.position: an array of shape (n, dim), dim 1, 2 or 3; "
+                             f"got {_described(x)}")
+        n, dim = x.shape
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name in ("position", "time", "step", "viscosity_factor_time"):
+                continue
+            if f.name in ("velocity", "initial_position"):
+                need = (n, dim)
+            elif f.name == "deviatoric_stress":
+                need = (n, 3, 3)
+            elif f.name in ("material_state", "hourglass_acceleration"):
+                need = (n, value.shape[1] if isinstance(value, np.ndarray) and value.ndim == 2
+                        else "k")
+            else:
+                need = (n,)
+            if not isinstance(value, np.ndarray) or value.shape != need:
+                raise ValueError(f"state.{f.name}: this state's {n} particles in {dim}D need "
+                                 f"an array of shape {need}; got {_described(value)}")
+
     def copy(self) -> ParticleState:
         """A deep copy."""
         kwargs = {}
@@ -139,3 +168,10 @@ class ParticleState:
     def momentum(self) -> np.ndarray:
         """``sum (m + added) v`` (vector)."""
         return self.inertial_mass @ self.velocity
+
+
+def _described(value: object) -> str:
+    """An array by its shape, anything else by its type."""
+    if isinstance(value, np.ndarray):
+        return f"shape {value.shape}"
+    return f"a {type(value).__name__}"

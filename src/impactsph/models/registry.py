@@ -220,12 +220,22 @@ class Registry(Generic[M]):
     models: dict[str, M] = field(default_factory=dict)
 
     def register(self, model: M, *, replace: bool = False) -> M:
-        """Add ``model``; a second model of the same name is refused unless ``replace``."""
-        if not model.name.isidentifier():
+        """Add ``model``; a second model of the same name is refused unless ``replace``, and
+        so is a kernel function (:data:`KERNEL_FUNCTIONS`) that numba has not compiled: the
+        passes inline every registered model's, so one plain Python function would stop
+        every later run's compilation, whatever its models."""
+        if not isinstance(model.name, str) or not model.name.isidentifier():
             raise ValueError(f"{self.kind} name {model.name!r} must be a Python identifier")
+        article = "an" if self.kind[0] in "aeiou" else "a"
         if model.name in self.models and not replace:
-            raise ValueError(f"a {self.kind} named {model.name!r} is already registered "
-                             f"(pass replace=True to replace it)")
+            raise ValueError(f"{article} {self.kind} named {model.name!r} is already "
+                             f"registered (pass replace=True to replace it)")
+        for attribute in KERNEL_FUNCTIONS:
+            function = getattr(model, attribute, None)
+            if function is not None and not hasattr(function, "py_func"):
+                raise TypeError(f"{self.kind} {model.name!r}: {attribute} = {function!r} is "
+                                f"not compiled by numba; decorate it with "
+                                f"@numba.njit(inline='always') (the passes inline it)")
         self.models[model.name] = model
         _bump()
         return model
@@ -278,6 +288,11 @@ EOS: Registry[EquationOfState] = Registry("equation of state")
 STRENGTH: Registry[StrengthModel] = Registry("strength model")
 DAMAGE: Registry[DamageModel] = Registry("damage model")
 VISCOSITY: Registry[ViscosityScheme] = Registry("viscosity scheme")
+
+
+#: the models' functions that the compiled passes call (each a numba dispatcher)
+KERNEL_FUNCTIONS = ("pressure", "return_map", "update", "pair_viscosity", "correction",
+                    "switch")
 
 
 def register(model: M, *, replace: bool = False) -> M:

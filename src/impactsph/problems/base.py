@@ -74,7 +74,8 @@ class ProblemKind:
     :class:`impactsph.config.Case`; ``sim`` a finished :class:`impactsph.Simulation`.
     """
 
-    #: What ``analysis = "NAME"`` selects; letters, digits, ``_`` and ``-``.
+    #: What ``analysis = "NAME"`` selects: a Python identifier (letters, digits and ``_``,
+    #: not first a digit; :func:`impactsph.problems.register_problem` refuses others).
     name: str = ""
     #: One line saying what the problem is (for listings and the docs).
     title: str = ""
