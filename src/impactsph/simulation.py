@@ -633,7 +633,11 @@ class Simulation:
         energies and checks are then surveyed again; one that reads only ``sim.time``,
         ``sim.step`` or ``sim.record`` costs no second survey).  Raises
         :class:`SimulationError` if the run goes unstable; the record keeps everything up to
-        the last good step."""
+        the last good step.  Refused before any step (:class:`ValueError`,
+        :class:`TypeError`): a ``t_end`` that is not a finite number or lies before the
+        simulation's time, a ``callback`` that is not callable, and a state array of another
+        shape than its particles' (:meth:`~impactsph.state.ParticleState.check_shapes`, also
+        after a callback that read the state)."""
         if t_end is not None and (isinstance(t_end, bool) or not isinstance(t_end, int | float)
                                   or not math.isfinite(t_end)):
             raise ValueError(f"run(t_end = {t_end!r}): a finite time in seconds, or None for "
