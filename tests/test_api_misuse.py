@@ -36,6 +36,9 @@ def test_run_takes_a_finite_time_not_before_now(sim):
         sim.run(5e-9)
     sim.run(1e-8)  # now itself: nothing to do, no error
     assert sim.state.step == step  # nothing stepped
+    sim.run(np.float32(1.2e-8))  # a numpy number is a number
+    sim.run(np.float64(1.5e-8))
+    assert sim.state.time == 1.5e-8 and sim.state.step > step
 
 
 def test_a_callback_that_is_not_a_function_is_refused_before_a_step(sim, tmp_path):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import math
+import numbers
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -638,10 +639,12 @@ class Simulation:
         simulation's time, a ``callback`` that is not callable, and a state array of another
         shape than its particles' (:meth:`~impactsph.state.ParticleState.check_shapes`, also
         after a callback that read the state)."""
-        if t_end is not None and (isinstance(t_end, bool) or not isinstance(t_end, int | float)
+        if t_end is not None and (isinstance(t_end, bool | np.bool_)
+                                  or not isinstance(t_end, numbers.Real)
                                   or not math.isfinite(t_end)):
             raise ValueError(f"run(t_end = {t_end!r}): a finite time in seconds, or None for "
                              f"the case's time.end")
+        t_end = None if t_end is None else float(t_end)  # (a numpy number too)
         if t_end is not None and t_end < self._state.time:
             raise ValueError(f"run(t_end = {t_end!r}): before the simulation's time, "
                              f"t = {self._state.time!r} s; it runs forward only")
