@@ -190,7 +190,6 @@ def run_one(case_data: dict[str, Any], overrides: list[str], out: str,
             return {"status": "ok" if not done.get("failure") else "unstable",
                     **{k: done.get(k) for k in keys},
                     **{k: summary_value(done, k) for k in metrics}, "reused": True}
-    # (a measure not taken: None, as a reused run's summary.json gives it, not NaN)
     try:
         summary = run_case(case, out, figures=False)
         status = "ok"
@@ -200,6 +199,7 @@ def run_one(case_data: dict[str, Any], overrides: list[str], out: str,
                   else f"unstable: {exc}")
     summary["case"] = case.model_dump(mode="json")
     write_summary(out, summary)
+    # (a measure not taken: None, as a reused run's summary.json gives it, not NaN)
     return finite_or_null({"status": status, **{k: summary.get(k) for k in keys},
                            **{k: summary_value(summary, k) for k in metrics},
                            "reused": False})
