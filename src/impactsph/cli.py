@@ -104,8 +104,7 @@ def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Pat
     """``impactsph run`` with the signals handled by ``stop``."""
     from .errors import OutputError
     from .preflight import after_run, before_run
-    from .rundir import check_run_dir
-    from .runner import run_case
+    from .runner import check_out, run_case
     from .simulation import SimulationError
 
     logging.basicConfig(level=logging.WARNING if quiet else logging.INFO,
@@ -118,8 +117,7 @@ def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Pat
         out = out or Path("runs") / c.name
         # what is refused without building anything, before the preflight's lines: the
         # output directory (run_case checks it again), a checkpoint that is not there
-        check_run_dir(out, "overwrite" if overwrite else
-                      "keep" if restart is not None else "refuse")
+        check_out(out, "overwrite" if overwrite else "refuse", restart is not None)
         if restart is not None:
             from .checkpoint import check_restart_path  # (h5py: only for a restart)
 

@@ -1058,6 +1058,18 @@ class Case(_Model):
         kernel.max_stretch = AUTO_MAX_STRETCH if on else 1.0
 
 
+def model_keys(model: Any) -> tuple[str, ...]:
+    """The material table's keys that hold a registered model's parameters: its parameters'
+    fields where it is registered ``flat`` (``yield_stress`` of ``elastic_plastic``), else
+    one sub-table named after it (``[materials.X.mie_gruneisen]``); none without
+    parameters."""
+    if model.parameters is None:
+        return ()
+    if getattr(model, "flat", False):
+        return tuple(model.parameters.model_fields)
+    return (model.name,)
+
+
 def _optional(info: Any) -> tuple[Any, Any]:
     """A field of a model's parameters as an optional field of the enclosing table (required
     only when that model is selected, which the table's validator checks)."""
@@ -1110,20 +1122,13 @@ def schema() -> Any:
     material_fields: dict[str, Any] = {"model": (_names(STRENGTH), Material.model_fields[
         "model"]), "eos": (_names(EOS), Material.model_fields["eos"]),
         "damage": (_names(DAMAGE), Material.model_fields["damage"])}
-    for damage in DAMAGE:
-        if damage.parameters is not None:
-            material_fields[damage.name] = (damage.parameters | None, Field(None))
-    for eos in EOS:
-        if eos.parameters is not None:
-            material_fields[eos.name] = (eos.parameters | None, Field(None))
-    for strength in STRENGTH:
-        if strength.parameters is None:
-            continue
-        if strength.flat:
-            for field, info in strength.parameters.model_fields.items():
-                material_fields[field] = _optional(info)
-        else:
-            material_fields[strength.name] = (strength.parameters | None, Field(None))
+    for registry in (DAMAGE, EOS, STRENGTH):
+        for model in registry:
+            for key in model_keys(model):
+                material_fields[key] = (
+                    _optional(model.parameters.model_fields[key])
+                    if getattr(model, "flat", False)
+                    else (model.parameters | None, Field(None)))
     material = create_model("Material", __base__=Material, **material_fields)
     viscosity = create_model(
         "Viscosity", __base__=Viscosity,

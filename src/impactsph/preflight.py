@@ -986,23 +986,15 @@ def unused_material_fields(case: Case) -> list[Finding]:
     an elastic body), a ``[materials.X.mie_gruneisen]`` table with ``eos = "linear"``, a
     ``[materials.X.johnson_cook_damage]`` table with ``damage = "none"``.  The case table
     holds every registered model's fields, so such a field is accepted, and has no effect."""
-    from .config import Material
+    from .config import Material, model_keys
     from .library import material_fields
     from .models import DAMAGE, EOS, STRENGTH
     from .models.registry import Parameters
 
-    def keys_of(model: Any) -> tuple[str, ...]:
-        """The material table's keys that hold a model's parameters: its fields where it is
-        registered flat, else its sub-table."""
-        if model.parameters is None:
-            return ()
-        return (tuple(model.parameters.model_fields) if getattr(model, "flat", False)
-                else (model.name,))
-
     owner: dict[str, tuple[str, str]] = {}  # a model's field or table -> (kind, model)
     for kind, registry in (("model", STRENGTH), ("eos", EOS), ("damage", DAMAGE)):
         for model in registry:
-            for key in keys_of(model):
+            for key in model_keys(model):
                 if key not in Material.model_fields:  # (a common field: every model's)
                     owner.setdefault(key, (kind, model.name))
     out = []
@@ -1011,7 +1003,7 @@ def unused_material_fields(case: Case) -> list[Finding]:
         supplied = set(material_fields(mat.library)) if mat.library else set()
         chosen = {"model": mat.model, "eos": mat.eos, "damage": mat.damage}
         used = {key for model in (STRENGTH[mat.model], EOS[mat.eos], DAMAGE[mat.damage])
-                for key in keys_of(model)}
+                for key in model_keys(model)}
         for key in sorted(mat.model_fields_set - used - supplied):
             if key not in owner:
                 continue

@@ -117,6 +117,15 @@ def compiling_note(record: RunRecord) -> str:
     return ""
 
 
+def check_out(out: Path | str, if_exists: IfExists, restarting: bool) -> None:
+    """:func:`run_case`'s refusals of ``out`` (:func:`~impactsph.rundir.check_run_dir`):
+    by ``if_exists``, except that a run continued from a checkpoint may write into a
+    directory that holds something (its own run's, as a rule) where ``"refuse"`` is asked.
+    ``impactsph run`` calls it before its preflight too, so that a refusal is its only
+    line."""
+    check_run_dir(out, "keep" if restarting and if_exists == "refuse" else if_exists)
+
+
 def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], None] | None = None,
              figures: bool | None = None, restart: Path | str | None = None,
              if_exists: IfExists = "keep", stop: Callable[[], bool] | None = None,
@@ -151,7 +160,7 @@ def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], No
         raise TypeError(f"run_case(callback = {callback!r}): a function of the simulation, "
                         f"callback(sim), or None")
     out = Path(out)
-    check_run_dir(out, "keep" if restart is not None and if_exists == "refuse" else if_exists)
+    check_out(out, if_exists, restart is not None)
     checked: list = []  # the checkpoint's verification's log lines, for run.log
     if restart is not None:
         from .checkpoint import verify_checkpoint
