@@ -68,6 +68,25 @@ def test_a_case_that_is_not_validated_is_refused():
         load_case(123)
 
 
+def test_a_case_changed_after_its_validation_is_checked_again(tmp_path):
+    """pydantic checks a case's fields when it is made, not when one is assigned: a changed
+    case is validated again by ``Simulation`` and ``run_case``, before any work."""
+    case = load_case("taylor", SHORT)
+    case.time.end = -1.0
+    with pytest.raises(CaseError, match=r"^Simulation\(case\): the case was changed after its "
+                                        r"validation and is no longer valid: time.end = -1.0: "
+                                        r"Input should be greater than 0$"):
+        Simulation(case)
+    case = load_case("taylor", SHORT)
+    case.viscosity.alpha1 = "a lot"
+    with pytest.raises(CaseError, match=r"^run_case\(case\): .* viscosity.alpha1 = 'a lot'"):
+        run_case(case, tmp_path / "v")
+    assert not (tmp_path / "v").exists()
+    case = load_case("taylor", SHORT)
+    case.time.end = 1e-8  # a valid change is taken
+    assert Simulation(case).case.time.end == 1e-8
+
+
 def test_a_state_array_of_another_shape_is_refused_naming_it(sim):
     state = sim.state
     n = state.n

@@ -20,6 +20,7 @@ from typing import Any
 from .config import Case
 from .errors import DeviceMemoryError, RunInterrupted
 from .interrupt import StopRequest
+from .loading import validated_again
 from .measures import run_measures
 from .output import (
     HistoryStream,
@@ -149,10 +150,7 @@ def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], No
     ``output.checkpoint_interval``, write a checkpoint every this much wall time (None:
     never).  On an instability the history written so far is kept, and
     :class:`SimulationError` is raised."""
-    if not isinstance(case, Case):
-        raise TypeError(f"run_case(case): case is a {type(case).__name__}; it needs a "
-                        f"validated case: impactsph.load_case(NAME or FILE) or "
-                        f"impactsph.loading.validate_case(DICT)")
+    case = validated_again(case, "run_case(case)")
     if if_exists not in ("keep", "refuse", "overwrite"):
         raise ValueError(f"run_case(if_exists = {if_exists!r}): 'keep', 'refuse' or "
                          f"'overwrite'")

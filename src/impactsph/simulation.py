@@ -20,6 +20,7 @@ from .errors import DeviceMemoryError, SimulationError
 from .gauges import Gauges
 from .integrate import INTEGRATORS
 from .jitcache import CompileTimer
+from .loading import validated_again
 from .materials import carried_von_mises
 from .models import VISCOSITY
 from .models.columns import COMMON_STATE, DAMAGE
@@ -141,10 +142,7 @@ class Simulation:
         """``problem``: a set-up to use instead of building one from the case; ``state``: a
         state to continue from (a restart; the record then starts empty and is expected to be
         filled by the caller, see :func:`impactsph.checkpoint.load_checkpoint`)."""
-        if not isinstance(case, Case):
-            raise TypeError(f"Simulation(case): case is a {type(case).__name__}; it needs a "
-                            f"validated case: impactsph.load_case(NAME or FILE) or "
-                            f"impactsph.loading.validate_case(DICT)")
+        case = validated_again(case, "Simulation(case)")
         t0 = _time.perf_counter()
         self.case = case
         self.problem = problem or build_problem(case)
