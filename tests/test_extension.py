@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -256,3 +257,50 @@ def test_a_table_of_defaults_may_be_left_out(tmp_path):
         assert case.model_dump()["materials"]["iron"]["defaulted_linear"] == {"factor": 1.0}
     finally:
         EOS.unregister("defaulted_linear")
+
+
+PLUGIN_WITH_A_KERNEL = """
+import numba as nb
+
+@nb.njit(cache=True)
+def twice(x):
+    return 2.0 * x
+"""
+
+
+def test_a_plugin_files_module_is_its_stem_whatever_its_place_in_the_list(tmp_path):
+    """numba's disk cache keys a compiled function on its source file and stores its
+    module's name: a plugin imported under a name that depended on its place in ``plugins``
+    found, in the next process with the list in another order, cached code that named a
+    module that did not exist (an audit, 2026-12-08)."""
+    for stem in ("plug_first", "plug_second"):
+        (tmp_path / f"{stem}.py").write_text(PLUGIN_WITH_A_KERNEL)
+    script = ("import sys\nfrom impactsph import loading\nloading.load_plugins(sys.argv[1:])\n"
+              "print(*(loading._LOADED_PLUGINS[p].twice(1.5) for p in sorted(sys.argv[1:])), "
+              "sys.modules['plug_first'].__file__ == sorted(sys.argv[1:])[0])\n")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    first, second = str(tmp_path / "plug_first.py"), str(tmp_path / "plug_second.py")
+    for order in ([first, second], [second, first]):  # the second process loads the cache
+        res = subprocess.run([sys.executable, "-c", script, *order], capture_output=True,
+                             text=True, timeout=300, env=env)
+        assert res.returncode == 0, res.stderr[-2000:]
+        assert res.stdout.split() == ["3.0", "3.0", "True"]
+    assert list((tmp_path / "numba").rglob("*.nbi"))  # (the cache was written and read)
+
+
+def test_a_plugin_imported_by_the_caller_is_not_imported_again(tmp_path, monkeypatch):
+    """A plugin the caller imported itself is the case's: importing it a second time would
+    register its models twice (refused without ``replace=True``)."""
+    import importlib
+
+    from impactsph.loading import load_plugins
+
+    (tmp_path / "plug_own.py").write_text("RUNS = []\nRUNS.append(1)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    module = importlib.import_module("plug_own")
+    load_plugins([str(tmp_path / "plug_own.py")])
+    assert sys.modules["plug_own"] is module and module.RUNS == [1]
+    (tmp_path / "json.py").write_text("X = 1\n")  # a stem that is another module's name
+    with pytest.raises(CaseError, match=r"^plugins\.0 = '.*json\.py': imported as the module "
+                                        r"'json', which is another module's name \(.*json"):
+        load_plugins([str(tmp_path / "json.py")])

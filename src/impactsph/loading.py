@@ -304,12 +304,56 @@ def _format_error(exc: ValidationError) -> str:
 _LOADED_PLUGINS: dict[str, Any] = {}
 
 
+def _plugin_module(path: Path, where: str) -> Any:
+    """Import the plugin file ``path`` as the module its stem names (``my_models.py``:
+    ``my_models``), as ``import my_models`` beside it would, or return that module where it
+    is imported already (by a case's ``plugins`` or by the caller: importing it again would
+    register its models twice).  numba's disk cache keys a compiled function on its source
+    file and stores its module's name, so a file imported under another name in another
+    process (until 2026-12-08, a name from its place in the list) found its cached code naming
+    a module that did not exist.  A stem that names another module (imported, or found on the
+    path: ``json.py``) is refused, naming both."""
+    import importlib.util
+    import sys
+
+    name, target = path.stem, path.resolve()
+
+    def file_of(module_or_spec: Any) -> Path | None:
+        file = getattr(module_or_spec, "__file__", None) or getattr(module_or_spec, "origin",
+                                                                    None)
+        try:
+            return Path(file).resolve() if file else None
+        except OSError:
+            return None
+
+    for module in list(sys.modules.values()):  # imported already, under any name
+        if getattr(module, "__file__", None) and file_of(module) == target:
+            return module
+    other = sys.modules.get(name)
+    if other is None:
+        try:
+            other = importlib.util.find_spec(name)
+        except (ImportError, ValueError):
+            other = None
+    if other is not None and file_of(other) != target:
+        raise CaseError(f"{where}: imported as the module {name!r}, which is another "
+                        f"module's name ({file_of(other) or 'built in'}); rename the file")
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        del sys.modules[name]
+        raise
+    return module
+
+
 def load_plugins(plugins: Any) -> None:
     """Import the case's ``plugins`` (dotted module names, or ``.py`` files), once each per
     process; raise :class:`CaseError` naming the entry that cannot be imported."""
     import importlib
     import importlib.util
-    import sys
 
     if not isinstance(plugins, list):
         return  # not a list of names: the schema reports it
@@ -321,11 +365,7 @@ def load_plugins(plugins: Any) -> None:
                 path = Path(os.path.expanduser(plugin))
                 if not path.is_file():
                     raise CaseError(f"plugins.{k} = {plugin!r}: file does not exist")
-                name = f"impactsph_plugin_{len(_LOADED_PLUGINS)}_{path.stem}"
-                spec = importlib.util.spec_from_file_location(name, path)
-                module = importlib.util.module_from_spec(spec)
-                sys.modules[name] = module
-                spec.loader.exec_module(module)
+                module = _plugin_module(path, f"plugins.{k} = {plugin!r}")
             else:
                 module = importlib.import_module(plugin)
         except CaseError:
