@@ -280,3 +280,15 @@ def test_the_command_line_starts_without_matplotlib():
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)
     assert res.stdout.strip() == "[]", res.stdout
+
+
+def test_the_built_in_cases_are_the_case_files_the_package_ships():
+    """`impactsph run NAME` runs ``src/impactsph/cases/NAME.toml``: a case file added there
+    without its name in ``loading.BUILTIN_CASES`` (or a name without its file) is caught."""
+    from importlib import resources
+
+    from impactsph.loading import BUILTIN_CASES
+
+    shipped = {p.name[:-5] for p in resources.files("impactsph").joinpath("cases").iterdir()
+               if p.name.endswith(".toml")}
+    assert sorted(BUILTIN_CASES) == sorted(shipped)

@@ -304,3 +304,83 @@ def test_a_plugin_imported_by_the_caller_is_not_imported_again(tmp_path, monkeyp
     with pytest.raises(CaseError, match=r"^plugins\.0 = '.*json\.py': imported as the module "
                                         r"'json', which is another module's name \(.*json"):
         load_plugins([str(tmp_path / "json.py")])
+
+
+@nb.njit(inline="always", cache=True)
+def three_argument_pressure(rho, rho0, bulk_modulus):
+    return bulk_modulus * (rho / rho0 - 1.0)
+
+
+class NegativeYieldParameters(Parameters):
+    yield_stress: float = Field(-1.0, description="another range than elastic_plastic's")
+
+
+class AlphaAsText(Parameters):
+    alpha1: str = Field("1", description="another type than av's")
+
+
+def test_a_model_its_kernels_cannot_use_is_refused_when_registered():
+    """What a model's author gets wrong, refused in one line at its registration (a plugin's
+    import, so `impactsph check` names the plugin), and the registries left as they were:
+    before (an audit, 2026-12-08) a kernel of three arguments passed `check` and failed the
+    run with numba's traceback; parameters without columns were dropped without a word (the
+    kernel read the next model's columns); a flat field of another range took the place of
+    elastic_plastic's in the schema; a viscosity field of another type broke the schema."""
+    from impactsph.config import schema
+    from impactsph.models import VISCOSITY, ViscosityScheme
+    from impactsph.models.viscosity.monaghan import pair_viscosity
+
+    version_schema = schema()
+    with pytest.raises(TypeError, match=r"^equation of state 'short': pressure takes 3 "
+                                        r"arguments; the passes call it with 5: pressure\(rho, "
+                                        r"e, rho0, bulk_modulus, params\)$"):
+        register(EquationOfState(name="short", pressure=three_argument_pressure))
+    with pytest.raises(ValueError, match=r"^equation of state 'uncolumned': its parameters "
+                                         r"\(factor\) have no table columns"):
+        register(EquationOfState(name="uncolumned", pressure=scaled_linear_pressure,
+                                 parameters=ScaledLinearParameters))
+    with pytest.raises(ValueError, match=r"columns \('factor',\) without coefficients"):
+        register(EquationOfState(name="uncoefficiented", pressure=scaled_linear_pressure,
+                                 parameters=ScaledLinearParameters, columns=("factor",)))
+    with pytest.raises(ValueError, match=r"^strength model 'negative_yield' and strength model "
+                                         r"'elastic_plastic' both declare the material "
+                                         r"table's key 'yield_stress', differently"):
+        register(StrengthModel(name="negative_yield", return_map=capped_return, flat=True,
+                               parameters=NegativeYieldParameters, columns=("yield_stress",),
+                               coefficients=lambda p, constants: (p.yield_stress,)))
+    with pytest.raises(ValueError, match=r"^viscosity schemes: 'alpha_as_text' and 'av' both "
+                                         r"declare the field 'alpha1', differently$"):
+        register(ViscosityScheme(name="alpha_as_text", pair_viscosity=pair_viscosity,
+                                 parameters=AlphaAsText,
+                                 pair_parameters=lambda v: (1.0, 1.0, 0.01, 0.0)))
+    for name in ("short", "uncolumned", "uncoefficiented", "negative_yield", "alpha_as_text"):
+        assert name not in EOS and name not in STRENGTH and name not in VISCOSITY
+    assert repr(schema().Material.model_fields["yield_stress"]) == \
+        repr(version_schema.Material.model_fields["yield_stress"])
+    assert "alpha_as_text" not in str(schema().Viscosity.model_fields["scheme"].annotation)
+
+
+def test_elastic_plastic_yield_stress_keeps_its_range_after_a_refused_plugin(tmp_path):
+    with pytest.raises(ValueError, match=r"both declare the material table's key"):
+        register(StrengthModel(name="negative_yield", return_map=capped_return, flat=True,
+                               parameters=NegativeYieldParameters, columns=("yield_stress",),
+                               coefficients=lambda p, constants: (p.yield_stress,)))
+    with pytest.raises(CaseError, match=r"^materials\.iron\.yield_stress = -5\.0: Input should "
+                                        r"be greater than 0$"):
+        load_case(write_case(tmp_path, "negative", **{**BUILT_IN,
+                                                      "extra": "yield_stress = -5e0\n"}))
+
+
+def test_a_models_coefficients_that_do_not_fit_its_columns_name_the_material(tmp_path):
+    register(EquationOfState(name="one_short", pressure=scaled_linear_pressure,
+                             parameters=ScaledLinearParameters, columns=("factor", "other"),
+                             coefficients=lambda p, constants: (p.factor,)))
+    try:
+        case = load_case(write_case(tmp_path, "short", model="elastic", eos="one_short",
+                                    extra="[materials.iron.one_short]\nfactor = 1.0\n"))
+        with pytest.raises(CaseError, match=r"^materials\.iron\.eos = 'one_short': its "
+                                            r"coefficients gave 1 value for its 2 columns "
+                                            r"\('factor', 'other'\)$"):
+            Simulation(case)
+    finally:
+        EOS.unregister("one_short")

@@ -1100,6 +1100,40 @@ def _union_fields(tables: list[tuple[str, type[_Model]]], where: str) -> dict[st
                 else info.annotation, info) for f, (_, info) in fields.items()}
 
 
+def check_model_fields() -> None:
+    """Raise :class:`ValueError` where two registered models declare one key of a case table
+    differently: a field of the ``[viscosity]`` table; a key of the material table (a flat
+    model's field, another model's sub-table named after it, or one of the table's own
+    fields).  Run after each registration (:data:`impactsph.models.registry.REGISTRY_CHECKS`),
+    which is undone where it raises: a plugin's ``yield_stress`` of another range had taken
+    the place of ``elastic_plastic``'s in the schema, without a word."""
+    _union_fields([(v.name, v.parameters) for v in VISCOSITY if v.parameters is not None],
+                  "viscosity schemes")
+    own = set(Material.model_fields)
+    keys: dict[str, tuple[str, Any]] = {}  # key: (its first model, its field where flat)
+    for registry in (DAMAGE, EOS, STRENGTH):
+        for model in registry:
+            flat = getattr(model, "flat", False)
+            for key in model_keys(model):
+                owner = f"{registry.kind} {model.name!r}"
+                info = model.parameters.model_fields[key] if flat else None
+                what = f"field {key!r}" if flat else f"table [{key}]"
+                if key in own:
+                    raise ValueError(f"{owner}: its {what} is the material table's own "
+                                     f"field {key!r}; choose another name")
+                if key in keys:
+                    first, first_info = keys[key]
+                    if info is None or first_info is None or not _same_field(info, first_info):
+                        raise ValueError(f"{owner} and {first} both declare the material "
+                                         f"table's key {key!r}, differently; choose another "
+                                         f"name")
+                else:
+                    keys[key] = (owner, info)
+
+
+_registry.REGISTRY_CHECKS.append(check_model_fields)
+
+
 def _names(registry: Any) -> Any:
     return Literal[registry.names()]
 

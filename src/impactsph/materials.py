@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from .errors import CaseError
 from .models import DAMAGE, EOS, STRENGTH, ElasticConstants
 from .models.columns import (  # noqa: F401  (re-exported: the kernels import them from here)
     BULK,
@@ -206,21 +207,29 @@ def resolve_material(name: str, material: Any) -> MaterialModel:
     constants = ElasticConstants(material.density, E, nu, K, mu, melting, specific_heat)
     damage = DAMAGE[material.damage]
 
-    def columns(model: Any, parameters: Any) -> tuple[float, ...]:
+    def columns(model: Any, parameters: Any, key: str) -> tuple[float, ...]:
+        # (a model's own code: what it gets wrong is said in one line, as the case's field)
         if model.coefficients is None:
             return ()
-        values = tuple(float(c) for c in model.coefficients(parameters, constants))
+        where = f"materials.{name}.{key} = {model.name!r}"
+        try:
+            values = tuple(float(c) for c in model.coefficients(parameters, constants))
+        except Exception as exc:  # noqa: BLE001 - any failure of a model's code, in one line
+            raise CaseError(f"{where}: its coefficients(parameters, constants) failed "
+                            f"({type(exc).__name__}: {exc})".replace("\n", " ")) from None
         if len(values) != len(model.columns):
-            raise ValueError(f"{model.name}.coefficients gave {len(values)} values for the "
-                             f"{len(model.columns)} columns {model.columns}")
+            raise CaseError(f"{where}: its coefficients gave {len(values)} value"
+                            f"{'s' * (len(values) != 1)} for its {len(model.columns)} "
+                            f"columns {model.columns}")
         return values
 
     return MaterialModel(
         name=name, model=material.model, eos=material.eos, density=material.density,
         youngs_modulus=E, poisson_ratio=nu, shear_modulus=mu, bulk_modulus=K,
-        eos_columns=columns(eos, material.eos_parameters()),
-        strength_columns=columns(strength, material.strength_parameters()),
-        damage=material.damage, damage_columns=columns(damage, material.damage_parameters()),
+        eos_columns=columns(eos, material.eos_parameters(), "eos"),
+        strength_columns=columns(strength, material.strength_parameters(), "model"),
+        damage=material.damage,
+        damage_columns=columns(damage, material.damage_parameters(), "damage"),
         specific_heat=specific_heat, taylor_quinney=float(material.taylor_quinney),
         melting_temperature=melting, temperature=float(material.temperature),
         damage_parameters=material.damage_parameters())

@@ -230,14 +230,33 @@ class Registry(Generic[M]):
         if model.name in self.models and not replace:
             raise ValueError(f"{article} {self.kind} named {model.name!r} is already "
                              f"registered (pass replace=True to replace it)")
-        for attribute in KERNEL_FUNCTIONS:
+        for attribute, arguments in KERNEL_FUNCTIONS.items():
             function = getattr(model, attribute, None)
-            if function is not None and not hasattr(function, "py_func"):
+            if function is None:
+                continue
+            if not hasattr(function, "py_func"):
                 raise TypeError(f"{self.kind} {model.name!r}: {attribute} = {function!r} is "
                                 f"not compiled by numba; decorate it with "
-                                f"@numba.njit(inline='always') (the passes inline it)")
+                                f"{INLINED.get(attribute, '@numba.njit(cache=True)')}")
+            taken = _positional_count(function.py_func)
+            if taken != len(arguments):
+                raise TypeError(f"{self.kind} {model.name!r}: {attribute} takes {taken} "
+                                f"argument{'s' * (taken != 1)}; the passes call it with "
+                                f"{len(arguments)}: {attribute}({', '.join(arguments)})")
+        _check_columns(self.kind, model)
+        before = self.models.get(model.name)
         self.models[model.name] = model
         _bump()
+        try:
+            for check in REGISTRY_CHECKS:  # (the case schema's: a field two models declare)
+                check()
+        except Exception:
+            if before is None:
+                del self.models[model.name]
+            else:
+                self.models[model.name] = before
+            _bump()
+            raise
         return model
 
     def unregister(self, name: str) -> None:
@@ -290,9 +309,62 @@ DAMAGE: Registry[DamageModel] = Registry("damage model")
 VISCOSITY: Registry[ViscosityScheme] = Registry("viscosity scheme")
 
 
-#: the models' functions that the compiled passes call (each a numba dispatcher)
-KERNEL_FUNCTIONS = ("pressure", "return_map", "update", "pair_viscosity", "correction",
-                    "switch")
+#: the models' functions that the compiled passes call (each a numba dispatcher), with the
+#: arguments they are called with (the dataclasses' docstrings say what each is)
+KERNEL_FUNCTIONS: dict[str, tuple[str, ...]] = {
+    "pressure": ("rho", "e", "rho0", "bulk_modulus", "params"),
+    "return_map": ("S", "rho", "pressure", "shear_modulus", "params", "state", "own", "dt"),
+    "update": ("S", "pressure", "rho", "size", "dt", "plastic_strain_increment", "row",
+               "params", "state", "own"),
+    "pair_viscosity": ("vr", "r2", "h_ij", "c_ij", "rho_ij", "params"),
+    "correction": ("p", "i", "P", "start", "end", "indices", "layout", "dim", "params",
+                   "books", "dv", "de"),
+    "switch": ("p", "i", "P", "start", "end", "indices", "layout", "dim", "params", "elapsed",
+               "memory"),
+}
+
+#: how each function the pair and particle passes call is compiled: inlined, which lets one
+#: body serve the CPU and the CUDA kernels; the stage's (``return_map``, ``update``) are
+#: plain ``numba.njit(cache=True)`` (docs/architecture.md, "Rules for a compiled model
+#: function")
+INLINED = {name: "@numba.njit(inline='always', cache=True) (the passes inline it)"
+           for name in ("pressure", "pair_viscosity", "correction", "switch")}
+
+#: checks of the registries as a whole, run after each registration (which is undone where
+#: one raises): the case schema's (:mod:`impactsph.config`) adds that no two models declare
+#: one field of a table differently
+REGISTRY_CHECKS: list[Callable[[], None]] = []
+
+
+def _positional_count(function: Callable[..., Any]) -> int:
+    """How many positional arguments a Python function takes (-1 with ``*args``: any)."""
+    import inspect
+
+    parameters = inspect.signature(function).parameters.values()
+    if any(p.kind is p.VAR_POSITIONAL for p in parameters):
+        return -1
+    return sum(p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) for p in parameters)
+
+
+def _check_columns(kind: str, model: Any) -> None:
+    """Refuse a material model whose parameters cannot reach its kernels: parameters without
+    table columns (its kernel would read the next model's columns as its own; a damage
+    model's ``initial_state`` may read them instead), or columns without ``coefficients``
+    to fill them, or ``coefficients`` without columns."""
+    if not hasattr(model, "columns"):
+        return  # a viscosity scheme: pair_parameters gives its kernels' numbers
+    fields = tuple(model.parameters.model_fields) if model.parameters is not None else ()
+    name = f"{kind} {model.name!r}"
+    if fields and not model.columns and getattr(model, "initial_state", None) is None:
+        raise ValueError(f"{name}: its parameters ({', '.join(fields)}) have no table "
+                         f"columns, so no kernel would read them; declare columns=(...) "
+                         f"and coefficients=lambda parameters, constants: (...)")
+    if model.columns and model.coefficients is None:
+        raise ValueError(f"{name}: columns {model.columns} without coefficients to fill "
+                         f"them; declare coefficients=lambda parameters, constants: (...)")
+    if model.coefficients is not None and not model.columns:
+        raise ValueError(f"{name}: coefficients without columns; declare columns=(NAME, ...)"
+                         f", one a value coefficients returns")
 
 
 def register(model: M, *, replace: bool = False) -> M:

@@ -32,9 +32,10 @@ Adding a problem, from user code or in this package::
         def summary_keys(self, case):
             return ("max_displacement",)
 
-after which a case file may say ``analysis = "toy"``.  The registry is per process: the
-worker processes of a sweep (``impactsph sweep``, :func:`impactsph.sweep.run_many`) know the
-built-in problems only, unless they import the module that registers the new one.
+after which a case file may say ``analysis = "toy"``.  The registry is per process: a case
+file that lists the module under ``plugins`` has it imported wherever the case is validated,
+in the worker processes of a sweep (``impactsph sweep``, :func:`impactsph.sweep.run_many`)
+too; a problem registered by a script's own code alone is unknown to those workers.
 """
 
 from __future__ import annotations
