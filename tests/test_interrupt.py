@@ -8,6 +8,7 @@ from __future__ import annotations
 import errno
 import json
 import os
+import re
 import shlex
 import signal
 import subprocess
@@ -458,6 +459,26 @@ def test_the_disk_filling_up_during_the_run(tmp_path, monkeypatch):
     assert one_line(res).startswith(f"error: cannot write {out / 'history.csv'}: the disk is "
                                     "full")
     assert not (out / LOCK).exists()
+
+
+def test_a_disk_without_room_for_the_checkpoint_is_one_line(tmp_path, monkeypatch):
+    """HDF5 that runs out of room part-way through a checkpoint reports it only while it
+    frees its objects, and went on until the process crashed (a segmentation fault on a
+    full tmpfs, an audit, 2026-12-08): the room is asked of the disk first."""
+    import shutil
+
+    real = shutil.disk_usage
+    monkeypatch.setattr(shutil, "disk_usage",
+                        lambda path: real(path)._replace(free=100_000))
+    out = tmp_path / "x"
+    res = runner.invoke(app, ["run", "bars", "--quiet", "--out", str(out), *SHORT,
+                              "--set", "output.checkpoint_interval=5e-7"])
+    assert res.exit_code == 2
+    assert re.fullmatch(rf"error: cannot write {re.escape(str(out / 'checkpoint.h5'))}: the "
+                        r"disk is full \(100,000 B free; the checkpoint needs about [\d,]+ B\)",
+                        one_line(res))
+    assert not (out / LOCK).exists() and not list(out.glob(".checkpoint*"))
+    assert (out / "history.csv").exists()  # what was written is kept
 
 
 def test_a_stale_lock_is_taken_over_and_a_live_one_refuses(tmp_path):

@@ -27,7 +27,7 @@ import numpy as np
 
 from ._version import __version__
 from .atomic import atomic_path
-from .errors import CaseError
+from .errors import CaseError, OutputError
 from .loading import validate_case
 from .materials import TableLayout
 from .models.columns import COMMON_STATE, THICKNESS_RATIO
@@ -72,62 +72,90 @@ def digest(f: h5py.File) -> str:
     return h.hexdigest()
 
 
+def _contents(sim: Simulation) -> tuple[dict[str, dict[str, Any]], dict[str, Any]]:
+    """What a checkpoint of ``sim`` holds: the attributes of each group (``""`` the root) and
+    the datasets by path, in the order they are written."""
+    attrs: dict[str, dict[str, Any]] = {"": {
+        "format": FORMAT, "impactsph": __version__,
+        "case": json.dumps(sim.case.model_dump(mode="json")), "time": sim.state.time,
+        "step": sim.state.step, "viscosity_factor_time": sim.state.viscosity_factor_time}}
+    data: dict[str, Any] = {}
+    attrs["state"] = {"common_state": json.dumps(list(COMMON_STATE))}
+    for name, arr in sim.state.arrays().items():
+        data[f"state/{name}"] = arr
+    nl = sim.solver.neighbours
+    for name in ("offsets", "indices", "reference_positions", "order", "reference_origin"):
+        data[f"neighbours/{name}"] = getattr(nl, name)
+    attrs["neighbours"] = {"radius": nl.radius, "skin": nl.skin, "builds": nl.builds}
+    if nl.inner_ends is not None:  # the inner list: each row's first entries (neighbours.py)
+        data["neighbours/inner_ends"] = nl.inner_ends
+        attrs["neighbours"].update(inner_reach=nl.inner_reach, inner_radius=nl.inner_radius)
+    if nl.splits is not None:  # 2D and 3D: where each row's skin part starts (neighbours.py)
+        data["neighbours/splits"] = nl.splits
+    data["neighbours/ghost_src"] = sim.solver._ghost_src
+    data["neighbours/ghost_wall"] = sim.solver._ghost_wall
+    attrs["accumulators"] = {}
+    for name, value in accumulators(sim).items():
+        data[f"accumulators/{name}"] = np.asarray(value)
+    hist = sim.record.history
+    columns = list(hist[0]) if hist else []
+    rec = attrs["record"] = {"history_columns": json.dumps(columns)}
+    data["record/history"] = np.array([[row.get(c, np.nan) for c in columns] for row in hist],
+                                      dtype=np.float64)
+    for name, samples in sim.record.probes.items():
+        data[f"record/probe_{name}/time"] = np.array([t for t, _ in samples])
+        data[f"record/probe_{name}/velocity"] = np.array([v for _, v in samples])
+    rec["probe_names"] = json.dumps(list(sim.record.probes))
+    if sim.gauges is not None:
+        rec["gauge_columns"] = json.dumps(sim.gauges.columns)
+        data["record/gauges"] = np.array(sim.record.gauges, dtype=np.float64).reshape(
+            -1, len(sim.gauges.columns))
+    rec.update(wall_seconds=sim.record.wall_seconds, compile_seconds=sim.record.compile_seconds,
+               setup_seconds=sim.record.setup_seconds)
+    for k, snap in enumerate(sim.record.snapshots):
+        attrs[f"record/snapshot_{k}"] = {"time": snap.time}
+        for name, arr in snap.fields.items():
+            data[f"record/snapshot_{k}/{name}"] = arr
+    rec["n_snapshots"] = len(sim.record.snapshots)
+    return attrs, data
+
+
+#: room asked of the disk beyond a checkpoint's data: HDF5's own structures (a few kB a
+#: group and dataset) and the attributes
+_CHECKPOINT_MARGIN = 1 << 20
+
+
 def write_checkpoint(sim: Simulation, path: Path | str) -> Path:
-    """Write ``sim`` to ``path`` atomically."""
+    """Write ``sim`` to ``path`` atomically.  Refused (:class:`OutputError`, one line) where
+    the disk has less room than the checkpoint needs: HDF5 that runs out of room part-way
+    reports it only while it frees its objects, and went on until the process crashed
+    (a segmentation fault, 2026-12-08)."""
+    import errno
+    import shutil
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
-        f.attrs["format"] = FORMAT
-        f.attrs["impactsph"] = __version__
-        f.attrs["case"] = json.dumps(sim.case.model_dump(mode="json"))
-        f.attrs["time"] = sim.state.time
-        f.attrs["step"] = sim.state.step
-        f.attrs["viscosity_factor_time"] = sim.state.viscosity_factor_time
-        g = f.create_group("state")
-        g.attrs["common_state"] = json.dumps(list(COMMON_STATE))
-        for name, arr in sim.state.arrays().items():
-            g.create_dataset(name, data=arr)
-        nl = sim.solver.neighbours
-        g = f.create_group("neighbours")
-        for name in ("offsets", "indices", "reference_positions", "order",
-                     "reference_origin"):
-            g.create_dataset(name, data=getattr(nl, name))
-        g.attrs["radius"], g.attrs["skin"], g.attrs["builds"] = nl.radius, nl.skin, nl.builds
-        if nl.inner_ends is not None:  # the inner list: each row's first entries (neighbours.py)
-            g.create_dataset("inner_ends", data=nl.inner_ends)
-            g.attrs["inner_reach"], g.attrs["inner_radius"] = nl.inner_reach, nl.inner_radius
-        if nl.splits is not None:  # 2D and 3D: where each row's skin part starts (neighbours.py)
-            g.create_dataset("splits", data=nl.splits)
-        g.create_dataset("ghost_src", data=sim.solver._ghost_src)
-        g.create_dataset("ghost_wall", data=sim.solver._ghost_wall)
-        acc = f.create_group("accumulators")
-        for name, value in accumulators(sim).items():
-            acc.create_dataset(name, data=np.asarray(value))
-        rec = f.create_group("record")
-        hist = sim.record.history
-        columns = list(hist[0]) if hist else []
-        rec.attrs["history_columns"] = json.dumps(columns)
-        rec.create_dataset("history", data=np.array(
-            [[row.get(c, np.nan) for c in columns] for row in hist], dtype=np.float64))
-        for name, samples in sim.record.probes.items():
-            p = rec.create_group(f"probe_{name}")
-            p.create_dataset("time", data=np.array([t for t, _ in samples]))
-            p.create_dataset("velocity", data=np.array([v for _, v in samples]))
-        rec.attrs["probe_names"] = json.dumps(list(sim.record.probes))
-        if sim.gauges is not None:
-            rec.attrs["gauge_columns"] = json.dumps(sim.gauges.columns)
-            rec.create_dataset("gauges", data=np.array(sim.record.gauges, dtype=np.float64
-                                                       ).reshape(-1, len(sim.gauges.columns)))
-        rec.attrs["wall_seconds"] = sim.record.wall_seconds
-        rec.attrs["compile_seconds"] = sim.record.compile_seconds
-        rec.attrs["setup_seconds"] = sim.record.setup_seconds
-        for k, snap in enumerate(sim.record.snapshots):
-            sg = rec.create_group(f"snapshot_{k}")
-            sg.attrs["time"] = snap.time
-            for name, arr in snap.fields.items():
-                sg.create_dataset(name, data=arr)
-        rec.attrs["n_snapshots"] = len(sim.record.snapshots)
-        f.attrs[CHECKSUM] = digest(f)
+    attrs, data = _contents(sim)
+    need = (sum(np.asarray(a).nbytes for a in data.values()) + _CHECKPOINT_MARGIN
+            + sum(len(str(v)) for group in attrs.values() for v in group.values()))
+    free = shutil.disk_usage(path.parent).free
+    if free < need:
+        raise OutputError(errno.ENOSPC, f"cannot write {path}: the disk is full ({free:,} B "
+                                        f"free; the checkpoint needs about {need:,} B)")
+    try:
+        with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+            for group, values in attrs.items():
+                target = f.require_group(group) if group else f
+                for key, value in values.items():
+                    target.attrs[key] = value
+            for name, arr in data.items():
+                f.create_dataset(name, data=arr)
+            f.attrs[CHECKSUM] = digest(f)
+    except RuntimeError as exc:  # (h5py's for a failed write: errno 28 inside its text)
+        full = "No space left" in str(exc) or "errno = 28" in str(exc)
+        raise OutputError(errno.ENOSPC if full else errno.EIO,
+                          f"cannot write {path}: "
+                          + ("the disk is full" if full else str(exc).splitlines()[0])) from None
     return path
 
 
