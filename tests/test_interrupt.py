@@ -555,3 +555,69 @@ def test_checkpoint_checksum_covers_every_array(tmp_path):
             f[name][...] = data
         with pytest.raises(CaseError, match="corrupted"):
             verify_checkpoint(copy)
+
+
+def test_a_checkpoint_damaged_near_its_end_is_refused_as_such(checkpoint, tmp_path):
+    """A bit flipped in HDF5's own structures near the end of the file made reading the
+    checksum's attribute fail, and that was reported as the output directory's write error
+    (an audit, 2026-12-08)."""
+    def damaged(self, name, default=None):  # what h5py raised for that file's attributes
+        raise OSError("Can't synchronously read data (address of object past end of "
+                      "allocation)")
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(h5py.AttributeManager, "get", damaged)
+        line = refused_restart(checkpoint, tmp_path / "e")
+    assert line.endswith(": corrupted: cannot be read (Can't synchronously read data (address "
+                         "of object past end of allocation)); it cannot be used"), line
+
+
+def restart_line(checkpoint: Path, out: Path, *sets: str) -> tuple[int, str]:
+    res = runner.invoke(app, ["run", "bars", "--quiet", "--out", str(out), "--restart",
+                              str(checkpoint), "--set", "output.snapshot_times=[]",
+                              "--set", "output.figures=false",
+                              *(a for s in sets for a in ("--set", s))])
+    return res.exit_code, (one_line(res) if res.exit_code else res.output)
+
+
+def test_what_a_restart_may_change_and_what_it_may_not(checkpoint, tmp_path):
+    """A restart continues its run: an end time before the checkpoint's, a change of the
+    probes (whose samples from t = 0 the checkpoint carries by name) or of the physics are
+    refused before any work, each naming its field; the thread count may change (the same
+    bits at any count)."""
+    code, line = restart_line(checkpoint, tmp_path / "a", "time.end=1e-6")
+    assert code == 2 and line.endswith("time.end = 1e-06 is before the checkpoint's time, "
+                                       "t = 2e-06 s; a restart runs forward only (a later "
+                                       "time.end extends the run)"), line
+    code, line = restart_line(checkpoint, tmp_path / "b", "time.end=3e-6", "output.probes=[]")
+    assert code == 2 and "differs from the checkpoint's in output.probes (only" in line, line
+    code, line = restart_line(checkpoint, tmp_path / "c", "time.end=3e-6",
+                              "viscosity.alpha1=0.5")
+    assert code == 2 and "in viscosity.alpha1 (only" in line, line
+    assert not any((tmp_path / d).exists() for d in "abc")
+    code, line = restart_line(checkpoint, tmp_path / "d", "time.end=2.2e-6", "compute.threads=1")
+    assert code == 0, line
+
+
+def test_a_restart_into_another_runs_directory_is_refused(checkpoint, tmp_path):
+    """A restart writes into its own run's directory or an empty one: another case's run
+    there had its figures left beside this run's history (an audit, 2026-12-08)."""
+    other = tmp_path / "other"
+    res = runner.invoke(app, ["run", "bars", "--quiet", "--out", str(other), *SHORT,
+                              "--set", "name=not_the_bars"])
+    assert res.exit_code == 0, res.output
+    before = sorted(p.name for p in other.iterdir())
+    code, line = restart_line(checkpoint, other, "time.end=3e-6")
+    assert code == 2 and line == (f"error: --out {other} holds another run (its case.json "
+                                  f"differs in name): a restart writes into its own run's "
+                                  f"directory or an empty one"), line
+    assert sorted(p.name for p in other.iterdir()) == before
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("mine\n")
+    code, line = restart_line(checkpoint, mine, "time.end=3e-6")
+    assert code == 2 and "holds files but no run (no case.json)" in line, line
+    # its own run's directory, continued twice
+    own = checkpoint.parent
+    code, line = restart_line(checkpoint, own, "time.end=2.1e-6")
+    assert code == 0, line

@@ -181,14 +181,15 @@ def verify_checkpoint(path: Path | str, case: Any = None) -> None:
         raise CaseError(f"--restart {path}: cannot be read as a checkpoint (truncated, or not "
                         f"an HDF5 file: {exc})") from None
     with f:
-        if f.attrs.get("format") != FORMAT:
-            raise CaseError(f"--restart {path}: not an impactsph checkpoint")
-        stored = f.attrs.get(CHECKSUM)
         try:
-            actual = digest(f)
+            form, stored = f.attrs.get("format"), f.attrs.get(CHECKSUM)
+            actual = digest(f) if form == FORMAT else None
+            time = float(f.attrs["time"]) if form == FORMAT else None
         except Exception as exc:  # noqa: BLE001 (h5py reports damage in many ways)
             raise CaseError(f"--restart {path}: corrupted: cannot be read ({exc}); it cannot "
                             "be used") from None
+        if form != FORMAT:
+            raise CaseError(f"--restart {path}: not an impactsph checkpoint")
         if stored is None:
             log.warning("%s: a checkpoint without a checksum (written by an older version); "
                         "read unverified", path)
@@ -202,6 +203,10 @@ def verify_checkpoint(path: Path | str, case: Any = None) -> None:
             except (KeyError, ValueError) as exc:
                 raise CaseError(f"--restart {path}: its case cannot be read ({exc})") from None
             _check_same_case(path, case, stored_case)
+            if case.time.end < time:
+                raise CaseError(f"--restart {path}: time.end = {case.time.end:g} is before the "
+                                f"checkpoint's time, t = {time:g} s; a restart runs forward "
+                                f"only (a later time.end extends the run)")
 
 
 def _stored_case(f: h5py.File) -> Any:
@@ -216,13 +221,66 @@ def _stored_case(f: h5py.File) -> Any:
     return validate_case(data)
 
 
+def _comparable(case: dict[str, Any]) -> dict[str, Any]:
+    """A dumped case (``model_dump(mode="json")``, or ``case.json``'s) without what a
+    restart may change: the end time, the thread count (the results are the same bits at
+    any count) and the outputs but the probes (whose samples from the start the checkpoint
+    carries by name and order)."""
+    kept = {k: v for k, v in case.items() if k not in ("time", "output", "compute")}
+    kept["time"] = {k: v for k, v in case.get("time", {}).items() if k != "end"}
+    kept["compute"] = {k: v for k, v in case.get("compute", {}).items() if k != "threads"}
+    kept["output"] = {"probes": case.get("output", {}).get("probes")}
+    return kept
+
+
+def _shown(differ: list[str]) -> str:
+    return ", ".join(differ[:4]) + (f" and {len(differ) - 4} more" if len(differ) > 4 else "")
+
+
 def _check_same_case(path: Path, case: Any, stored: Any) -> None:
-    a = case.model_dump(mode="json", exclude={"time": {"end"}, "output": True})
-    b = stored.model_dump(mode="json", exclude={"time": {"end"}, "output": True})
-    if a != b:
-        differ = sorted(k for k in a if a[k] != b.get(k))
+    differ = _differences(_comparable(case.model_dump(mode="json")),
+                          _comparable(stored.model_dump(mode="json")))
+    if differ:
         raise CaseError(f"--restart {path}: the case differs from the checkpoint's in "
-                        f"{', '.join(differ)} (only time.end and output may change)")
+                        f"{_shown(differ)} (only time.end, compute.threads and output but its "
+                        f"probes may change)")
+
+
+def check_restart_out(out: Path | str, case: Any) -> None:
+    """Refuse (:class:`OutputError`, one line) a restart's ``--out`` that holds something
+    other than this case's run: a directory that holds files but no ``case.json``, or
+    another case's run (their outputs mixed, the other run's figures beside this one's
+    history, before 2026-12-08)."""
+    import errno
+
+    out = Path(out)
+    if not out.is_dir() or not any(p.name != ".lock" for p in out.iterdir()):
+        return
+    record = out / "case.json"
+    try:
+        held = json.loads(record.read_text())["case"]
+    except FileNotFoundError:
+        raise OutputError(errno.EEXIST, f"--out {out} holds files but no run (no case.json): "
+                                        f"a restart writes into its own run's directory or an "
+                                        f"empty one") from None
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise OutputError(errno.EEXIST, f"--out {out}: its case.json cannot be read "
+                                        f"({type(exc).__name__}: {exc})") from None
+    differ = _differences(_comparable(case.model_dump(mode="json")), _comparable(held))
+    if differ:
+        raise OutputError(errno.EEXIST, f"--out {out} holds another run (its case.json "
+                                        f"differs in {_shown(differ)}): a restart writes into "
+                                        f"its own run's directory or an empty one")
+
+
+def _differences(a: Any, b: Any, where: str = "") -> list[str]:
+    """The dotted keys where two dumped cases differ (a list or a value as a whole)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        out: list[str] = []
+        for key in sorted(set(a) | set(b), key=str):
+            out += _differences(a.get(key), b.get(key), f"{where}.{key}" if where else key)
+        return out
+    return [] if a == b else [where]
 
 
 def accumulators(sim: Simulation) -> dict[str, Any]:

@@ -116,12 +116,12 @@ def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Pat
         c = load_case(case, sets + ([f"compute.device={device}"] if device else []))
         out = out or Path("runs") / c.name
         # what is refused without building anything, before the preflight's lines: the
-        # output directory (run_case checks it again), a checkpoint that is not there
-        check_out(out, "overwrite" if overwrite else "refuse", restart is not None)
+        # output directory and the checkpoint (run_case checks both again)
+        check_out(out, "overwrite" if overwrite else "refuse", restart is not None, c)
         if restart is not None:
-            from .checkpoint import check_restart_path  # (h5py: only for a restart)
+            from .checkpoint import verify_checkpoint  # (h5py: only for a restart)
 
-            check_restart_path(restart)
+            verify_checkpoint(restart, c)
         before_run(c, quiet=quiet)  # estimates and warnings; CaseError on a refusal
     except (CaseError, OutputError) as exc:
         _fail(str(exc))

@@ -118,13 +118,17 @@ def compiling_note(record: RunRecord) -> str:
     return ""
 
 
-def check_out(out: Path | str, if_exists: IfExists, restarting: bool) -> None:
+def check_out(out: Path | str, if_exists: IfExists, restarting: bool, case: Case) -> None:
     """:func:`run_case`'s refusals of ``out`` (:func:`~impactsph.rundir.check_run_dir`):
     by ``if_exists``, except that a run continued from a checkpoint may write into a
-    directory that holds something (its own run's, as a rule) where ``"refuse"`` is asked.
-    ``impactsph run`` calls it before its preflight too, so that a refusal is its only
-    line."""
+    directory that holds its own run where ``"refuse"`` is asked, and into no other
+    (:func:`~impactsph.checkpoint.check_restart_out`).  ``impactsph run`` calls it before
+    its preflight too, so that a refusal is its only line."""
     check_run_dir(out, "keep" if restarting and if_exists == "refuse" else if_exists)
+    if restarting and if_exists == "refuse":
+        from .checkpoint import check_restart_out
+
+        check_restart_out(out, case)
 
 
 def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], None] | None = None,
@@ -158,7 +162,7 @@ def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], No
         raise TypeError(f"run_case(callback = {callback!r}): a function of the simulation, "
                         f"callback(sim), or None")
     out = Path(out)
-    check_out(out, if_exists, restart is not None)
+    check_out(out, if_exists, restart is not None, case)
     checked: list = []  # the checkpoint's verification's log lines, for run.log
     if restart is not None:
         from .checkpoint import verify_checkpoint
