@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+import impactsph
 from impactsph.checkpoint import load_checkpoint, verify_checkpoint, write_checkpoint
 from impactsph.cli import app
 from impactsph.errors import CaseError, OutputError
@@ -131,7 +132,14 @@ def test_interrupted_run_leaves_history_summary_and_checkpoint(interrupted):
     assert history == whole[: len(history)]
     sim = load_checkpoint(out / "checkpoint.h5")
     assert sim.state.step == summary["n_steps"] and sim.state.time == summary["t_end"]
+    # the checkpoint, written during a step, counts the wall time of the steps before it
+    # (it held 0 s, and a restarted run's rate was its pairs from t = 0 over its own time)
+    assert sim.record.wall_seconds > 0.0
     assert not (out / LOCK).exists()  # released at exit
+    # run.log says how the run ended, as the console did
+    assert (out / "run.log").read_text().splitlines()[-1].endswith(
+        f"WARNING impactsph: stopped: interrupted at t = {summary['t_end']:.6e} s, step "
+        f"{summary['n_steps']}; checkpoint {out / 'checkpoint.h5'}")
 
 
 def test_second_run_into_a_directory_in_use_is_refused(interrupted):
@@ -152,10 +160,15 @@ def test_restart_with_the_printed_command_reproduces_the_history(interrupted):
     res = runner.invoke(app, [*args[1:], "--quiet"])  # into the same, non-empty directory
     assert res.exit_code == 0, res.output
     whole = interrupted["whole"]
-    for name in ("history.csv", "probes.csv"):
+    for name in ("history.csv", "probes.csv", "snapshots.npz"):
         assert (out / name).read_bytes() == (whole / name).read_bytes(), name
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "finished" and summary["t_end"] == pytest.approx(END)
+    # the history says that two processes made it, and which versions
+    [restart] = summary["restarts"]
+    assert restart["checkpoint"] == str((out / "checkpoint.h5").resolve())
+    assert restart["impactsph"] == restart["continued_by"] == impactsph.__version__
+    assert 0 < restart["time"] < END and restart["step"] > 0
     # finished, without output.checkpoint_interval: the checkpoint is not kept
     assert not (out / "checkpoint.h5").exists()
 

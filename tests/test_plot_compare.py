@@ -162,3 +162,20 @@ def test_animate_says_a_run_stopped_before_its_first_snapshot(tmp_path):
     line = refused(["animate", out])
     assert "the run stopped at t = " in line and "(unstable), before its first snapshot " \
            "time, 0.0001 s" in line, line
+
+
+def test_plot_says_when_a_run_it_draws_did_not_finish(runs, tmp_path):
+    """A run interrupted in its reference run has that run's curves ending part-way:
+    ``plot`` drew them without a word (an audit, 2026-12-08)."""
+    import shutil
+
+    run = tmp_path / "av"
+    shutil.copytree(runs / "ac", run)
+    shutil.copytree(runs / "ac", run / "reference")
+    summary = json.loads((run / "reference" / "summary.json").read_text())
+    summary["status"] = "interrupted"
+    (run / "reference" / "summary.json").write_text(json.dumps(summary))
+    res = invoke(["plot", run])
+    assert (f"note: its reference run ({run / 'reference'}) is interrupted at t = "
+            f"{summary['t_end']:.6g} s: its curves end there") in res.output
+    assert "note: the run (" not in res.output  # the run itself finished

@@ -110,10 +110,15 @@ def _contents(sim: Simulation) -> tuple[dict[str, dict[str, Any]], dict[str, Any
         rec["gauge_columns"] = json.dumps(sim.gauges.columns)
         data["record/gauges"] = np.array(sim.record.gauges, dtype=np.float64).reshape(
             -1, len(sim.gauges.columns))
-    rec.update(wall_seconds=sim.record.wall_seconds, compile_seconds=sim.record.compile_seconds,
-               setup_seconds=sim.record.setup_seconds)
+    so_far = sim.record_so_far()  # (a checkpoint written during a step: the steps' time)
+    rec.update(wall_seconds=so_far.wall_seconds, compile_seconds=so_far.compile_seconds,
+               setup_seconds=so_far.setup_seconds,
+               thread_changes=json.dumps([list(c) for c in so_far.thread_changes]),
+               thread_trials=json.dumps(list(so_far.thread_trials), default=float),
+               restarts=json.dumps(so_far.restarts))
     for k, snap in enumerate(sim.record.snapshots):
-        attrs[f"record/snapshot_{k}"] = {"time": snap.time}
+        # (the fields' order, which h5py reads back by name: snapshots.npz keeps it)
+        attrs[f"record/snapshot_{k}"] = {"time": snap.time, "fields": json.dumps(list(snap.fields))}
         for name, arr in snap.fields.items():
             data[f"record/snapshot_{k}/{name}"] = arr
     rec["n_snapshots"] = len(sim.record.snapshots)
@@ -428,12 +433,23 @@ def load_checkpoint(path: Path | str, case: Any = None, *, verify: bool = True
         if (sim.gauges is not None and "gauges" in rec
                 and json.loads(rec.attrs["gauge_columns"]) == sim.gauges.columns):
             sim.record.gauges = list(rec["gauges"][()])
-        sim.record.snapshots = [
-            Snapshot(float(rec[f"snapshot_{k}"].attrs["time"]),
-                     {n: rec[f"snapshot_{k}"][n][()] for n in rec[f"snapshot_{k}"]})
-            for k in range(int(rec.attrs["n_snapshots"]))]
+        sim.record.snapshots = []
+        for k in range(int(rec.attrs["n_snapshots"])):
+            group = rec[f"snapshot_{k}"]
+            names = (json.loads(group.attrs["fields"]) if "fields" in group.attrs
+                     else list(group))  # (a checkpoint before 2026-12-08: by name)
+            sim.record.snapshots.append(Snapshot(float(group.attrs["time"]),
+                                                 {n: group[n][()] for n in names}))
         sim.record.wall_seconds = float(rec.attrs["wall_seconds"])
         # (a checkpoint written before runs counted their compile time: none counted)
         sim.record.compile_seconds = float(rec.attrs.get("compile_seconds", 0.0))
         sim.record.setup_seconds = float(rec.attrs["setup_seconds"])
+        # (written since 2026-12-08: before, a restarted run's summary lost them)
+        sim.record.thread_changes = [tuple(c) for c in
+                                     json.loads(rec.attrs.get("thread_changes", "[]"))]
+        sim.record.thread_trials = list(json.loads(rec.attrs.get("thread_trials", "[]")))
+        sim.record.restarts = [*json.loads(rec.attrs.get("restarts", "[]")), {
+            "checkpoint": str(path.resolve()), "time": sim.state.time, "step": sim.state.step,
+            "impactsph": str(f.attrs.get("impactsph", "unknown")),
+            "continued_by": __version__}]
     return sim

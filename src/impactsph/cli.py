@@ -427,6 +427,12 @@ def plot(
     out = out or run_dir
     out.mkdir(parents=True, exist_ok=True)
     notes: list[str] = []
+    for run, which in zip(runs, ("the run", "its reference run"), strict=False):
+        summary = run.get("summary", {})
+        status = summary.get("status", "finished")
+        if status != "finished":  # drawn as far as it went, and said so
+            notes.append(f"{which} ({run['path']}) is {status} at t = "
+                         f"{summary.get('t_end', float('nan')):.6g} s: its curves end there")
     for fig in draw_figures(runs, out, notes=notes):
         typer.echo(f"figure: {fig}")
     for note in notes:

@@ -99,6 +99,33 @@ def run_log(out: Path | str, earlier: Sequence[logging.LogRecord] = ()) -> Itera
             handler.handle(record)
         try:
             yield path
+        except BaseException as exc:
+            # the file only (the console says it its own way), where the run has logged to
+            # it: a run refused as its directory was set up leaves none behind; a disk that
+            # is full keeps the error it gave
+            if path.exists():
+                handler.flush()
+                with contextlib.suppress(OSError), open(path, "a", encoding="utf-8") as fh:
+                    fh.write(handler.format(_ending(exc)) + "\n")
+            raise
         finally:
             logger.removeHandler(handler)
             handler.close()
+
+
+def _ending(exc: BaseException) -> logging.LogRecord:
+    """The record of how a run that did not finish ended, for ``run.log``: the console's
+    line (the command line prints it after the log is closed) was missing there."""
+    from .errors import OutputError, RunInterrupted, SimulationError
+
+    if isinstance(exc, RunInterrupted):
+        level, text = logging.WARNING, f"stopped: {exc}"
+    elif isinstance(exc, KeyboardInterrupt):
+        level, text = logging.WARNING, ("stopped at once (a second signal), without a "
+                                        "checkpoint of the step it was in")
+    elif isinstance(exc, SimulationError | OutputError):
+        level, text = logging.ERROR, f"run stopped: {exc}"
+    else:
+        level, text = logging.ERROR, f"run stopped: {type(exc).__name__}: {exc}"
+    return logging.LogRecord("impactsph", level, __file__, 0, text.replace("\n", " "), None,
+                             None)

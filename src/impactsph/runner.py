@@ -17,6 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from ._version import __version__
 from .config import Case
 from .errors import DeviceMemoryError, RunInterrupted
 from .interrupt import StopRequest
@@ -188,8 +189,13 @@ def run_case(case: Case, out: Path | str, *, callback: Callable[[Simulation], No
             clear_outputs(out)
         with run_log(out, earlier=[*checked, *setup_lines]):
             if restart is not None:
-                log.info("restarted from %s at t = %g s (step %d)", restart, sim.state.time,
-                         sim.state.step)
+                written_by = sim.record.restarts[-1]["impactsph"]
+                log.info("restarted from %s at t = %g s (step %d), a checkpoint of impactsph "
+                         "%s", restart, sim.state.time, sim.state.step, written_by)
+                if written_by != __version__:
+                    log.warning("%s was written by impactsph %s and is continued by %s: the "
+                                "history to t = %g s is that version's (summary.json: "
+                                "restarts)", restart, written_by, __version__, sim.state.time)
             return _run(sim, case, out, callback=callback, figures=figures, stop=stop,
                         checkpoint_wall_seconds=checkpoint_wall_seconds)
     finally:
@@ -256,10 +262,13 @@ def _run(sim: Simulation, case: Case, out: Path, *,
         (out / "checkpoint.h5").unlink(missing_ok=True)
     if case.output.figures if figures is None else figures:
 
-        def stopped() -> RunInterrupted:
+        def stopped(reference: RunInterrupted | None = None) -> RunInterrupted:
+            during = (f"; its reference run ({out / 'reference'}) stopped at t = "
+                      f"{reference.time:.6e} s, and impactsph plot draws it as far as it went"
+                      if reference is not None else "")
             return RunInterrupted(
                 f"interrupted after the run finished (t = {sim.state.time:.6e} s, step "
-                f"{sim.state.step}); the figures were not drawn", time=sim.state.time,
+                f"{sim.state.step}); the figures were not drawn{during}", time=sim.state.time,
                 step=sim.state.step, checkpoint=None, finished=True)
 
         if stop is not None and stop():
@@ -276,8 +285,8 @@ def _run(sim: Simulation, case: Case, out: Path, *,
                 run_case(ref_case, out / "reference", figures=False, stop=stop,
                          checkpoint_wall_seconds=checkpoint_wall_seconds)
                 runs.append(load_run(out / "reference"))
-            except RunInterrupted:
-                raise stopped() from None
+            except RunInterrupted as exc:
+                raise stopped(exc) from None
             except SimulationError as exc:  # the run itself is complete: drawn without it
                 note = (f"reference run ({label_of(ref_case)}): unstable ({exc}); the "
                         f"figures are drawn without it")

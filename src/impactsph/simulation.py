@@ -64,6 +64,10 @@ class RunRecord:
     thread_changes: list[tuple[float, float, int]] = field(default_factory=list)
     #: the governor's trials of a smaller thread count (:class:`~.threads.ThreadGovernor`)
     thread_trials: list[dict[str, object]] = field(default_factory=list)
+    #: each restart of the run from a checkpoint, in order: the checkpoint's path, its time
+    #: (s) and step, the version that wrote it (``impactsph``) and the one that continued it
+    #: (``continued_by``): a history that more than one process, or version, made says so
+    restarts: list[dict[str, object]] = field(default_factory=list)
 
 
 @nb.njit(inline="always", cache=True)
@@ -167,6 +171,9 @@ class Simulation:
         self._handed_out = False  # whether `state` was read (by a callback) since it was reset
         #: the thread governor of the last ``run`` call, which the next one resumes
         self._governor: ThreadGovernor | None = None
+        #: while ``run`` goes: its start (perf_counter), its compile timer, its governor and
+        #: the governor's counts of changes and trials before it (:meth:`record_so_far`)
+        self._running: tuple[float, CompileTimer, ThreadGovernor, int, int] | None = None
         self._state: ParticleState = self.problem.state
         self.walls = walls_of(case.boundaries, case.dimension)
         self.solver: Solver | TotalLagrangianSolver
@@ -672,6 +679,7 @@ class Simulation:
         changes, trials = len(governor.changes), len(governor.trials)
         compiling = CompileTimer().__enter__()
         start = _time.perf_counter()
+        self._running = (start, compiling, governor, changes, trials)
         try:
             while s.time < t_end * (1 - 1e-12):
                 governor.tick()
@@ -727,8 +735,27 @@ class Simulation:
             self.record.compile_seconds += compiling.seconds
             self.record.thread_changes.extend(governor.changes[changes:])
             self.record.thread_trials.extend(governor.trials[trials:])
+            self._running = None
             governor.close()
         return self.record
+
+    def record_so_far(self) -> RunRecord:
+        """:attr:`record`'s times and threads with those of the ``run`` call going now (a
+        checkpoint written during a step: its run's wall time then counts the steps before
+        it, which its pair evaluations count too), a copy; :attr:`record` itself outside a
+        call."""
+        if self._running is None:
+            return self.record
+        import copy
+
+        start, compiling, governor, changes, trials = self._running
+        record = copy.copy(self.record)
+        record.wall_seconds += _time.perf_counter() - start
+        record.compile_seconds += compiling.seconds
+        record.thread_changes = [*record.thread_changes, *governor.changes[changes:]]
+        record.thread_trials = [*record.thread_trials, *governor.trials[trials:]]
+        record.restarts = list(record.restarts)
+        return record
 
     # -- summary -------------------------------------------------------------------------
     def summary(self) -> dict[str, float | int | str | None]:
@@ -770,6 +797,7 @@ class Simulation:
                                     if self._resident is not None else None),
             "thread_changes": [list(c) for c in self.record.thread_changes],
             "thread_trials": list(self.record.thread_trials),
+            "restarts": list(self.record.restarts),
             "wall_constraint_events": self.integrator.constraint_events,
             "kinetic_energy_initial": float(ke[0]),
             "kinetic_energy_final": float(ke[-1]),
