@@ -65,7 +65,7 @@ def alternated(dim: int, n: int, schemes: list[str], repeat: int
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("--n", type=float, default=1e5)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--dims", type=int, nargs="+", default=[1, 2, 3])

@@ -319,7 +319,7 @@ def write_json(args: argparse.Namespace, rows: list[dict], wall: float) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     ap.add_argument("--devices", nargs="+", default=["gpu", "gpu-host", "cpu"],
                     choices=["gpu", "gpu-host", "cpu"],

@@ -67,7 +67,7 @@ def measure(case_name: str, threads: int, steps: int, rounds: int) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("cases", nargs="*", default=["taylor", "cantilever"])
     ap.add_argument("--threads", nargs="+", type=int, default=[1])
     ap.add_argument("--steps", type=int, default=300, help="steps before the builds")

@@ -59,7 +59,7 @@ def load(seconds: float = 2.0) -> float:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("--case", default="taylor")
     ap.add_argument("--set", action="append", default=[], dest="sets")
     ap.add_argument("--rounds", type=int, default=2)

@@ -59,7 +59,7 @@ def ptxas_report(ptxas: str, ptx: str, max_registers: int = 0) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("--dims", nargs="+", type=int, default=[2, 3], choices=[1, 2, 3])
     ap.add_argument("--caps", nargs="*", type=int, default=[128, 96, 80, 64],
                     help="also the pair kernel under these register caps (ptxas "

@@ -292,3 +292,14 @@ def test_the_built_in_cases_are_the_case_files_the_package_ships():
     shipped = {p.name[:-5] for p in resources.files("impactsph").joinpath("cases").iterdir()
                if p.name.endswith(".toml")}
     assert sorted(BUILTIN_CASES) == sorted(shipped)
+
+
+def test_the_annotated_bars_of_the_docs_are_the_built_in_case():
+    """docs/case-files.md, "Example: the bars", says it is ``examples/bars.toml`` annotated:
+    it had lost the [stabilisation] and [contact] tables, so a copy of it ran another scheme
+    (an audit, 2026-12-08)."""
+    root = Path(__file__).parent.parent
+    text = (root / "docs" / "case-files.md").read_text()
+    start = text.index("The built-in `bars` case (`examples/bars.toml`), annotated:")
+    block = text[start:].split("```toml\n", 1)[1].split("```", 1)[0]
+    assert tomllib.loads(block) == tomllib.loads((root / "examples" / "bars.toml").read_text())

@@ -381,3 +381,24 @@ def test_the_history_stream_writes_write_historys_bytes(tmp_path):
     text = (streamed / "history.csv").read_bytes()
     assert text == (whole / "history.csv").read_bytes()
     assert b'"a, b"' in text and b"0.3333333333333333" in text
+
+
+def test_a_studys_json_records_its_provenance_and_command(tmp_path, monkeypatch):
+    """The validation scripts' JSON (resolution.json, taylor3d.json, ...) carried neither the
+    version nor the options that made them (an audit, 2026-12-08): ``write_study`` puts the
+    provenance and the command before the result, in strict JSON."""
+    import json
+    import sys
+
+    import impactsph
+    from impactsph.output import write_study
+
+    monkeypatch.setattr(sys, "argv", ["validation/resolution.py", "taylor", "--set",
+                                      "time.end=2e-5"])
+    rows = write_study(tmp_path / "a" / "rows.json", [{"x": 1.0, "y": float("nan")}])
+    data = json.loads(rows.read_text())
+    assert data["provenance"]["impactsph"] == impactsph.__version__
+    assert data["command"] == "validation/resolution.py taylor --set time.end=2e-5"
+    assert data["rows"] == [{"x": 1.0, "y": None}]
+    table = json.loads(write_study(tmp_path / "t.json", {"runs": {"x1": 2}}).read_text())
+    assert table["runs"] == {"x1": 2} and list(table)[:2] == ["provenance", "command"]

@@ -118,3 +118,15 @@ def test_particles_of_an_axisymmetric_half_section(tmp_path):
     assert info["axisymmetric"]
     # the ring of each particle's cell: 2 pi r dr dz, exact for the cell centred at r
     np.testing.assert_allclose(volumes, math.pi * 3.8e-3**2 * np.diff(EDGES), rtol=1e-12)
+
+
+def test_particles_above_the_top_edge_are_not_counted(tmp_path):
+    """The outline is clipped at the top edge: the particles must be too (``--edges 0 1 2``
+    put the rest of the bar into its top slab, an audit, 2026-12-08)."""
+    p = cylinder_particles([0.0, 0.0, 0.0], 3.8e-3, 4e-3, "z", 0.25e-3, "rings")
+    rho = np.full(p.n, 7850.0)
+    run = write_run(tmp_path / "whole", {"dimension": 3, "boundaries": []}, p.position,
+                    p.volume * rho, rho)
+    edges = np.array([0.0, 1.0, 2.0]) * 1e-3
+    np.testing.assert_allclose(slabs.run_slab_volumes(run, edges)[0],
+                               math.pi * 3.8e-3**2 * np.diff(edges), rtol=1e-12)

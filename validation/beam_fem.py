@@ -30,6 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _args import positive_int
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import beam  # noqa: E402  (validation/beam.py: the beam's data and the beam theories)
@@ -78,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--nu", type=float, default=beam.NU)
     ap.add_argument("--slenderness", type=float, default=beam.LENGTH / beam.DEPTH,
                     help="L / H")
-    ap.add_argument("--depths", type=int, nargs="+", default=[2, 4, 8, 16],
+    ap.add_argument("--depths", type=positive_int, nargs="+", default=[2, 4, 8, 16],
                     help="elements through the depth")
     args = ap.parse_args(argv)
     beam.set_beam(args.nu, args.slenderness)

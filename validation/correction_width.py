@@ -12,12 +12,11 @@ Writes runs/validation/correction-width/width.json and prints Markdown tables.
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from impactsph.loading import read_case_dict
 from impactsph.models.viscosity.correction import VARIANTS, surviving_fraction, weight_sum
-from impactsph.output import load_run
+from impactsph.output import load_run, write_study
 from impactsph.sweep import run_many
 
 WIDTHS = [0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2]  # h_c / dx
@@ -50,7 +49,7 @@ def table(rows: list[dict], cols: list[str]) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     parser.add_argument("--problems", nargs="+", default=["bars", "taylor"],
                         choices=sorted(KEYS))
     parser.add_argument("--variants", nargs="+", default=sorted(VARIANTS),
@@ -91,7 +90,7 @@ def main() -> None:
             print(table(runs, ["scheme", "variant", "h_c/dx", *KEYS[problem], "status"]))
             result["runs"] += runs
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "width.json").write_text(json.dumps(result, indent=2, default=float))
+    write_study(args.out / "width.json", result)
 
 
 if __name__ == "__main__":

@@ -38,6 +38,7 @@ import sys
 import time
 
 import numpy as np
+from _args import positive_float
 
 RADIUS = 5e-3  # m
 SPEED = 50.0  # m/s each, 100 m/s apart
@@ -121,7 +122,7 @@ def measure(radius_in_spacings: float, arrangement: str = "shells",
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("radii", nargs="+", type=float, help="sphere radius in spacings")
+    parser.add_argument("radii", nargs="+", type=positive_float, help="sphere radius in spacings")
     parser.add_argument("--arrangement", choices=("shells", "lattice"), default="shells",
                         help="the spheres' particles (geometry.arrangement; default shells)")
     parser.add_argument("--formulation", choices=("total_lagrangian", "updated_lagrangian"),
@@ -145,8 +146,9 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(row)
         print(json.dumps(row), flush=True)
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump({"hertz": theory, "rows": rows}, f, indent=1)
+        from impactsph.output import write_study
+
+        write_study(args.json, {"hertz": theory, "rows": rows})
     return 0
 
 

@@ -26,8 +26,10 @@ import argparse
 import json
 from pathlib import Path
 
+from _args import positive_int
+
 from impactsph.loading import read_case_dict
-from impactsph.output import load_run
+from impactsph.output import load_run, write_study
 from impactsph.sweep import run_many
 
 KEYS = {
@@ -72,9 +74,9 @@ def refined(base: dict, factor: int) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     parser.add_argument("--cases", nargs="+", default=sorted(KEYS), choices=sorted(KEYS))
-    parser.add_argument("--factors", nargs="+", type=int, default=[1, 2],
+    parser.add_argument("--factors", nargs="+", type=positive_int, default=[1, 2],
                         help="particle-count multipliers per direction (default: 1 2)")
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--out", type=Path, default=Path("runs/validation/record-precision"))
@@ -97,11 +99,11 @@ def main(argv: list[str] | None = None) -> None:
             result.append({"case": case, "scheme": scheme, "resolution": factor,
                            "precision": run, "status": row.get("status"),
                            "n_particles": summary.get("n_particles"),
-                           "steps": summary.get("steps"),
+                           "steps": summary.get("n_steps"),
                            "wall_seconds": summary.get("wall_seconds"),
                            **{k: summary.get(k) for k in KEYS[case]}})
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "record_precision.json").write_text(json.dumps(result, indent=1, default=float))
+    write_study(args.out / "record_precision.json", result)
     for case in args.cases:
         rows = [r for r in result if r["case"] == case]
         cols = ["scheme", "resolution", "precision", "n_particles", "steps", *KEYS[case]]

@@ -30,8 +30,11 @@ import argparse
 import json
 from pathlib import Path
 
+from _args import positive_int
+
+from impactsph.errors import CaseError
 from impactsph.loading import read_case_dict
-from impactsph.output import load_run
+from impactsph.output import load_run, write_study
 from impactsph.sweep import run_many
 
 KEYS = {
@@ -90,12 +93,12 @@ SCHEMES = {
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     parser.add_argument("case", choices=sorted(KEYS))
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--schemes", nargs="+", default=None,
                         help="schemes to run (default: AC and the AV reference)")
-    parser.add_argument("--factors", nargs="+", type=int, default=[1, 2],
+    parser.add_argument("--factors", nargs="+", type=positive_int, default=[1, 2],
                         help="particle-count multipliers per direction (default: 1 2)")
     parser.add_argument("--set", dest="sets", action="append", default=[],
                         help="an override for every run (key=value), after the scheme's")
@@ -118,7 +121,10 @@ def main() -> None:
             overrides.append([*ov, *args.sets,
                               f"bodies.0.geometry.count={json.dumps(refined)}",
                               "output.figures=false"])
-    rows = run_many(base, overrides, out, workers=args.workers)
+    try:
+        rows = run_many(base, overrides, out, workers=args.workers)
+    except CaseError as exc:  # a --set the case refuses: before any run
+        parser.error(str(exc))
     result = []
     for (scheme, factor), row in zip(labels, rows, strict=True):
         summary = load_run(out / "runs" / row["run"]).get("summary", {})
@@ -128,7 +134,7 @@ def main() -> None:
                        "wall_constraint_events": summary.get("wall_constraint_events"),
                        "status": row.get("status"),
                        **{k: summary.get(k) for k in KEYS[args.case]}})
-    (out / "resolution.json").write_text(json.dumps(result, indent=2, default=float))
+    write_study(out / "resolution.json", result)
     cols = ["scheme", "resolution", "n_particles", "wall_seconds", "wall_constraint_events",
             *KEYS[args.case]]
     print("| " + " | ".join(cols) + " |")

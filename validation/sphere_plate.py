@@ -9,12 +9,11 @@ a quarter block, the sphere's quarter read from a file).  Writes
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from impactsph.geometry import quarter_file_geometry, quarter_planes, sphere_particles
 from impactsph.loading import read_case_dict
-from impactsph.output import load_run
+from impactsph.output import load_run, write_study
 from impactsph.sweep import run_many
 
 HERE = Path(__file__).resolve().parent
@@ -38,7 +37,7 @@ def quarter(case: dict, folder: Path) -> dict:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     parser.add_argument("--spacings", nargs="+", type=float, default=[0.5e-3])
     parser.add_argument("--quarter", action="store_true")
     parser.add_argument("--out", type=Path, default=Path("runs/validation/sphere-plate"))
@@ -56,7 +55,7 @@ def main() -> None:
         summary = load_run(args.out / "runs" / row["run"]).get("summary", {})
         rows.append({"run": name, **{k: summary.get(k) for k in KEYS}})
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "sphere_plate.json").write_text(json.dumps(rows, indent=2, default=float))
+    write_study(args.out / "sphere_plate.json", rows)
     cols = ["run", *KEYS]
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))

@@ -16,17 +16,17 @@ runs the paper's, as the rows of docs/validation.md marked AC were.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
+from _args import positive_int  # noqa: E402
 from taylor_measured import quarter  # noqa: E402
 
 from impactsph.loading import read_case_dict  # noqa: E402
-from impactsph.output import load_run  # noqa: E402
+from impactsph.output import load_run, write_study  # noqa: E402
 from impactsph.sweep import run_many  # noqa: E402
 
 KEYS = ["final_length_ratio", "footprint_radius_ratio", "footprint_radius_ratio_fixed",
@@ -36,8 +36,8 @@ KEYS = ["final_length_ratio", "footprint_radius_ratio", "footprint_radius_ratio_
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--factors", nargs="+", type=int, default=[1, 2])
+    parser = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
+    parser.add_argument("--factors", nargs="+", type=positive_int, default=[1, 2])
     parser.add_argument("--quarter", action="store_true")
     parser.add_argument("--set", dest="sets", action="append", default=[],
                         help="an override for every run (key=value)")
@@ -69,7 +69,7 @@ def main() -> None:
                      * (summary.get("initial_radius") or 0.0),
                      **{k: summary.get(k) for k in KEYS}})
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "taylor3d.json").write_text(json.dumps(rows, indent=2, default=float))
+    write_study(args.out / "taylor3d.json", rows)
     cols = ["run", "n_particles", "final_length_ratio", "footprint_radius_ratio",
             "footprint_radius_ratio_fixed", "fixed_radius_mm", "plastic_work_over_ke0",
             "total_energy_relative_error", "momentum_drift",

@@ -13,10 +13,12 @@ the 3D example's spacing), x2 20 x 138, x4 40 x 276 (about 20 s and 2 min on 2 t
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
+from _args import positive_int
+
 from impactsph.loading import load_case
+from impactsph.output import write_study
 from impactsph.runner import run_case
 
 KEYS = ["n_particles", "n_steps", "final_length_ratio", "footprint_radius_ratio",
@@ -25,8 +27,8 @@ KEYS = ["n_particles", "n_steps", "final_length_ratio", "footprint_radius_ratio"
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--factors", nargs="+", type=int, default=[1, 2])
+    parser = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
+    parser.add_argument("--factors", nargs="+", type=positive_int, default=[1, 2])
     parser.add_argument("--set", dest="sets", action="append", default=[],
                         help="an override for every run (key=value)")
     parser.add_argument("--out", type=Path, default=Path("runs/validation/taylor_axisymmetric"))
@@ -38,8 +40,7 @@ def main() -> None:
         summary = run_case(case, args.out / f"x{k}", figures=False, if_exists="overwrite")
         rows[f"x{k}"] = {key: summary.get(key) for key in KEYS}
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "taylor_axisymmetric.json").write_text(json.dumps(
-        {"sets": args.sets, "runs": rows}, indent=1) + "\n")
+    write_study(args.out / "taylor_axisymmetric.json", {"sets": args.sets, "runs": rows})
     print("| run | " + " | ".join(KEYS) + " |")
     print("|---" * (len(KEYS) + 1) + "|")
     for name, row in rows.items():

@@ -51,7 +51,6 @@ Python library for explicit large-strain elastoplastic dynamics with a rigid wal
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -60,6 +59,7 @@ from pathlib import Path
 
 import numba as nb
 import numpy as np
+from _args import positive_int
 
 from impactsph.loading import load_case, validate_case
 from impactsph.materials import resolve_material
@@ -70,6 +70,7 @@ from impactsph.models.columns import (
 )
 from impactsph.models.eos.mie_gruneisen import mie_gruneisen_pressure
 from impactsph.models.strength.hardening import hardening_return, thermal_factor
+from impactsph.output import write_study
 from impactsph.problems.taylor import FOOT_LIFT
 
 Q_LINEAR, Q_QUADRATIC = 0.06, 1.5
@@ -436,7 +437,7 @@ def figure(results: list[dict], bar: Bar, path: Path, sph: list[Path] = ()) -> P
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("n_across", type=int, nargs="+",
+    parser.add_argument("n_across", type=positive_int, nargs="+",
                         help="elements across the half-width")
     parser.add_argument("--test", default=None, metavar="MATERIAL:VELOCITY",
                         help="a test of validation/taylor_measured.toml in axisymmetry, e.g. "
@@ -458,7 +459,7 @@ def main() -> None:
     for n in args.n_across:
         result = run(bar, n)
         results.append(result)
-        (args.out / f"{bar.name}-{n}.json").write_text(json.dumps(result))
+        write_study(args.out / f"{bar.name}-{n}.json", result)
         last = result["snapshots"][f"{bar.end * 1e6:g}us"]
         print(f"{bar.name}, {n} across ({result['elements']} elements, {result['steps']} "
               f"steps, {result['wall_seconds']:.1f} s): " + ", ".join(

@@ -94,7 +94,7 @@ def fem_lower_surface(path: Path) -> np.ndarray:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("runs", nargs="+", type=Path)
     ap.add_argument("--band", type=float, default=0.18e-3,
                     help="height of the fixed band above the wall (m; default 0.18 mm, the "

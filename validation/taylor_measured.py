@@ -18,16 +18,16 @@ Default tests: OFHC copper at 190 m/s (Johnson & Cook 1983, as read by Zerilli &
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import tomllib
 from pathlib import Path
 
 import numpy as np
+from _args import positive_int
 
 from impactsph.geometry import quarter_cylinder_case as quarter
 from impactsph.loading import read_case_dict
-from impactsph.output import load_run
+from impactsph.output import load_run, write_study
 from impactsph.sweep import run_many
 
 HERE = Path(__file__).resolve().parent
@@ -89,8 +89,8 @@ def case_of(test: dict, across: int, end: float) -> dict:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--across", nargs="+", type=int, default=[10, 20],
+    parser = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
+    parser.add_argument("--across", nargs="+", type=positive_int, default=[10, 20],
                         help="particles across the diameter (default: 10 20)")
     parser.add_argument("--all", action="store_true", help="every test with measured values")
     parser.add_argument("--materials", nargs="+", default=None,
@@ -177,7 +177,7 @@ def main() -> None:
             "wall_seconds": summary.get("wall_seconds"), "source": test["source"],
             **outline})
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "taylor_measured.json").write_text(json.dumps(result, indent=2, default=float))
+    write_study(args.out / "taylor_measured.json", result)
     cols = ["material", "velocity", "across", "n_particles", "final_length_mm",
             "measured_final_length_mm", "final_length_error", "foot_diameter_mm",
             "measured_foot_diameter_mm", "foot_diameter_error", "max_equivalent_plastic_strain",

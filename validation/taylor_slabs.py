@@ -82,10 +82,14 @@ def outline_slab_volumes(outline: np.ndarray, edges: np.ndarray,
 def particle_slab_volumes(x: np.ndarray, volume: np.ndarray, axis: int,
                           edges: np.ndarray) -> np.ndarray:
     """The particles' ``volume`` summed in the slabs between ``edges`` by the height of their
-    centres along ``axis`` (the outermost slabs take everything below and above)."""
-    inner = np.asarray(edges)[1:-1]
-    which = np.searchsorted(inner, x[:, axis], side="right")
-    return np.bincount(which, weights=volume, minlength=len(edges) - 1)
+    centres along ``axis``: the lowest slab takes everything below it too (a centre pressed
+    just under the wall), and nothing above the top edge is counted, as the finite-element
+    outline is clipped there (until 2026-12-08 the top slab took the rest of the bar:
+    ``--edges 0 1 2`` gave its 1-2 mm slab 875% more than the outline's)."""
+    upper = np.asarray(edges)[1:]
+    which = np.searchsorted(upper, x[:, axis], side="right")
+    kept = which < len(upper)
+    return np.bincount(which[kept], weights=volume[kept], minlength=len(edges) - 1)
 
 
 def run_slab_volumes(run: Path, edges: np.ndarray) -> tuple[np.ndarray, dict]:
@@ -112,7 +116,7 @@ def run_slab_volumes(run: Path, edges: np.ndarray) -> tuple[np.ndarray, dict]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     parser.add_argument("runs", nargs="+", type=Path)
     parser.add_argument("--fem", type=Path, action="append", default=[],
                         help="a validation/taylor_fem.py result (.json); may repeat")

@@ -281,6 +281,22 @@ def finite_or_null(value: Any) -> Any:
     return value
 
 
+def write_study(path: Path | str, result: Any) -> Path:
+    """A study's JSON (a validation or benchmark script's): ``result`` (a dict, or a list of
+    rows, kept under ``rows``) after the :func:`provenance` and the command that made it
+    (``sys.argv``, its options included), as every run's outputs record theirs; strict JSON
+    (:func:`json_text`), written atomically."""
+    import shlex
+    import sys
+
+    body = result if isinstance(result, dict) else {"rows": result}
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_text(path, json_text({"provenance": provenance(), "command": shlex.join(sys.argv),
+                                **body}) + "\n")
+    return path
+
+
 def write_summary(out: Path | str, summary: dict[str, Any]) -> None:
     """``summary.json``: ``summary`` and the provenance (strict JSON: :func:`json_text`).
     The only writer of that file, for runs and for the runs of a sweep (which add the
