@@ -8,6 +8,7 @@ section of the bar, and the mean vertical speed of the foot's rim (the particles
 
     .venv/bin/python validation/taylor_foot.py RUN_DIR [RUN_DIR ...] [--band 0.18e-3]
     .venv/bin/python validation/taylor_foot.py RUN_DIR ... --fem FEM_DIR/taylor-64.json
+    .venv/bin/python validation/taylor_foot.py RUN_DIR ... --figure foot.png
 
 With ``--fem`` (a result of ``validation/taylor_fem.py --out FEM_DIR``, whose final outline
 it reads) it also prints the height of the foot's lower surface above the wall at the end
@@ -93,6 +94,37 @@ def fem_lower_surface(path: Path) -> np.ndarray:
     return np.interp(RADII, bottom[:, 0], bottom[:, 1], right=np.nan)
 
 
+def foot_figure(runs: list[Path], path: Path, height: float = 4e-3) -> Path:
+    """The foot of each run at its last snapshot, a panel each: the bar's particles within
+    ``height`` of the wall, coloured by their initial height above it (the colour scale
+    spans the foot's particles; the chains and holes
+    of the tensile instability show as columns of one colour; docs/validation.md, "The
+    plane-strain foot's holes are the tensile instability")."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(runs), 1, figsize=(8.0, 2.2 * len(runs) + 0.6),
+                             squeeze=False, constrained_layout=True)
+    for ax, run in zip(axes[:, 0], runs, strict=True):
+        z = np.load(run / "snapshots.npz")
+        n = len(z["times"]) - 1
+        bar = z[f"s{n}_body"] == 0
+        x, x0 = z[f"s{n}_position"][bar], z[f"s{n}_initial_position"][bar]
+        foot = x[:, 1] < height
+        dots = ax.scatter(x[foot, 0] * 1e3, x[foot, 1] * 1e3, c=x0[foot, 1] * 1e3, s=4,
+                          cmap="viridis", vmin=0.0, vmax=float(x0[foot, 1].max()) * 1e3)
+        ax.set_aspect("equal")
+        ax.set_title(f"{run.name}: t = {float(z['times'][n]) * 1e6:.0f} us", fontsize=9)
+        ax.set_ylabel("height (mm)")
+        fig.colorbar(dots, ax=ax, label="initial height (mm)", shrink=0.9)
+    axes[-1, 0].set_xlabel("x (mm)")
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+    return path
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("runs", nargs="+", type=Path)
@@ -104,7 +136,12 @@ def main() -> None:
     ap.add_argument("--fem", type=Path, default=None,
                     help="a finite-element result (validation/taylor_fem.py's JSON) to "
                          "compare the foot's lower surface with")
+    ap.add_argument("--figure", type=Path, default=None,
+                    help="draw each run's foot at its last snapshot, coloured by the "
+                         "particles' initial height, into this PNG")
     args = ap.parse_args()
+    if args.figure is not None:
+        print(f"figure: {foot_figure(args.runs, args.figure)}")
     print("| run | particles | t (us) | footprint | fixed (0.05 B/2) | centres in the band | "
           "widest | rim speed (m/s) |")
     print("|---|---|---|---|---|---|---|---|")
