@@ -193,3 +193,77 @@ def test_local_cluster_leaves_port_8787_alone():
         [str(w.message) for w in caught]
     assert ports and all(host == "127.0.0.1" and port != 8787 for host, port in ports), ports
     assert health == 200
+
+
+def test_parse_grid_takes_vectors():
+    """A grid of vectors: the commas inside brackets are the vectors' own (the grid was cut
+    at every comma, an audit, 2026-12-08)."""
+    cols, runs = parse_grid(["bodies.0.velocity=[0, -200],[0,-150]", "name=\"a,b\",c"])
+    assert cols == ["bodies.0.velocity", "name"]
+    assert [dict(r)["bodies.0.velocity"] for r in runs] == [[0, -200], [0, -200], [0, -150],
+                                                             [0, -150]]
+    assert [dict(r)["name"] for r in runs][:2] == ["a,b", "c"]
+
+
+def test_a_sweep_run_left_unfinished_continues_from_its_checkpoint(tmp_path):
+    """A sweep stopped part-way (Ctrl-C, a worker killed) left its runs' checkpoints: a
+    resumed sweep continues each from its own, and runs again one whose checkpoint is
+    another case's; it ran them all again from t = 0 (an audit, 2026-12-08)."""
+    import numba
+
+    from impactsph.loading import read_case_dict
+    from impactsph.sweep import run_one
+
+    threads = numba.get_num_threads()
+    base, out = read_case_dict("bars"), tmp_path / "r"
+    first = ["time.end=1e-6", "output.checkpoint_interval=1e-6"]
+    try:
+        run_one(base, first, str(out))
+        path = out / "summary.json"
+        summary = json.loads(path.read_text())
+        t, step = summary["t_end"], summary["n_steps"]
+        del summary["case"]  # as a run stopped part-way leaves it
+        path.write_text(json.dumps({**summary, "status": "running"}))
+        row = run_one(base, ["time.end=2e-6", "output.checkpoint_interval=1e-6"], str(out))
+        assert row["reused"] is False and row["status"] == "ok"
+        summary = json.loads(path.read_text())
+        [restart] = summary["restarts"]
+        assert (restart["time"], restart["step"]) == (t, step)
+        assert summary["status"] == "finished" and summary["t_end"] == pytest.approx(2e-6)
+        # a checkpoint of another case: run again from t = 0, its outputs replaced
+        path.write_text(json.dumps({**summary, "status": "interrupted"}))
+        row = run_one(base, ["time.end=2e-6", "output.checkpoint_interval=1e-6",
+                             "viscosity.alpha1=0.5"], str(out))
+        summary = json.loads(path.read_text())
+        assert row["status"] == "ok" and summary["restarts"] == []
+        assert summary["case"]["viscosity"]["alpha1"] == 0.5
+    finally:
+        numba.set_num_threads(threads)
+
+
+def test_a_sweep_runs_along_its_varying_parameter_and_records_what_made_it(tmp_path):
+    """The README's second sweep (alpha1 = 0, alpha2 varied) named alpha1 in its finding and
+    drew against it; sweep.json had neither the version nor the grid (an audit,
+    2026-12-08)."""
+    import impactsph
+
+    out = tmp_path / "sw"
+    res = runner.invoke(app, ["sweep", "bars", "--grid", "viscosity.alpha1=0", "--grid",
+                              "viscosity.alpha2=0.5,1", "--set", "time.end=2e-6",
+                              "--out", str(out), "--workers", "1"])
+    assert res.exit_code == 0, res.output
+    result = json.loads((out / "sweep.json").read_text())
+    assert result["finding"]["parameter"] == "viscosity.alpha2"
+    assert result["provenance"]["impactsph"] == impactsph.__version__
+    assert result["grids"] == ["viscosity.alpha1=0", "viscosity.alpha2=0.5,1"]
+    assert result["overrides"] == ["time.end=2e-6"]
+    assert result["base_case"]["time"]["end"] == 2e-6
+    for args, line in ((["--workers", "0"], "error: --workers 0: an integer >= 1"),
+                       (["--out", str(tmp_path / "a_file")], "is a file, not a directory")):
+        (tmp_path / "a_file").write_text("")
+        res = runner.invoke(app, ["sweep", "bars", "--grid", "viscosity.alpha1=0.3",
+                                  "--out", str(out / "x"), *args])
+        assert res.exit_code == 2 and line in res.output, res.output
+    res = runner.invoke(app, ["sweep", "bars", "--grid", "bodies.5.velocity=[1.0]",
+                              "--out", str(out / "y")])
+    assert res.exit_code == 2 and "error: --grid bodies.5.velocity=[1.0]: " in res.output

@@ -97,8 +97,10 @@ def parse_override(text: str) -> tuple[list[str], Any]:
     return key.split("."), value
 
 
-def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
-    """Apply ``--set`` overrides to a case dict (a copy is returned)."""
+def apply_overrides(data: dict[str, Any], overrides: list[str], flag: str = "--set"
+                    ) -> dict[str, Any]:
+    """Apply ``--set`` overrides to a case dict (a copy is returned); ``flag`` is the
+    option the messages name (a sweep's grid values: ``--grid``)."""
     data = copy.deepcopy(data)
     for text in overrides:
         path, value = parse_override(text)
@@ -107,22 +109,22 @@ def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any
             where = ".".join(path[: depth + 1])
             if isinstance(node, list):
                 if not part.isdecimal() or int(part) >= len(node):
-                    raise CaseError(f"--set {text}: {where} is not an index of a list of "
+                    raise CaseError(f"{flag} {text}: {where} is not an index of a list of "
                                     f"{len(node)}")
                 node = node[int(part)]
             elif isinstance(node, dict):
                 node = node.setdefault(part, {})
             else:
-                raise CaseError(f"--set {text}: {where} is not a table")
+                raise CaseError(f"{flag} {text}: {where} is not a table")
         last = path[-1]
         if isinstance(node, list):
             if not last.isdecimal() or int(last) >= len(node):
-                raise CaseError(f"--set {text}: index {last} is out of range")
+                raise CaseError(f"{flag} {text}: index {last} is out of range")
             node[int(last)] = value
         elif isinstance(node, dict):
             node[last] = value
         else:
-            raise CaseError(f"--set {text}: {'.'.join(path[:-1])} is not a table")
+            raise CaseError(f"{flag} {text}: {'.'.join(path[:-1])} is not a table")
     return data
 
 

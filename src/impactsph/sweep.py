@@ -44,7 +44,13 @@ import numpy as np
 
 from .config import Case, CaseError
 from .loading import apply_overrides, read_case_dict, validate_case
-from .output import _csv_text, atomic_write_text, finite_or_null, json_text, write_summary
+from .output import (
+    _csv_text,
+    atomic_write_text,
+    finite_or_null,
+    write_study,
+    write_summary,
+)
 from .problems.base import SweepCriterion
 from .problems.registry import get_problem
 
@@ -71,7 +77,7 @@ def parse_grid(specs: list[str]) -> tuple[list[str], list[list[tuple[str, Any]]]
         keys_text, values_text = spec.split("=", 1)
         keys = [k.strip() for k in keys_text.split(",") if k.strip()]
         values = []
-        for raw in values_text.split(","):
+        for raw in _top_level_items(values_text):
             raw = raw.strip()
             try:
                 values.append(json.loads(raw))
@@ -83,6 +89,25 @@ def parse_grid(specs: list[str]) -> tuple[list[str], list[list[tuple[str, Any]]]
         axes.append([[(k, v) for k in keys] for v in values])
     runs = [[kv for group in combo for kv in group] for combo in itertools.product(*axes)]
     return columns, runs
+
+
+def _top_level_items(text: str) -> list[str]:
+    """``text`` split at the commas outside brackets and quotes: a grid of vectors,
+    ``[0, -200],[0, -150]``, is two values (a plain split had cut them at every comma)."""
+    items, depth, quote, start = [], 0, "", 0
+    for k, char in enumerate(text):
+        if quote:
+            quote = "" if char == quote else quote
+        elif char in "\"'":
+            quote = char
+        elif char in "[{":
+            depth += 1
+        elif char in "]}":
+            depth -= 1
+        elif char == "," and depth == 0:
+            items.append(text[start:k])
+            start = k + 1
+    return [*items, text[start:]]
 
 
 def run_id(overrides: list[str]) -> str:
@@ -181,17 +206,29 @@ def run_one(case_data: dict[str, Any], overrides: list[str], out: str,
     case = validate_case(apply_overrides(case_data, overrides))
     keys = table_keys(case)
     summary_path = Path(out) / "summary.json"
+    restart, if_exists = None, "keep"
     if summary_path.exists():
         done = json.loads(summary_path.read_text())
+        status = done.get("status", "finished")
         # a run's summary is written from its start on: reuse only a run that ended (a
         # summary without a status is an older version's, written at the end)
         if (done.get("case") == case.model_dump(mode="json")
-                and done.get("status", "finished") in ("finished", "unstable")):
+                and status in ("finished", "unstable")):
             return {"status": "ok" if not done.get("failure") else "unstable",
                     **{k: done.get(k) for k in keys},
                     **{k: summary_value(done, k) for k in metrics}, "reused": True}
+        restart = _checkpoint_to_continue(Path(out), case, status)
+        if (restart is None and done.get("case") is not None
+                and done["case"] != case.model_dump(mode="json")):
+            from .checkpoint import _comparable, _differences
+
+            differ = _differences(_comparable(case.model_dump(mode="json")),
+                                  _comparable(done["case"])) or ["its outputs"]
+            log.warning("%s: held a run of another case (it differs in %s): run again, its "
+                        "outputs replaced", out, ", ".join(differ[:4]))
+            if_exists = "overwrite"
     try:
-        summary = run_case(case, out, figures=False)
+        summary = run_case(case, out, figures=False, restart=restart, if_exists=if_exists)
         status = "ok"
     except SimulationError as exc:  # (a run out of GPU memory is run again by a resumed sweep)
         summary = json.loads(summary_path.read_text())
@@ -203,6 +240,25 @@ def run_one(case_data: dict[str, Any], overrides: list[str], out: str,
     return finite_or_null({"status": status, **{k: summary.get(k) for k in keys},
                            **{k: summary_value(summary, k) for k in metrics},
                            "reused": False})
+
+
+def _checkpoint_to_continue(out: Path, case: Any, status: str) -> Path | None:
+    """The checkpoint a resumed sweep continues a run from: its own, where the run did not
+    end (a sweep stopped by Ctrl-C, a worker killed) and the checkpoint is this case's; None
+    (run again from t = 0) otherwise, with a warning where a checkpoint could not be used.
+    An interrupted run was run again from t = 0 until 2026-12-08, its steps lost."""
+    from .checkpoint import verify_checkpoint
+
+    checkpoint = out / "checkpoint.h5"
+    if status not in ("running", "interrupted") or not checkpoint.is_file():
+        return None
+    try:
+        verify_checkpoint(checkpoint, case)
+    except CaseError as exc:
+        log.warning("%s: not continued from its checkpoint (%s): run again from t = 0", out,
+                    exc)
+        return None
+    return checkpoint
 
 
 def run_dir_name(out: Path, name: str, overrides: list[str]) -> str:
@@ -254,22 +310,32 @@ def run_many(base: dict[str, Any] | list[dict[str, Any]], run_overrides: list[li
              out: Path, *,
              scheduler: str | None = None, workers: int | None = None,
              on_result: Any = None, names: list[str] | None = None,
-             metrics: tuple[str, ...] | list[str] = ()) -> list[dict[str, Any]]:
+             metrics: tuple[str, ...] | list[str] = (), flag: str = "--set"
+             ) -> list[dict[str, Any]]:
     """Run the case ``base`` once per override list on a Dask cluster (or, ``base`` a list,
     each run its own case: runs of several cases share the cluster and run side by side);
     each run writes into
     ``out/runs/NAME`` (``names``, else :func:`run_id`; see :func:`run_dir_name`).  Returns
     one row per run, in the order given (``run``: the directory's name; ``metrics``: summary
-    values added, :func:`run_one`); ``on_result(i, row)`` is called as runs finish."""
+    values added, :func:`run_one`); ``on_result(i, row)`` is called as runs finish.  A run
+    that an earlier call left unfinished continues from its checkpoint; one of another case
+    is run again, its outputs replaced (with a warning).  ``flag``: the option the
+    overrides' errors name (a sweep's: ``--grid``)."""
     from distributed import Client, as_completed
 
     for name in ("distributed", "distributed.nanny", "distributed.scheduler",
                  "distributed.worker", "distributed.core", "distributed.http.proxy"):
         logging.getLogger(name).setLevel(logging.WARNING)
+    out = Path(out)
     bases = base if isinstance(base, list) else [base] * len(run_overrides)
     if len(bases) != len(run_overrides):
         raise ValueError(f"run_many: {len(bases)} cases for {len(run_overrides)} runs")
-    cases = [validate_case(apply_overrides(b, ov))  # validate every run before any starts
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                or workers < 1):
+        raise CaseError(f"--workers {workers}: an integer >= 1 (default: one per core)")
+    if out.exists() and not out.is_dir():
+        raise CaseError(f"--out {out} is a file, not a directory")
+    cases = [validate_case(apply_overrides(b, ov, flag))  # every run, before any starts
              for b, ov in zip(bases, run_overrides, strict=True)]
     Path(out).mkdir(parents=True, exist_ok=True)  # (not before: a refused case writes nothing)
     if not scheduler:  # fill numba's disk cache once, before the workers start together
@@ -333,9 +399,13 @@ def sweep(case_source: str, grids: list[str], out: Path | str, *, scheduler: str
 
     metrics = list(dict.fromkeys(metrics or []))
     run_many(base, run_overrides, out, scheduler=scheduler, workers=workers, on_result=record,
-             names=run_names(runs, run_overrides), metrics=metrics)
+             names=run_names(runs, run_overrides), metrics=metrics, flag="--grid")
     table = [done[i] for i in sorted(done)]
-    first = columns[0]
+    # the parameter the finding and the figures run along: the first that takes more than
+    # one value (a grid of alpha1=0 and alpha2=0.5,1,... is a sweep of alpha2)
+    varying = [c for c in columns if len({json.dumps(r.get(c)) for r in table}) > 1]
+    columns_drawn = [*varying, *[c for c in columns if c not in varying]]
+    first = columns_drawn[0]
     finding = None
     if criterion is not None:
         passed = [r for r in table if criterion.passes(r, threshold)]
@@ -344,7 +414,7 @@ def sweep(case_source: str, grids: list[str], out: Path | str, *, scheduler: str
             "parameter": first,
             f"smallest_{criterion.name}": min((r[first] for r in passed), default=None),
         }
-    figures = [sweep_figure(table, columns, out / "sweep.png", criterion, threshold)]
+    figures = [sweep_figure(table, columns_drawn, out / "sweep.png", criterion, threshold)]
     notes = []
     for key in metrics:
         if not any(_is_number(r.get(key)) for r in table):
@@ -352,11 +422,14 @@ def sweep(case_source: str, grids: list[str], out: Path | str, *, scheduler: str
                          + _metric_hint(out, table, key))
             log.warning("%s", notes[-1])
             continue
-        figures.append(sweep_figure(table, columns, out / f"sweep_{_sanitise(key)}.png",
-                                    panels=[(key, key)]))
+        figures.append(sweep_figure(table, columns_drawn,
+                                    out / f"sweep_{_sanitise(key)}.png", panels=[(key, key)]))
     result = {"columns": columns, "rows": table, "finding": finding, "metrics": metrics,
               "figures": [str(f) for f in figures], "notes": notes}
-    atomic_write_text(out / "sweep.json", json_text(result))
+    # with what made it: the versions, the command, the grids and the base case as resolved
+    write_study(out / "sweep.json", {"grids": grids, "overrides": overrides or [],
+                                     "base_case": validate_case(base).model_dump(mode="json"),
+                                     **result})
     return result
 
 
@@ -390,6 +463,7 @@ def sweep_figure(table: list[dict[str, Any]], columns: list[str], path: Path,
 
     first = columns[0]
     others = [c for c in columns[1:] if not all(r.get(c) == r.get(first) for r in table)]
+    tied = [c for c in columns[1:] if c not in others]  # (a,b=0.3,1: the same values)
     if panels is None:
         panels = [("kinetic_energy_ratio_final", "kinetic energy kept at the end")]
         if criterion is not None:
@@ -412,7 +486,7 @@ def sweep_figure(table: list[dict[str, Any]], columns: list[str], path: Path,
             ax.plot(x, y, "o-", label=label)
     for ax, (_, ylabel) in zip(axes, panels, strict=True):
         ax.set_ylabel(ylabel)
-        ax.set_xlabel(first)
+        ax.set_xlabel(" = ".join([first, *tied]))
         ax.grid(alpha=0.3)
     if criterion is not None:
         axes[-1].axhline(criterion.threshold if threshold is None else threshold, color="k",
