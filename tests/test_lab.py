@@ -45,7 +45,9 @@ def test_lab_runs_and_tabulates(tmp_path):
             "--out", str(out)]
     res = runner.invoke(app, args)
     assert res.exit_code == 0, res.output
-    every = json.loads((out / "lab.json").read_text())
+    record = json.loads((out / "lab.json").read_text())
+    assert record["provenance"]["impactsph"] and "command" in record
+    every = record["rows"]
     assert [(r["problem"], r["scheme"]) for r in every] == [
         ("bars", "AV (1, 1)"), ("bars", "AV (0.3, 0.3)"), ("plates", "AV (1, 1)"),
         ("plates", "AV (0.3, 0.3)")]
@@ -62,9 +64,17 @@ def test_lab_runs_and_tabulates(tmp_path):
     assert "| AV (0.3, 0.3) |" in (out / "lab.md").read_text()
     again = runner.invoke(app, [*args, "--report-only"])
     assert again.exit_code == 0, again.output
-    rows_again = json.loads((out / "lab.json").read_text())
+    rows_again = json.loads((out / "lab.json").read_text())["rows"]
     assert [r.get("kinetic_energy_ratio_final") for r in rows_again] == \
         [r.get("kinetic_energy_ratio_final") for r in every]
+    assert [r["status"] for r in rows_again] == [r["status"] for r in every]  # ("ok")
+    # a scheme not run has no row (it had a row of blanks); nothing run at all is refused
+    again = runner.invoke(app, [*args, "--scheme", "Balsara (1, 1)", "--report-only"])
+    assert again.exit_code == 0, again.output
+    assert len(json.loads((out / "lab.json").read_text())["rows"]) == 4
+    empty = runner.invoke(app, ["lab", "--report-only", "--out", str(tmp_path / "none"),
+                                "--problem", "bars"])
+    assert empty.exit_code == 2 and "holds no run of these problems" in empty.output
     bad = runner.invoke(app, ["lab", "--problem", "slabs", "--out", str(tmp_path / "x")])
     assert bad.exit_code == 2
     assert "problem 'slabs': one of bars, plates, taylor" in bad.output
@@ -120,8 +130,11 @@ def test_taylor_rows_carry_the_length_error_against_the_finite_element_reference
     from impactsph.lab import REFERENCE_LENGTH_RATIO, markdown, row_of
 
     row = row_of("taylor-axi", "S", {"final_length_ratio": 0.8137, "n_steps": 4,
-                                     "wall_seconds": 1.0}, "ok")
+                                     "wall_seconds": 1.0, "t_end": 50e-6}, "ok")
     assert row["final_length_error"] == pytest.approx(0.8137 / 0.8123 - 1.0, rel=1e-12)
+    # a run shortened with --set time.end: its length is not the reference's at 50 us
+    assert row_of("taylor-axi", "S", {"final_length_ratio": 0.9, "t_end": 10e-6},
+                  "ok")["final_length_error"] is None
     assert REFERENCE_LENGTH_RATIO["taylor3d"] == REFERENCE_LENGTH_RATIO["taylor-axi"]
     assert row_of("taylor", "S", {}, "failed")["final_length_error"] is None
     assert "final_length_error" not in row_of("bars", "S", {}, "ok")

@@ -176,6 +176,17 @@ def test_plot_says_when_a_run_it_draws_did_not_finish(runs, tmp_path):
     summary["status"] = "interrupted"
     (run / "reference" / "summary.json").write_text(json.dumps(summary))
     res = invoke(["plot", run])
-    assert (f"note: its reference run ({run / 'reference'}) is interrupted at t = "
-            f"{summary['t_end']:.6g} s: its curves end there") in res.output
+    ends = float((run / "reference" / "history.csv").read_text().splitlines()[-1]
+                 .split(",")[0])
+    assert (f"note: its reference run ({run / 'reference'}) is interrupted: its history ends "
+            f"at t = {ends:.6g} s, and its curves there") in res.output
     assert "note: the run (" not in res.output  # the run itself finished
+    # a run whose process was killed says "running" and t = 0 until its first checkpoint:
+    # its history says how far it went
+    summary.update(status="running", t_end=0.0)
+    (run / "reference" / "summary.json").write_text(json.dumps(summary))
+    res = invoke(["plot", run])
+    assert f"is not finished: its history ends at t = {ends:.6g} s" in res.output
+    res = runner.invoke(app, ["animate", str(run), "--fps", "0"])
+    assert res.exit_code == 2 and "error: --fps 0: a number of frames per second > 0" in \
+        res.output

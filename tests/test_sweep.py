@@ -93,7 +93,10 @@ def test_paper_command_draws_figs_3_to_9_and_the_table(tmp_path):
                  "fig6_kinetic_energy", "fig7_profile_ac", "fig8_mid_velocity_ac",
                  "fig9_kinetic_energy_ac"):
         assert (out / f"{name}.png").stat().st_size > 10_000, name
-    table = {r["run"]: r for r in json.loads((out / "paper.json").read_text())["table"]}
+    paper_json = json.loads((out / "paper.json").read_text())
+    assert paper_json["provenance"]["impactsph"]  # (the versions and the command)
+    table = {r["run"]: r for r in paper_json["table"]}
+    assert all((out / r["directory"] / "summary.json").is_file() for r in table.values())
     assert table["AV3 (2.5, 2.5)"]["kinetic_energy_ratio_final"] < table["AV1 (1, 1)"][
         "kinetic_energy_ratio_final"] < table["AV (0.3, 0.3)"]["kinetic_energy_ratio_final"]
     assert "AC neighbours_only / work" in (out / "table.md").read_text()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import inspect
 import json
 import logging
+import math
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -428,11 +429,13 @@ def plot(
     out.mkdir(parents=True, exist_ok=True)
     notes: list[str] = []
     for run, which in zip(runs, ("the run", "its reference run"), strict=False):
-        summary = run.get("summary", {})
-        status = summary.get("status", "finished")
+        status = run.get("summary", {}).get("status", "finished")
         if status != "finished":  # drawn as far as it went, and said so
-            notes.append(f"{which} ({run['path']}) is {status} at t = "
-                         f"{summary.get('t_end', float('nan')):.6g} s: its curves end there")
+            times = run["history"].get("time")  # (a summary "running" says t = 0 until
+            reached = float(times[-1]) if times is not None and len(times) else 0.0  # the
+            state = {"running": "not finished"}.get(status, status)  # first checkpoint)
+            notes.append(f"{which} ({run['path']}) is {state}: its history ends at t = "
+                         f"{reached:.6g} s, and its curves there")
     for fig in draw_figures(runs, out, notes=notes):
         typer.echo(f"figure: {fig}")
     for note in notes:
@@ -461,6 +464,8 @@ def animate(
     from .animate import animate_run
 
     _load_run_dir(run_dir)
+    if not (math.isfinite(fps) and fps > 0.0):  # (0 ended in the GIF writer's division)
+        _fail(f"--fps {fps:g}: a number of frames per second > 0")
     try:
         path = animate_run(run_dir, field, out, fps=fps, section=section)
     except CaseError as exc:

@@ -17,9 +17,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from .errors import CaseError
 from .geometry import quarter_cylinder_case
 from .loading import apply_overrides, read_case_dict
-from .output import json_text, load_run
+from .output import atomic_write_text, load_run, write_study
 
 Overrides = Callable[[dict[str, Any]], list[str]]
 
@@ -156,18 +157,26 @@ def run_name(problem: str, scheme: str) -> str:
 
 def row_of(problem: str, scheme: str, summary: dict[str, Any], status: str | None
            ) -> dict[str, Any]:
-    """One row of the table from a run's summary."""
+    """One row of the table from a run's summary (``status``: the sweep's, else the
+    summary's in the sweep's words: ``ok`` for a finished run).  ``final_length_error`` is
+    measured only for a run that reached the reference's time, the built-in case's end (a
+    run shortened with ``--set time.end`` had been compared with the length at 50 us)."""
     steps = summary.get("n_steps") or 0
-    row = {"problem": problem, "scheme": scheme, "status": status or summary.get("status"),
+    if status is None and summary:
+        status = ("ok" if summary.get("status") == "finished" and not summary.get("failure")
+                  else summary.get("status"))
+    row = {"problem": problem, "scheme": scheme, "status": status,
            "ms_per_step": (1e3 * summary["wall_seconds"] / steps
                            if steps and summary.get("wall_seconds") else None)}
     for key in [*PROBLEMS[problem][2], *COMMON]:
         if key != "ms_per_step":
             row[key] = summary.get(key)
     if "final_length_error" in row:
-        ratio = summary.get("final_length_ratio")
+        ratio, t_end = summary.get("final_length_ratio"), summary.get("t_end")
+        reference_end = float(read_case_dict(PROBLEMS[problem][0])["time"]["end"])
+        reached = t_end is not None and abs(t_end - reference_end) <= 1e-9 * reference_end
         row["final_length_error"] = (ratio / REFERENCE_LENGTH_RATIO[problem] - 1.0
-                                     if ratio is not None else None)
+                                     if ratio is not None and reached else None)
     return row
 
 
@@ -191,6 +200,8 @@ def run_lab(out: Path | str, problems: list[str] | None = None,
     from .sweep import run_many
 
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise CaseError(f"--out {out} is a file, not a directory")
     runs = plan(problems or DEFAULT_PROBLEMS, schemes or list(SCHEMES), extra)
     statuses: dict[str, str | None] = {}
     if not report_only:  # every run on one cluster, so that several problems run side by side
@@ -204,11 +215,16 @@ def run_lab(out: Path | str, problems: list[str] | None = None,
     for problem, scheme, _, _ in runs:
         name = run_name(problem, scheme)
         path = out / "runs" / name
+        if report_only and not (path / "case.json").exists():
+            continue  # (not run: no row, rather than a row of blanks)
         summary = load_run(path).get("summary", {}) if (path / "case.json").exists() else {}
         rows.append(row_of(problem, scheme, summary, statuses.get(name)))
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "lab.json").write_text(json_text(rows))
-    (out / "lab.md").write_text(markdown(rows))
+    if report_only and not rows:
+        raise CaseError(f"--report-only: {out} holds no run of these problems and schemes "
+                        f"(runs/PROBLEM--SCHEME); run the lab first")
+    # with what made it: the versions and the command (its --set, --problem, --scheme)
+    write_study(out / "lab.json", {"rows": rows})
+    atomic_write_text(out / "lab.md", markdown(rows))
     return rows
 
 

@@ -23,7 +23,7 @@ from typing import Any
 
 from .config import Case
 from .loading import read_case_dict, validate_case
-from .output import _csv_text, atomic_write_text, json_text, load_run
+from .output import _csv_text, atomic_write_text, load_run, write_study
 from .problems.registry import get_problem, problem_names
 from .sweep import run_many
 
@@ -74,6 +74,8 @@ def paper_figures(case_source: str, out: Path | str, *, workers: int | None = No
     if not problem.has_paper:
         raise ValueError(f"analysis = {analysis!r} has no paper figures; the problems that "
                          f"have: {', '.join(paper_problems())}")
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} is a file, not a directory")
     out.mkdir(parents=True, exist_ok=True)
     return problem.paper(base, out, workers=workers, scheduler=scheduler)
 
@@ -139,7 +141,8 @@ def measures_table(rows: dict[str, dict[str, Any]], loaded: dict[str, dict[str, 
     for lab, row in rows.items():
         summary = loaded[lab]["summary"] if lab in loaded else {}
         table.append({"run": lab, "status": status_of(row),
-                      **{k: summary.get(k) for k in keys}})
+                      **{k: summary.get(k) for k in keys},
+                      "directory": f"runs/{row['run']}"})  # (the run's outputs, under OUT)
     return table
 
 
@@ -151,7 +154,7 @@ def write_results(out: Path, paths: list[Path], table: list[dict[str, Any]],
     atomic_write_text(out / "table.csv", _csv_text(table))
     atomic_write_text(out / "table.md", markdown_table(table, keys, head))
     result = {"figures": [str(p) for p in paths], "table": table}
-    atomic_write_text(out / "paper.json", json_text(result))
+    write_study(out / "paper.json", result)  # (with the versions and the command)
     return result
 
 

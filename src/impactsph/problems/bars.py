@@ -401,6 +401,7 @@ def bars_paper(base: dict[str, Any], out: Path, workers: int | None = None,
             "total_energy_relative_error": row.get("total_energy_relative_error"),
             "energy_imbalance": row.get("energy_imbalance"),
             "surviving_fraction_1d": readings.surviving_fraction(variant, 1) if variant else None,
+            "directory": f"runs/{row['run']}",  # (the run's outputs, under OUT)
         })
     return write_results(out, paths, table, BARS_KEYS, BARS_HEAD)
 
