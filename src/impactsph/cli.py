@@ -183,6 +183,15 @@ def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Pat
 INTERRUPTED = 130
 
 
+def _study_interrupted(out: Path) -> None:
+    """The one line of a sweep, lab or paper stopped by Ctrl-C (exit code 130): what is kept
+    and how to go on (it printed Dask's notices only)."""
+    _say(f"interrupted: the finished runs are kept in {out}/runs; the same command goes on, "
+         f"reusing them and continuing each unfinished run from its checkpoint where it has "
+         f"one")
+    raise typer.Exit(INTERRUPTED)
+
+
 def _say(message: str) -> None:
     """One line on stderr, printed as written."""
     message = "".join(ch if ch.isprintable() else ascii(ch)[1:-1] for ch in message)
@@ -308,11 +317,13 @@ def sweep(
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
         c = load_case(case, set_ or [])
-        result = run_sweep(case, grid, out or Path("runs") / f"{c.name}-sweep",
-                           scheduler=scheduler, workers=workers, overrides=set_ or [],
-                           threshold=threshold, metrics=metric or [])
+        target = out or Path("runs") / f"{c.name}-sweep"
+        result = run_sweep(case, grid, target, scheduler=scheduler, workers=workers,
+                           overrides=set_ or [], threshold=threshold, metrics=metric or [])
     except CaseError as exc:
         _fail(str(exc))
+    except KeyboardInterrupt:
+        _study_interrupted(target)
     problem = get_problem(c.analysis)
     cols = [*result["columns"], "run", "status", "kinetic_energy_ratio_final",
             *problem.table_keys(c), *[m for m in result["metrics"]
@@ -356,6 +367,8 @@ def lab(
                        extra=set_ or [], report_only=report_only)
     except (CaseError, ValueError) as exc:
         _fail(str(exc).splitlines()[0])
+    except KeyboardInterrupt:
+        _study_interrupted(out)
     typer.echo((out / "lab.md").read_text())
     failed = [f"{r['problem']} / {r['scheme']}: {r['status']}" for r in rows
               if r.get("status") not in ("finished", "ok", None)]
@@ -384,6 +397,8 @@ def paper(
         result = paper_figures(case, out, workers=workers, scheduler=scheduler)
     except (CaseError, ValueError) as exc:
         _fail(str(exc))
+    except KeyboardInterrupt:
+        _study_interrupted(out)
     if (out / "table.md").is_file():
         typer.echo((out / "table.md").read_text())
     for fig in result["figures"]:
