@@ -190,3 +190,26 @@ def test_plot_says_when_a_run_it_draws_did_not_finish(runs, tmp_path):
     res = runner.invoke(app, ["animate", str(run), "--fps", "0"])
     assert res.exit_code == 2 and "error: --fps 0: a number of frames per second > 0" in \
         res.output
+
+
+def test_side_by_side_shapes_are_drawn_at_one_scale(tmp_path, monkeypatch):
+    """Two deformed shapes side by side (the paper's Figs 11 and 13) at the same millimetres
+    per pixel: with only y shared each panel's width set its own scale, 12.8 against 14.3
+    px/mm, which exaggerated the AV-against-AC length difference (an audit, 2026-12-08)."""
+    import numpy as np
+
+    import impactsph.plotting as plotting
+
+    rng = np.random.default_rng(0)
+    runs = [{"label": "A", "x": np.c_[rng.uniform(-5, 5, 300), rng.uniform(0, 20, 300)] * 1e-3},
+            {"label": "B", "x": np.c_[rng.uniform(-8, 8, 300), rng.uniform(0, 18, 300)] * 1e-3}]
+    drawn = {}
+    save = plotting.save_figure
+    monkeypatch.setattr(plotting, "save_figure",
+                        lambda fig, path: drawn.setdefault("fig", fig) and save(fig, path))
+    plotting.shapes_figure(runs, tmp_path / "shapes.png", "t", separate=True)
+    fig = drawn["fig"]
+    fig.canvas.draw()
+    scales = [(ax.get_window_extent().width / np.ptp(ax.get_xlim()),
+               ax.get_window_extent().height / np.ptp(ax.get_ylim())) for ax in fig.axes]
+    assert np.allclose(scales, scales[0], rtol=1e-9)
