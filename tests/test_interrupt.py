@@ -634,3 +634,21 @@ def test_a_restart_into_another_runs_directory_is_refused(checkpoint, tmp_path):
     own = checkpoint.parent
     code, line = restart_line(checkpoint, own, "time.end=2.1e-6")
     assert code == 0, line
+
+
+def test_a_restarts_estimate_counts_the_steps_left(checkpoint, tmp_path):
+    """The run time of a restart is estimated from its checkpoint's time (it was estimated
+    from t = 0, an audit, 2026-12-08)."""
+    from impactsph.preflight import estimate
+
+    res = runner.invoke(app, ["run", "bars", "--out", str(tmp_path / "r"), "--restart",
+                              str(checkpoint), "--set", "time.end=3e-6",
+                              "--set", "output.snapshot_times=[]",
+                              "--set", "output.figures=false"])
+    assert res.exit_code == 0, res.output
+    [line] = [ln for ln in res.output.splitlines() if ln.startswith("estimated run time")]
+    assert "from the checkpoint's t = 2e-06 s" in line
+    case = load_case("bars", ["time.end=3e-6"])
+    whole, left = estimate(case, [101, 101]), estimate(case, [101, 101], start=2e-6)
+    assert left.steps == pytest.approx(whole.steps / 3, abs=1)
+    assert left.seconds < whole.seconds and left.memory == whole.memory

@@ -214,6 +214,13 @@ def verify_checkpoint(path: Path | str, case: Any = None) -> None:
                                 f"only (a later time.end extends the run)")
 
 
+def checkpoint_time(path: Path | str) -> float:
+    """The simulated time (s) a checkpoint (verified: :func:`verify_checkpoint`) was
+    written at."""
+    with h5py.File(path, "r") as f:
+        return float(f.attrs["time"])
+
+
 def _stored_case(f: h5py.File) -> Any:
     """The checkpoint's case, validated.  A checkpoint written before 0.3 has no
     ``added_mass``: that version carried a tip mass in the particle masses, so its tip masses

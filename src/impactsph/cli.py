@@ -119,11 +119,13 @@ def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Pat
         # what is refused without building anything, before the preflight's lines: the
         # output directory and the checkpoint (run_case checks both again)
         check_out(out, "overwrite" if overwrite else "refuse", restart is not None, c)
+        start = 0.0
         if restart is not None:
-            from .checkpoint import verify_checkpoint  # (h5py: only for a restart)
+            from .checkpoint import checkpoint_time, verify_checkpoint  # (h5py: a restart's)
 
             verify_checkpoint(restart, c)
-        before_run(c, quiet=quiet)  # estimates and warnings; CaseError on a refusal
+            start = checkpoint_time(restart)
+        before_run(c, quiet=quiet, start=start)  # estimates, warnings; CaseError: a refusal
     except (CaseError, OutputError) as exc:
         _fail(str(exc))
     progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(),

@@ -160,6 +160,9 @@ class Estimate:
     state_on_gpu: bool = False  #: whether the run's state stays on the GPU
     #: the particles' numbering where it matters (:func:`order_line`), else empty
     order_line: str = ""
+    #: s, where the steps start: a restart's checkpoint time (``steps`` and ``seconds`` are
+    #: then those left to ``time.end``)
+    start: float = 0.0
 
     @property
     def total(self) -> int:
@@ -184,7 +187,9 @@ class Estimate:
             + ("two runs, the case's and its reference_viscosity's, each " if self.runs > 1
                else "")
             + f"{self.steps:,} step{'' if self.steps == 1 else 's'} of "
-            f"dt = {self.dt:.3g} s by {self.dt_source}, {self.pairs_per_particle:.3g} pairs per "
+            f"dt = {self.dt:.3g} s by {self.dt_source}"
+            + (f" from the checkpoint's t = {self.start:.6g} s" if self.start > 0.0 else "")
+            + f", {self.pairs_per_particle:.3g} pairs per "
             f"particle, "
             f"{self.pair_rate:.3g} pairs/s {self.pair_rate_source}; an estimate, compilation "
             f"excluded)",
@@ -668,7 +673,8 @@ def state_kept(case: Case) -> int:
 
 
 def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None = None,
-             ghosts: int = 0, cells: float = 0.0, table_bytes: int = 0) -> Estimate:
+             ghosts: int = 0, cells: float = 0.0, table_bytes: int = 0,
+             start: float = 0.0) -> Estimate:
     """Memory and run time of the case with ``counts`` particles per body; the pair
     evaluations per particle measured at t = 0 (:func:`particle_checks`) if given, else those
     of a full lattice; the pair rate of the device the run will use (:func:`device_plan`).
@@ -712,6 +718,8 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
         snapshots=len(case.output.snapshot_times),
         history_values=history_values(case, steps), gpu_state=plan.resident)
     runs = 1 if reference_run(case) is None else 2
+    if start > 0.0:  # a restart: the steps left (its memory holds the whole history still)
+        steps = max(0, math.ceil((case.time.end - start) / dt * (1 - 1e-12)))
     # the reference run's arrays are allocated while the run's are still held
     memory = BASE_MEMORY + runs * (memory - BASE_MEMORY)
     rate, source = pair_rate(plan.device, dim, stretch=_stretches(case))
@@ -728,7 +736,7 @@ def estimate(case: Case, counts: list[int], *, pairs_per_particle: float | None 
                     steps=steps, pair_rate=rate, pair_rate_source=source, seconds=seconds,
                     runs=runs, dt_source="eq 26" if dt >= initial_time_step(case, cfl_only=True)
                     else "the hourglass penalty's limit", device_line=plan.line,
-                    state_on_gpu=plan.resident, order_line=order_line(case, n),
+                    state_on_gpu=plan.resident, order_line=order_line(case, n), start=start,
                     **({} if device is None else {"device_memory": device[0],
                                                   "device_available": device[1],
                                                   "device_name": device[2]}))
@@ -1216,7 +1224,7 @@ def particle_checks(case: Case, problem: Any) -> tuple[list[Finding], np.ndarray
 
 # -- the whole check ---------------------------------------------------------------------------
 
-def preflight(case: Case) -> Report:
+def preflight(case: Case, start: float = 0.0) -> Report:
     """Count, estimate and check a validated case (see the module docstring).  A memory
     refusal is returned as the report's only error, before any particle is placed; the
     other checks build the particles (:func:`impactsph.problem.build_problem`, which raises
@@ -1234,7 +1242,7 @@ def preflight(case: Case) -> Report:
     n = problem.state.n
     est = estimate(case, counts, pairs_per_particle=float(pairs.sum()) / max(n, 1),
                    ghosts=ghosts, cells=grid_cells(case, problem.state.position),
-                   table_bytes=int(problem.table.nbytes))
+                   table_bytes=int(problem.table.nbytes), start=start)
     refusal = memory_check(case, est) or device_memory_check(case, est)
     findings = [*([refusal] if refusal else []), *particle_findings, *findings,
                 *_steps_check(case, est)]
@@ -1242,10 +1250,11 @@ def preflight(case: Case) -> Report:
     return Report(est, findings)
 
 
-def check_case(case: Case) -> Report:
-    """:func:`preflight`; raise :class:`~impactsph.errors.CaseError` with the first error's
-    line (without its ``error: ``) if there is one."""
-    report = preflight(case)
+def check_case(case: Case, start: float = 0.0) -> Report:
+    """:func:`preflight` (``start``: a restart's time); raise
+    :class:`~impactsph.errors.CaseError` with the first error's line (without its ``error:
+    ``) if there is one."""
+    report = preflight(case, start)
     if report.errors:
         raise CaseError(report.errors[0].message)
     return report
@@ -1256,11 +1265,12 @@ def _stderr(line: str) -> None:
 
 
 def before_run(case: Case, quiet: bool = False,
-               echo: Callable[[str], None] = _stderr) -> Report:
+               echo: Callable[[str], None] = _stderr, start: float = 0.0) -> Report:
     """What ``impactsph run`` does first: :func:`check_case`, its lines to ``echo`` (stderr;
     the warnings only if ``quiet``), then the :func:`compile_notice` if the kernels are not
-    cached."""
-    report = check_case(case)
+    cached.  ``start``: a restart's checkpoint time, from which the run time is estimated
+    (it was estimated from t = 0)."""
+    report = check_case(case, start)
     for line in [f.line() for f in report.findings] if quiet else report.lines():
         echo(line)
     notice = compile_notice(case)
