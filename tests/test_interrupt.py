@@ -630,9 +630,12 @@ def test_a_restart_into_another_runs_directory_is_refused(checkpoint, tmp_path):
     (mine / "notes.txt").write_text("mine\n")
     code, line = restart_line(checkpoint, mine, "time.end=3e-6")
     assert code == 2 and "holds files but no run (no case.json)" in line, line
-    # its own run's directory, continued twice
-    own = checkpoint.parent
-    code, line = restart_line(checkpoint, own, "time.end=2.1e-6")
+    # its own run's directory (a copy: the module's checkpoint stays for the other tests)
+    import shutil
+
+    own = tmp_path / "own"
+    shutil.copytree(checkpoint.parent, own)
+    code, line = restart_line(own / "checkpoint.h5", own, "time.end=2.1e-6")
     assert code == 0, line
 
 
