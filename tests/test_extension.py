@@ -293,6 +293,7 @@ def test_a_plugin_imported_by_the_caller_is_not_imported_again(tmp_path, monkeyp
     register its models twice (refused without ``replace=True``)."""
     import importlib
 
+    from impactsph import loading
     from impactsph.loading import load_plugins
 
     (tmp_path / "plug_own.py").write_text("RUNS = []\nRUNS.append(1)\n")
@@ -300,15 +301,33 @@ def test_a_plugin_imported_by_the_caller_is_not_imported_again(tmp_path, monkeyp
     module = importlib.import_module("plug_own")
     load_plugins([str(tmp_path / "plug_own.py")])
     assert sys.modules["plug_own"] is module and module.RUNS == [1]
-    (tmp_path / "json.py").write_text("X = 1\n")  # a stem that is another module's name
-    with pytest.raises(CaseError, match=r"^plugins\.0 = '.*json\.py': imported as the module "
-                                        r"'json', which is another module's name \(.*json"):
-        load_plugins([str(tmp_path / "json.py")])
+    # a stem that is another module's name, or a second file of one stem: a name of its own
+    import json
+
+    (tmp_path / "json.py").write_text("X = 1\n")
+    (tmp_path / "b").mkdir()
+    (tmp_path / "b" / "plug_own.py").write_text("RUNS = [2]\n")
+    load_plugins([str(tmp_path / "json.py"), str(tmp_path / "b" / "plug_own.py")])
+    assert sys.modules["json"] is json  # (not replaced)
+    mine = loading._LOADED_PLUGINS[str(tmp_path / "json.py")]
+    assert mine.X == 1 and mine.__name__.startswith("impactsph_plugin_json_")
+    second = loading._LOADED_PLUGINS[str(tmp_path / "b" / "plug_own.py")]
+    assert second.RUNS == [2] and sys.modules["plug_own"] is module
 
 
 @nb.njit(inline="always", cache=True)
 def three_argument_pressure(rho, rho0, bulk_modulus):
     return bulk_modulus * (rho / rho0 - 1.0)
+
+
+@nb.njit(inline="always", cache=True)
+def pressure_with_a_default(rho, e, rho0, bulk_modulus, params, scale=1.0):
+    return scale * bulk_modulus * (rho / rho0 - 1.0)
+
+
+@nb.njit(inline="always", cache=True)
+def any_pressure(*arguments):
+    return 0.0
 
 
 class NegativeYieldParameters(Parameters):
@@ -335,6 +354,10 @@ def test_a_model_its_kernels_cannot_use_is_refused_when_registered():
                                         r"arguments; the passes call it with 5: pressure\(rho, "
                                         r"e, rho0, bulk_modulus, params\)$"):
         register(EquationOfState(name="short", pressure=three_argument_pressure))
+    # a trailing default or *args: the passes' five arguments fit (and the model registers)
+    for name, function in (("defaulted", pressure_with_a_default), ("starred", any_pressure)):
+        register(EquationOfState(name=name, pressure=function))
+        EOS.unregister(name)
     with pytest.raises(ValueError, match=r"^equation of state 'uncolumned': its parameters "
                                          r"\(factor\) have no table columns"):
         register(EquationOfState(name="uncolumned", pressure=scaled_linear_pressure,

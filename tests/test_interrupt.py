@@ -655,3 +655,30 @@ def test_a_restarts_estimate_counts_the_steps_left(checkpoint, tmp_path):
     whole, left = estimate(case, [101, 101]), estimate(case, [101, 101], start=2e-6)
     assert left.steps == pytest.approx(whole.steps / 3, abs=1)
     assert left.seconds < whole.seconds and left.memory == whole.memory
+
+
+def test_a_summary_made_while_running_counts_the_time_so_far():
+    """``summary.json`` written at a checkpoint (status running) counts the wall time of the
+    steps so far, as the checkpoint does (it said 0 s until the run call ended, a review,
+    2026-12-08); no timing is asserted, only that the time is counted."""
+    sim = Simulation(load_case("bars", ["time.end=1e-6", "output.figures=false"]))
+    seen = []
+    sim.run(callback=lambda s: seen.append(s.summary()["wall_seconds"])
+            if s.state.step == 20 else None)
+    assert len(seen) == 1 and seen[0] > 0.0
+    assert sim.summary()["wall_seconds"] == sim.record.wall_seconds  # (after the call)
+
+
+def test_a_restart_into_its_own_run_of_an_older_case_json(checkpoint, tmp_path):
+    """A run directory whose case.json an older version wrote (a field added since is not
+    in it) is still its own run's: the held case is validated before it is compared, as the
+    checkpoint's is (a review, 2026-12-08)."""
+    import shutil
+
+    own = tmp_path / "own"
+    shutil.copytree(checkpoint.parent, own)
+    record = json.loads((own / "case.json").read_text())
+    del record["case"]["contact"]["penalty_distance"]
+    (own / "case.json").write_text(json.dumps(record))
+    code, line = restart_line(own / "checkpoint.h5", own, "time.end=2.1e-6")
+    assert code == 0, line

@@ -270,3 +270,16 @@ def test_a_sweep_runs_along_its_varying_parameter_and_records_what_made_it(tmp_p
     res = runner.invoke(app, ["sweep", "bars", "--grid", "bodies.5.velocity=[1.0]",
                               "--out", str(out / "y")])
     assert res.exit_code == 2 and "error: --grid bodies.5.velocity=[1.0]: " in res.output
+
+
+def test_the_sweep_figure_takes_a_vector_beside_the_parameter_it_runs_along(tmp_path):
+    """A grid of vectors in a column other than the one drawn along: the lines are grouped
+    by it (its lists were made dict keys, and the sweep failed after all its runs, a review,
+    2026-12-08)."""
+    from impactsph.sweep import sweep_figure
+
+    table = [{"viscosity.alpha1": a, "bodies.0.velocity": v, "kinetic_energy_ratio_final": k}
+             for (a, v), k in zip([(0.3, [50.0]), (0.5, [50.0]), (0.3, [40.0]), (0.5, [40.0])],
+                                  [0.9, 0.8, 0.85, 0.75], strict=True)]
+    path = sweep_figure(table, ["viscosity.alpha1", "bodies.0.velocity"], tmp_path / "s.png")
+    assert path.stat().st_size > 10_000

@@ -278,6 +278,10 @@ def check_restart_out(out: Path | str, case: Any) -> None:
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise OutputError(errno.EEXIST, f"--out {out}: its case.json cannot be read "
                                         f"({type(exc).__name__}: {exc})") from None
+    try:  # (validated, as the checkpoint's case is: an older version's case.json lacks
+        held = validate_case(held).model_dump(mode="json")  # the fields added since)
+    except CaseError:
+        pass  # (compared as it is: a case that no longer validates differs anyway)
     differ = _differences(_comparable(case.model_dump(mode="json")), _comparable(held))
     if differ:
         raise OutputError(errno.EEXIST, f"--out {out} holds another run (its case.json "

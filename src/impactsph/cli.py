@@ -312,11 +312,12 @@ def sweep(
     and sweep.png (and sweep_KEY.png per --metric).  Each run writes into
     OUT/runs/NAME, named by its grid values.  For a problem with a sweep criterion (the bars:
     a profile free of spurious oscillation), name the smallest value of the first parameter
-    that meets it."""
+    that varies that meets it."""
     from .problems.registry import get_problem
     from .sweep import sweep as run_sweep
 
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    target = out or Path("runs")  # (its name once the case is read)
     try:
         c = load_case(case, set_ or [])
         target = out or Path("runs") / f"{c.name}-sweep"

@@ -314,7 +314,8 @@ def _plugin_module(path: Path, where: str) -> Any:
     file and stores its module's name, so a file imported under another name in another
     process (until 2026-12-08, a name from its place in the list) found its cached code naming
     a module that did not exist.  A stem that names another module (imported, or found on the
-    path: ``json.py``) is refused, naming both."""
+    path: ``json.py``, a second ``my_models.py`` in another folder) gets a name of its own
+    made from the file's path."""
     import importlib.util
     import sys
 
@@ -338,8 +339,12 @@ def _plugin_module(path: Path, where: str) -> Any:
         except (ImportError, ValueError):
             other = None
     if other is not None and file_of(other) != target:
-        raise CaseError(f"{where}: imported as the module {name!r}, which is another "
-                        f"module's name ({file_of(other) or 'built in'}); rename the file")
+        # the stem names another module (json.py; a second my_models.py in another folder;
+        # a folder of that name on the path): a name of its own, the same for this file in
+        # every process where the stem is taken
+        import hashlib
+
+        name = f"impactsph_plugin_{name}_{hashlib.sha256(str(target).encode()).hexdigest()[:12]}"
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module

@@ -1336,8 +1336,8 @@ def after_run(case: Case, summary: dict[str, Any], restarted: bool = False,
               echo: Callable[[str], None] = _stderr) -> list[str]:
     """Warnings about a finished run, one line each to ``echo`` (stderr) and returned, and
     the pair rate it measured kept for later estimates (:func:`record_pair_rate`, its
-    compiling left out; not for a run ``restarted`` from a checkpoint, whose summary counts
-    the pairs since t = 0 over the wall time since the restart).  Warns when more than
+    compiling left out; not for a run ``restarted`` from a checkpoint, whose pieces may have
+    run on other machines or under other loads).  Warns when more than
     :data:`KINETIC_ENERGY_REMAINING` of the initial kinetic energy remains at the end time in
     a problem that is expected to dissipate it (:func:`keeps_kinetic_energy`), unless the
     case's analysis measures the impact part-way by design

@@ -759,8 +759,10 @@ class Simulation:
 
     # -- summary -------------------------------------------------------------------------
     def summary(self) -> dict[str, float | int | str | None]:
-        """Run-wide numbers: size, speed, energy and momentum conservation."""
-        h = self.record.history
+        """Run-wide numbers: size, speed, energy and momentum conservation (during a
+        ``run`` call, its time so far counted: :meth:`record_so_far`)."""
+        record = self.record_so_far()
+        h = record.history
         ke = np.array([r["kinetic_energy"] for r in h])
         # the energy the driven regions' supports put in is not an error
         tot = np.array([r["total_energy"] - r.get("external_work", 0.0) for r in h])
@@ -776,16 +778,16 @@ class Simulation:
         scale = e0  # what the energy errors are relative to
         if "external_work" in h[0]:  # driven regions: the energy they put in counts too
             scale = max(abs(e0), float(np.max(np.abs([r["external_work"] for r in h]))))
-        wall = self.record.wall_seconds
-        stepping = wall - self.record.compile_seconds
+        wall = record.wall_seconds
+        stepping = wall - record.compile_seconds
         return {
             "n_particles": self.state.n,
             "dimension": self.state.dim,
             "n_steps": self.state.step,
             "t_end": self.state.time,
             "wall_seconds": wall,
-            "compile_seconds": self.record.compile_seconds,
-            "setup_seconds": self.record.setup_seconds,
+            "compile_seconds": record.compile_seconds,
+            "setup_seconds": record.setup_seconds,
             "pair_evaluations": self.solver.pair_evaluations,
             # the steps' own rate: numba's compiling and loading of code left out
             "pair_evaluations_per_second": self.solver.pair_evaluations / stepping
@@ -795,9 +797,9 @@ class Simulation:
             # the GPU memory of a run with its state there (its arrays, each once)
             "device_memory_bytes": (sum(size for size, _ in self._resident.allocated().values())
                                     if self._resident is not None else None),
-            "thread_changes": [list(c) for c in self.record.thread_changes],
-            "thread_trials": list(self.record.thread_trials),
-            "restarts": list(self.record.restarts),
+            "thread_changes": [list(c) for c in record.thread_changes],
+            "thread_trials": list(record.thread_trials),
+            "restarts": list(record.restarts),
             "wall_constraint_events": self.integrator.constraint_events,
             "kinetic_energy_initial": float(ke[0]),
             "kinetic_energy_final": float(ke[-1]),
@@ -820,7 +822,7 @@ class Simulation:
             # correctly rounded (math.fsum): a BLAS dot's rounding depends on the arrays'
             # alignment in memory, so two runs of the same case could differ in the last bit
             "plastic_work": math.fsum(self.state.mass * self.state.plastic_work),
-            "failure": self.record.failure,
+            "failure": record.failure,
             "probes": {name: {"index": i,
                               **self.problem.input_number(i),
                               "initial_position": self.state.initial_position[i].tolist()}

@@ -9,7 +9,7 @@ A grid is given as ``KEY=V1,V2,...``; several grids make a Cartesian product, an
 The table's columns and the finding are the case's problem's (:mod:`impactsph.problems`):
 the kinetic energy kept, the problem's own columns, the conservation errors and the cost; and,
 for a problem with a sweep criterion (the bars: a profile free of spurious oscillation), the
-smallest value of the first grid parameter that meets it.
+smallest value of the first grid parameter that varies that meets it.
 
 Each run is a task on a Dask cluster: a local one (one single-threaded worker process per
 core) by default, or an existing one given its scheduler address.  A run that fails is
@@ -222,8 +222,9 @@ def run_one(case_data: dict[str, Any], overrides: list[str], out: str,
                 and done["case"] != case.model_dump(mode="json")):
             from .checkpoint import _comparable, _differences
 
-            differ = _differences(_comparable(case.model_dump(mode="json")),
-                                  _comparable(done["case"])) or ["its outputs"]
+            differ = (_differences(_comparable(case.model_dump(mode="json")),
+                                   _comparable(done["case"]))
+                      or _differences(case.model_dump(mode="json"), done["case"]))
             log.warning("%s: held a run of another case (it differs in %s): run again, its "
                         "outputs replaced", out, ", ".join(differ[:4]))
             if_exists = "overwrite"
@@ -455,7 +456,8 @@ def _metric_hint(out: Path, table: list[dict[str, Any]], key: str) -> str:
 def sweep_figure(table: list[dict[str, Any]], columns: list[str], path: Path,
                  criterion: SweepCriterion | None = None, threshold: float | None = None,
                  panels: list[tuple[str, str]] | None = None) -> Path:
-    """Kinetic energy kept against the first grid parameter, one line per value of the
+    """Kinetic energy kept against the first of ``columns`` (the sweep puts the first that
+    varies first), one line per value of the
     others, and beside it the column of the problem's sweep ``criterion`` (if any) with its
     ``threshold`` (the criterion's own when None); or, given ``panels`` (column, y label),
     those columns instead."""
@@ -473,9 +475,10 @@ def sweep_figure(table: list[dict[str, Any]], columns: list[str], path: Path,
     fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4), squeeze=False)
     axes = list(axes[0])
     groups: dict[tuple, list[dict[str, Any]]] = {}
-    for r in table:
-        groups.setdefault(tuple(r.get(c) for c in others), []).append(r)
-    for key, rs in groups.items():
+    for r in table:  # (keyed by the values' JSON: a grid value may be a list)
+        groups.setdefault(json.dumps([r.get(c) for c in others]), []).append(r)
+    for key_text, rs in groups.items():
+        key = json.loads(key_text)
         rs = sorted(rs, key=lambda r: (not _is_number(r[first]), r[first]
                                        if _is_number(r[first]) else json.dumps(r[first])))
         # a value that is not a number (a list, a name) is placed as a category

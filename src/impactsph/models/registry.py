@@ -28,6 +28,7 @@ registered from user code, before the case is loaded, works in a case file like 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, Generic, TypeVar
@@ -238,10 +239,11 @@ class Registry(Generic[M]):
                 raise TypeError(f"{self.kind} {model.name!r}: {attribute} = {function!r} is "
                                 f"not compiled by numba; decorate it with "
                                 f"{INLINED.get(attribute, '@numba.njit(cache=True)')}")
-            taken = _positional_count(function.py_func)
-            if taken != len(arguments):
+            least, most = _positional_counts(function.py_func)
+            if not least <= len(arguments) <= most:
+                taken = str(least) if least == most else f"{least} to {most}"
                 raise TypeError(f"{self.kind} {model.name!r}: {attribute} takes {taken} "
-                                f"argument{'s' * (taken != 1)}; the passes call it with "
+                                f"argument{'s' * (taken != '1')}; the passes call it with "
                                 f"{len(arguments)}: {attribute}({', '.join(arguments)})")
         _check_columns(self.kind, model)
         before = self.models.get(model.name)
@@ -336,14 +338,17 @@ INLINED = {name: "@numba.njit(inline='always', cache=True) (the passes inline it
 REGISTRY_CHECKS: list[Callable[[], None]] = []
 
 
-def _positional_count(function: Callable[..., Any]) -> int:
-    """How many positional arguments a Python function takes (-1 with ``*args``: any)."""
+def _positional_counts(function: Callable[..., Any]) -> tuple[int, float]:
+    """The fewest and the most positional arguments a Python function takes (those without
+    a default; all of them, or infinity with ``*args``)."""
     import inspect
 
-    parameters = inspect.signature(function).parameters.values()
-    if any(p.kind is p.VAR_POSITIONAL for p in parameters):
-        return -1
-    return sum(p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) for p in parameters)
+    parameters = list(inspect.signature(function).parameters.values())
+    positional = [p for p in parameters if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    least = sum(p.default is p.empty for p in positional)
+    most = (math.inf if any(p.kind is p.VAR_POSITIONAL for p in parameters)
+            else len(positional))
+    return least, most
 
 
 def _check_columns(kind: str, model: Any) -> None:
