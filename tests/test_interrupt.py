@@ -682,3 +682,27 @@ def test_a_restart_into_its_own_run_of_an_older_case_json(checkpoint, tmp_path):
     (own / "case.json").write_text(json.dumps(record))
     code, line = restart_line(own / "checkpoint.h5", own, "time.end=2.1e-6")
     assert code == 0, line
+
+
+def test_a_checkpoint_is_hashed_once_a_process_while_it_is_unchanged(checkpoint, tmp_path,
+                                                                    monkeypatch):
+    """``impactsph run --restart`` verifies before its preflight and ``run_case`` again: the
+    second skips the SHA-256 of an unchanged file (a review, 2026-12-08); a changed file is
+    hashed again, and refused."""
+    import shutil
+
+    import impactsph.checkpoint as ck
+
+    copy = tmp_path / "c.h5"
+    shutil.copy(checkpoint, copy)
+    calls = []
+    real = ck.digest
+    monkeypatch.setattr(ck, "digest", lambda f: calls.append(1) or real(f))
+    verify_checkpoint(copy)
+    verify_checkpoint(copy)
+    assert len(calls) == 1
+    with h5py.File(copy, "a") as f:
+        f.attrs["time"] = 1.5e-6
+    with pytest.raises(CaseError, match="corrupted"):
+        verify_checkpoint(copy)
+    assert len(calls) == 2

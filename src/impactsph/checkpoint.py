@@ -173,6 +173,17 @@ def check_restart_path(path: Path | str) -> None:
                                                  else "does not exist"))
 
 
+#: the checksums this process has verified, by file (:func:`_file_key`)
+_VERIFIED: dict[tuple[str, int, int, int], str] = {}
+
+
+def _file_key(path: Path) -> tuple[str, int, int, int]:
+    """A file's identity and version: its resolved path, inode, size and modification time
+    (ns); a checkpoint written again (renamed into place) is a new key."""
+    stat = path.stat()
+    return (str(path.resolve()), stat.st_ino, stat.st_size, stat.st_mtime_ns)
+
+
 def verify_checkpoint(path: Path | str, case: Any = None) -> None:
     """Refuse (:class:`CaseError`, one line naming the file) a checkpoint that is missing,
     unreadable, truncated, corrupted (its checksum does not match), not impactsph's, or, with
@@ -188,7 +199,11 @@ def verify_checkpoint(path: Path | str, case: Any = None) -> None:
     with f:
         try:
             form, stored = f.attrs.get("format"), f.attrs.get(CHECKSUM)
-            actual = digest(f) if form == FORMAT else None
+            # (a file this process has verified already, unchanged since: impactsph run
+            # verifies before its preflight, run_case again; a resumed sweep's run likewise)
+            seen = _file_key(path)
+            actual = (_VERIFIED.get(seen) if stored is not None else None) \
+                or (digest(f) if form == FORMAT else None)
             time = float(f.attrs["time"]) if form == FORMAT else None
         except Exception as exc:  # noqa: BLE001 (h5py reports damage in many ways)
             raise CaseError(f"--restart {path}: corrupted: cannot be read ({exc}); it cannot "
@@ -202,6 +217,8 @@ def verify_checkpoint(path: Path | str, case: Any = None) -> None:
             raise CaseError(f"--restart {path}: corrupted: its contents do not match the "
                             f"checksum it was written with (SHA-256 {actual[:12]}..., stored "
                             f"{str(stored)[:12]}...); it cannot be used")
+        else:
+            _VERIFIED[seen] = actual
         if case is not None:
             try:
                 stored_case = _stored_case(f)
