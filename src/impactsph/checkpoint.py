@@ -184,11 +184,11 @@ def _file_key(path: Path) -> tuple[str, int, int, int]:
     return (str(path.resolve()), stat.st_ino, stat.st_size, stat.st_mtime_ns)
 
 
-def verify_checkpoint(path: Path | str, case: Any = None) -> None:
+def verify_checkpoint(path: Path | str, case: Any = None) -> float:
     """Refuse (:class:`CaseError`, one line naming the file) a checkpoint that is missing,
     unreadable, truncated, corrupted (its checksum does not match), not impactsph's, or, with
     ``case``, of another case (it may differ only in ``time.end`` and ``output``).  Reads the
-    whole file; nothing is built."""
+    whole file; nothing is built.  Returns the checkpoint's time (s)."""
     path = Path(path)
     check_restart_path(path)
     try:
@@ -229,13 +229,7 @@ def verify_checkpoint(path: Path | str, case: Any = None) -> None:
                 raise CaseError(f"--restart {path}: time.end = {case.time.end:g} is before the "
                                 f"checkpoint's time, t = {time:g} s; a restart runs forward "
                                 f"only (a later time.end extends the run)")
-
-
-def checkpoint_time(path: Path | str) -> float:
-    """The simulated time (s) a checkpoint (verified: :func:`verify_checkpoint`) was
-    written at."""
-    with h5py.File(path, "r") as f:
-        return float(f.attrs["time"])
+    return time
 
 
 def _stored_case(f: h5py.File) -> Any:
@@ -267,8 +261,8 @@ def _shown(differ: list[str]) -> str:
 
 
 def _check_same_case(path: Path, case: Any, stored: Any) -> None:
-    differ = _differences(_comparable(case.model_dump(mode="json")),
-                          _comparable(stored.model_dump(mode="json")))
+    differ = case_differences(_comparable(case.model_dump(mode="json")),
+                              _comparable(stored.model_dump(mode="json")))
     if differ:
         raise CaseError(f"--restart {path}: the case differs from the checkpoint's in "
                         f"{_shown(differ)} (only time.end, compute.threads and output but its "
@@ -299,19 +293,19 @@ def check_restart_out(out: Path | str, case: Any) -> None:
         held = validate_case(held).model_dump(mode="json")  # the fields added since)
     except CaseError:
         pass  # (compared as it is: a case that no longer validates differs anyway)
-    differ = _differences(_comparable(case.model_dump(mode="json")), _comparable(held))
+    differ = case_differences(_comparable(case.model_dump(mode="json")), _comparable(held))
     if differ:
         raise OutputError(errno.EEXIST, f"--out {out} holds another run (its case.json "
                                         f"differs in {_shown(differ)}): a restart writes into "
                                         f"its own run's directory or an empty one")
 
 
-def _differences(a: Any, b: Any, where: str = "") -> list[str]:
+def case_differences(a: Any, b: Any, where: str = "") -> list[str]:
     """The dotted keys where two dumped cases differ (a list or a value as a whole)."""
     if isinstance(a, dict) and isinstance(b, dict):
         out: list[str] = []
         for key in sorted(set(a) | set(b), key=str):
-            out += _differences(a.get(key), b.get(key), f"{where}.{key}" if where else key)
+            out += case_differences(a.get(key), b.get(key), f"{where}.{key}" if where else key)
         return out
     return [] if a == b else [where]
 

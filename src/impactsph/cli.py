@@ -121,10 +121,9 @@ def _run(case: str, sets: list[str], out: Path | None, quiet: bool, restart: Pat
         check_out(out, "overwrite" if overwrite else "refuse", restart is not None, c)
         start = 0.0
         if restart is not None:
-            from .checkpoint import checkpoint_time, verify_checkpoint  # (h5py: a restart's)
+            from .checkpoint import verify_checkpoint  # (h5py: only for a restart)
 
-            verify_checkpoint(restart, c)
-            start = checkpoint_time(restart)
+            start = verify_checkpoint(restart, c)
         before_run(c, quiet=quiet, start=start)  # estimates, warnings; CaseError: a refusal
     except (CaseError, OutputError) as exc:
         _fail(str(exc))

@@ -306,7 +306,7 @@ def _format_error(exc: ValidationError) -> str:
 _LOADED_PLUGINS: dict[str, Any] = {}
 
 
-def _plugin_module(path: Path, where: str) -> Any:
+def _plugin_module(path: Path) -> Any:
     """Import the plugin file ``path`` as the module its stem names (``my_models.py``:
     ``my_models``), as ``import my_models`` beside it would, or return that module where it
     is imported already (by a case's ``plugins`` or by the caller: importing it again would
@@ -372,7 +372,7 @@ def load_plugins(plugins: Any) -> None:
                 path = Path(os.path.expanduser(plugin))
                 if not path.is_file():
                     raise CaseError(f"plugins.{k} = {plugin!r}: file does not exist")
-                module = _plugin_module(path, f"plugins.{k} = {plugin!r}")
+                module = _plugin_module(path)
             else:
                 module = importlib.import_module(plugin)
         except CaseError:

@@ -730,11 +730,8 @@ class Simulation:
         finally:
             if resident is not None and not resident.host_current:  # the state back
                 self._sync()
-            self.record.wall_seconds += _time.perf_counter() - start
+            self._add_running(self.record)
             compiling.__exit__()
-            self.record.compile_seconds += compiling.seconds
-            self.record.thread_changes.extend(governor.changes[changes:])
-            self.record.thread_trials.extend(governor.trials[trials:])
             self._running = None
             governor.close()
         return self.record
@@ -748,14 +745,20 @@ class Simulation:
             return self.record
         import copy
 
-        start, compiling, governor, changes, trials = self._running
         record = copy.copy(self.record)
+        record.thread_changes = list(record.thread_changes)
+        record.thread_trials = list(record.thread_trials)
+        self._add_running(record)
+        return record
+
+    def _add_running(self, record: RunRecord) -> None:
+        """Add the ``run`` call going now to ``record``: its wall and compile time so far, its
+        thread changes and trials (at its end, to :attr:`record` itself)."""
+        start, compiling, governor, changes, trials = self._running
         record.wall_seconds += _time.perf_counter() - start
         record.compile_seconds += compiling.seconds
-        record.thread_changes = [*record.thread_changes, *governor.changes[changes:]]
-        record.thread_trials = [*record.thread_trials, *governor.trials[trials:]]
-        record.restarts = list(record.restarts)
-        return record
+        record.thread_changes.extend(governor.changes[changes:])
+        record.thread_trials.extend(governor.trials[trials:])
 
     # -- summary -------------------------------------------------------------------------
     def summary(self) -> dict[str, float | int | str | None]:

@@ -220,11 +220,9 @@ def run_one(case_data: dict[str, Any], overrides: list[str], out: str,
         restart = _checkpoint_to_continue(Path(out), case, status)
         if (restart is None and done.get("case") is not None
                 and done["case"] != case.model_dump(mode="json")):
-            from .checkpoint import _comparable, _differences
+            from .checkpoint import case_differences
 
-            differ = (_differences(_comparable(case.model_dump(mode="json")),
-                                   _comparable(done["case"]))
-                      or _differences(case.model_dump(mode="json"), done["case"]))
+            differ = case_differences(case.model_dump(mode="json"), done["case"])
             log.warning("%s: held a run of another case (it differs in %s): run again, its "
                         "outputs replaced", out, ", ".join(differ[:4]))
             if_exists = "overwrite"
